@@ -1,0 +1,33 @@
+"""Errors LangTraj raises for bad input; the CLI prints them as one line and exits non-zero."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class LangTrajError(Exception):
+    """Base class of every error the CLI reports as one clear line instead of a traceback."""
+
+
+class InputError(LangTrajError):
+    """Bad input data: names the file and, where known, the record and field that are wrong."""
+
+    def __init__(self, message: str, *, path: str | Path | None = None, where: str | None = None):
+        self.path = None if path is None else str(path)
+        self.where = where
+        self.detail = message
+        parts = [p for p in (self.path, where, message) if p]
+        super().__init__(": ".join(parts))
+
+    def located(self, *, path: str | Path | None = None, where: str | None = None) -> InputError:
+        """The same error with a file and/or location prepended (keeps existing ones)."""
+        joined_where = ", ".join(w for w in (where, self.where) if w) or None
+        return InputError(self.detail, path=self.path or path, where=joined_where)
+
+
+class ScenarioValidationError(InputError):
+    """A Scenario whose arrays break the data contract (shapes, dtypes, NaN positions, bad indices)."""
+
+    def located(self, *, path: str | Path | None = None, where: str | None = None) -> ScenarioValidationError:
+        joined_where = ", ".join(w for w in (where, self.where) if w) or None
+        return ScenarioValidationError(self.detail, path=self.path or path, where=joined_where)
