@@ -28,7 +28,9 @@ def _array(value: Any, dtype: Any, name: str, ndim: int | None = None) -> np.nda
     try:
         arr = np.asarray(value, dtype=dtype)
     except (TypeError, ValueError) as exc:
-        raise ScenarioValidationError(f"cannot convert to {np.dtype(dtype).name}: {exc}", where=name) from None
+        raise ScenarioValidationError(
+            f"cannot convert to {np.dtype(dtype).name}: {exc}", where=name
+        ) from None
     if ndim is not None and arr.ndim != ndim:
         raise ScenarioValidationError(f"expected {ndim} dimensions, got shape {arr.shape}", where=name)
     return arr
@@ -87,9 +89,10 @@ class Agents:
             )
         if len(types) != num:
             raise ScenarioValidationError(f"{len(types)} types for {num} agents", where="agents.types")
-        if len(np.unique(ids)) != num:
-            dup = ids[np.unique(ids, return_counts=True)[1] > 1] if num else ids
-            raise ScenarioValidationError(f"duplicate track ids {sorted(set(dup.tolist()))[:5]}", where="agents.ids")
+        unique_ids, counts = np.unique(ids, return_counts=True)
+        if len(unique_ids) != num:
+            dup = unique_ids[counts > 1][:5].tolist()
+            raise ScenarioValidationError(f"duplicate track ids {dup}", where="agents.ids")
         known = np.isin(types, [t.value for t in AgentType])
         if not known.all():
             raise ScenarioValidationError(f"unknown agent type {int(types[~known][0])}", where="agents.types")
@@ -108,9 +111,14 @@ class Agents:
                 where=f"track {int(ids[a])}, step {int(t)}",
             )
         for name, value in (
-            ("ids", ids), ("types", types), ("states", states), ("valid", valid),
-            ("tracks_to_predict", ttp), ("prediction_difficulty", diff), ("objects_of_interest", ooi),
-        ):  # fmt: skip
+            ("ids", ids),
+            ("types", types),
+            ("states", states),
+            ("valid", valid),
+            ("tracks_to_predict", ttp),
+            ("prediction_difficulty", diff),
+            ("objects_of_interest", ooi),
+        ):
             object.__setattr__(self, name, value)
 
     @property
@@ -294,7 +302,7 @@ class TrafficLights:
     """Per-step signal state of each controlled lane.
 
     `states[t, l]` is a `TrafficLightState` value for lane `lane_ids[l]`; `valid[t, l]` is False where
-    the source reports nothing for that lane at that step. `stop_points[l]` is where traffic on the
+    the source reports nothing for that lane at that step (the state there is UNKNOWN). `stop_points[l]` is where traffic on the
     lane stops (x, y, z).
     """
 
@@ -321,15 +329,24 @@ class TrafficLights:
             raise ScenarioValidationError("state out of range [0, 8]", where="traffic_lights.states")
         if not np.isfinite(stops).all():
             raise ScenarioValidationError("non-finite stop point", where="traffic_lights.stop_points")
-        for name, value in (("lane_ids", lane_ids), ("states", states), ("valid", valid), ("stop_points", stops)):
+        if (states[~valid] != 0).any():
+            states = np.where(valid, states, np.int8(0))
+        for name, value in (
+            ("lane_ids", lane_ids),
+            ("states", states),
+            ("valid", valid),
+            ("stop_points", stops),
+        ):
             object.__setattr__(self, name, value)
 
     @classmethod
     def empty(cls, num_steps: int) -> TrafficLights:
         return cls(
-            np.zeros(0, np.int64), np.zeros((num_steps, 0), np.int8), np.zeros((num_steps, 0), bool),
+            np.zeros(0, np.int64),
+            np.zeros((num_steps, 0), np.int8),
+            np.zeros((num_steps, 0), bool),
             np.zeros((0, 3)),
-        )  # fmt: skip
+        )
 
     @property
     def num_lanes(self) -> int:

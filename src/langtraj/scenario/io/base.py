@@ -70,7 +70,9 @@ def get_format(name: str) -> ScenarioFormat:
     try:
         return _FORMATS[name]()
     except KeyError:
-        raise InputError(f"unknown scenario format {name!r}; known: {', '.join(available_formats())}") from None
+        raise InputError(
+            f"unknown scenario format {name!r}; known: {', '.join(available_formats())}"
+        ) from None
 
 
 def detect_format(path: str | Path) -> ScenarioFormat:
@@ -90,9 +92,7 @@ def detect_format(path: str | Path) -> ScenarioFormat:
     for cls in _FORMATS.values():
         if cls.sniff(head):
             return cls()
-    raise InputError(
-        f"not a scenario file (known formats: {', '.join(available_formats())})", path=path
-    )
+    raise InputError(f"not a scenario file (known formats: {', '.join(available_formats())})", path=path)
 
 
 def format_for_output(path: str | Path, name: str | None = None) -> ScenarioFormat:

@@ -1,0 +1,1 @@
+"""The `langtraj` command: one module per verb, dispatched by `langtraj.cli.main`."""

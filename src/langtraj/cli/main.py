@@ -1,0 +1,44 @@
+"""Entry point of the `langtraj` command: parses the verb, runs it, turns errors into one line."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from langtraj import __version__
+from langtraj.cli import convert, inspect, render
+from langtraj.errors import LangTrajError
+
+VERBS = (inspect, render, convert)
+"""Each verb module has `add_parser(subparsers)` (setting `func`) and a `run(args) -> int`."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="langtraj", description="Language-conditioned multi-agent traffic simulation."
+    )
+    parser.add_argument("--version", action="version", version=f"langtraj {__version__}")
+    subparsers = parser.add_subparsers(dest="verb", required=True, metavar="VERB")
+    for verb in VERBS:
+        verb.add_parser(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command; exit status 0 on success, 2 on bad input or usage, 130 on Ctrl-C."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except LangTrajError as exc:
+        print(f"langtraj {args.verb}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"langtraj {args.verb}: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # e.g. `langtraj inspect ... | head`
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,57 @@
+"""Scenario files: format registry and the entry points every other module uses to read and write.
+
+Importing this package registers the built-in formats (WOMD TFRecord, ScenarioNet pickle).
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+from langtraj.scenario.io.base import (
+    ScenarioFormat,
+    available_formats,
+    detect_format,
+    format_for_output,
+    get_format,
+    register_format,
+)
+from langtraj.scenario.model import Scenario
+
+for _module in ("womd", "scenarionet"):
+    try:
+        importlib.import_module(f"langtraj.scenario.io.{_module}")
+    except ModuleNotFoundError as _exc:  # pragma: no cover - only while a format module is absent
+        if _exc.name != f"langtraj.scenario.io.{_module}":
+            raise
+
+
+def read_scenarios(path: str | Path) -> Iterator[Scenario]:
+    """Every scenario in `path`, streamed; the format is recognised from the file's content."""
+    path = Path(path)
+    return detect_format(path).read(path)
+
+
+def read_scenario(path: str | Path, index: int = 0) -> Scenario:
+    """The scenario at position `index` of `path`."""
+    path = Path(path)
+    return detect_format(path).read_one(path, index)
+
+
+def write_scenarios(path: str | Path, scenarios: Iterable[Scenario], format_name: str | None = None) -> int:
+    """Write `scenarios` to `path` atomically in `format_name` (default: from the suffix)."""
+    return format_for_output(path, format_name).write(Path(path), scenarios)
+
+
+__all__ = [
+    "ScenarioFormat",
+    "available_formats",
+    "detect_format",
+    "format_for_output",
+    "get_format",
+    "read_scenario",
+    "read_scenarios",
+    "register_format",
+    "write_scenarios",
+]

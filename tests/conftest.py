@@ -1,0 +1,34 @@
+"""Shared fixtures: the real scenario files in ../shared/data/real (skipped when absent) and small
+scenarios built in memory."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from scenario_builders import make_scenario
+
+from langtraj.scenario import Scenario
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+REAL_DATA_DIR = Path(os.environ.get("LANGTRAJ_REAL_DATA", REPO_ROOT.parent / "shared" / "data" / "real"))
+WOMD_FILE = "motion_data_one_scenario.tfrecord"
+
+
+@pytest.fixture(scope="session")
+def real_data_dir() -> Path:
+    """The folder of real Waymo / nuScenes files; the test is skipped when it is absent."""
+    if not (REAL_DATA_DIR / WOMD_FILE).is_file():
+        pytest.skip(f"real scenario files not found in {REAL_DATA_DIR} (set LANGTRAJ_REAL_DATA to override)")
+    return REAL_DATA_DIR
+
+
+@pytest.fixture(scope="session")
+def real_files(real_data_dir: Path) -> list[Path]:
+    return sorted(p for p in real_data_dir.iterdir() if p.suffix in (".tfrecord", ".pkl"))
+
+
+@pytest.fixture
+def toy_scenario() -> Scenario:
+    return make_scenario()
