@@ -25,10 +25,12 @@ def _array_diff(name: str, a: np.ndarray, b: np.ndarray, atol: float) -> list[st
     ]
 
 
-def _feature_diff(a: MapFeature, b: MapFeature, atol: float) -> list[str]:
+def _feature_diff(a: MapFeature, b: MapFeature, atol: float, compare_polygons: bool) -> list[str]:
     name = f"map feature {a.id}"
     out: list[str] = []
     for f in dataclasses.fields(MapFeature):
+        if f.name == "polygon" and not compare_polygons:
+            continue
         va, vb = getattr(a, f.name), getattr(b, f.name)
         if f.name in ("points", "polygon"):
             if va is None or vb is None:
@@ -51,11 +53,13 @@ def scenario_differences(
     atol: float = 0.0,
     compare_invalid_states: bool = True,
     compare_metadata: bool = True,
+    compare_polygons: bool = True,
 ) -> list[str]:
     """Human-readable differences between two scenarios (empty when they are equal).
 
     `atol` applies to float arrays. With `compare_invalid_states=False`, state values at invalid
-    steps are ignored (formats disagree on what to store there).
+    steps are ignored (formats disagree on what to store there). `compare_metadata` and
+    `compare_polygons` (lane outlines) can be switched off for formats that cannot hold them.
     """
     out: list[str] = []
     for name in ("scenario_id", "current_index", "sdc_index"):
@@ -82,7 +86,7 @@ def scenario_differences(
         out.append(f"road_map: feature ids differ ({len(ids_a)} vs {len(ids_b)} features)")
     else:
         for fa, fb in zip(a.road_map, b.road_map, strict=True):
-            out += _feature_diff(fa, fb, atol)
+            out += _feature_diff(fa, fb, atol, compare_polygons)
     la, lb = a.traffic_lights, b.traffic_lights
     for name in ("lane_ids", "states", "valid", "stop_points"):
         out += _array_diff(f"traffic_lights.{name}", getattr(la, name), getattr(lb, name), atol)
