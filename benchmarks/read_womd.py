@@ -21,13 +21,7 @@ from langtraj.scenario.io import read_scenario, read_scenarios, write_scenarios
 from langtraj.scenario.io.tfrecord import iter_records
 from langtraj.scenario.io.womd import decode_scenario
 
-REAL = (
-    Path(__file__).resolve().parents[1].parent
-    / "shared"
-    / "data"
-    / "real"
-    / "motion_data_one_scenario.tfrecord"
-)
+REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "motion_data_one_scenario.tfrecord"
 
 
 def _source_scenario():

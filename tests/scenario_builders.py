@@ -56,9 +56,7 @@ def make_scenario(
         MapFeature(200, MapFeatureType.ROAD_LINE_BROKEN_SINGLE_WHITE, lane_pts + [0, 1.75, 0]),
         MapFeature(300, MapFeatureType.ROAD_EDGE_BOUNDARY, lane_pts + [0, -1.75, 0]),
         MapFeature(301, MapFeatureType.ROAD_EDGE_BOUNDARY, lane_pts + [0, 5.25, 0]),
-        MapFeature(
-            400, MapFeatureType.CROSSWALK, [[40, -1.75, 0], [44, -1.75, 0], [44, 5.25, 0], [40, 5.25, 0]]
-        ),
+        MapFeature(400, MapFeatureType.CROSSWALK, [[40, -1.75, 0], [44, -1.75, 0], [44, 5.25, 0], [40, 5.25, 0]]),
         MapFeature(500, MapFeatureType.STOP_SIGN, [[38, -2.5, 0]], controlled_lanes=(100,)),
     )
     light_states = np.where(np.arange(num_steps) < num_steps // 2, 4, 6).astype(np.int8)[:, None]

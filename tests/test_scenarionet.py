@@ -203,10 +203,7 @@ def test_string_keys_are_numbered_and_restored() -> None:
     assert list(out["tracks"]) == ["ego", "c0ffee"] and out["tracks"]["c0ffee"]["type"] == "TRAFFIC_CONE"
     assert list(out["map_features"]) == list(mk.values()) and list(out["dynamic_map_states"]) == ["lane-a"]
     written_lane = out["map_features"]["lane-a"]
-    assert (
-        written_lane["exit_lanes"] == ["lane-b"]
-        and written_lane["left_neighbor"][0]["feature_id"] == "lane-b"
-    )
+    assert written_lane["exit_lanes"] == ["lane-b"] and written_lane["left_neighbor"][0]["feature_id"] == "lane-b"
     assert written_lane["left_boundaries"][0] == _boundary("UNKNOWN", "boundary_0")
     meta = out["metadata"]
     assert (meta["sdc_id"], meta["objects_of_interest"], list(meta["tracks_to_predict"])) == (
@@ -364,9 +361,7 @@ class _Reduce:
         ),
     ],
 )
-def test_malicious_pickles_are_refused_without_running(
-    tmp_path: Path, make, refused: str, protocol: int
-) -> None:
+def test_malicious_pickles_are_refused_without_running(tmp_path: Path, make, refused: str, protocol: int) -> None:
     marker = tmp_path / "pwned"
     d = minimal_dict()
     d["metadata"]["payload"] = make(marker)  # hidden among ordinary arrays
@@ -467,9 +462,7 @@ def test_real_waymo_files(real_data_dir: Path, name: str) -> None:
     assert s.road_map.road_edges and s.road_map.of_type(MapFeatureType.CROSSWALK)
     assert "track_keys" not in s.metadata["scenarionet"] and "map_keys" not in s.metadata["scenarionet"]
     if name == WAYMO[1]:
-        assert s.road_map.of_type(MapFeatureType.LANE_BIKE_LANE) and s.road_map.of_type(
-            MapFeatureType.STOP_SIGN
-        )
+        assert s.road_map.of_type(MapFeatureType.LANE_BIKE_LANE) and s.road_map.of_type(MapFeatureType.STOP_SIGN)
 
 
 @pytest.mark.real_data

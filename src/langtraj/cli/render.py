@@ -26,9 +26,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--step", type=int, help="step to draw for PNG output (default: the current step)")
     p.add_argument("--follow", type=int, metavar="ID", help="camera follows this track id")
     p.add_argument("--extent", type=float, default=80.0, help="view width in metres when following")
-    p.add_argument(
-        "--highlight", type=int, nargs="*", default=[], metavar="ID", help="track ids to highlight"
-    )
+    p.add_argument("--highlight", type=int, nargs="*", default=[], metavar="ID", help="track ids to highlight")
     p.add_argument("--ids", action="store_true", help="label agents with their track ids")
     p.add_argument("--size", type=int, default=800, help="image width and height in pixels")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")

@@ -20,9 +20,7 @@ def _array_diff(name: str, a: np.ndarray, b: np.ndarray, atol: float) -> list[st
     if np.all(same):
         return []
     first = tuple(int(i) for i in np.argwhere(~np.asarray(same))[0])
-    return [
-        f"{name}: {int((~np.asarray(same)).sum())} values differ, first at {first}: {a[first]} != {b[first]}"
-    ]
+    return [f"{name}: {int((~np.asarray(same)).sum())} values differ, first at {first}: {a[first]} != {b[first]}"]
 
 
 def _feature_diff(a: MapFeature, b: MapFeature, atol: float, compare_polygons: bool) -> list[str]:

@@ -28,9 +28,7 @@ def _array(value: Any, dtype: Any, name: str, ndim: int | None = None) -> np.nda
     try:
         arr = np.asarray(value, dtype=dtype)
     except (TypeError, ValueError) as exc:
-        raise ScenarioValidationError(
-            f"cannot convert to {np.dtype(dtype).name}: {exc}", where=name
-        ) from None
+        raise ScenarioValidationError(f"cannot convert to {np.dtype(dtype).name}: {exc}", where=name) from None
     if ndim is not None and arr.ndim != ndim:
         raise ScenarioValidationError(f"expected {ndim} dimensions, got shape {arr.shape}", where=name)
     return arr
@@ -302,8 +300,8 @@ class TrafficLights:
     """Per-step signal state of each controlled lane.
 
     `states[t, l]` is a `TrafficLightState` value for lane `lane_ids[l]`; `valid[t, l]` is False where
-    the source reports nothing for that lane at that step (the state there is UNKNOWN). `stop_points[l]` is where traffic on the
-    lane stops (x, y, z).
+    the source reports nothing for that lane at that step (the state there is UNKNOWN).
+    `stop_points[l]` is where traffic on the lane stops (x, y, z).
     """
 
     lane_ids: np.ndarray  # int64 [L]
@@ -404,9 +402,7 @@ class Scenario:
         if not np.isfinite(ts).all():
             raise ScenarioValidationError("non-finite timestamp", where="timestamps")
         if not 0 <= int(self.current_index) < max(num_steps, 1):
-            raise ScenarioValidationError(
-                f"{self.current_index} is outside [0, {num_steps})", where="current_index"
-            )
+            raise ScenarioValidationError(f"{self.current_index} is outside [0, {num_steps})", where="current_index")
         if not -1 <= int(self.sdc_index) < self.agents.num_agents:
             raise ScenarioValidationError(
                 f"{self.sdc_index} is outside [-1, {self.agents.num_agents})", where="sdc_index"

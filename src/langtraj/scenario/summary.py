@@ -17,9 +17,7 @@ def scenario_summary(scenario: Scenario) -> dict[str, Any]:
         "num_map_features": len(scenario.road_map),
         "num_steps": scenario.num_steps,
         "current_index": scenario.current_index,
-        "duration_s": round(float(scenario.timestamps[-1] - scenario.timestamps[0]), 3)
-        if scenario.num_steps
-        else 0.0,
+        "duration_s": round(float(scenario.timestamps[-1] - scenario.timestamps[0]), 3) if scenario.num_steps else 0.0,
         "sdc_id": scenario.sdc_id,
         "objects_of_interest": agents.ids[agents.objects_of_interest].tolist(),
         "tracks_to_predict": agents.ids[agents.tracks_to_predict].tolist(),

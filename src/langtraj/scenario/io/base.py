@@ -70,9 +70,7 @@ def get_format(name: str) -> ScenarioFormat:
     try:
         return _FORMATS[name]()
     except KeyError:
-        raise InputError(
-            f"unknown scenario format {name!r}; known: {', '.join(available_formats())}"
-        ) from None
+        raise InputError(f"unknown scenario format {name!r}; known: {', '.join(available_formats())}") from None
 
 
 def detect_format(path: str | Path) -> ScenarioFormat:

@@ -131,9 +131,7 @@ def load_pickle(path: str | Path) -> Any:
         except InputError:
             raise
         except Exception as exc:  # corrupt bytes can fail anywhere in the pickle machine
-            raise InputError(
-                f"corrupt or truncated pickle ({type(exc).__name__}: {exc})", path=path
-            ) from None
+            raise InputError(f"corrupt or truncated pickle ({type(exc).__name__}: {exc})", path=path) from None
 
 
 def looks_like_scenarionet(head: bytes) -> bool:
@@ -237,9 +235,7 @@ class _Keys:
 
 def _check_top_level(d: Any, path: str) -> None:
     if not isinstance(d, Mapping):
-        raise InputError(
-            f"not a ScenarioNet scenario (top level is a {type(d).__name__}, not a dict)", path=path
-        )
+        raise InputError(f"not a ScenarioNet scenario (top level is a {type(d).__name__}, not a dict)", path=path)
     for key in ("tracks", "map_features", "metadata"):
         if key not in d:
             raise InputError(f"not a ScenarioNet scenario (missing key {key!r})", path=path)
@@ -266,9 +262,7 @@ def _state_column(
         arr = arr[:, None]
     if arr.ndim != 2 or arr.shape[0] != num_steps or arr.shape[1] not in widths:
         shapes = " or ".join(f"[{num_steps}, {w}]" for w in widths)
-        raise InputError(
-            f"expected shape {shapes}, got {list(arr.shape)}", path=path, where=f"{where}.{name}"
-        )
+        raise InputError(f"expected shape {shapes}, got {list(arr.shape)}", path=path, where=f"{where}.{name}")
     return arr
 
 
@@ -343,9 +337,7 @@ def _tracks_to_predict(raw: Any, index: Mapping[str, int], path: str) -> tuple[l
     return indices, difficulty
 
 
-def _agents(
-    tracks: Mapping, keys: _Keys, meta: Mapping, num_steps: int, path: str
-) -> tuple[Agents, list[str]]:
+def _agents(tracks: Mapping, keys: _Keys, meta: Mapping, num_steps: int, path: str) -> tuple[Agents, list[str]]:
     """The agents, and each track's type string as in the file."""
     states = np.zeros((len(keys.keys), num_steps, len(StateField)), np.float32)
     valid = np.zeros((len(keys.keys), num_steps), bool)
@@ -360,10 +352,7 @@ def _agents(
         states[n], valid[n] = _track_states(state, num_steps, path, where)
     index = _track_positions(keys)
     ttp, difficulty = _tracks_to_predict(meta.get("tracks_to_predict"), index, path)
-    ooi = [
-        _track_index(k, index, path, "metadata.objects_of_interest")
-        for k in meta.get("objects_of_interest") or ()
-    ]
+    ooi = [_track_index(k, index, path, "metadata.objects_of_interest") for k in meta.get("objects_of_interest") or ()]
     agents = Agents(
         ids=np.array(keys.ids, np.int64),
         types=np.array([_AGENT_TYPES.get(s, AgentType.OTHER) for s in type_strings], np.int8),
@@ -426,9 +415,7 @@ class _MapReader:
             raw = _mapping(raw, self.path, where)
             ftype = _MAP_TYPES.get(str(raw.get("type")))
             if ftype is None:
-                raise InputError(
-                    f"unknown map feature type {raw.get('type')!r}", path=self.path, where=f"{where}.type"
-                )
+                raise InputError(f"unknown map feature type {raw.get('type')!r}", path=self.path, where=f"{where}.type")
             type_strings.append(str(raw["type"]))
             try:
                 out.append(self._feature(fid, ftype, raw, where))
@@ -439,9 +426,7 @@ class _MapReader:
     def _feature(self, fid: int, ftype: MapFeatureType, raw: Mapping, where: str) -> MapFeature:
         if ftype is MapFeatureType.STOP_SIGN:
             points = self._points(raw, ("position",), where)
-            return MapFeature(
-                fid, ftype, points, controlled_lanes=self._refs(raw.get("lane"), f"{where}.lane")
-            )
+            return MapFeature(fid, ftype, points, controlled_lanes=self._refs(raw.get("lane"), f"{where}.lane"))
         if ftype.is_lane:
             names: tuple[str, ...] = ("polyline",)
         else:
@@ -522,9 +507,7 @@ class _MapReader:
                 )
             ]
             out.append(
-                LaneNeighbor(
-                    fid, *spans, boundaries=self._boundaries(item.get("boundaries"), f"{at}.boundaries")
-                )
+                LaneNeighbor(fid, *spans, boundaries=self._boundaries(item.get("boundaries"), f"{at}.boundaries"))
             )
         return tuple(out)
 
@@ -555,9 +538,7 @@ class _MapReader:
             stops.append(np.pad(stop, (0, 3 - len(stop))))
         if not lanes:
             return TrafficLights.empty(num_steps)
-        return TrafficLights(
-            np.array(lanes), np.stack(values, axis=1), np.stack(valid, axis=1), np.stack(stops)
-        )
+        return TrafficLights(np.array(lanes), np.stack(values, axis=1), np.stack(valid, axis=1), np.stack(stops))
 
 
 def _source_metadata(meta: Mapping) -> dict[str, Any]:
@@ -566,9 +547,7 @@ def _source_metadata(meta: Mapping) -> dict[str, Any]:
     for key, value in meta.items():
         value = value.item() if isinstance(value, np.generic) else value
         scalar = (
-            value is None
-            or isinstance(value, str | bool | int)
-            or (isinstance(value, float) and math.isfinite(value))
+            value is None or isinstance(value, str | bool | int) or (isinstance(value, float) and math.isfinite(value))
         )
         if scalar and key not in _DERIVED_METADATA:
             out[str(key)] = value
@@ -651,9 +630,7 @@ def scenario_from_dict(d: Any, *, where: str) -> Scenario:
         road_map, map_types = map_reader.road_map()
         lights = map_reader.traffic_lights(dynamic, num_steps)
         sdc = meta.get("sdc_id")
-        sdc_index = (
-            -1 if sdc is None else _track_index(sdc, _track_positions(track_keys), path, "metadata.sdc_id")
-        )
+        sdc_index = -1 if sdc is None else _track_index(sdc, _track_positions(track_keys), path, "metadata.sdc_id")
         extra_metadata, events = _langtraj_section(meta.get("langtraj"), path)
         sn_metadata = _scenarionet_metadata(
             d,
@@ -767,9 +744,7 @@ def _map_dicts(scenario: Scenario, sn: Mapping) -> tuple[dict[str, Any], dict[st
     features = scenario.road_map.features
     map_keys = _restored(sn.get("map_keys"), len(features)) or [str(f.id) for f in features]
     originals = _restored(sn.get("map_types"), len(features)) or [""] * len(features)
-    keys = _KeyWriter(
-        {f.id: k for f, k in zip(features, map_keys, strict=True)}, all(map(_is_int_key, map_keys))
-    )
+    keys = _KeyWriter({f.id: k for f, k in zip(features, map_keys, strict=True)}, all(map(_is_int_key, map_keys)))
     map_features = {
         key: _feature_dict(f, orig if _MAP_TYPES.get(orig) is f.type else _MAP_TYPE_NAMES[f.type], keys)
         for key, f, orig in zip(map_keys, features, originals, strict=True)
@@ -820,9 +795,7 @@ def _number_summary(track_types: list[str], num_lights: int, num_features: int) 
     }
 
 
-def _metadata_dict(
-    scenario: Scenario, sn: Mapping, track_keys: list[str], track_types: list[str]
-) -> dict[str, Any]:
+def _metadata_dict(scenario: Scenario, sn: Mapping, track_keys: list[str], track_types: list[str]) -> dict[str, Any]:
     """The file's metadata: the kept source scalars, then everything derived from the scenario."""
     agents = scenario.agents
     meta: dict[str, Any] = {"coordinate": "waymo", "dataset": scenario.source_format or "langtraj"}
@@ -842,13 +815,9 @@ def _metadata_dict(
                 "difficulty": d,
                 "object_type": track_types[i],
             }
-            for i, d in zip(
-                agents.tracks_to_predict.tolist(), agents.prediction_difficulty.tolist(), strict=True
-            )
+            for i, d in zip(agents.tracks_to_predict.tolist(), agents.prediction_difficulty.tolist(), strict=True)
         },
-        number_summary=_number_summary(
-            track_types, scenario.traffic_lights.num_lanes, len(scenario.road_map)
-        ),
+        number_summary=_number_summary(track_types, scenario.traffic_lights.num_lanes, len(scenario.road_map)),
     )
     if scenario.sdc_index >= 0:
         meta.update(sdc_id=track_keys[scenario.sdc_index], sdc_track_index=scenario.sdc_index)

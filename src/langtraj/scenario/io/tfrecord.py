@@ -83,9 +83,7 @@ def iter_records(path: str | Path, *, start: int = 0, verify: bool = True) -> It
             payload = fh.read(length)
             footer = fh.read(4)
             if len(payload) < length or len(footer) < 4:
-                raise InputError(
-                    f"truncated payload ({len(payload)} of {length} bytes)", path=path, where=where
-                )
+                raise InputError(f"truncated payload ({len(payload)} of {length} bytes)", path=path, where=where)
             if verify and masked_crc32c(payload) != _U32.unpack(footer)[0]:
                 raise InputError("payload checksum mismatch (corrupt record)", path=path, where=where)
             yield payload

@@ -71,9 +71,7 @@ def _points(points: Sequence[pb.MapPoint]) -> np.ndarray:
 
 def _boundaries(segments: Sequence[pb.BoundarySegment]) -> tuple[BoundarySegment, ...]:
     return tuple(
-        BoundarySegment(
-            s.lane_start_index, s.lane_end_index, s.boundary_feature_id, _ROAD_LINE_TYPES[s.boundary_type]
-        )
+        BoundarySegment(s.lane_start_index, s.lane_end_index, s.boundary_feature_id, _ROAD_LINE_TYPES[s.boundary_type])
         for s in segments
     )
 
@@ -115,9 +113,7 @@ def _map_feature(msg: pb.MapFeature) -> MapFeature:
         return MapFeature(msg.id, _ROAD_EDGE_TYPES[msg.road_edge.type], _points(msg.road_edge.polyline))
     if kind == "stop_sign":
         sign = msg.stop_sign
-        return MapFeature(
-            msg.id, MapFeatureType.STOP_SIGN, _points([sign.position]), controlled_lanes=tuple(sign.lane)
-        )
+        return MapFeature(msg.id, MapFeatureType.STOP_SIGN, _points([sign.position]), controlled_lanes=tuple(sign.lane))
     if kind in _AREA_FIELDS:
         return MapFeature(msg.id, _AREA_FIELDS[kind], _points(getattr(msg, kind).polygon))
     raise ScenarioValidationError("map feature has no feature data", where=f"map feature {msg.id}")
@@ -172,9 +168,7 @@ def _agents(msg: pb.Scenario, num_steps: int) -> Agents:
     id_to_index = {int(i): n for n, i in enumerate(ids)}
     unknown = [i for i in msg.objects_of_interest if i not in id_to_index]
     if unknown:
-        raise ScenarioValidationError(
-            f"track ids {unknown} are not in the scene", where="objects_of_interest"
-        )
+        raise ScenarioValidationError(f"track ids {unknown} are not in the scene", where="objects_of_interest")
     return Agents(
         ids=ids,
         types=types,
@@ -300,9 +294,7 @@ def scenario_to_proto(scenario: Scenario) -> pb.Scenario:
         objects_of_interest=agents.ids[agents.objects_of_interest].tolist(),
         tracks_to_predict=[
             pb.RequiredPrediction(track_index=i, difficulty=d)
-            for i, d in zip(
-                agents.tracks_to_predict.tolist(), agents.prediction_difficulty.tolist(), strict=True
-            )
+            for i, d in zip(agents.tracks_to_predict.tolist(), agents.prediction_difficulty.tolist(), strict=True)
         ],
     )
     if scenario.sdc_index >= 0:

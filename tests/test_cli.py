@@ -1,0 +1,222 @@
+"""The `langtraj` command: inspect, render and convert on real and constructed files, and bad input."""
+
+from __future__ import annotations
+
+import json
+import pickle
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scenario_builders import make_scenario
+
+from langtraj.cli.main import main
+from langtraj.scenario.compare import scenario_differences
+from langtraj.scenario.io import read_scenario, read_scenarios, write_scenarios
+from langtraj.scenario.io.tfrecord import write_records
+from langtraj.scenario.io.womd import scenario_to_proto
+
+
+def run_cli(args: list[str], capsys: pytest.CaptureFixture) -> tuple[int, str, str]:
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_one_line_error(code: int, err: str, *needles: str) -> None:
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+
+
+@pytest.fixture
+def toy_file(tmp_path: Path) -> Path:
+    path = tmp_path / "toy.tfrecord"
+    write_scenarios(path, [make_scenario(), make_scenario(scenario_id="b")])
+    return path
+
+
+# ------------------------------------------------------------------------------ inspect
+
+
+def test_inspect_json_on_real_waymo_file(real_data_dir: Path, capsys) -> None:
+    code, out, _ = run_cli(["inspect", real_data_dir / "motion_data_one_scenario.tfrecord", "--json"], capsys)
+    assert code == 0
+    (summary,) = json.loads(out)
+    assert summary["scenario_id"] == "637f20cafde22ff8"
+    assert summary["num_agents"] == 83
+    assert summary["num_map_features"] == 301
+    assert summary["num_steps"] == 91
+    assert summary["current_index"] == 10
+    assert summary["sdc_id"] == 2406
+    assert summary["tracks_to_predict"] == [2320, 1676, 1675]
+    assert summary["objects_of_interest"] == []
+    assert summary["agent_type_counts"] == {"vehicle": 70, "pedestrian": 10, "cyclist": 3, "other": 0}
+    assert summary["source_format"] == "womd"
+
+
+def test_inspect_every_real_file(real_files: list[Path], capsys) -> None:
+    code, out, _ = run_cli(["inspect", *real_files, "--json"], capsys)
+    assert code == 0
+    summaries = json.loads(out)
+    assert len(summaries) == len(real_files) == 8
+    by_id = {s["scenario_id"]: s for s in summaries}
+    assert by_id["2a1e44d405a6833f"]["num_agents"] == 211
+    assert by_id["8a346109094cd5aa"]["num_agents"] == 115
+    assert all(191 <= s["num_steps"] <= 201 for s in summaries if s["scenario_id"].startswith("scene-"))
+    assert {s["source_format"] for s in summaries} == {"womd", "scenarionet"}
+
+
+def test_inspect_text_lists_each_scenario(toy_file: Path, capsys) -> None:
+    code, out, _ = run_cli(["inspect", toy_file], capsys)
+    assert code == 0
+    assert len(out.strip().splitlines()) == 2
+    assert "toy (womd): 4 agents" in out
+
+
+# ------------------------------------------------------------------------------ bad input
+
+
+def _pickle_calling_os_system(marker: Path) -> bytes:
+    class Exploit:
+        def __reduce__(self):
+            import os
+
+            return (os.system, (f"touch {marker}",))
+
+    return pickle.dumps(Exploit(), protocol=4)
+
+
+@pytest.mark.parametrize("verb", ["inspect", "render", "convert"])
+def test_bad_inputs_give_one_line_and_no_output(tmp_path: Path, toy_file: Path, capsys, verb: str) -> None:
+    good = toy_file.read_bytes()
+    flipped = bytearray(good)
+    flipped[200] ^= 0xFF
+    nan_msg = scenario_to_proto(make_scenario())
+    nan_msg.tracks[2].states[50].center_x = float("nan")
+    marker = tmp_path / "pwned"
+    cases = {
+        "missing.tfrecord": None,
+        "truncated.tfrecord": good[: len(good) // 2],
+        "crc.tfrecord": bytes(flipped),
+        "image.png": b"\x89PNG\r\n\x1a\n" + bytes(100),
+        "notes.txt": b"scenario_id,x,y\n1,2,3\n",
+        "empty.tfrecord": b"",
+        "evil.pkl": _pickle_calling_os_system(marker),
+    }
+    expected = {
+        "missing.tfrecord": "no such file",
+        "truncated.tfrecord": "truncated",
+        "crc.tfrecord": "checksum mismatch",
+        "image.png": "not a scenario file",
+        "notes.txt": "not a scenario file",
+        "empty.tfrecord": "file is empty",
+        "evil.pkl": "os",
+    }
+    write_records(tmp_path / "nan.tfrecord", [nan_msg.SerializeToString()])
+    cases["nan.tfrecord"] = (tmp_path / "nan.tfrecord").read_bytes()
+    expected["nan.tfrecord"] = "track 27, step 50: non-finite x"
+    for name, data in cases.items():
+        path = tmp_path / name
+        if data is not None:
+            path.write_bytes(data)
+        out_file = tmp_path / "out" / f"{name}.mp4"
+        args = {
+            "inspect": ["inspect", path],
+            "render": ["render", path, "--out", out_file, "--no-progress"],
+            "convert": ["convert", path, tmp_path / "out" / f"{name}.converted.tfrecord"],
+        }[verb]
+        code, _, err = run_cli(args, capsys)
+        assert_one_line_error(code, err, name, expected[name])
+    assert not marker.exists(), "the pickle ran code"
+    assert not (tmp_path / "out").exists() or list((tmp_path / "out").iterdir()) == []
+
+
+def test_unknown_index_window_and_follow_are_clear_errors(toy_file: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "x.png"
+    assert_one_line_error(*run_cli(["render", toy_file, "--out", out, "--index", "5"], capsys)[::2], "index 5")
+    assert_one_line_error(*run_cli(["render", toy_file, "--out", out, "--window", "3"], capsys)[::2], "--window 3")
+    assert_one_line_error(*run_cli(["render", toy_file, "--out", out, "--follow", "999"], capsys)[::2], "999")
+    assert_one_line_error(*run_cli(["render", toy_file, "--out", tmp_path / "x.avi"], capsys)[::2], "x.avi")
+    assert not out.exists()
+
+
+def test_console_script_is_installed(toy_file: Path) -> None:
+    exe = shutil.which("langtraj") or str(Path(sys.executable).parent / "langtraj")
+    done = subprocess.run([exe, "inspect", str(toy_file), "--json"], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    assert [s["scenario_id"] for s in json.loads(done.stdout)] == ["toy", "b"]
+    bad = subprocess.run([exe, "inspect", str(toy_file) + ".nope"], capture_output=True, text=True, check=False)
+    assert bad.returncode == 2
+    assert bad.stderr.count("\n") == 1 and "no such file" in bad.stderr
+
+
+# ------------------------------------------------------------------------------ render
+
+
+def test_render_png_and_video_of_a_window(tmp_path: Path, capsys) -> None:
+    long_file = tmp_path / "long.tfrecord"
+    write_scenarios(long_file, [make_scenario(num_steps=200)])
+    code, out, _ = run_cli(["render", long_file, "--out", tmp_path / "a.png", "--ids", "--highlight", "7"], capsys)
+    assert code == 0 and (tmp_path / "a.png").stat().st_size > 1000
+    code, out, _ = run_cli(
+        ["render", long_file, "--out", tmp_path / "w.gif", "--window", "1", "--size", "160", "--no-progress"], capsys
+    )
+    assert code == 0
+    assert "91 frames of toy_w91" in out
+
+
+@pytest.mark.slow
+def test_every_real_file_renders_to_mp4(real_files: list[Path], tmp_path: Path, capsys) -> None:
+    import imageio_ffmpeg
+
+    for path in real_files:
+        out = tmp_path / f"{path.stem}.mp4"
+        code, _, err = run_cli(["render", path, "--out", out, "--size", "320", "--no-progress"], capsys)
+        assert code == 0, err
+        frames, _ = imageio_ffmpeg.count_frames_and_secs(str(out))
+        assert frames == read_scenario(path).num_steps
+
+
+# ------------------------------------------------------------------------------ convert
+
+
+def test_convert_real_files_both_ways_keeps_what_both_formats_hold(real_files: list[Path], tmp_path: Path, capsys):
+    for path in real_files:
+        original = read_scenario(path)
+        if path.suffix == ".pkl":
+            there, back = tmp_path / f"{path.stem}.tfrecord", tmp_path / f"{path.stem}.back.pkl"
+        else:
+            there, back = tmp_path / f"{path.stem}.pkl", tmp_path / f"{path.stem}.back.tfrecord"
+        assert run_cli(["convert", path, there], capsys)[0] == 0
+        assert run_cli(["convert", there, back], capsys)[0] == 0
+        converted, round_trip = read_scenario(there), read_scenario(back)
+        for other in (converted, round_trip):
+            diffs = scenario_differences(
+                original, other, compare_invalid_states=False, compare_metadata=False, compare_polygons=False
+            )
+            assert diffs == [], f"{path.name}: {diffs[:3]}"
+        if path.suffix == ".pkl":  # keys, types and source metadata come back through LangTraj's WOMD
+            diffs = scenario_differences(original, round_trip, compare_invalid_states=False, compare_polygons=False)
+            assert diffs == [], f"{path.name}: {diffs[:3]}"
+
+
+def test_convert_many_to_one_and_one_per_file(toy_file: Path, tmp_path: Path, capsys) -> None:
+    merged = tmp_path / "merged.tfrecord"
+    assert run_cli(["convert", toy_file, toy_file, merged], capsys)[0] == 0
+    assert [s.scenario_id for s in read_scenarios(merged)] == ["toy", "b", "toy", "b"]
+    out_dir = tmp_path / "pkls"
+    code, out, _ = run_cli(["convert", toy_file, out_dir, "--format", "scenarionet"], capsys)
+    assert code == 0 and "wrote 2" in out
+    assert sorted(p.name for p in out_dir.iterdir()) == ["b.pkl", "toy.pkl"]
+    back = read_scenario(out_dir / "toy.pkl")
+    np.testing.assert_array_equal(back.agents.states, make_scenario().agents.states)
+    code, _, err = run_cli(["convert", toy_file, tmp_path / "two.pkl"], capsys)
+    assert_one_line_error(code, err, "one scenario")
+    assert not (tmp_path / "two.pkl").exists()
