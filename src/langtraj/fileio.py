@@ -1,4 +1,5 @@
-"""Atomic file output: write to a temporary file beside the target, then rename over it."""
+"""File access with the project's error conventions: inputs that raise InputError naming the file, and
+atomic outputs (write to a temporary file beside the target, then rename over it)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,22 @@ import os
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+from typing import BinaryIO
+
+from langtraj.errors import InputError
+
+
+def open_input(path: str | Path) -> BinaryIO:
+    """Open an input file for binary reading; a missing or unreadable file raises InputError."""
+    path = Path(path)
+    try:
+        return path.open("rb")
+    except FileNotFoundError:
+        raise InputError("no such file", path=path) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, expected a scenario file", path=path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror}", path=path) from None
 
 
 @contextlib.contextmanager

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import ClassVar
 
 from langtraj.errors import InputError
+from langtraj.fileio import open_input
 from langtraj.scenario.model import Scenario
 
 SNIFF_BYTES = 64
@@ -76,15 +77,8 @@ def get_format(name: str) -> ScenarioFormat:
 def detect_format(path: str | Path) -> ScenarioFormat:
     """The registered format whose `sniff` accepts the file's first bytes."""
     path = Path(path)
-    if not path.exists():
-        raise InputError("no such file", path=path)
-    if path.is_dir():
-        raise InputError("is a directory, expected a scenario file", path=path)
-    try:
-        with path.open("rb") as fh:
-            head = fh.read(SNIFF_BYTES)
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", path=path) from None
+    with open_input(path) as fh:
+        head = fh.read(SNIFF_BYTES)
     if not head:
         raise InputError("file is empty", path=path)
     for cls in _FORMATS.values():

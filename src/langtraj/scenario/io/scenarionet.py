@@ -30,7 +30,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from langtraj.errors import InputError, ScenarioValidationError
-from langtraj.fileio import atomic_open
+from langtraj.fileio import atomic_open, open_input
 from langtraj.scenario.io.base import ScenarioFormat, register_format
 from langtraj.scenario.io.tfrecord import looks_like_tfrecord
 from langtraj.scenario.model import (
@@ -119,13 +119,7 @@ def load_pickle(path: str | Path) -> Any:
     """The object pickled in `path`, loaded with the restricted unpickler (InputError when the file
     names a global other than numpy's array machinery, or is truncated or corrupt)."""
     path = Path(path)
-    try:
-        fh = path.open("rb")
-    except FileNotFoundError:
-        raise InputError("no such file", path=path) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", path=path) from None
-    with fh:
+    with open_input(path) as fh:
         try:
             return _RestrictedUnpickler(fh, path).load()
         except InputError:

@@ -7,6 +7,7 @@ matter; skipping records seeks past payloads without reading them.
 
 from __future__ import annotations
 
+import os
 import struct
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -15,7 +16,7 @@ from typing import BinaryIO
 import google_crc32c
 
 from langtraj.errors import InputError
-from langtraj.fileio import atomic_open
+from langtraj.fileio import atomic_open, open_input
 
 _MASK_DELTA = 0xA282EAD8
 _U64 = struct.Struct("<Q")
@@ -56,6 +57,12 @@ def _read_header(fh: BinaryIO, path: Path, index: int) -> int | None:
     return length
 
 
+def _skip_payload(fh: BinaryIO, length: int, size: int, path: Path, index: int) -> None:
+    fh.seek(length + 4, os.SEEK_CUR)
+    if fh.tell() > size:
+        raise InputError("truncated payload", path=path, where=f"record {index}")
+
+
 def iter_records(path: str | Path, *, start: int = 0, verify: bool = True) -> Iterator[bytes]:
     """Payloads of the records of `path` from index `start` on, one at a time.
 
@@ -64,22 +71,15 @@ def iter_records(path: str | Path, *, start: int = 0, verify: bool = True) -> It
     naming the file and record index.
     """
     path = Path(path)
-    try:
-        fh = path.open("rb")
-    except FileNotFoundError:
-        raise InputError("no such file", path=path) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", path=path) from None
-    with fh:
+    with open_input(path) as fh:
+        size = os.fstat(fh.fileno()).st_size
         index = 0
         while (length := _read_header(fh, path, index)) is not None:
-            where = f"record {index}"
             if index < start:
-                fh.seek(length + 4, 1)
-                if fh.tell() > path.stat().st_size:
-                    raise InputError("truncated payload", path=path, where=where)
+                _skip_payload(fh, length, size, path, index)
                 index += 1
                 continue
+            where = f"record {index}"
             payload = fh.read(length)
             footer = fh.read(4)
             if len(payload) < length or len(footer) < 4:
@@ -92,19 +92,14 @@ def iter_records(path: str | Path, *, start: int = 0, verify: bool = True) -> It
 
 def count_records(path: str | Path) -> int:
     """Number of records, found by seeking over payloads."""
-    return sum(1 for _ in _iter_lengths(Path(path)))
-
-
-def _iter_lengths(path: Path) -> Iterator[int]:
-    with path.open("rb") as fh:
-        size = path.stat().st_size
-        index = 0
-        while (length := _read_header(fh, path, index)) is not None:
-            fh.seek(length + 4, 1)
-            if fh.tell() > size:
-                raise InputError("truncated payload", path=path, where=f"record {index}")
-            yield length
-            index += 1
+    path = Path(path)
+    with open_input(path) as fh:
+        size = os.fstat(fh.fileno()).st_size
+        count = 0
+        while (length := _read_header(fh, path, count)) is not None:
+            _skip_payload(fh, length, size, path, count)
+            count += 1
+    return count
 
 
 def encode_record(payload: bytes) -> bytes:
