@@ -1,7 +1,8 @@
 """Scenarios per second for reading WOMD TFRecords: framing + CRC + proto parse, and full decode to arrays.
 
 Builds a shard of N copies of the shared real Waymo scenario (or of a synthetic one of similar size
-when ../shared is absent) in a temporary folder, then times three passes over it and prints medians.
+when ../shared is absent) in a temporary folder, times three kinds of pass over it and prints medians,
+and the peak memory of one full pass (one record's worth, whatever the shard size).
 
     python benchmarks/read_womd.py [--copies 200] [--repeats 5]
 """
@@ -14,6 +15,7 @@ import platform
 import statistics
 import tempfile
 import time
+import tracemalloc
 from dataclasses import replace
 from pathlib import Path
 
@@ -57,6 +59,10 @@ def main() -> None:
         framing = _timed(lambda: sum(1 for _ in iter_records(shard)), args.repeats)
         parse = _timed(lambda: [decode_scenario(p) for p in iter_records(shard)], args.repeats)
         full = _timed(lambda: sum(1 for _ in read_scenarios(shard)), args.repeats)
+        tracemalloc.start()
+        sum(1 for _ in read_scenarios(shard))
+        peak_mb = tracemalloc.get_traced_memory()[1] / 1e6
+        tracemalloc.stop()
     n = args.copies
     print(f"source: {what}; shard of {n} scenarios, {size_mb:.1f} MB")
     machine = platform.processor() or platform.machine()
@@ -65,6 +71,7 @@ def main() -> None:
     print(f"  framing + CRC32C only        : {n / framing:10.1f} scenarios/s ({size_mb / framing:7.1f} MB/s)")
     print(f"  read (framing + proto parse) : {n / parse:10.1f} scenarios/s")
     print(f"  full decode to Scenario      : {n / full:10.1f} scenarios/s")
+    print(f"peak traced memory while decoding the whole shard: {peak_mb:.1f} MB (streaming, one record at a time)")
 
 
 if __name__ == "__main__":

@@ -30,9 +30,11 @@ HEADING_COLOR = "#0d0f12"
 HEADING_WIDTH = 1.0
 HIGHLIGHT_EDGE = "#ffffff"
 HIGHLIGHT_EDGE_WIDTH = 2.4
-TRAIL_WIDTH = 1.6
+TRAIL_WIDTH = 2.2
 TRAIL_MAX_ALPHA = 0.85
 LABEL_SIZE = 6.5
+MIN_BOX_PX = 5.0
+"""Smallest drawn box side in pixels, so pedestrians stay visible in wide views."""
 
 DEFAULT_SIZE_M: dict[AgentType, tuple[float, float]] = {
     AgentType.VEHICLE: (4.5, 2.0),

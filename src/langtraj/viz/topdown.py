@@ -85,6 +85,7 @@ class TopDownRenderer:
             scenario, steps, follow_index=follow, view_extent_m=config.view_extent_m, margin_m=config.margin_m
         )
         self._prepare_agents()
+        self._min_box_m = style.MIN_BOX_PX * self.camera.span / config.size_px
 
         dpi = config.effective_dpi
         inches = config.size_px / dpi
@@ -183,6 +184,7 @@ class TopDownRenderer:
         size = st[:, StateField.LENGTH : StateField.WIDTH + 1]
         bad = ~(np.isfinite(size) & (size > 0.05)).all(axis=1)
         size[bad] = self._default_size[idx[bad]]
+        np.maximum(size, self._min_box_m, out=size)
         xy, heading = st[:, : StateField.Y + 1], st[:, StateField.HEADING]
         self._boxes.set_verts(box_corners(xy, heading, size[:, 0], size[:, 1]))
         self._boxes.set_facecolor(self._face[idx])
