@@ -1,8 +1,8 @@
 """TopDownRenderer: draws one scenario step as an RGB image, reusing one figure for every frame.
 
 The map is added once as grouped collections. Per frame only the agent boxes, heading ticks,
-trails, labels, signal markers and caption change. The rasterised background (map, scale bar,
-legend) is cached and blitted while the camera holds still; a moving camera redraws it.
+trails, labels, signal markers and caption change. The rasterised map is cached and blitted while
+the camera holds still; a moving camera redraws it. Overlays (caption, scale bar, legend) go on top.
 """
 
 from __future__ import annotations
@@ -95,6 +95,7 @@ class TopDownRenderer:
         ax.set_axis_off()
         ax.set_autoscale_on(False)
         add_map(ax, scenario.road_map)
+        self._overlays: list = []  # scale bar and legend: fixed, but drawn over the agents each frame
         self._add_dynamic_artists()
         self._add_scale_bar()
         if config.show_legend:
@@ -155,10 +156,13 @@ class TopDownRenderer:
         label = f"{length:g} m"
         bar = AnchoredSizeBar(
             self._ax.transData, length, label, "lower right", pad=0.6, borderpad=0.5, sep=3,
-            color=style.TEXT, frameon=False, size_vertical=0, fontproperties={"size": style.CAPTION_SIZE},
+            color=style.TEXT, frameon=True, size_vertical=0, fontproperties={"size": style.CAPTION_SIZE},
         )  # fmt: skip
         bar.size_bar.get_children()[0].set_linewidth(1.5)
+        bar.patch.set(facecolor=style.TEXT_BOX, alpha=0.55, edgecolor="none", boxstyle="round,pad=0.2")
+        bar.set(zorder=style.CAPTION_ZORDER, animated=True)  # drawn over the agents
         self._ax.add_artist(bar)
+        self._overlays.append(bar)
 
     def _add_legend(self) -> None:
         def swatch(color: str, name: str) -> Line2D:
@@ -173,7 +177,8 @@ class TopDownRenderer:
             facecolor=style.TEXT_BOX, edgecolor="none", framealpha=0.55, labelcolor=style.TEXT,
             handletextpad=0.3, borderpad=0.4,
         )  # fmt: skip
-        legend.set_zorder(style.CAPTION_ZORDER)
+        legend.set(zorder=style.CAPTION_ZORDER, animated=True)
+        self._overlays.append(legend)
 
     # ------------------------------------------------------------------ per frame
     def _update_agents(self, step: int, limits: Limits) -> list:
@@ -278,7 +283,7 @@ class TopDownRenderer:
             canvas.restore_region(self._background)
         artists = self._update_agents(step, limits) + self._update_lights(step)
         self._caption.set_text(self._caption_text(step))
-        artists.append(self._caption)
+        artists += [self._caption, *self._overlays]
         for artist in sorted(artists, key=lambda a: a.get_zorder()):
             self._ax.draw_artist(artist)
         rgba = np.asarray(canvas.buffer_rgba())
