@@ -172,13 +172,12 @@ def test_render_png_and_video_of_a_window(tmp_path: Path, capsys) -> None:
     assert "91 frames of toy_w91" in out
 
 
-@pytest.mark.slow
 def test_every_real_file_renders_to_mp4(real_files: list[Path], tmp_path: Path, capsys) -> None:
     import imageio_ffmpeg
 
     for path in real_files:
         out = tmp_path / f"{path.stem}.mp4"
-        code, _, err = run_cli(["render", path, "--out", out, "--size", "320", "--no-progress"], capsys)
+        code, _, err = run_cli(["render", path, "--out", out, "--size", "240", "--no-progress"], capsys)
         assert code == 0, err
         frames, _ = imageio_ffmpeg.count_frames_and_secs(str(out))
         assert frames == read_scenario(path).num_steps
