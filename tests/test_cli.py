@@ -147,6 +147,14 @@ def test_unknown_index_window_and_follow_are_clear_errors(toy_file: Path, tmp_pa
     assert not out.exists()
 
 
+def test_unwritable_output_is_one_line(toy_file: Path, tmp_path: Path, capsys) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    code, _, err = run_cli(["render", toy_file, "--out", blocker / "x.png"], capsys)
+    assert code == 1
+    assert len(err.strip().splitlines()) == 1 and "a_file" in err and "Traceback" not in err
+
+
 def test_console_script_is_installed(toy_file: Path) -> None:
     exe = shutil.which("langtraj") or str(Path(sys.executable).parent / "langtraj")
     done = subprocess.run([exe, "inspect", str(toy_file), "--json"], capture_output=True, text=True, check=False)

@@ -26,13 +26,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command; exit status 0 on success, 2 on bad input or usage, 130 on Ctrl-C."""
+    """Run the command; exit status 0 on success, 2 on bad input or usage, 1 when the system refuses a
+    read or write, 130 on Ctrl-C."""
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)
     except LangTrajError as exc:
         print(f"langtraj {args.verb}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # the machine refused (disk full, permissions, a file where a folder must be)
+        print(f"langtraj {args.verb}: error: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"langtraj {args.verb}: interrupted", file=sys.stderr)
         return 130
