@@ -144,6 +144,7 @@ def test_unknown_index_window_and_follow_are_clear_errors(toy_file: Path, tmp_pa
     assert_one_line_error(*run_cli(["render", toy_file, "--out", out, "--window", "3"], capsys)[::2], "--window 3")
     assert_one_line_error(*run_cli(["render", toy_file, "--out", out, "--follow", "999"], capsys)[::2], "999")
     assert_one_line_error(*run_cli(["render", toy_file, "--out", tmp_path / "x.avi"], capsys)[::2], "x.avi")
+    assert_one_line_error(*run_cli(["render", toy_file, "--out", out, "--step", "91"], capsys)[::2], "step 91")
     assert not out.exists()
 
 

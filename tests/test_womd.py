@@ -118,3 +118,12 @@ def test_track_with_wrong_number_of_states(tmp_path: Path) -> None:
     write_records(out, [msg.SerializeToString()])
     with pytest.raises(InputError, match="track 7: 90 states for 91 timestamps"):
         read_scenario(out)
+
+
+def test_more_light_steps_than_timestamps_is_reported(tmp_path: Path) -> None:
+    msg = scenario_to_proto(make_scenario())
+    msg.dynamic_map_states.add()
+    out = tmp_path / "lights.tfrecord"
+    write_records(out, [msg.SerializeToString()])
+    with pytest.raises(InputError, match="dynamic_map_states: 92 dynamic map states for 91 timestamps"):
+        read_scenario(out)

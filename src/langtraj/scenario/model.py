@@ -8,6 +8,7 @@ Convert to tensors only at the model boundary.
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property
@@ -259,8 +260,7 @@ class RoadMap:
         object.__setattr__(self, "features", tuple(self.features))
         ids = [f.id for f in self.features]
         if len(set(ids)) != len(ids):
-            seen: set[int] = set()
-            dup = next(i for i in ids if i in seen or seen.add(i))  # type: ignore[func-returns-value]
+            dup = next(i for i, n in Counter(ids).items() if n > 1)
             raise ScenarioValidationError(f"duplicate map feature id {dup}", where="road_map")
 
     def __len__(self) -> int:

@@ -16,7 +16,7 @@ from langtraj.errors import InputError
 from langtraj.fileio import atomic_path
 from langtraj.scenario.model import Scenario
 from langtraj.viz.config import RenderConfig
-from langtraj.viz.topdown import TopDownRenderer
+from langtraj.viz.topdown import TopDownRenderer, render_frame
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
 
@@ -26,8 +26,7 @@ MP4_BLOCK = 2
 
 def save_png(scenario: Scenario, step: int, path: str | Path, config: RenderConfig | None = None) -> None:
     """Write step `step` of `scenario` as a PNG at `path`."""
-    with TopDownRenderer(scenario, config, steps=[step]) as renderer:
-        image = renderer.frame(step)
+    image = render_frame(scenario, step, config)
     with atomic_path(path) as tmp:
         iio.imwrite(tmp, image, extension=".png")
 

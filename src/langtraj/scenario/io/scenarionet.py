@@ -216,6 +216,8 @@ class _Keys:
         self.numeric = all(_is_int_key(k) for k in self.keys)
         self.ids = [int(k) for k in self.keys] if self.numeric else list(range(len(self.keys)))
         self._by_key = dict(zip(self.keys, self.ids, strict=True))
+        self.position_of = {key: n for n, key in enumerate(self.keys)}
+        """Position of each key in file order (the agent index of a track key)."""
 
     def id_of(self, ref: Any) -> int | None:
         """Our id for a reference to a key (int or str); None when it resolves to nothing. With numeric
@@ -304,10 +306,6 @@ def _check_pose(states: np.ndarray, valid: np.ndarray, path: str, where: str) ->
         )
 
 
-def _track_positions(keys: _Keys) -> dict[str, int]:
-    return {key: n for n, key in enumerate(keys.keys)}
-
-
 def _track_index(ref: Any, index: Mapping[str, int], path: str, where: str) -> int:
     """The agent index of a track key named in metadata; an unknown key is an error, not skipped."""
     try:
@@ -344,7 +342,7 @@ def _agents(tracks: Mapping, keys: _Keys, meta: Mapping, num_steps: int, path: s
         type_strings.append(str(track["type"]))
         state = _mapping(track.get("state"), path, f"{where}.state")
         states[n], valid[n] = _track_states(state, num_steps, path, where)
-    index = _track_positions(keys)
+    index = keys.position_of
     ttp, difficulty = _tracks_to_predict(meta.get("tracks_to_predict"), index, path)
     ooi = [_track_index(k, index, path, "metadata.objects_of_interest") for k in meta.get("objects_of_interest") or ()]
     agents = Agents(
@@ -624,7 +622,7 @@ def scenario_from_dict(d: Any, *, where: str) -> Scenario:
         road_map, map_types = map_reader.road_map()
         lights = map_reader.traffic_lights(dynamic, num_steps)
         sdc = meta.get("sdc_id")
-        sdc_index = -1 if sdc is None else _track_index(sdc, _track_positions(track_keys), path, "metadata.sdc_id")
+        sdc_index = -1 if sdc is None else _track_index(sdc, track_keys.position_of, path, "metadata.sdc_id")
         extra_metadata, events = _langtraj_section(meta.get("langtraj"), path)
         sn_metadata = _scenarionet_metadata(
             d,

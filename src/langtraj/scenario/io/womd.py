@@ -120,6 +120,11 @@ def _map_feature(msg: pb.MapFeature) -> MapFeature:
 
 
 def _traffic_lights(states: Sequence[pb.DynamicMapState], num_steps: int) -> TrafficLights:
+    """Dense [T, L] signal states; steps past the end of `states` have no valid lane."""
+    if len(states) > num_steps:
+        raise ScenarioValidationError(
+            f"{len(states)} dynamic map states for {num_steps} timestamps", where="dynamic_map_states"
+        )
     lane_index: dict[int, int] = {}
     stop_points: list[tuple[float, float, float]] = []
     for step in states:
@@ -130,7 +135,7 @@ def _traffic_lights(states: Sequence[pb.DynamicMapState], num_steps: int) -> Tra
                 stop_points.append((sp.x, sp.y, sp.z))
     values = np.zeros((num_steps, len(lane_index)), np.int8)
     valid = np.zeros((num_steps, len(lane_index)), bool)
-    for t, step in enumerate(states[:num_steps]):
+    for t, step in enumerate(states):
         for lane in step.lane_states:
             values[t, lane_index[lane.lane]] = lane.state
             valid[t, lane_index[lane.lane]] = True
