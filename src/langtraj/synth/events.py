@@ -1,0 +1,382 @@
+"""Ground-truth behaviour events from a recorded SUMO simulation (schema in docs/data.md).
+
+Every event is a `BehaviorEvent(kind, track_id, start, end, other_id, attributes)` over global steps
+[start, end). Kinds:
+
+- `lane_change`: from SUMO's lane-change output; start at the manoeuvre start, end one past its end;
+  `other_id` is the leader on the target lane right after the change (or -1). Attributes: `direction`
+  (left/right), `reason` (strategic, cooperative, speedGain, keepRight, or SUMO's first reason token),
+  `reason_detail` (SUMO's full reason), `from_lane`, `to_lane`, `change_step`.
+- `follow`: a run of at least `MIN_FOLLOW_STEPS` steps with the same leader within 60 m. Attributes:
+  `min_gap`, `mean_gap`, `start_gap`, `end_gap` (m, bumper to bumper).
+- `yield`: SUMO made the vehicle respond to a junction foe (libsumo junction foes) and the vehicle was
+  slow or braking while the foe was inside the conflict area or at most `FOE_HORIZON_S` from it, and
+  the foe entered the conflict area while the vehicle was still before it. Equal-rank links (all-way
+  stops) use first come: the foe must have stopped at the junction before the vehicle. Attributes: `junction`, `rule`
+  (priority / first_come), `min_speed`, `stopped`, `ego_lane`, `foe_lane`.
+- `yield_to_pedestrian`: a slow or braking vehicle whose path within `PED_LOOKAHEAD_M` runs over a
+  crosswalk on which a pedestrian is walking. Attributes: `crosswalk`, `min_speed`, `stopped`.
+- `ped_waiting`: a pedestrian standing on a walking area right before walking onto a crossing.
+- `ped_crossing`: a pedestrian on a crossing. Both have attribute `crosswalk` (SUMO crossing edge id).
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.path import Path as MplPath
+
+from langtraj.scenario.model import STEP_SECONDS, BehaviorEvent
+from langtraj.scenario.types import AgentType
+from langtraj.synth.runner import FoeObservation, LaneChangeRecord, SimulationLog
+from langtraj.synth.tracks import Track
+
+MIN_FOLLOW_STEPS = 10
+"""A leader must be followed for at least 1 s to make a `follow` event."""
+
+HELD_SPEED = 2.0
+"""m/s: below this a vehicle approaching a conflict counts as held back."""
+
+BRAKING = -0.5
+"""m/s^2: deceleration that counts as responding to a foe."""
+
+STOPPED_SPEED = 0.3
+"""m/s: at or below this a vehicle is standing."""
+
+FOE_HORIZON_S = 4.0
+"""A foe counts only while it is inside the conflict area or at most this many seconds from it."""
+
+MERGE_GAP = 5
+"""Observations of one pair at most this many steps apart belong to one event."""
+
+MIN_EVENT_STEPS = 5
+"""Yield events shorter than this (0.5 s) are dropped as noise."""
+
+PED_LOOKAHEAD_M = 12.0
+"""How far ahead of its front a vehicle's path is checked against crosswalks."""
+
+LANE_CHANGE_REASONS = ("strategic", "cooperative", "speedGain", "keepRight")
+
+
+@dataclass(frozen=True)
+class NetContext:
+    """What event extraction needs to know about the network.
+
+    `junction_of_lane` maps junction-internal lane ids to junction ids; `crosswalks` maps SUMO crossing
+    edge ids to their polygons [K, 2]; `walkingareas` holds walking-area edge ids.
+    """
+
+    junction_of_lane: Mapping[str, str]
+    crosswalks: Mapping[str, np.ndarray]
+    walkingareas: frozenset[str]
+
+
+def _runs(mask: np.ndarray, max_gap: int = 0) -> list[tuple[int, int]]:
+    """[start, end) index runs where `mask` is True, joining runs separated by at most `max_gap`."""
+    idx = np.flatnonzero(mask)
+    if idx.size == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(idx) > max_gap + 1)
+    starts = np.concatenate([[idx[0]], idx[breaks + 1]])
+    ends = np.concatenate([idx[breaks], [idx[-1]]]) + 1
+    return list(zip(starts.tolist(), ends.tolist(), strict=True))
+
+
+def _acceleration(track: Track) -> np.ndarray:
+    return np.gradient(track.speed, STEP_SECONDS) if len(track.speed) > 1 else np.zeros_like(track.speed)
+
+
+def _edge_of(lane: str) -> str:
+    return lane.rsplit("_", 1)[0]
+
+
+# ---------------------------------------------------------------- lane changes
+
+
+def _primary_reason(reason: str) -> str:
+    tokens = reason.split("|")
+    return next((t for t in tokens if t in LANE_CHANGE_REASONS), tokens[0])
+
+
+def lane_change_events(records: Sequence[LaneChangeRecord], tracks: Mapping[str, Track]) -> list[BehaviorEvent]:
+    """One event per lane switch in SUMO's lane-change output, spanning its whole manoeuvre."""
+    by_vehicle: dict[str, list[LaneChangeRecord]] = defaultdict(list)
+    for rec in records:
+        by_vehicle[rec.sumo_id].append(rec)
+    events = []
+    for sumo_id, recs in by_vehicle.items():
+        track = tracks.get(sumo_id)
+        if track is None:
+            continue
+        recs.sort(key=lambda r: (r.step, ("changeStarted", "change", "changeEnded").index(r.tag)))
+        previous_change = -1
+        for i, rec in enumerate(recs):
+            if rec.tag != "change" or rec.direction == 0:
+                continue
+            started = [r.step for r in recs[:i] if r.tag == "changeStarted" and r.step > previous_change]
+            ended = [r.step for r in recs[i + 1 :] if r.tag == "changeEnded"]
+            start = max(min(started) if started else rec.step, track.start)
+            end = min((ended[0] if ended else rec.step) + 1, track.stop)
+            previous_change = rec.step
+            after = track.local(min(rec.step + 1, track.stop - 1))
+            events.append(
+                BehaviorEvent(
+                    "lane_change",
+                    track.track_id,
+                    start,
+                    max(end, start + 1),
+                    int(track.leader[after]),
+                    {
+                        "direction": "left" if rec.direction > 0 else "right",
+                        "reason": _primary_reason(rec.reason),
+                        "reason_detail": rec.reason,
+                        "from_lane": rec.from_lane,
+                        "to_lane": rec.to_lane,
+                        "change_step": rec.step,
+                    },
+                )
+            )
+    return events
+
+
+# ---------------------------------------------------------------- following
+
+
+def follow_events(tracks: Iterable[Track]) -> list[BehaviorEvent]:
+    """Runs of at least `MIN_FOLLOW_STEPS` steps behind the same leader."""
+    events = []
+    for track in tracks:
+        leader = track.leader
+        if not (leader >= 0).any():
+            continue
+        change = np.flatnonzero(np.diff(leader) != 0) + 1
+        bounds = zip(
+            np.concatenate([[0], change]).tolist(), np.concatenate([change, [len(leader)]]).tolist(), strict=True
+        )
+        for a, b in bounds:
+            if leader[a] < 0 or b - a < MIN_FOLLOW_STEPS:
+                continue
+            gaps = track.gap[a:b].astype(np.float64)
+            events.append(
+                BehaviorEvent(
+                    "follow",
+                    track.track_id,
+                    track.start + a,
+                    track.start + b,
+                    int(leader[a]),
+                    {
+                        "min_gap": round(float(gaps.min()), 2),
+                        "mean_gap": round(float(gaps.mean()), 2),
+                        "start_gap": round(float(gaps[0]), 2),
+                        "end_gap": round(float(gaps[-1]), 2),
+                    },
+                )
+            )
+    return events
+
+
+# ---------------------------------------------------------------- yielding at junctions
+
+
+def _held(track: Track, local: np.ndarray) -> np.ndarray:
+    return (track.speed[local] < HELD_SPEED) | (_acceleration(track)[local] < BRAKING)
+
+
+def _arrival_steps(observations: Sequence[FoeObservation], tracks: Mapping[str, Track], ctx: NetContext):
+    """(vehicle, junction) -> first step the vehicle stood while it had a foe there (first-come order)."""
+    arrival: dict[tuple[str, str], int] = {}
+    for obs in observations:
+        track = tracks[obs.ego]
+        junction = ctx.junction_of_lane.get(obs.ego_lane, _edge_of(obs.ego_lane))
+        key = (obs.ego, junction)
+        if key not in arrival and track.speed[track.local(obs.step)] <= STOPPED_SPEED:
+            arrival[key] = obs.step
+    return arrival
+
+
+def yield_events(
+    observations: Sequence[FoeObservation], tracks: Mapping[str, Track], ctx: NetContext
+) -> list[BehaviorEvent]:
+    """Vehicles held back for a junction foe that SUMO gave priority (first come at equal rank)."""
+    pairs: dict[tuple[str, str], list[FoeObservation]] = defaultdict(list)
+    for obs in observations:
+        if obs.ego in tracks and obs.foe in tracks:
+            pairs[(obs.ego, obs.foe)].append(obs)
+    arrival = _arrival_steps(observations, tracks, ctx)
+    events = []
+    for (ego, foe), obs_list in sorted(pairs.items()):
+        track, foe_track = tracks[ego], tracks[foe]
+        junction = ctx.junction_of_lane.get(obs_list[0].ego_lane, _edge_of(obs_list[0].ego_lane))
+        mutual = any(o.mutual for o in obs_list)
+        if mutual:
+            ego_arrival = arrival.get((ego, junction))
+            foe_arrival = arrival.get((foe, junction))
+            if foe_arrival is None or (ego_arrival is not None and foe_arrival >= ego_arrival):
+                continue
+        steps = np.array([o.step for o in obs_list])
+        before = np.array([o.ego_dist > 0.0 for o in obs_list])
+        foe_inside_first = np.array([o.foe_dist <= 0.0 < o.ego_dist for o in obs_list])
+        if not foe_inside_first.any():
+            continue
+        local = steps - track.start
+        foe_speed = np.maximum(foe_track.speed[steps - foe_track.start], 1.0)
+        foe_dist = np.array([o.foe_dist for o in obs_list])
+        near = foe_dist / foe_speed <= FOE_HORIZON_S
+        keep = before & near & _held(track, local)
+        if not keep.any():
+            continue
+        mask = np.zeros(steps.max() - steps.min() + 1, bool)
+        mask[steps[keep] - steps.min()] = True
+        for a, b in _runs(mask, MERGE_GAP):
+            start, end = int(steps.min() + a), int(steps.min() + b)
+            if end - start < MIN_EVENT_STEPS:
+                continue
+            window = track.speed[track.local(start) : track.local(end)]
+            events.append(
+                BehaviorEvent(
+                    "yield",
+                    track.track_id,
+                    start,
+                    end,
+                    foe_track.track_id,
+                    {
+                        "junction": junction,
+                        "rule": "first_come" if mutual else "priority",
+                        "min_speed": round(float(window.min()), 2),
+                        "stopped": bool(window.min() <= STOPPED_SPEED),
+                        "ego_lane": obs_list[0].ego_lane,
+                        "foe_lane": obs_list[0].foe_lane,
+                    },
+                )
+            )
+    return events
+
+
+# ---------------------------------------------------------------- pedestrians
+
+
+def _lane_edges(log: SimulationLog) -> np.ndarray:
+    return np.array([_edge_of(name) for name in log.lane_names] or [""], dtype=object)
+
+
+def pedestrian_events(tracks: Iterable[Track], log: SimulationLog, ctx: NetContext) -> list[BehaviorEvent]:
+    """`ped_crossing` runs on crossings and `ped_waiting` runs of standing on a walking area just before."""
+    edges = _lane_edges(log)
+    events = []
+    for track in tracks:
+        if track.agent_type != AgentType.PEDESTRIAN:
+            continue
+        edge = np.where(track.lane >= 0, edges[np.maximum(track.lane, 0)], "")
+        on_crossing = np.array([e in ctx.crosswalks for e in edge], bool)
+        for a, b in _runs(on_crossing):
+            crossing = str(edge[a])
+            events.append(
+                BehaviorEvent(
+                    "ped_crossing", track.track_id, track.start + a, track.start + b, -1, {"crosswalk": crossing}
+                )
+            )
+            if a == 0 or edge[a - 1] not in ctx.walkingareas:
+                continue
+            standing = (track.speed[:a] <= STOPPED_SPEED) & (edge[:a] == edge[a - 1])
+            wait = _runs(standing)
+            if wait and wait[-1][1] >= a - 2 and wait[-1][1] - wait[-1][0] >= MIN_EVENT_STEPS:
+                w0, w1 = wait[-1]
+                events.append(
+                    BehaviorEvent(
+                        "ped_waiting", track.track_id, track.start + w0, track.start + w1, -1, {"crosswalk": crossing}
+                    )
+                )
+    return events
+
+
+def _crossing_occupancy(events: Sequence[BehaviorEvent]) -> dict[str, dict[int, list[int]]]:
+    """crossing edge -> global step -> track ids of pedestrians on it."""
+    occupancy: dict[str, dict[int, list[int]]] = defaultdict(lambda: defaultdict(list))
+    for event in events:
+        if event.kind == "ped_crossing":
+            for step in range(event.start, event.end):
+                occupancy[event.attributes["crosswalk"]][step].append(event.track_id)
+    return occupancy
+
+
+def _probe_hits(track: Track, local: np.ndarray, path: MplPath) -> np.ndarray:
+    """Which of the `local` steps have the vehicle's look-ahead path over the polygon."""
+    ahead = 0.5 * track.size[0] + np.linspace(0.5, PED_LOOKAHEAD_M, 24)
+    direction = np.stack([np.cos(track.heading[local]), np.sin(track.heading[local])], axis=-1)
+    probes = track.xy[local][:, None, :] + ahead[None, :, None] * direction[:, None, :]
+    return path.contains_points(probes.reshape(-1, 2)).reshape(len(local), -1).any(axis=1)
+
+
+def _nearest_pedestrian(track: Track, step: int, ped_ids: Sequence[int], tracks: Mapping[int, Track]) -> int:
+    here = track.xy[track.local(step)]
+    return min(ped_ids, key=lambda p: float(np.hypot(*(tracks[p].xy[tracks[p].local(step)] - here))))
+
+
+def pedestrian_yield_events(
+    tracks: Sequence[Track], ped_events: Sequence[BehaviorEvent], ctx: NetContext
+) -> list[BehaviorEvent]:
+    """Vehicles held back before a crosswalk while a pedestrian walks on it."""
+    occupancy = _crossing_occupancy(ped_events)
+    by_id = {t.track_id: t for t in tracks}
+    events = []
+    for crossing, occupied in sorted(occupancy.items()):
+        polygon = ctx.crosswalks[crossing]
+        centre = polygon.mean(axis=0)
+        reach = float(np.max(np.linalg.norm(polygon - centre, axis=1))) + PED_LOOKAHEAD_M + 6.0
+        path = MplPath(polygon)
+        occupied_steps = np.array(sorted(occupied))
+        for track in tracks:
+            if track.agent_type == AgentType.PEDESTRIAN:
+                continue
+            steps = occupied_steps[(occupied_steps >= track.start) & (occupied_steps < track.stop)]
+            local = steps - track.start
+            near = np.linalg.norm(track.xy[local] - centre, axis=1) < reach
+            local = local[near & track.valid[local] & _held(track, local)]
+            if local.size == 0:
+                continue
+            local = local[_probe_hits(track, local, path)]
+            hits: dict[int, list[int]] = defaultdict(list)
+            for i in local.tolist():
+                step = track.start + i
+                hits[_nearest_pedestrian(track, step, occupied[step], by_id)].append(step)
+            events.extend(_pedestrian_yields(track, crossing, hits))
+    return events
+
+
+def _pedestrian_yields(track: Track, crossing: str, hits: Mapping[int, list[int]]) -> list[BehaviorEvent]:
+    events = []
+    for ped_id, steps in sorted(hits.items()):
+        first = min(steps)
+        mask = np.zeros(max(steps) - first + 1, bool)
+        mask[np.array(steps) - first] = True
+        for a, b in _runs(mask, MERGE_GAP):
+            if b - a < MIN_EVENT_STEPS:
+                continue
+            speed = track.speed[track.local(first + a) : track.local(first + b)]
+            attributes = {
+                "crosswalk": crossing,
+                "min_speed": round(float(speed.min()), 2),
+                "stopped": bool(speed.min() <= STOPPED_SPEED),
+            }
+            events.append(
+                BehaviorEvent("yield_to_pedestrian", track.track_id, first + a, first + b, ped_id, attributes)
+            )
+    return events
+
+
+def extract_events(log: SimulationLog, tracks: Sequence[Track], ctx: NetContext) -> tuple[BehaviorEvent, ...]:
+    """All events of a simulation, sorted by (start, track, kind, other)."""
+    by_sumo = {t.sumo_id: t for t in tracks}
+    peds = pedestrian_events(tracks, log, ctx)
+    events = [
+        *lane_change_events(log.lane_changes, by_sumo),
+        *follow_events(tracks),
+        *yield_events(log.foe_observations, by_sumo, ctx),
+        *peds,
+        *pedestrian_yield_events(tracks, peds, ctx),
+    ]
+    events.sort(key=lambda e: (e.start, e.track_id, e.kind, e.other_id, e.end))
+    return tuple(events)
