@@ -16,6 +16,7 @@ from typing import ClassVar
 import numpy as np
 
 from langtraj.errors import InputError
+from langtraj.registry import Registry
 
 
 @dataclass(frozen=True)
@@ -62,30 +63,26 @@ class NetworkKind(ABC):
         """Draw parameters from `rng`, write the network into `workdir`, return what was built."""
 
 
-_KINDS: dict[str, type[NetworkKind]] = {}
+def _load_builtin_kinds() -> None:
+    from langtraj.synth import kinds  # noqa: F401  (registers the built-in kinds on import)
+
+
+_KINDS: Registry[NetworkKind] = Registry("scenario kind", loader=_load_builtin_kinds)
 
 
 def register_kind(cls: type[NetworkKind]) -> type[NetworkKind]:
     """Class decorator adding a kind to the registry under `cls.name`."""
-    if cls.name in _KINDS and _KINDS[cls.name] is not cls:
-        raise ValueError(f"network kind {cls.name!r} registered twice")
-    _KINDS[cls.name] = cls
-    return cls
+    return _KINDS.register(cls)
 
 
 def kind_names() -> tuple[str, ...]:
     """Registered kind names, in registration order."""
-    _load_builtin_kinds()
-    return tuple(_KINDS)
+    return _KINDS.names()
 
 
 def get_kind(name: str) -> NetworkKind:
     """A new instance of the kind called `name`; an unknown name raises InputError listing the known."""
-    _load_builtin_kinds()
-    try:
-        return _KINDS[name]()
-    except KeyError:
-        raise InputError(f"unknown scenario kind {name!r}; known: {', '.join(_KINDS)}", where="--kinds") from None
+    return _KINDS.create(name, where="--kinds")
 
 
 def parse_kinds(spec: str) -> tuple[str, ...]:
@@ -99,7 +96,3 @@ def parse_kinds(spec: str) -> tuple[str, ...]:
     for name in chosen:
         get_kind(name)
     return chosen
-
-
-def _load_builtin_kinds() -> None:
-    from langtraj.synth import kinds  # noqa: F401  (registers the built-in kinds on import)

@@ -13,6 +13,7 @@ from typing import ClassVar
 
 from langtraj.errors import InputError
 from langtraj.fileio import open_input
+from langtraj.registry import Registry
 from langtraj.scenario.model import Scenario
 
 SNIFF_BYTES = 64
@@ -52,26 +53,20 @@ class ScenarioFormat(ABC):
         """Write `scenarios` to `path` atomically; returns how many were written."""
 
 
-_FORMATS: dict[str, type[ScenarioFormat]] = {}
+_FORMATS: Registry[ScenarioFormat] = Registry("scenario format")
 
 
 def register_format(cls: type[ScenarioFormat]) -> type[ScenarioFormat]:
     """Class decorator adding a format to the registry under `cls.name`."""
-    if cls.name in _FORMATS and _FORMATS[cls.name] is not cls:
-        raise ValueError(f"scenario format {cls.name!r} is already registered")
-    _FORMATS[cls.name] = cls
-    return cls
+    return _FORMATS.register(cls)
 
 
 def available_formats() -> list[str]:
-    return sorted(_FORMATS)
+    return sorted(_FORMATS.names())
 
 
 def get_format(name: str) -> ScenarioFormat:
-    try:
-        return _FORMATS[name]()
-    except KeyError:
-        raise InputError(f"unknown scenario format {name!r}; known: {', '.join(available_formats())}") from None
+    return _FORMATS.create(name)
 
 
 def detect_format(path: str | Path) -> ScenarioFormat:
@@ -81,7 +76,7 @@ def detect_format(path: str | Path) -> ScenarioFormat:
         head = fh.read(SNIFF_BYTES)
     if not head:
         raise InputError("file is empty", path=path)
-    for cls in _FORMATS.values():
+    for cls in _FORMATS.classes():
         if cls.sniff(head):
             return cls()
     raise InputError(f"not a scenario file (known formats: {', '.join(available_formats())})", path=path)
@@ -92,11 +87,11 @@ def format_for_output(path: str | Path, name: str | None = None) -> ScenarioForm
     if name:
         return get_format(name)
     path_str = str(path).lower()
-    for cls in _FORMATS.values():
+    for cls in _FORMATS.classes():
         if any(path_str.endswith(s) for s in cls.suffixes):
             return cls()
     raise InputError(
         "cannot tell the output format from the file name; use a suffix "
-        + ", ".join(s for c in _FORMATS.values() for s in c.suffixes),
+        + ", ".join(s for c in _FORMATS.classes() for s in c.suffixes),
         path=path,
     )

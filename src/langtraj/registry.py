@@ -1,0 +1,56 @@
+"""A name -> class registry, the one mechanism behind every extension point (scenario formats,
+network kinds, and later dynamics, policies, guidance costs, metrics)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Generic, TypeVar
+
+from langtraj.errors import InputError
+
+T = TypeVar("T")
+
+
+class Registry(Generic[T]):
+    """Classes registered under their `name` attribute; `what` names the kind of thing in errors.
+
+    `loader`, when given, is called once before the first lookup (e.g. to import the built-in
+    implementations, which register themselves on import).
+    """
+
+    def __init__(self, what: str, loader: Callable[[], None] | None = None):
+        self.what = what
+        self._classes: dict[str, type[T]] = {}
+        self._loader = loader
+
+    def _load(self) -> None:
+        if self._loader is not None:
+            loader, self._loader = self._loader, None
+            loader()
+
+    def register(self, cls: type[T]) -> type[T]:
+        """Class decorator adding `cls` under `cls.name`; a second class under one name is an error."""
+        name = cls.name  # type: ignore[attr-defined]
+        if name in self._classes and self._classes[name] is not cls:
+            raise ValueError(f"{self.what} {name!r} is already registered")
+        self._classes[name] = cls
+        return cls
+
+    def names(self) -> tuple[str, ...]:
+        """Registered names, in registration order."""
+        self._load()
+        return tuple(self._classes)
+
+    def classes(self) -> tuple[type[T], ...]:
+        self._load()
+        return tuple(self._classes.values())
+
+    def create(self, name: str, where: str | None = None) -> T:
+        """A new instance of the class called `name`; an unknown name raises InputError listing the known."""
+        self._load()
+        try:
+            cls = self._classes[name]
+        except KeyError:
+            known = ", ".join(self._classes)
+            raise InputError(f"unknown {self.what} {name!r}; known: {known}", where=where) from None
+        return cls()
