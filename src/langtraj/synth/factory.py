@@ -1,0 +1,205 @@
+"""The scenario factory: plans (kind, seed) shards, runs them in a process pool, writes a manifest.
+
+Each kind gets an equal share of the requested windows. Shards are planned in rounds: a round asks
+each kind that is still short for enough shards of at most `windows_per_shard` windows; a shard that
+yields fewer (windows are filtered) is made up for by the next round. Shard seeds depend only on the run
+seed, the kind and the shard index, so the plan and every shard are the same whatever the worker count.
+A shard whose file and sidecar exist with the same seed and quota is not run again (resume).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import multiprocessing
+from collections import Counter
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from langtraj import __version__
+from langtraj.fileio import atomic_open
+from langtraj.synth.shard import ShardConfig, ShardOutcome, ShardTask, run_shard, shard_seed
+from langtraj.synth.sumo import SynthError, sumo_version
+
+MAX_ROUNDS = 6
+"""Rounds of shards before giving up on a kind that keeps yielding too few windows."""
+
+
+@dataclass(frozen=True)
+class FactoryConfig:
+    """A synthesis job: which kinds, how many windows in all, the seed, the pool size and the output."""
+
+    kinds: tuple[str, ...]
+    windows: int
+    seed: int
+    out: Path
+    workers: int = 1
+    windows_per_shard: int = 40
+    shard: ShardConfig = field(default_factory=ShardConfig)
+
+    def targets(self) -> dict[str, int]:
+        """Windows per kind: an equal share, the remainder to the first kinds."""
+        base, extra = divmod(self.windows, len(self.kinds))
+        return {kind: base + (1 if i < extra else 0) for i, kind in enumerate(self.kinds)}
+
+
+def shard_path(out: Path, kind: str, index: int) -> Path:
+    return out / "shards" / f"{kind}-{index:04d}.tfrecord"
+
+
+def _finished(task: ShardTask) -> ShardOutcome | None:
+    """The sidecar of a finished shard with the same seed and quota, else None."""
+    if not (task.path.exists() and task.stats_path.exists()):
+        return None
+    try:
+        data = json.loads(task.stats_path.read_text())
+        outcome = ShardOutcome(**data)
+    except (OSError, ValueError, TypeError):
+        return None
+    if outcome.seed != task.seed or outcome.quota != task.quota:
+        return None
+    return outcome
+
+
+def _run_task(args: tuple[ShardTask, ShardConfig]) -> ShardOutcome:
+    task, config = args
+    return run_shard(task, config)
+
+
+def _run_all(
+    tasks: Sequence[ShardTask], config: FactoryConfig, on_done: Callable[[ShardOutcome], None]
+) -> list[ShardOutcome]:
+    todo = [(t, config.shard) for t in tasks]
+    if config.workers <= 1 or len(todo) <= 1:
+        results = []
+        for item in todo:
+            results.append(_run_task(item))
+            on_done(results[-1])
+        return results
+    context = multiprocessing.get_context("spawn")  # libsumo keeps global state: fresh processes only
+    results_by_key = {}
+    with ProcessPoolExecutor(max_workers=config.workers, mp_context=context) as pool:
+        for outcome in pool.map(_run_task, todo):
+            results_by_key[(outcome.kind, outcome.index)] = outcome
+            on_done(outcome)
+    return [results_by_key[(t.kind, t.index)] for t in tasks]
+
+
+def _round_tasks(config: FactoryConfig, short: dict[str, int], next_index: dict[str, int]) -> list[ShardTask]:
+    tasks = []
+    for kind, missing in short.items():
+        for _ in range(math.ceil(missing / config.windows_per_shard)):
+            index = next_index[kind]
+            next_index[kind] += 1
+            quota = min(config.windows_per_shard, missing)
+            missing -= quota
+            seed = shard_seed(config.seed, kind, index)
+            tasks.append(ShardTask(kind, index, seed, quota, shard_path(config.out, kind, index)))
+    return tasks
+
+
+def run_factory(config: FactoryConfig, progress: bool = True) -> dict[str, Any]:
+    """Run (or resume) a synthesis job; returns the manifest it writes to `out/manifest.json`."""
+    from tqdm import tqdm
+
+    if config.windows < 1:
+        raise SynthError("--windows must be at least 1")
+    targets = config.targets()
+    produced = dict.fromkeys(config.kinds, 0)
+    next_index = dict.fromkeys(config.kinds, 0)
+    outcomes: list[ShardOutcome] = []
+    bar = tqdm(total=config.windows, unit="win", disable=not progress, desc="synth")
+    try:
+        for _ in range(MAX_ROUNDS):
+            short = {k: targets[k] - produced[k] for k in config.kinds if produced[k] < targets[k]}
+            if not short:
+                break
+            tasks = _round_tasks(config, short, next_index)
+            pending = []
+            for task in tasks:
+                done = _finished(task)
+                if done is None:
+                    pending.append(task)
+                else:
+                    outcomes.append(done)
+                    produced[task.kind] += done.windows
+                    bar.update(done.windows)
+
+            def on_done(outcome: ShardOutcome) -> None:
+                produced[outcome.kind] += outcome.windows
+                bar.update(outcome.windows)
+
+            outcomes.extend(_run_all(pending, config, on_done))
+    finally:
+        bar.close()
+    manifest = build_manifest(config, outcomes, targets)
+    with atomic_open(config.out / "manifest.json", "w") as fh:
+        fh.write(json.dumps(manifest, indent=1, sort_keys=True))
+    missing = [k for k in config.kinds if produced[k] < targets[k]]
+    if missing:
+        raise SynthError(
+            f"after {MAX_ROUNDS} rounds of shards these kinds are still short of windows: {', '.join(missing)} "
+            f"(see {config.out / 'manifest.json'}, rejections per kind)"
+        )
+    return manifest
+
+
+def _distribution(values: Iterable[int]) -> dict[str, float]:
+    arr = np.asarray(list(values), np.float64)
+    if arr.size == 0:
+        return {"count": 0}
+    return {
+        "count": int(arr.size),
+        "min": float(arr.min()),
+        "median": float(np.median(arr)),
+        "mean": round(float(arr.mean()), 2),
+        "max": float(arr.max()),
+    }
+
+
+def build_manifest(config: FactoryConfig, outcomes: Sequence[ShardOutcome], targets: dict[str, int]) -> dict[str, Any]:
+    """Counts per kind, agents per window, event and rejection counts, seeds, versions and shard list."""
+    per_kind: dict[str, Any] = {}
+    ordered = sorted(outcomes, key=lambda o: (o.kind, o.index))
+    for kind in config.kinds:
+        mine = [o for o in ordered if o.kind == kind]
+        per_kind[kind] = {
+            "target": targets[kind],
+            "windows": sum(o.windows for o in mine),
+            "shards": len(mine),
+            "agents_per_window": _distribution(a for o in mine for a in o.agents_per_window),
+            "agent_types": dict(sum((Counter(o.agent_types) for o in mine), Counter())),
+            "events": dict(sum((Counter(o.events) for o in mine), Counter())),
+            "rejections": dict(sum((Counter(o.rejections) for o in mine), Counter())),
+            "sumo_collisions": sum(o.collisions for o in mine),
+            "sumo_teleports": sum(o.teleports for o in mine),
+            "simulation_seconds": round(sum(o.seconds for o in mine), 2),
+        }
+    return {
+        "langtraj_version": __version__,
+        "sumo_version": sumo_version(),
+        "seed": config.seed,
+        "kinds": list(config.kinds),
+        "windows": sum(o.windows for o in ordered),
+        "config": {
+            "windows_per_shard": config.windows_per_shard,
+            "duration_s": config.shard.duration_s,
+            "window": asdict(config.shard.window),
+        },
+        "per_kind": per_kind,
+        "shards": [
+            {
+                "file": str(shard_path(Path("."), o.kind, o.index)),
+                "kind": o.kind,
+                "index": o.index,
+                "seed": o.seed,
+                "windows": o.windows,
+            }
+            for o in ordered
+        ],
+    }

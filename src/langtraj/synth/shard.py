@@ -1,0 +1,214 @@
+"""One shard: build a (kind, seed) network and demand, simulate it, cut windows, write a TFRecord.
+
+A shard is the unit of work of the factory: independent of every other shard, deterministic in its
+seed (same seed, byte-identical shard), and written atomically with a JSON sidecar of its statistics.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import time
+import xml.etree.ElementTree as ET
+import zlib
+from collections import Counter
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from langtraj.fileio import atomic_open
+from langtraj.scenario.io.tfrecord import write_records
+from langtraj.scenario.io.womd import scenario_to_proto
+from langtraj.scenario.model import RoadMap, Scenario
+from langtraj.synth.demand import write_demand
+from langtraj.synth.events import NetContext, extract_events
+from langtraj.synth.mapping import NetMap, build_net_map, crop_road_map
+from langtraj.synth.network import BuiltNetwork, get_kind
+from langtraj.synth.runner import SimulationInput, SimulationLog, simulate
+from langtraj.synth.sumo import sumo_version
+from langtraj.synth.tracks import Track, build_tracks
+from langtraj.synth.windows import Rejection, RunData, SignalTable, WindowConfig, WindowCutter
+
+
+@dataclass(frozen=True)
+class ShardConfig:
+    """Per-shard settings: simulated seconds and the window cutting rules."""
+
+    duration_s: float = 240.0
+    window: WindowConfig = field(default_factory=WindowConfig)
+
+
+@dataclass(frozen=True)
+class ShardTask:
+    """Shard `index` of `kind`: its seed, the most windows it may write, and where."""
+
+    kind: str
+    index: int
+    seed: int
+    quota: int
+    path: Path
+
+    @property
+    def stats_path(self) -> Path:
+        return self.path.with_suffix(".json")
+
+
+def shard_seed(base_seed: int, kind: str, index: int) -> int:
+    """The seed of one shard, derived from the run seed, the kind name and the shard index."""
+    entropy = [int(base_seed) & 0xFFFFFFFF, zlib.crc32(kind.encode()), int(index)]
+    return int(np.random.SeedSequence(entropy).generate_state(1)[0])
+
+
+def _net_context(net_file: Path, net_map: NetMap) -> NetContext:
+    walkingareas = {
+        elem.get("id", "")
+        for _, elem in ET.iterparse(net_file)
+        if elem.tag == "edge" and elem.get("function") == "walkingarea"
+    }
+    crosswalks = {
+        edge: net_map.road_map.by_id[fid].points[:, :2].copy() for edge, fid in sorted(net_map.crossing_ids.items())
+    }
+    return NetContext(dict(net_map.junction_of_lane), crosswalks, frozenset(walkingareas))
+
+
+def _run_data(log: SimulationLog, tracks: tuple[Track, ...], net_map: NetMap, ctx: NetContext) -> RunData:
+    ids = {t.sumo_id: t.track_id for t in tracks}
+    signals = SignalTable(
+        lane_ids=np.array([s.lane_id for s in net_map.signals], np.int64),
+        stop_points=np.array([s.stop_point for s in net_map.signals], np.float64).reshape(-1, 3),
+        directions=tuple(s.direction for s in net_map.signals),
+        states=log.signal_states,
+    )
+    return RunData(
+        tracks=tracks,
+        events=extract_events(log, tracks, ctx),
+        num_steps=log.num_steps,
+        collisions=tuple((s, ids.get(a, -1), ids.get(b, -1)) for s, a, b in log.collisions),
+        teleports=tuple((s, ids.get(a, -1)) for s, a in log.teleports),
+        signals=signals,
+    )
+
+
+def _window_map(road_map: RoadMap, scenario_xy: np.ndarray, margin: float) -> RoadMap:
+    lo = np.nanmin(scenario_xy, axis=0) - margin
+    hi = np.nanmax(scenario_xy, axis=0) + margin
+    return crop_road_map(road_map, lo.tolist(), hi.tolist())
+
+
+@dataclass
+class ShardOutcome:
+    """Statistics of one finished shard (also its JSON sidecar)."""
+
+    kind: str
+    index: int
+    seed: int
+    quota: int
+    windows: int
+    agents_per_window: list[int]
+    agent_types: dict[str, int]
+    events: dict[str, int]
+    rejections: dict[str, int]
+    collisions: int
+    teleports: int
+    network: dict[str, Any]
+    demand: dict[str, Any]
+    sumo_version: str
+    seconds: float
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), sort_keys=True, indent=1)
+
+
+def cut_windows(
+    task: ShardTask, network: BuiltNetwork, run: RunData, net_map: NetMap, config: ShardConfig, meta: dict[str, Any]
+) -> tuple[list[Scenario], Counter]:
+    """Up to `task.quota` windows in time order (centres interleaved), and the rejection counts."""
+    cutter = WindowCutter(run, config.window)
+    scenarios: list[Scenario] = []
+    rejections: Counter = Counter()
+    last_start: dict[int, int] = {}
+    length = config.window.length
+    for c, start in cutter.candidates(network.centres):
+        if len(scenarios) >= task.quota:
+            break
+        if start < last_start.get(c, -length):  # windows of one centre do not overlap
+            continue
+        cut = cutter.cut(network.centres[c], start)
+        if isinstance(cut, Rejection):
+            rejections[cut.reason] += 1
+            continue
+        members, ooi, event = cut
+        xy = np.concatenate([run.tracks[m].xy for m in members])
+        road_map = _window_map(net_map.road_map, xy, config.window.map_margin_m)
+        centre = network.centres[c]
+        metadata = {
+            **meta,
+            "centre": {"label": centre.label, "junction": centre.junction_id, "x": centre.x, "y": centre.y},
+            "start_step": start,
+            "interaction": None if event is None else event.kind,
+        }
+        scenario_id = f"{task.kind}-{task.seed:010d}-{c}-{start:05d}"
+        scenario = cutter.scenario(members, ooi, start, scenario_id, road_map, metadata)
+        if isinstance(scenario, Rejection):
+            rejections[scenario.reason] += 1
+            continue
+        scenarios.append(scenario)
+        last_start[c] = start + length
+    return scenarios, rejections
+
+
+def run_shard(task: ShardTask, config: ShardConfig) -> ShardOutcome:
+    """Build, simulate, cut and write one shard (atomically, shard first, sidecar last)."""
+    began = time.perf_counter()
+    rng = np.random.default_rng(task.seed)
+    with tempfile.TemporaryDirectory(prefix=f"langtraj-{task.kind}-") as tmp:
+        workdir = Path(tmp)
+        network = get_kind(task.kind).build(rng, workdir)
+        demand = write_demand(network, rng, config.duration_s, workdir)
+        net_map = build_net_map(network.net_file)
+        sim = SimulationInput(
+            net_file=network.net_file,
+            route_files=(demand.route_file,),
+            seed=task.seed % (2**31),
+            duration_s=config.duration_s,
+            signal_links=tuple((s.tls_id, s.link_index) for s in net_map.signals),
+            additional_files=network.additional_files,
+        )
+        log = simulate(sim, workdir)
+        ctx = _net_context(network.net_file, net_map)
+    tracks = build_tracks(log.tracks)
+    run = _run_data(log, tracks, net_map, ctx)
+    meta = {
+        "source": "langtraj.synth",
+        "kind": task.kind,
+        "seed": task.seed,
+        "shard": task.index,
+        "network": dict(network.params),
+        "demand": dict(demand.params),
+        "sumo_version": sumo_version(),
+    }
+    scenarios, rejections = cut_windows(task, network, run, net_map, config, meta)
+    task.path.parent.mkdir(parents=True, exist_ok=True)
+    write_records(task.path, (scenario_to_proto(s).SerializeToString(deterministic=True) for s in scenarios))
+    outcome = ShardOutcome(
+        kind=task.kind,
+        index=task.index,
+        seed=task.seed,
+        quota=task.quota,
+        windows=len(scenarios),
+        agents_per_window=[s.num_agents for s in scenarios],
+        agent_types=dict(sorted(sum((Counter(s.agents.type_counts()) for s in scenarios), Counter()).items())),
+        events=dict(sorted(Counter(e.kind for s in scenarios for e in s.events).items())),
+        rejections=dict(sorted(rejections.items())),
+        collisions=len(log.collisions),
+        teleports=len(log.teleports),
+        network=meta["network"],
+        demand=meta["demand"],
+        sumo_version=meta["sumo_version"],
+        seconds=round(time.perf_counter() - began, 3),
+    )
+    with atomic_open(task.stats_path, "w") as fh:
+        fh.write(outcome.to_json())
+    return outcome

@@ -1,0 +1,144 @@
+"""The factory end to end: shards, manifest, determinism, resume, every kind, and the CLI."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from langtraj.cli.main import main
+from langtraj.scenario.io import read_scenarios
+from langtraj.scenario.io.tfrecord import count_records
+from langtraj.scenario.types import AgentType
+from langtraj.synth import factory
+from langtraj.synth.factory import FactoryConfig, run_factory
+from langtraj.synth.network import kind_names
+from langtraj.synth.shard import ShardConfig, ShardTask, run_shard, shard_seed
+from langtraj.synth.windows import WindowConfig
+
+SHORT = ShardConfig(duration_s=100.0, window=WindowConfig(warmup_s=40.0))
+
+
+def _config(out: Path, workers: int = 1) -> FactoryConfig:
+    return FactoryConfig(
+        kinds=("signalized",), windows=3, seed=7, out=out, workers=workers, windows_per_shard=2, shard=SHORT
+    )
+
+
+@pytest.fixture(scope="module")
+def first_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("synth") / "a"
+    return out, run_factory(_config(out), progress=False)
+
+
+def test_manifest_counts_what_the_shards_hold(first_run):
+    out, manifest = first_run
+    on_disk = json.loads((out / "manifest.json").read_text())
+    assert on_disk == manifest
+    stats = manifest["per_kind"]["signalized"]
+    assert stats["windows"] == manifest["windows"] == 3
+    assert manifest["sumo_version"].startswith("SUMO 1.28")
+    total = 0
+    for shard in manifest["shards"]:
+        path = out / shard["file"]
+        assert count_records(path) == shard["windows"]
+        assert shard["seed"] == shard_seed(7, "signalized", shard["index"])
+        total += shard["windows"]
+    assert total == 3
+    assert stats["agents_per_window"]["min"] >= 10
+    assert sum(stats["events"].values()) > 0
+
+
+def test_windows_read_back_with_the_womd_reader(first_run):
+    out, manifest = first_run
+    scenarios = [s for shard in manifest["shards"] for s in read_scenarios(out / shard["file"])]
+    assert len({s.scenario_id for s in scenarios}) == 3
+    for s in scenarios:
+        assert s.num_steps == 91 and s.current_index == 10
+        assert 10 <= s.num_agents <= 128
+        assert s.agents.valid[s.sdc_index].all()
+        assert len(s.agents.objects_of_interest) >= 1
+        assert s.road_map.lanes and s.traffic_lights.lane_ids.size > 0
+        assert s.metadata["kind"] == "signalized"
+        ids = set(s.agents.ids.tolist())
+        assert all(e.track_id in ids and (e.other_id == -1 or e.other_id in ids) for e in s.events)
+        assert all(0 <= e.start < e.end <= 91 for e in s.events)
+
+
+def test_same_seed_gives_byte_identical_shards_whatever_the_workers(first_run, tmp_path):
+    out, manifest = first_run
+    again = run_factory(_config(tmp_path / "b", workers=2), progress=False)
+    assert [s["file"] for s in again["shards"]] == [s["file"] for s in manifest["shards"]]
+    for shard in manifest["shards"]:
+        assert (out / shard["file"]).read_bytes() == (tmp_path / "b" / shard["file"]).read_bytes()
+
+
+def test_rerun_resumes_without_simulating(first_run, monkeypatch):
+    out, manifest = first_run
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a finished shard was run again")
+
+    monkeypatch.setattr(factory, "run_shard", refuse)
+    assert run_factory(_config(out), progress=False)["shards"] == manifest["shards"]
+
+
+def test_a_damaged_sidecar_makes_the_shard_run_again(first_run, tmp_path):
+    out, manifest = first_run
+    copy = tmp_path / "c"
+    (copy / "shards").mkdir(parents=True)
+    for shard in manifest["shards"]:
+        for suffix in (".tfrecord", ".json"):
+            src = (out / shard["file"]).with_suffix(suffix)
+            (copy / "shards" / src.name).write_bytes(src.read_bytes())
+    first = manifest["shards"][0]["file"]
+    (copy / first).with_suffix(".json").write_text("{not json")
+    run_factory(_config(copy), progress=False)
+    assert (copy / first).read_bytes() == (out / first).read_bytes()
+    assert json.loads((copy / first).with_suffix(".json").read_text())["windows"] == manifest["shards"][0]["windows"]
+
+
+@pytest.mark.parametrize("kind", kind_names())
+def test_every_kind_makes_a_window_that_reads_back_and_renders(kind, tmp_path):
+    from langtraj.viz import save_png
+
+    task = ShardTask(kind, 0, shard_seed(3, kind, 0), 1, tmp_path / f"{kind}.tfrecord")
+    outcome = run_shard(task, SHORT)
+    assert outcome.windows == 1, outcome.rejections
+    (scenario,) = read_scenarios(task.path)
+    assert np.isfinite(scenario.agents.states[scenario.agents.valid]).all()
+    assert scenario.agents.type_counts()["vehicle"] >= 1
+    save_png(scenario, scenario.current_index, tmp_path / f"{kind}.png")
+    assert (tmp_path / f"{kind}.png").stat().st_size > 1000
+
+
+def test_pedestrians_and_cyclists_appear(first_run):
+    out, manifest = first_run
+    types = manifest["per_kind"]["signalized"]["agent_types"]
+    assert types["pedestrian"] > 0 and types["cyclist"] > 0
+    scenarios = [s for shard in manifest["shards"] for s in read_scenarios(out / shard["file"])]
+    assert any((s.agents.types == AgentType.PEDESTRIAN).any() for s in scenarios)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--kinds", "motorway"], "unknown scenario kind 'motorway'"),
+        (["--kinds", ","], "no scenario kind given"),
+        (["--windows", "0"], "--windows: must be at least 1"),
+        (["--workers", "0"], "--workers: must be at least 1"),
+        (["--duration", "5"], "--duration: must be within"),
+    ],
+)
+def test_cli_rejects_bad_arguments(args, message, tmp_path, capsys):
+    assert main(["synth", "--out", str(tmp_path / "o"), *args]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_cli_lists_the_kinds(capsys):
+    assert main(["synth", "--list-kinds"]) == 0
+    listed = [line.split()[0] for line in capsys.readouterr().out.splitlines()]
+    assert listed == list(kind_names())
