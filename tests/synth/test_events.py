@@ -116,3 +116,25 @@ def test_no_collisions_or_teleports_and_events_sorted(scripted):
     assert log.collisions == () and log.teleports == ()
     keys = [(e.start, e.track_id, e.kind, e.other_id, e.end) for e in events]
     assert keys == sorted(keys)
+
+
+def test_waiting_at_a_red_light_is_not_being_held_back():
+    import numpy as np
+
+    from langtraj.scenario.types import AgentType
+    from langtraj.synth.events import HeldSteps, NetContext
+    from langtraj.synth.runner import SimulationLog
+    from langtraj.synth.tracks import Track
+
+    n = 30
+    states = np.full((n + 1, 2), ord("r"), np.uint8)
+    states[20:, 1] = ord("g")  # from step 20 one link of the lane turns (permissive) green
+    log = SimulationLog((), ("A_0", "B_0"), n, states, (), (), (), ())
+    ctx = NetContext({}, {}, frozenset(), {"A_0": (0, 1)})
+    lane = np.zeros(n, np.int32)
+    lane[25:] = 1  # on a lane without signals from step 26
+    track = Track(1, "v", AgentType.VEHICLE, "car", (4.5, 1.8, 1.5), 1, np.zeros((n, 2)), np.zeros(n),
+                  np.zeros(n), np.ones(n, bool), lane, np.full(n, -1), np.full(n, np.nan, np.float32))  # fmt: skip
+    held = HeldSteps(log, ctx).of(track)
+    assert not held[:19].any()  # standing at red
+    assert held[19:].all()  # standing with a green to go on (yielding), or away from the signal

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from matplotlib.path import Path as MplPath
@@ -66,12 +66,14 @@ class NetContext:
     """What event extraction needs to know about the network.
 
     `junction_of_lane` maps junction-internal lane ids to junction ids; `crosswalks` maps SUMO crossing
-    edge ids to their polygons [K, 2]; `walkingareas` holds walking-area edge ids.
+    edge ids to their polygons [K, 2]; `walkingareas` holds walking-area edge ids; `signal_columns` maps
+    a SUMO lane id to the columns of the recorded signal states of the links leaving it.
     """
 
     junction_of_lane: Mapping[str, str]
     crosswalks: Mapping[str, np.ndarray]
     walkingareas: frozenset[str]
+    signal_columns: Mapping[str, tuple[int, ...]] = field(default_factory=dict)
 
 
 def _runs(mask: np.ndarray, max_gap: int = 0) -> list[tuple[int, int]]:
@@ -181,8 +183,36 @@ def follow_events(tracks: Iterable[Track]) -> list[BehaviorEvent]:
 # ---------------------------------------------------------------- yielding at junctions
 
 
-def _held(track: Track, local: np.ndarray) -> np.ndarray:
-    return (track.speed[local] < HELD_SPEED) | (_acceleration(track)[local] < BRAKING)
+_GREEN = np.array([ord("G"), ord("g")], np.uint8)
+
+
+class HeldSteps:
+    """Per track, the steps at which it is held back: slower than `HELD_SPEED` or braking harder than
+    `BRAKING`, and not in front of a signal that shows no green for any link of its lane (waiting at a
+    red light is not yielding)."""
+
+    def __init__(self, log: SimulationLog, ctx: NetContext):
+        self._names = log.lane_names
+        self._states = log.signal_states
+        self._columns = ctx.signal_columns
+        self._cache: dict[int, np.ndarray] = {}
+
+    def _red(self, track: Track) -> np.ndarray:
+        red = np.zeros(len(track.valid), bool)
+        for lane in np.unique(track.lane[track.lane >= 0]):
+            columns = self._columns.get(self._names[lane])
+            if columns:
+                at = np.flatnonzero(track.lane == lane)
+                states = self._states[track.start + at][:, list(columns)]
+                red[at] = ~np.isin(states, _GREEN).any(axis=1)
+        return red
+
+    def of(self, track: Track) -> np.ndarray:
+        held = self._cache.get(track.track_id)
+        if held is None:
+            slow = (track.speed < HELD_SPEED) | (_acceleration(track) < BRAKING)
+            held = self._cache[track.track_id] = slow & track.valid & ~self._red(track)
+        return held
 
 
 def _arrival_steps(observations: Sequence[FoeObservation], tracks: Mapping[str, Track], ctx: NetContext):
@@ -198,7 +228,7 @@ def _arrival_steps(observations: Sequence[FoeObservation], tracks: Mapping[str, 
 
 
 def yield_events(
-    observations: Sequence[FoeObservation], tracks: Mapping[str, Track], ctx: NetContext
+    observations: Sequence[FoeObservation], tracks: Mapping[str, Track], ctx: NetContext, held: HeldSteps
 ) -> list[BehaviorEvent]:
     """Vehicles held back for a junction foe that SUMO gave priority (first come at equal rank)."""
     pairs: dict[tuple[str, str], list[FoeObservation]] = defaultdict(list)
@@ -225,7 +255,7 @@ def yield_events(
         foe_speed = np.maximum(foe_track.speed[steps - foe_track.start], 1.0)
         foe_dist = np.array([o.foe_dist for o in obs_list])
         near = foe_dist / foe_speed <= FOE_HORIZON_S
-        keep = before & near & _held(track, local)
+        keep = before & near & held.of(track)[local]
         if not keep.any():
             continue
         mask = np.zeros(steps.max() - steps.min() + 1, bool)
@@ -316,7 +346,7 @@ def _nearest_pedestrian(track: Track, step: int, ped_ids: Sequence[int], tracks:
 
 
 def pedestrian_yield_events(
-    tracks: Sequence[Track], ped_events: Sequence[BehaviorEvent], ctx: NetContext
+    tracks: Sequence[Track], ped_events: Sequence[BehaviorEvent], ctx: NetContext, held: HeldSteps
 ) -> list[BehaviorEvent]:
     """Vehicles held back before a crosswalk while a pedestrian walks on it."""
     occupancy = _crossing_occupancy(ped_events)
@@ -334,7 +364,7 @@ def pedestrian_yield_events(
             steps = occupied_steps[(occupied_steps >= track.start) & (occupied_steps < track.stop)]
             local = steps - track.start
             near = np.linalg.norm(track.xy[local] - centre, axis=1) < reach
-            local = local[near & track.valid[local] & _held(track, local)]
+            local = local[near & held.of(track)[local]]
             if local.size == 0:
                 continue
             local = local[_probe_hits(track, local, path)]
@@ -371,12 +401,13 @@ def extract_events(log: SimulationLog, tracks: Sequence[Track], ctx: NetContext)
     """All events of a simulation, sorted by (start, track, kind, other)."""
     by_sumo = {t.sumo_id: t for t in tracks}
     peds = pedestrian_events(tracks, log, ctx)
+    held = HeldSteps(log, ctx)
     events = [
         *lane_change_events(log.lane_changes, by_sumo),
         *follow_events(tracks),
-        *yield_events(log.foe_observations, by_sumo, ctx),
+        *yield_events(log.foe_observations, by_sumo, ctx, held),
         *peds,
-        *pedestrian_yield_events(tracks, peds, ctx),
+        *pedestrian_yield_events(tracks, peds, ctx, held),
     ]
     events.sort(key=lambda e: (e.start, e.track_id, e.kind, e.other_id, e.end))
     return tuple(events)

@@ -70,7 +70,17 @@ def _net_context(net_file: Path, net_map: NetMap) -> NetContext:
     crosswalks = {
         edge: net_map.road_map.by_id[fid].points[:, :2].copy() for edge, fid in sorted(net_map.crossing_ids.items())
     }
-    return NetContext(dict(net_map.junction_of_lane), crosswalks, frozenset(walkingareas))
+    sumo_lane = {fid: name for name, fid in net_map.lane_ids.items()}
+    columns: dict[str, list[int]] = {}
+    for column, link in enumerate(net_map.signals):
+        if link.incoming_lane_id >= 0:
+            columns.setdefault(sumo_lane[link.incoming_lane_id], []).append(column)
+    return NetContext(
+        dict(net_map.junction_of_lane),
+        crosswalks,
+        frozenset(walkingareas),
+        {lane: tuple(c) for lane, c in sorted(columns.items())},
+    )
 
 
 def _run_data(log: SimulationLog, tracks: tuple[Track, ...], net_map: NetMap, ctx: NetContext) -> RunData:

@@ -47,6 +47,8 @@ class WindowConfig:
     warmup_s: float = 60.0
     min_agents: int = 10
     max_agents: int = 128
+    agent_radius_m: float = 80.0
+    """Agents within max(this, the centre's radius) of the centre at some step belong to the window."""
     map_margin_m: float = 30.0
     overlap_shrink: float = 0.05
     """m shaved off each box side before the overlap test (SUMO boxes touch when queued)."""
@@ -168,7 +170,7 @@ class WindowCutter:
         xy = self.dense.xy[active, start:stop]
         dist = np.hypot(xy[..., 0] - centre.x, xy[..., 1] - centre.y)
         nearest = np.nanmin(np.where(np.isnan(dist), np.inf, dist), axis=1)
-        inside = nearest <= centre.radius
+        inside = nearest <= max(centre.radius, self.config.agent_radius_m)
         return active[inside], nearest[inside]
 
     def _best_interaction(self, ids: set[int], start: int) -> BehaviorEvent | None:
