@@ -6,7 +6,7 @@ p99 |acceleration| and p99 |yaw rate| of vehicles from positions and headings, t
 vehicle/cyclist pairs whose boxes overlap at some step, and the event counts. The real WOMD scene in
 ../shared (when present) is measured the same way for comparison.
 
-    python benchmarks/synth.py [--kinds all] [--shards 2] [--windows-per-shard 40] [--duration 240]
+    python benchmarks/synth.py [--kinds all] [--shards 2] [--windows-per-shard 40] [--duration SECONDS]
 """
 
 from __future__ import annotations
@@ -78,12 +78,13 @@ def main() -> None:
     parser.add_argument("--kinds", default="all")
     parser.add_argument("--shards", type=int, default=2, help="shards (seeds) per kind")
     parser.add_argument("--windows-per-shard", type=int, default=40)
-    parser.add_argument("--duration", type=float, default=240.0)
+    parser.add_argument("--duration", type=float, help="simulated seconds per shard (default: automatic)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     config = ShardConfig(duration_s=args.duration)
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}, no GPU used")
-    print(f"shards per kind {args.shards}, {args.windows_per_shard} windows per shard, {args.duration:.0f} s each\n")
+    length = "automatic length" if args.duration is None else f"{args.duration:.0f} s"
+    print(f"shards per kind {args.shards}, {args.windows_per_shard} windows per shard, {length}\n")
     throughput, realism, all_rates = [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         for kind in parse_kinds(args.kinds):

@@ -142,3 +142,22 @@ def test_cli_lists_the_kinds(capsys):
     assert main(["synth", "--list-kinds"]) == 0
     listed = [line.split()[0] for line in capsys.readouterr().out.splitlines()]
     assert listed == list(kind_names())
+
+
+def test_a_shard_made_with_other_settings_is_not_reused(first_run):
+    out, manifest = first_run
+    shard = manifest["shards"][0]
+    task = ShardTask("signalized", shard["index"], shard["seed"], 2, out / shard["file"])
+    assert factory._finished(task, SHORT) is not None
+    assert factory._finished(task, ShardConfig(duration_s=120.0, window=SHORT.window)) is None
+    assert factory._finished(ShardTask(task.kind, task.index, task.seed + 1, 2, task.path), SHORT) is None
+
+
+def test_automatic_duration_fits_the_quota_to_the_centres():
+    auto = ShardConfig()
+    one_centre = auto.duration_for(40, 1)
+    assert one_centre == pytest.approx(60.0 + 40 * 9.1 * 1.6)
+    assert auto.duration_for(40, 6) == pytest.approx(60.0 + 7 * 9.1 * 1.6, abs=0.05)
+    assert auto.duration_for(4, 8) == 150.0  # the lower bound
+    assert auto.duration_for(400, 1) == 900.0  # the upper bound
+    assert ShardConfig(duration_s=100.0).duration_for(40, 1) == 100.0

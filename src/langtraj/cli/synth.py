@@ -22,7 +22,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=int, default=1, help="parallel processes (one simulation each)")
     p.add_argument("--out", help="output folder (shards/, manifest.json)")
     p.add_argument("--windows-per-shard", type=int, default=40, help="most windows one simulation writes")
-    p.add_argument("--duration", type=float, default=240.0, help="simulated seconds per shard")
+    p.add_argument(
+        "--duration", type=float, help="simulated seconds per shard (default: enough for --windows-per-shard)"
+    )
     p.add_argument("--list-kinds", action="store_true", help="print the kinds and exit")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.set_defaults(func=run)
@@ -44,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"must be at least {low}, got {value}", where=name)
     if args.windows_per_shard < 1:
         raise InputError(f"must be at least 1, got {args.windows_per_shard}", where="--windows-per-shard")
-    if not 30.0 <= args.duration <= 3600.0:
+    if args.duration is not None and not 30.0 <= args.duration <= 3600.0:
         raise InputError(f"must be within [30, 3600] seconds, got {args.duration}", where="--duration")
     config = FactoryConfig(
         kinds=parse_kinds(args.kinds),

@@ -4,7 +4,7 @@ Each kind gets an equal share of the requested windows. Shards are planned in ro
 each kind that is still short for enough shards of at most `windows_per_shard` windows; a shard that
 yields fewer (windows are filtered) is made up for by the next round. Shard seeds depend only on the run
 seed, the kind and the shard index, so the plan and every shard are the same whatever the worker count.
-A shard whose file and sidecar exist with the same seed and quota is not run again (resume).
+A shard whose file and sidecar exist with the same seed, quota and settings is not run again (resume).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from langtraj.fileio import atomic_open
 from langtraj.synth.shard import ShardConfig, ShardOutcome, ShardTask, run_shard, shard_seed
 from langtraj.synth.sumo import SynthError, sumo_version
 
-MAX_ROUNDS = 6
+MAX_ROUNDS = 8
 """Rounds of shards before giving up on a kind that keeps yielding too few windows."""
 
 
@@ -52,8 +52,8 @@ def shard_path(out: Path, kind: str, index: int) -> Path:
     return out / "shards" / f"{kind}-{index:04d}.tfrecord"
 
 
-def _finished(task: ShardTask) -> ShardOutcome | None:
-    """The sidecar of a finished shard with the same seed and quota, else None."""
+def _finished(task: ShardTask, config: ShardConfig) -> ShardOutcome | None:
+    """The sidecar of a finished shard with the same seed, quota and settings, else None."""
     if not (task.path.exists() and task.stats_path.exists()):
         return None
     try:
@@ -61,7 +61,11 @@ def _finished(task: ShardTask) -> ShardOutcome | None:
         outcome = ShardOutcome(**data)
     except (OSError, ValueError, TypeError):
         return None
-    if outcome.seed != task.seed or outcome.quota != task.quota:
+    if (outcome.seed, outcome.quota, outcome.settings) != (
+        task.seed,
+        task.quota,
+        json.loads(json.dumps(asdict(config))),
+    ):
         return None
     return outcome
 
@@ -122,7 +126,7 @@ def run_factory(config: FactoryConfig, progress: bool = True) -> dict[str, Any]:
             tasks = _round_tasks(config, short, next_index)
             pending = []
             for task in tasks:
-                done = _finished(task)
+                done = _finished(task, config.shard)
                 if done is None:
                     pending.append(task)
                 else:
@@ -188,7 +192,7 @@ def build_manifest(config: FactoryConfig, outcomes: Sequence[ShardOutcome], targ
         "windows": sum(o.windows for o in ordered),
         "config": {
             "windows_per_shard": config.windows_per_shard,
-            "duration_s": config.shard.duration_s,
+            "duration_s": "auto" if config.shard.duration_s is None else config.shard.duration_s,
             "window": asdict(config.shard.window),
         },
         "per_kind": per_kind,

@@ -7,6 +7,7 @@ seed (same seed, byte-identical shard), and written atomically with a JSON sidec
 from __future__ import annotations
 
 import json
+import math
 import tempfile
 import time
 import xml.etree.ElementTree as ET
@@ -21,7 +22,7 @@ import numpy as np
 from langtraj.fileio import atomic_open
 from langtraj.scenario.io.tfrecord import write_records
 from langtraj.scenario.io.womd import scenario_to_proto
-from langtraj.scenario.model import RoadMap, Scenario
+from langtraj.scenario.model import STEP_SECONDS, RoadMap, Scenario
 from langtraj.synth.demand import write_demand
 from langtraj.synth.events import NetContext, extract_events
 from langtraj.synth.mapping import NetMap, build_net_map, crop_road_map
@@ -31,13 +32,33 @@ from langtraj.synth.sumo import sumo_version
 from langtraj.synth.tracks import Track, build_tracks
 from langtraj.synth.windows import Rejection, RunData, SignalTable, WindowConfig, WindowCutter
 
+AUTO_SLACK = 1.6
+"""Simulated time per wanted window and centre, in window lengths (room for rejected candidates)."""
+
+AUTO_DURATION_S = (150.0, 900.0)
+"""Bounds of the automatic simulation length."""
+
 
 @dataclass(frozen=True)
 class ShardConfig:
-    """Per-shard settings: simulated seconds and the window cutting rules."""
+    """Per-shard settings: simulated seconds and the window cutting rules.
 
-    duration_s: float = 240.0
+    `duration_s=None` sizes each simulation to its quota: the warm-up plus `AUTO_SLACK` window lengths
+    per window wanted from each interest centre (windows of one centre do not overlap), bounded by
+    `AUTO_DURATION_S`.
+    """
+
+    duration_s: float | None = None
     window: WindowConfig = field(default_factory=WindowConfig)
+
+    def duration_for(self, quota: int, centres: int) -> float:
+        """Simulated seconds for a shard that wants `quota` windows from `centres` interest centres."""
+        if self.duration_s is not None:
+            return float(self.duration_s)
+        per_centre = math.ceil(quota / max(centres, 1))
+        seconds = self.window.warmup_s + per_centre * self.window.length * STEP_SECONDS * AUTO_SLACK
+        low, high = AUTO_DURATION_S
+        return float(min(max(round(seconds, 1), low), high))
 
 
 @dataclass(frozen=True)
@@ -115,6 +136,7 @@ class ShardOutcome:
     index: int
     seed: int
     quota: int
+    settings: dict[str, Any]
     windows: int
     agents_per_window: list[int]
     agent_types: dict[str, int]
@@ -176,13 +198,14 @@ def run_shard(task: ShardTask, config: ShardConfig) -> ShardOutcome:
     with tempfile.TemporaryDirectory(prefix=f"langtraj-{task.kind}-") as tmp:
         workdir = Path(tmp)
         network = get_kind(task.kind).build(rng, workdir)
-        demand = write_demand(network, rng, config.duration_s, workdir)
+        duration = config.duration_for(task.quota, len(network.centres))
+        demand = write_demand(network, rng, duration, workdir)
         net_map = build_net_map(network.net_file)
         sim = SimulationInput(
             net_file=network.net_file,
             route_files=(demand.route_file,),
             seed=task.seed % (2**31),
-            duration_s=config.duration_s,
+            duration_s=duration,
             signal_links=tuple((s.tls_id, s.link_index) for s in net_map.signals),
             additional_files=network.additional_files,
         )
@@ -198,6 +221,7 @@ def run_shard(task: ShardTask, config: ShardConfig) -> ShardOutcome:
         "network": dict(network.params),
         "demand": dict(demand.params),
         "sumo_version": sumo_version(),
+        "duration_s": duration,
     }
     scenarios, rejections = cut_windows(task, network, run, net_map, config, meta)
     task.path.parent.mkdir(parents=True, exist_ok=True)
@@ -207,6 +231,7 @@ def run_shard(task: ShardTask, config: ShardConfig) -> ShardOutcome:
         index=task.index,
         seed=task.seed,
         quota=task.quota,
+        settings=asdict(config),
         windows=len(scenarios),
         agents_per_window=[s.num_agents for s in scenarios],
         agent_types=dict(sorted(sum((Counter(s.agents.type_counts()) for s in scenarios), Counter()).items())),

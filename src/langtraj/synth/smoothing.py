@@ -12,6 +12,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from langtraj.scenario.model import STEP_SECONDS
@@ -35,15 +37,15 @@ STANDING_SPEED = 0.2
 
 def limit_yaw_rate(heading: np.ndarray, speed: np.ndarray) -> np.ndarray:
     """Headings whose step-to-step change is at most `speed * MAX_CURVATURE * dt + YAW_ALLOWANCE`."""
-    out = np.empty_like(heading, dtype=np.float64)
     if heading.size == 0:
-        return out
-    limits = np.maximum(speed[1:], speed[:-1]) * MAX_CURVATURE * STEP_SECONDS + YAW_ALLOWANCE
-    out[0] = heading[0]
-    for t in range(1, heading.size):
-        delta = float(wrap_angle(heading[t] - out[t - 1]))
-        out[t] = out[t - 1] + min(max(delta, -limits[t - 1]), limits[t - 1])
-    return wrap_angle(out)
+        return np.zeros(0, np.float64)
+    limits = (np.maximum(speed[1:], speed[:-1]) * MAX_CURVATURE * STEP_SECONDS + YAW_ALLOWANCE).tolist()
+    raw = np.asarray(heading, np.float64).tolist()
+    out = [raw[0]]
+    for target, limit in zip(raw[1:], limits, strict=True):  # sequential: each step follows the last output
+        delta = math.remainder(target - out[-1], 2 * math.pi)
+        out.append(out[-1] + min(max(delta, -limit), limit))
+    return wrap_angle(np.array(out))
 
 
 def remove_jumps(xy: np.ndarray, max_step: float = PEDESTRIAN_MAX_STEP) -> np.ndarray:
