@@ -2,7 +2,8 @@
 
 Runs shards one after another in this process (one core; netconvert's time is included), then reads
 the written windows back and measures, over every valid step of every agent, what WOSAC would see:
-p99 |acceleration| and p99 |yaw rate| of vehicles from positions and headings, the fraction of
+p99 |acceleration| and p99 |yaw rate| of vehicles from positions and headings, p99 pedestrian
+speed from positions (jumps of the pedestrian model would show here), the fraction of
 vehicle/cyclist pairs whose boxes overlap at some step, and the event counts. The real WOMD scene in
 ../shared (when present) is measured the same way for comparison.
 
@@ -50,6 +51,18 @@ def kinematics(scenarios: list[Scenario]) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(accels or [np.zeros(0)]), np.concatenate(yaws or [np.zeros(0)])
 
 
+def pedestrian_speeds(scenarios: list[Scenario]) -> np.ndarray:
+    """Pedestrian speeds from positions at steps where two consecutive states are valid."""
+    speeds = []
+    for s in scenarios:
+        peds = s.agents.types == AgentType.PEDESTRIAN
+        xy = s.agents.states[peds][..., [StateField.X, StateField.Y]].astype(np.float64)
+        valid = s.agents.valid[peds]
+        speed = np.linalg.norm(np.diff(xy, axis=1), axis=-1) / STEP_SECONDS
+        speeds.append(speed[valid[:, 1:] & valid[:, :-1]])
+    return np.concatenate(speeds or [np.zeros(0)])
+
+
 def overlap_fraction(scenarios: list[Scenario]) -> float:
     """Fraction of vehicle/cyclist pairs (per window) whose boxes overlap at some step (no shrinking)."""
     pairs = overlapping = 0
@@ -65,10 +78,12 @@ def overlap_fraction(scenarios: list[Scenario]) -> float:
 
 def realism_row(name: str, scenarios: list[Scenario]) -> str:
     accel, yaw = kinematics(scenarios)
+    ped = pedestrian_speeds(scenarios)
     events = Counter(e.kind for s in scenarios for e in s.events)
     p99 = lambda v: float(np.percentile(v, 99)) if v.size else float("nan")  # noqa: E731
     return (
-        f"| {name} | {len(scenarios)} | {p99(accel):.2f} | {p99(yaw):.3f} | {overlap_fraction(scenarios):.4f} "
+        f"| {name} | {len(scenarios)} | {p99(accel):.2f} | {p99(yaw):.3f} | {p99(ped):.2f} "
+        f"| {overlap_fraction(scenarios):.4f} "
         f"| {events['lane_change']} | {events['yield']} | {events['yield_to_pedestrian']} | {events['ped_crossing']} |"
     )
 
@@ -110,9 +125,9 @@ def main() -> None:
     print("| --- | --- | --- | --- | --- |")
     print("\n".join(throughput))
     print(f"\noverall median {statistics.median(all_rates):.0f} windows per core-minute over {len(all_rates)} shards\n")
-    print("| kind | windows | p99 abs accel (m/s^2) | p99 abs yaw rate (rad/s) | overlapping pairs "
-          "| lane changes | yields | yields to pedestrians | pedestrian crossings |")  # fmt: skip
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| kind | windows | p99 abs accel (m/s^2) | p99 abs yaw rate (rad/s) | p99 pedestrian speed (m/s) "
+          "| overlapping pairs | lane changes | yields | yields to pedestrians | pedestrian crossings |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     print("\n".join(realism))
     if REAL.is_file():
         print(realism_row("real WOMD scene (reference)", list(read_scenarios(REAL))))
