@@ -161,3 +161,14 @@ def test_automatic_duration_fits_the_quota_to_the_centres():
     assert auto.duration_for(4, 8) == 150.0  # the lower bound
     assert auto.duration_for(400, 1) == 900.0  # the upper bound
     assert ShardConfig(duration_s=100.0).duration_for(40, 1) == 100.0
+
+
+def test_an_output_path_that_is_a_file_fails_before_simulating(tmp_path, monkeypatch, capsys):
+    def refuse(*args, **kwargs):
+        raise AssertionError("simulated although the output cannot be written")
+
+    monkeypatch.setattr(factory, "run_shard", refuse)
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert main(["synth", "--kinds", "zebra", "--windows", "1", "--out", str(blocker), "--no-progress"]) == 1
+    assert "Not a directory" in capsys.readouterr().err

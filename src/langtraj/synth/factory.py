@@ -113,6 +113,7 @@ def run_factory(config: FactoryConfig, progress: bool = True) -> dict[str, Any]:
 
     if config.windows < 1:
         raise SynthError("--windows must be at least 1")
+    (config.out / "shards").mkdir(parents=True, exist_ok=True)  # fail before simulating, not after
     targets = config.targets()
     produced = dict.fromkeys(config.kinds, 0)
     next_index = dict.fromkeys(config.kinds, 0)
