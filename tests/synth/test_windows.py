@@ -37,7 +37,7 @@ def _track(track_id: int, y: float, start: int = 0, stop: int = NUM_STEPS + 1, s
 
 
 def _run(tracks, events=(), collisions=(), teleports=()) -> RunData:
-    signals = SignalTable(np.zeros(0, np.int64), np.zeros((0, 3)), (), np.zeros((NUM_STEPS + 1, 0), np.uint8))
+    signals = SignalTable(np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((NUM_STEPS + 1, 0), np.uint8))
     return RunData(tuple(tracks), tuple(events), NUM_STEPS, tuple(collisions), tuple(teleports), signals)
 
 

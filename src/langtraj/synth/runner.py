@@ -21,14 +21,11 @@ from langtraj.synth.sumo import STEP_LENGTH, SynthError, simulation_options
 _VAR_SPEED = 0x40
 _VAR_POSITION = 0x42
 _VAR_ANGLE = 0x43
-_VAR_ROAD_ID = 0x50
 _VAR_LANE_ID = 0x51
-_VAR_LANEPOSITION = 0x56
 _VAR_LEADER = 0x68
 _TL_RED_YELLOW_GREEN_STATE = 0x20
 
-_VEHICLE_VARS = (_VAR_POSITION, _VAR_ANGLE, _VAR_SPEED, _VAR_LANE_ID, _VAR_LANEPOSITION)
-_PERSON_VARS = (_VAR_POSITION, _VAR_ANGLE, _VAR_SPEED, _VAR_LANE_ID)
+_AGENT_VARS = (_VAR_POSITION, _VAR_ANGLE, _VAR_SPEED, _VAR_LANE_ID)
 
 LEADER_RANGE_M = 60.0
 """Leaders further ahead than this are not recorded."""
@@ -49,7 +46,7 @@ class RawTrack:
     width: float
     height: float
     steps: list[int] = field(default_factory=list)
-    rows: list[tuple[float, float, float, float, float]] = field(default_factory=list)  # x, y, angle, speed, lanepos
+    rows: list[tuple[float, float, float, float]] = field(default_factory=list)  # front x, y, SUMO angle, speed
     lanes: list[int] = field(default_factory=list)  # interned lane (vehicles) or lane-of-edge (persons) ids
     leaders: list[str] = field(default_factory=list)
     gaps: list[float] = field(default_factory=list)
@@ -147,7 +144,7 @@ class _Recorder:
         self.tracks[vid] = RawTrack(
             vid, _agent_type(vclass), vclass, v.getTypeID(vid), v.getLength(vid), v.getWidth(vid), v.getHeight(vid)
         )
-        v.subscribe(vid, list(_VEHICLE_VARS))
+        v.subscribe(vid, list(_AGENT_VARS))
         v.subscribeLeader(vid, LEADER_RANGE_M)
 
     def _add_person(self, pid: str) -> None:
@@ -161,7 +158,7 @@ class _Recorder:
             p.getWidth(pid),
             p.getHeight(pid),
         )
-        p.subscribe(pid, list(_PERSON_VARS))
+        p.subscribe(pid, list(_AGENT_VARS))
 
     def record(self, step: int) -> None:
         ls = self.ls
@@ -170,30 +167,25 @@ class _Recorder:
         for pid in ls.simulation.getDepartedPersonIDList():
             self._add_person(pid)
         for vid, res in ls.vehicle.getAllSubscriptionResults().items():
-            track = self.tracks[vid]
-            x, y = res[_VAR_POSITION]
-            track.steps.append(step)
-            track.rows.append((x, y, res[_VAR_ANGLE], res[_VAR_SPEED], res[_VAR_LANEPOSITION]))
-            track.lanes.append(self._lane(res[_VAR_LANE_ID]))
-            leader, gap = res[_VAR_LEADER] or ("", -1.0)
-            track.leaders.append(leader)
-            track.gaps.append(gap)
-            self._record_foes(step, vid, res[_VAR_LANE_ID])
+            self._append(self.tracks[vid], step, res, res[_VAR_LEADER] or ("", -1.0))
+            self._record_foes(step, vid)
         for pid, res in ls.person.getAllSubscriptionResults().items():
-            track = self.tracks[pid]
-            x, y = res[_VAR_POSITION]
-            track.steps.append(step)
-            track.rows.append((x, y, res[_VAR_ANGLE], res[_VAR_SPEED], 0.0))
-            track.lanes.append(self._lane(res[_VAR_LANE_ID]))
-            track.leaders.append("")
-            track.gaps.append(-1.0)
+            self._append(self.tracks[pid], step, res, ("", -1.0))
         self._record_signals()
         for c in ls.simulation.getCollisions():
             self.collisions.append((step, c.collider, c.victim))
         for vid in ls.simulation.getStartingTeleportIDList():
             self.teleports.append((step, vid))
 
-    def _record_foes(self, step: int, vid: str, lane: str) -> None:
+    def _append(self, track: RawTrack, step: int, res: dict, leader: tuple[str, float]) -> None:
+        x, y = res[_VAR_POSITION]
+        track.steps.append(step)
+        track.rows.append((x, y, res[_VAR_ANGLE], res[_VAR_SPEED]))
+        track.lanes.append(self._lane(res[_VAR_LANE_ID]))
+        track.leaders.append(leader[0])
+        track.gaps.append(leader[1])
+
+    def _record_foes(self, step: int, vid: str) -> None:
         for (
             foe,
             ego_d,

@@ -109,7 +109,6 @@ def _run_data(log: SimulationLog, tracks: tuple[Track, ...], net_map: NetMap, ct
     signals = SignalTable(
         lane_ids=np.array([s.lane_id for s in net_map.signals], np.int64),
         stop_points=np.array([s.stop_point for s in net_map.signals], np.float64).reshape(-1, 3),
-        directions=tuple(s.direction for s in net_map.signals),
         states=log.signal_states,
     )
     return RunData(
@@ -122,9 +121,11 @@ def _run_data(log: SimulationLog, tracks: tuple[Track, ...], net_map: NetMap, ct
     )
 
 
-def _window_map(road_map: RoadMap, scenario_xy: np.ndarray, margin: float) -> RoadMap:
-    lo = np.nanmin(scenario_xy, axis=0) - margin
-    hi = np.nanmax(scenario_xy, axis=0) + margin
+def _window_map(road_map: RoadMap, xy: np.ndarray, margin: float) -> RoadMap:
+    """The map features near the agents' positions during the window."""
+    xy = xy.reshape(-1, 2)
+    lo = np.nanmin(xy, axis=0) - margin
+    hi = np.nanmax(xy, axis=0) + margin
     return crop_road_map(road_map, lo.tolist(), hi.tolist())
 
 
@@ -172,8 +173,7 @@ def cut_windows(
             rejections[cut.reason] += 1
             continue
         members, ooi, event = cut
-        xy = np.concatenate([run.tracks[m].xy for m in members])
-        road_map = _window_map(net_map.road_map, xy, config.window.map_margin_m)
+        road_map = _window_map(net_map.road_map, cutter.window_xy(members, start), config.window.map_margin_m)
         centre = network.centres[c]
         metadata = {
             **meta,

@@ -57,7 +57,7 @@ def _dense(raw: RawTrack) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
     idx = steps - start
     valid = np.zeros(n, bool)
     valid[idx] = True
-    rows = np.full((n, 5), np.nan)
+    rows = np.full((n, 4), np.nan)
     rows[idx] = np.asarray(raw.rows, np.float64)
     lanes = np.full(n, -1, np.int32)
     lanes[idx] = raw.lanes

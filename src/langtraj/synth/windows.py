@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from langtraj.scenario.model import STEP_SECONDS, Agents, BehaviorEvent, Scenario, TrafficLights
+from langtraj.scenario.model import STEP_SECONDS, Agents, BehaviorEvent, RoadMap, Scenario, TrafficLights
 from langtraj.scenario.types import NUM_STATE_FIELDS, AgentType, StateField, TrafficLightState
 from langtraj.synth.network import InterestCentre
 from langtraj.synth.tracks import Track
@@ -66,7 +66,6 @@ class SignalTable:
 
     lane_ids: np.ndarray  # int64 [L] map feature ids of the controlled lanes
     stop_points: np.ndarray  # float64 [L, 3]
-    directions: tuple[str, ...]
     states: np.ndarray  # uint8 [num_steps + 1, L]
 
 
@@ -190,19 +189,15 @@ class WindowCutter:
 
     def _order(self, members: np.ndarray, nearest: np.ndarray, current: int, first: Sequence[int]) -> np.ndarray:
         """Members ordered: objects of interest, then valid at the current step by distance, then the rest."""
-        tracks = self.run.tracks
-        at_current = np.array(
-            [
-                tracks[m].start <= current < tracks[m].stop and tracks[m].valid[current - tracks[m].start]
-                for m in members
-            ],
-            bool,
-        )
-        priority = np.array(
-            [0 if tracks[m].track_id in first else (1 if c else 2) for m, c in zip(members, at_current, strict=True)]
-        )
+        at_current = ~np.isnan(self.dense.xy[members, current, 0])
+        is_first = np.isin([self.run.tracks[m].track_id for m in members], list(first))
+        priority = np.where(is_first, 0, np.where(at_current, 1, 2))
         order = np.lexsort((nearest, priority))
         return members[order][: self.config.max_agents]
+
+    def window_xy(self, members: np.ndarray, start: int) -> np.ndarray:
+        """Positions [M, T, 2] of `members` during the window starting at `start` (NaN where invalid)."""
+        return self.dense.xy[members, start : start + self.config.length]
 
     def cut(
         self, centre: InterestCentre, start: int
@@ -217,9 +212,7 @@ class WindowCutter:
         if event is None and cfg.require_interaction:
             return Rejection("no_interaction")
         ooi = [] if event is None else [event.track_id] + ([event.other_id] if event.other_id >= 0 else [])
-        members = self._order(members, nearest, start + cfg.history - 1, ooi)
-        if not all(self.index_of[i] in set(members.tolist()) for i in ooi):
-            return Rejection("interaction_outside_cap")
+        members = self._order(members, nearest, start + cfg.history - 1, ooi)  # objects of interest first
         stop = start + cfg.length
         kept = {self.run.tracks[m].track_id for m in members}
         if any(start <= s < stop and (a in kept or b in kept) for s, a, b in self.run.collisions):
@@ -234,7 +227,7 @@ class WindowCutter:
         ooi: np.ndarray,
         start: int,
         scenario_id: str,
-        road_map,
+        road_map: RoadMap,
         metadata: Mapping[str, object],
     ) -> Scenario | Rejection:
         """The Scenario of a cut window (map already cropped), or a Rejection for overlap / no SDC."""
@@ -261,7 +254,7 @@ class WindowCutter:
             return Rejection("overlap")
         position = {int(m): a for a, m in enumerate(members)}
         ooi_local = np.array([position[int(m)] for m in ooi], np.int64)
-        sdc = self._pick_sdc(types, valid, ooi_local, states)
+        sdc = self._pick_sdc(types, valid, ooi_local)
         if sdc < 0:
             return Rejection("no_sdc")
         ids = np.array([t.track_id for t in tracks], np.int64)
@@ -287,7 +280,7 @@ class WindowCutter:
             metadata=dict(metadata),
         )
 
-    def _pick_sdc(self, types: np.ndarray, valid: np.ndarray, ooi: np.ndarray, states: np.ndarray) -> int:
+    def _pick_sdc(self, types: np.ndarray, valid: np.ndarray, ooi: np.ndarray) -> int:
         """A vehicle valid at every step: the first such object of interest, else the one nearest the others."""
         full = valid.all(axis=1) & (types == AgentType.VEHICLE)
         for a in ooi.tolist():
