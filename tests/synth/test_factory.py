@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -172,3 +173,29 @@ def test_an_output_path_that_is_a_file_fails_before_simulating(tmp_path, monkeyp
     blocker.write_text("x")
     assert main(["synth", "--kinds", "zebra", "--windows", "1", "--out", str(blocker), "--no-progress"]) == 1
     assert "Not a directory" in capsys.readouterr().err
+
+
+def test_ray_executor_writes_the_same_shards(first_run, tmp_path):
+    pytest.importorskip("ray", reason="Ray is optional: pip install 'langtraj[ray]'")
+    import ray
+
+    out, manifest = first_run
+    config = _config(tmp_path / "ray", workers=2)
+    try:
+        again = run_factory(replace(config, executor="ray"), progress=False)
+    finally:
+        ray.shutdown()
+    assert again["shards"] == manifest["shards"]
+    for shard in manifest["shards"]:
+        assert (out / shard["file"]).read_bytes() == (tmp_path / "ray" / shard["file"]).read_bytes()
+
+
+def test_ray_executor_without_ray_says_how_to_install_it(monkeypatch):
+    import sys
+
+    from langtraj.synth.executors import EXECUTORS
+    from langtraj.synth.sumo import SynthError
+
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray now raises ImportError
+    with pytest.raises(SynthError, match=r"pip install 'langtraj\[ray\]'"):
+        list(EXECUTORS.create("ray").map(len, ["a"], 1))

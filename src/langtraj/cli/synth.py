@@ -19,7 +19,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--kinds", default="all", help="comma-separated kinds, or 'all' (see --list-kinds)")
     p.add_argument("--windows", type=int, default=200, help="windows in all, split evenly over the kinds")
     p.add_argument("--seed", type=int, default=0, help="run seed; same seed, byte-identical shards")
-    p.add_argument("--workers", type=int, default=1, help="parallel processes (one simulation each)")
+    p.add_argument("--workers", type=int, default=1, help="shards at once (one simulation per process)")
+    p.add_argument(
+        "--executor",
+        default="process",
+        choices=("process", "ray"),
+        help="where shards run: local processes, or a Ray cluster (RAY_ADDRESS, else a local one)",
+    )
     p.add_argument("--out", help="output folder (shards/, manifest.json)")
     p.add_argument("--windows-per-shard", type=int, default=40, help="most windows one simulation writes")
     p.add_argument(
@@ -54,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         out=Path(args.out),
         workers=args.workers,
+        executor=args.executor,
         windows_per_shard=args.windows_per_shard,
         shard=ShardConfig(duration_s=args.duration),
     )

@@ -11,10 +11,8 @@ from __future__ import annotations
 
 import json
 import math
-import multiprocessing
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,6 +21,7 @@ import numpy as np
 
 from langtraj import __version__
 from langtraj.fileio import atomic_open
+from langtraj.synth.executors import EXECUTORS
 from langtraj.synth.shard import ShardConfig, ShardOutcome, ShardTask, run_shard, shard_seed
 from langtraj.synth.sumo import SynthError, sumo_version
 
@@ -32,13 +31,15 @@ MAX_ROUNDS = 8
 
 @dataclass(frozen=True)
 class FactoryConfig:
-    """A synthesis job: which kinds, how many windows in all, the seed, the pool size and the output."""
+    """A synthesis job: which kinds, how many windows in all, the seed, the output, and where shards run
+    (`executor` "process" or "ray", with at most `workers` shards at once)."""
 
     kinds: tuple[str, ...]
     windows: int
     seed: int
     out: Path
     workers: int = 1
+    executor: str = "process"
     windows_per_shard: int = 40
     shard: ShardConfig = field(default_factory=ShardConfig)
 
@@ -78,20 +79,13 @@ def _run_task(args: tuple[ShardTask, ShardConfig]) -> ShardOutcome:
 def _run_all(
     tasks: Sequence[ShardTask], config: FactoryConfig, on_done: Callable[[ShardOutcome], None]
 ) -> list[ShardOutcome]:
-    todo = [(t, config.shard) for t in tasks]
-    if config.workers <= 1 or len(todo) <= 1:
-        results = []
-        for item in todo:
-            results.append(_run_task(item))
-            on_done(results[-1])
-        return results
-    context = multiprocessing.get_context("spawn")  # libsumo keeps global state: fresh processes only
-    results_by_key = {}
-    with ProcessPoolExecutor(max_workers=config.workers, mp_context=context) as pool:
-        for outcome in pool.map(_run_task, todo):
-            results_by_key[(outcome.kind, outcome.index)] = outcome
-            on_done(outcome)
-    return [results_by_key[(t.kind, t.index)] for t in tasks]
+    """Run `tasks` on the configured executor; outcomes come back in task order."""
+    executor = EXECUTORS.create(config.executor, where="--executor")
+    by_key = {}
+    for outcome in executor.map(_run_task, [(t, config.shard) for t in tasks], config.workers):
+        by_key[(outcome.kind, outcome.index)] = outcome
+        on_done(outcome)
+    return [by_key[(t.kind, t.index)] for t in tasks]
 
 
 def _round_tasks(config: FactoryConfig, short: dict[str, int], next_index: dict[str, int]) -> list[ShardTask]:

@@ -1,0 +1,76 @@
+"""Where shards run: the extension point between the factory and a compute engine.
+
+An executor maps a picklable function over independent items and yields the results as they finish.
+`process` (the default) is a local process pool; `ray` hands each item to a Ray cluster as a task
+(DESIGN.md section 9), so one command scales from a laptop to many nodes. libsumo keeps one
+simulation per process, so every engine must run one item per process at a time.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Any, ClassVar
+
+from langtraj.registry import Registry
+from langtraj.synth.sumo import SynthError
+
+
+class ShardExecutor(ABC):
+    """Runs `fn` over `items` with at most `workers` at a time; yields results in completion order."""
+
+    name: ClassVar[str]
+
+    @abstractmethod
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> Iterator[Any]: ...
+
+
+EXECUTORS: Registry[ShardExecutor] = Registry("executor")
+
+
+@EXECUTORS.register
+class ProcessExecutor(ShardExecutor):
+    """In this process when `workers` is 1, else a pool of fresh (spawned) processes on this machine."""
+
+    name = "process"
+
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> Iterator[Any]:
+        if workers <= 1 or len(items) <= 1:
+            yield from (fn(item) for item in items)
+            return
+        context = multiprocessing.get_context("spawn")  # libsumo keeps global state: fresh processes only
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+        try:
+            for future in as_completed([pool.submit(fn, item) for item in items]):
+                yield future.result()
+        finally:  # on an error or Ctrl-C, shards not yet started are dropped rather than run
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+@EXECUTORS.register
+class RayExecutor(ShardExecutor):
+    """Tasks on a Ray cluster: the one at `RAY_ADDRESS` when set, else a local one with `workers` CPUs.
+
+    Every node needs LangTraj installed (SUMO comes with it from PyPI). Each task asks for one CPU, so
+    Ray runs as many shards at once as the cluster has CPUs.
+    """
+
+    name = "ray"
+
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> Iterator[Any]:
+        try:
+            import ray
+        except ImportError:
+            raise SynthError("the ray executor needs Ray: pip install 'langtraj[ray]'") from None
+        if not ray.is_initialized():
+            address = os.environ.get("RAY_ADDRESS")
+            local = {} if address else {"num_cpus": workers}
+            ray.init(address=address, include_dashboard=False, log_to_driver=False, **local)
+        remote = ray.remote(num_cpus=1, max_retries=0)(fn)
+        pending = [remote.remote(item) for item in items]
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            yield ray.get(done[0])
