@@ -62,7 +62,7 @@ def scripted(tmp_path_factory):
     net_map = build_net_map(net)
     log = simulate(SimulationInput(net, (d / "r.rou.xml",), seed=1, duration_s=60.0), d)
     tracks = build_tracks(log.tracks)
-    events = extract_events(log, tracks, _net_context(net, net_map))
+    events = extract_events(log, tracks, _net_context(net_map))
     names = {t.track_id: t.sumo_id for t in tracks}
     return log, tracks, events, names
 

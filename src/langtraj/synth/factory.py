@@ -1,4 +1,4 @@
-"""The scenario factory: plans (kind, seed) shards, runs them in a process pool, writes a manifest.
+"""The scenario factory: plans (kind, seed) shards, runs them on an executor, writes a manifest.
 
 Each kind gets an equal share of the requested windows. Shards are planned in rounds: a round asks
 each kind that is still short for enough shards of at most `windows_per_shard` windows; a shard that
@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import math
 from collections import Counter
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -76,18 +76,6 @@ def _run_task(args: tuple[ShardTask, ShardConfig]) -> ShardOutcome:
     return run_shard(task, config)
 
 
-def _run_all(
-    tasks: Sequence[ShardTask], config: FactoryConfig, on_done: Callable[[ShardOutcome], None]
-) -> list[ShardOutcome]:
-    """Run `tasks` on the configured executor; outcomes come back in task order."""
-    executor = EXECUTORS.create(config.executor, where="--executor")
-    by_key = {}
-    for outcome in executor.map(_run_task, [(t, config.shard) for t in tasks], config.workers):
-        by_key[(outcome.kind, outcome.index)] = outcome
-        on_done(outcome)
-    return [by_key[(t.kind, t.index)] for t in tasks]
-
-
 def _round_tasks(config: FactoryConfig, short: dict[str, int], next_index: dict[str, int]) -> list[ShardTask]:
     tasks = []
     for kind, missing in short.items():
@@ -111,8 +99,15 @@ def run_factory(config: FactoryConfig, progress: bool = True) -> dict[str, Any]:
     targets = config.targets()
     produced = dict.fromkeys(config.kinds, 0)
     next_index = dict.fromkeys(config.kinds, 0)
-    outcomes: list[ShardOutcome] = []
+    outcomes: list[ShardOutcome] = []  # in completion order; the manifest sorts them
+    executor = EXECUTORS.create(config.executor, where="--executor")
     bar = tqdm(total=config.windows, unit="win", disable=not progress, desc="synth")
+
+    def record(outcome: ShardOutcome) -> None:
+        outcomes.append(outcome)
+        produced[outcome.kind] += outcome.windows
+        bar.update(outcome.windows)
+
     try:
         for _ in range(MAX_ROUNDS):
             short = {k: targets[k] - produced[k] for k in config.kinds if produced[k] < targets[k]}
@@ -123,17 +118,11 @@ def run_factory(config: FactoryConfig, progress: bool = True) -> dict[str, Any]:
             for task in tasks:
                 done = _finished(task, config.shard)
                 if done is None:
-                    pending.append(task)
+                    pending.append((task, config.shard))
                 else:
-                    outcomes.append(done)
-                    produced[task.kind] += done.windows
-                    bar.update(done.windows)
-
-            def on_done(outcome: ShardOutcome) -> None:
-                produced[outcome.kind] += outcome.windows
-                bar.update(outcome.windows)
-
-            outcomes.extend(_run_all(pending, config, on_done))
+                    record(done)
+            for outcome in executor.map(_run_task, pending, config.workers):
+                record(outcome)
     finally:
         bar.close()
     manifest = build_manifest(config, outcomes, targets)

@@ -110,6 +110,7 @@ class NetMap:
     crossing_ids: Mapping[str, int]  # SUMO crossing edge id (':J_c0') -> CROSSWALK feature id
     signals: tuple[SignalLink, ...]  # sorted by (tls_id, link_index)
     junction_of_lane: Mapping[str, str]  # internal / crossing / walking area lane id -> junction id
+    walkingareas: frozenset[str] = frozenset()  # SUMO walking-area edge ids
     drivable_area: Polygon | MultiPolygon = field(default_factory=Polygon)
 
 
@@ -660,6 +661,7 @@ def build_net_map(net_file: Path, *, point_spacing: float | None = POINT_SPACING
         crossing_ids=crossing_ids,
         signals=_signals(net, lanes, lane_ids),
         junction_of_lane=_junction_of_lanes(net),
+        walkingareas=frozenset(e.getID() for e in net.getEdges(withInternal=True) if e.getFunction() == "walkingarea"),
         drivable_area=area,
     )
 

@@ -202,10 +202,7 @@ class _Recorder:
 
     def _record_signals(self) -> None:
         results = self.ls.trafficlight.getAllSubscriptionResults() if self.signal_links else {}
-        row = bytes(
-            ord(results[tls][_TL_RED_YELLOW_GREEN_STATE][index]) if tls in results else ord("O")
-            for tls, index in self.signal_links
-        )
+        row = bytes(ord(results[tls][_TL_RED_YELLOW_GREEN_STATE][index]) for tls, index in self.signal_links)
         self.signal_rows.append(row)
 
 

@@ -10,7 +10,6 @@ import json
 import math
 import tempfile
 import time
-import xml.etree.ElementTree as ET
 import zlib
 from collections import Counter
 from dataclasses import asdict, dataclass, field
@@ -20,8 +19,7 @@ from typing import Any
 import numpy as np
 
 from langtraj.fileio import atomic_open
-from langtraj.scenario.io.tfrecord import write_records
-from langtraj.scenario.io.womd import scenario_to_proto
+from langtraj.scenario.io import write_scenarios
 from langtraj.scenario.model import STEP_SECONDS, RoadMap, Scenario
 from langtraj.synth.demand import write_demand
 from langtraj.synth.events import NetContext, extract_events
@@ -82,12 +80,7 @@ def shard_seed(base_seed: int, kind: str, index: int) -> int:
     return int(np.random.SeedSequence(entropy).generate_state(1)[0])
 
 
-def _net_context(net_file: Path, net_map: NetMap) -> NetContext:
-    walkingareas = {
-        elem.get("id", "")
-        for _, elem in ET.iterparse(net_file)
-        if elem.tag == "edge" and elem.get("function") == "walkingarea"
-    }
+def _net_context(net_map: NetMap) -> NetContext:
     crosswalks = {
         edge: net_map.road_map.by_id[fid].points[:, :2].copy() for edge, fid in sorted(net_map.crossing_ids.items())
     }
@@ -99,7 +92,7 @@ def _net_context(net_file: Path, net_map: NetMap) -> NetContext:
     return NetContext(
         dict(net_map.junction_of_lane),
         crosswalks,
-        frozenset(walkingareas),
+        net_map.walkingareas,
         {lane: tuple(c) for lane, c in sorted(columns.items())},
     )
 
@@ -210,7 +203,7 @@ def run_shard(task: ShardTask, config: ShardConfig) -> ShardOutcome:
             additional_files=network.additional_files,
         )
         log = simulate(sim, workdir)
-        ctx = _net_context(network.net_file, net_map)
+        ctx = _net_context(net_map)
     tracks = build_tracks(log.tracks)
     run = _run_data(log, tracks, net_map, ctx)
     meta = {
@@ -225,7 +218,7 @@ def run_shard(task: ShardTask, config: ShardConfig) -> ShardOutcome:
     }
     scenarios, rejections = cut_windows(task, network, run, net_map, config, meta)
     task.path.parent.mkdir(parents=True, exist_ok=True)
-    write_records(task.path, (scenario_to_proto(s).SerializeToString(deterministic=True) for s in scenarios))
+    write_scenarios(task.path, scenarios, "womd")
     outcome = ShardOutcome(
         kind=task.kind,
         index=task.index,

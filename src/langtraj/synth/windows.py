@@ -36,6 +36,10 @@ SUMO_SIGNAL_STATES = {
 }
 """SUMO link state characters to WOMD lane states ('G' = protected green, 'g' = permissive green)."""
 
+_SIGNAL_LOOKUP = np.zeros(256, np.int8)  # SUMO state byte -> TrafficLightState (UNKNOWN for others)
+for _char, _state in SUMO_SIGNAL_STATES.items():
+    _SIGNAL_LOOKUP[_char] = _state
+
 
 @dataclass(frozen=True)
 class WindowConfig:
@@ -306,10 +310,7 @@ class WindowCutter:
         table = self.run.signals
         keep = np.array([int(i) in feature_ids for i in table.lane_ids], bool)
         raw = table.states[start : start + self.config.length][:, keep]
-        lookup = np.zeros(256, np.int8)
-        for char, state in SUMO_SIGNAL_STATES.items():
-            lookup[char] = state
-        states = lookup[raw]
+        states = _SIGNAL_LOOKUP[raw]
         return TrafficLights(
             lane_ids=table.lane_ids[keep],
             states=states,
