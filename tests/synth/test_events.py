@@ -111,6 +111,30 @@ def test_pedestrian_crossing_and_a_vehicle_yielding_to_it(scripted):
     assert crossing.start <= ped_yield.start < ped_yield.end <= crossing.end
 
 
+def test_junction_passes_carry_the_link_direction_and_junction(scripted):
+    log, tracks, events, names = scripted
+    (changer,) = _of(events, "junction_pass", names, "changer")
+    assert changer.attributes == {
+        "junction": "C", "direction": "l", "control": "priority", "legs": 4, "roundabout": False
+    }  # fmt: skip
+    track = next(t for t in tracks if t.sumo_id == "changer")
+    on_junction = [log.lane_names[i].startswith(":C_") for i in track.lane]
+    assert on_junction.index(True) == changer.start - track.start
+    assert sum(on_junction) == changer.end - changer.start
+    merger = _of(events, "junction_pass", names, "merger")
+    assert [e.attributes["direction"] for e in merger] == ["r"]
+    platoon = [e for e in events if e.kind == "junction_pass" and names[e.track_id].startswith("major")]
+    assert platoon and {e.attributes["direction"] for e in platoon} == {"s"}
+    assert not _of(events, "junction_pass", names, "walker")  # pedestrians cross, they do not pass junctions
+
+
+def test_lane_change_and_yield_flags_on_a_plain_junction(scripted):
+    _, _, events, names = scripted
+    (change,) = _of(events, "lane_change", names, "changer")
+    assert change.attributes["from_lane_ends"] is False  # WC_1 goes on to CE
+    assert all(e.attributes["roundabout"] is False for e in _of(events, "yield", names, "merger"))
+
+
 def test_no_collisions_or_teleports_and_events_sorted(scripted):
     log, _, events, _ = scripted
     assert log.collisions == () and log.teleports == ()

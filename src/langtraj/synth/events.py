@@ -6,14 +6,18 @@ Every event is a `BehaviorEvent(kind, track_id, start, end, other_id, attributes
 - `lane_change`: from SUMO's lane-change output; start at the manoeuvre start, end one past its end;
   `other_id` is the leader on the target lane right after the change (or -1). Attributes: `direction`
   (left/right), `reason` (strategic, cooperative, speedGain, keepRight, or SUMO's first reason token),
-  `reason_detail` (SUMO's full reason), `from_lane`, `to_lane`, `change_step`.
+  `reason_detail` (SUMO's full reason), `from_lane`, `to_lane`, `change_step`, `from_lane_ends` (the
+  lane left has no onward connection: an acceleration lane or a lane drop, so the change is a merge).
 - `follow`: a run of at least `MIN_FOLLOW_STEPS` steps with the same leader within 60 m. Attributes:
   `min_gap`, `mean_gap`, `start_gap`, `end_gap` (m, bumper to bumper).
 - `yield`: SUMO made the vehicle respond to a junction foe (libsumo junction foes) and the vehicle was
   slow or braking while the foe was inside the conflict area or at most `FOE_HORIZON_S` from it, and
   the foe entered the conflict area while the vehicle was still before it. Equal-rank links (all-way
   stops) use first come: the foe must have stopped at the junction before the vehicle. Attributes: `junction`, `rule`
-  (priority / first_come), `min_speed`, `stopped`, `ego_lane`, `foe_lane`.
+  (priority / first_come), `min_speed`, `stopped`, `ego_lane`, `foe_lane`, `roundabout`.
+- `junction_pass`: a vehicle or cyclist on the internal lanes of one junction, entry to exit. Attributes:
+  `junction`, `direction` (SUMO link direction: s, l, r, t, L, R), `control` (SUMO junction type),
+  `legs` (roads meeting there; 2 at a mid-block crossing), `roundabout` (the junction lies on a roundabout).
 - `yield_to_pedestrian`: a slow or braking vehicle whose path within `PED_LOOKAHEAD_M` runs over a
   crosswalk on which a pedestrian is walking. Attributes: `crosswalk`, `min_speed`, `stopped`.
 - `ped_waiting`: a pedestrian standing on a walking area right before walking onto a crossing.
@@ -25,6 +29,7 @@ from __future__ import annotations
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from itertools import pairwise
 
 import numpy as np
 from matplotlib.path import Path as MplPath
@@ -67,13 +72,21 @@ class NetContext:
 
     `junction_of_lane` maps junction-internal lane ids to junction ids; `crosswalks` maps SUMO crossing
     edge ids to their polygons [K, 2]; `walkingareas` holds walking-area edge ids; `signal_columns` maps
-    a SUMO lane id to the columns of the recorded signal states of the links leaving it.
+    a SUMO lane id to the columns of the recorded signal states of the links leaving it; `link_direction`
+    maps a junction-internal lane to its connection's direction, `junction_control` a junction to its SUMO
+    type and `junction_legs` to its number of roads; `roundabout_junctions` and `ending_lanes` (lanes
+    that end where the road goes on) are id sets.
     """
 
     junction_of_lane: Mapping[str, str]
     crosswalks: Mapping[str, np.ndarray]
     walkingareas: frozenset[str]
     signal_columns: Mapping[str, tuple[int, ...]] = field(default_factory=dict)
+    link_direction: Mapping[str, str] = field(default_factory=dict)
+    junction_control: Mapping[str, str] = field(default_factory=dict)
+    junction_legs: Mapping[str, int] = field(default_factory=dict)
+    roundabout_junctions: frozenset[str] = frozenset()
+    ending_lanes: frozenset[str] = frozenset()
 
 
 def _runs(mask: np.ndarray, max_gap: int = 0) -> list[tuple[int, int]]:
@@ -103,7 +116,9 @@ def _primary_reason(reason: str) -> str:
     return next((t for t in tokens if t in LANE_CHANGE_REASONS), tokens[0])
 
 
-def lane_change_events(records: Sequence[LaneChangeRecord], tracks: Mapping[str, Track]) -> list[BehaviorEvent]:
+def lane_change_events(
+    records: Sequence[LaneChangeRecord], tracks: Mapping[str, Track], ending_lanes: frozenset[str] = frozenset()
+) -> list[BehaviorEvent]:
     """One event per lane switch in SUMO's lane-change output, spanning its whole manoeuvre."""
     by_vehicle: dict[str, list[LaneChangeRecord]] = defaultdict(list)
     for rec in records:
@@ -138,6 +153,7 @@ def lane_change_events(records: Sequence[LaneChangeRecord], tracks: Mapping[str,
                         "from_lane": rec.from_lane,
                         "to_lane": rec.to_lane,
                         "change_step": rec.step,
+                        "from_lane_ends": rec.from_lane in ending_lanes,
                     },
                 )
             )
@@ -279,10 +295,54 @@ def yield_events(
                         "stopped": bool(window.min() <= STOPPED_SPEED),
                         "ego_lane": obs_list[0].ego_lane,
                         "foe_lane": obs_list[0].foe_lane,
+                        "roundabout": junction in ctx.roundabout_junctions,
                     },
                 )
             )
     return events
+
+
+# ---------------------------------------------------------------- junction passages
+
+
+def junction_pass_events(tracks: Iterable[Track], log: SimulationLog, ctx: NetContext) -> list[BehaviorEvent]:
+    """One event per passage of a vehicle or cyclist over the internal lanes of a junction."""
+    names = np.array(list(log.lane_names) or [""], dtype=object)
+    junction_of = np.array([ctx.junction_of_lane.get(n, "") for n in names], dtype=object)
+    events = []
+    for track in tracks:
+        if track.agent_type == AgentType.PEDESTRIAN:
+            continue
+        lane = np.maximum(track.lane, 0)
+        junction = np.where(track.lane >= 0, junction_of[lane], "")
+        for a, b in _runs(junction != ""):
+            for c, d in _same_value_runs(junction[a:b]):
+                node = str(junction[a + c])
+                first_lane = str(names[lane[a + c]])
+                events.append(
+                    BehaviorEvent(
+                        "junction_pass",
+                        track.track_id,
+                        track.start + a + c,
+                        track.start + a + d,
+                        -1,
+                        {
+                            "junction": node,
+                            "direction": ctx.link_direction.get(first_lane, ""),
+                            "control": ctx.junction_control.get(node, ""),
+                            "legs": ctx.junction_legs.get(node, 0),
+                            "roundabout": node in ctx.roundabout_junctions,
+                        },
+                    )
+                )
+    return events
+
+
+def _same_value_runs(values: np.ndarray) -> list[tuple[int, int]]:
+    """[start, end) runs of equal consecutive values."""
+    cuts = np.flatnonzero(values[1:] != values[:-1]) + 1
+    bounds = [0, *cuts.tolist(), len(values)]
+    return list(pairwise(bounds))
 
 
 # ---------------------------------------------------------------- pedestrians
@@ -403,8 +463,9 @@ def extract_events(log: SimulationLog, tracks: Sequence[Track], ctx: NetContext)
     peds = pedestrian_events(tracks, log, ctx)
     held = HeldSteps(log, ctx)
     events = [
-        *lane_change_events(log.lane_changes, by_sumo),
+        *lane_change_events(log.lane_changes, by_sumo, ctx.ending_lanes),
         *follow_events(tracks),
+        *junction_pass_events(tracks, log, ctx),
         *yield_events(log.foe_observations, by_sumo, ctx, held),
         *peds,
         *pedestrian_yield_events(tracks, peds, ctx, held),

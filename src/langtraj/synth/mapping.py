@@ -112,6 +112,11 @@ class NetMap:
     junction_of_lane: Mapping[str, str]  # internal / crossing / walking area lane id -> junction id
     walkingareas: frozenset[str] = frozenset()  # SUMO walking-area edge ids
     drivable_area: Polygon | MultiPolygon = field(default_factory=Polygon)
+    link_direction: Mapping[str, str] = field(default_factory=dict)  # via lane id -> SUMO direction (s, l, r, t, L, R)
+    junction_control: Mapping[str, str] = field(default_factory=dict)  # junction id -> SUMO type (priority, ...)
+    junction_legs: Mapping[str, int] = field(default_factory=dict)  # junction id -> number of roads meeting there
+    roundabout_junctions: frozenset[str] = frozenset()  # junctions on a roundabout ring
+    ending_lanes: frozenset[str] = frozenset()  # vehicle lanes with no onward connection where the road goes on
 
 
 # ---------------------------------------------------------------------------------------------- geometry
@@ -621,6 +626,35 @@ def _junction_of_lanes(net: sumolib.net.Net) -> dict[str, str]:
     }
 
 
+def _link_directions(net: sumolib.net.Net) -> dict[str, str]:
+    """Junction-internal (via) lane -> direction of the connection that uses it."""
+    return {
+        conn.getViaLaneID(): conn.getDirection()
+        for edge in net.getEdges(withInternal=False)
+        for lane in edge.getLanes()
+        for conn in lane.getOutgoing()
+        if conn.getViaLaneID()
+    }
+
+
+def _legs(node: sumolib.net.node.Node) -> int:
+    """Roads meeting at a junction: its distinct neighbouring junctions (2 at a mid-block crossing)."""
+    ends = {e.getFromNode().getID() for e in node.getIncoming() if not e.getFunction()}
+    ends |= {e.getToNode().getID() for e in node.getOutgoing() if not e.getFunction()}
+    return len(ends - {node.getID()})
+
+
+def _ending_lanes(net: sumolib.net.Net) -> frozenset[str]:
+    """Vehicle lanes without an onward connection on edges that do continue: acceleration lanes, lane drops."""
+    return frozenset(
+        lane.getID()
+        for edge in net.getEdges(withInternal=False)
+        if edge.getOutgoing()
+        for lane in edge.getLanes()
+        if lane.allows("passenger") and not lane.getOutgoing()
+    )
+
+
 def build_net_map(net_file: Path, *, point_spacing: float | None = POINT_SPACING_M) -> NetMap:
     """Read a SUMO `.net.xml` into LangTraj's map model with the SUMO-id lookups that windows and events need.
 
@@ -663,6 +697,11 @@ def build_net_map(net_file: Path, *, point_spacing: float | None = POINT_SPACING
         junction_of_lane=_junction_of_lanes(net),
         walkingareas=frozenset(e.getID() for e in net.getEdges(withInternal=True) if e.getFunction() == "walkingarea"),
         drivable_area=area,
+        link_direction=_link_directions(net),
+        junction_control={node.getID(): node.getType() for node in net.getNodes()},
+        junction_legs={node.getID(): _legs(node) for node in net.getNodes()},
+        roundabout_junctions=frozenset(n for r in net.getRoundabouts() for n in r.getNodes()),
+        ending_lanes=_ending_lanes(net),
     )
 
 

@@ -94,6 +94,11 @@ def _net_context(net_map: NetMap) -> NetContext:
         crosswalks,
         net_map.walkingareas,
         {lane: tuple(c) for lane, c in sorted(columns.items())},
+        link_direction=dict(net_map.link_direction),
+        junction_control=dict(net_map.junction_control),
+        junction_legs=dict(net_map.junction_legs),
+        roundabout_junctions=net_map.roundabout_junctions,
+        ending_lanes=net_map.ending_lanes,
     )
 
 
