@@ -1,0 +1,1 @@
+"""InterDrive: single-agent heuristic labels, interaction labels and prompts for any Scenario."""
