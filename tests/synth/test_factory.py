@@ -193,7 +193,7 @@ def test_ray_executor_writes_the_same_shards(first_run, tmp_path):
 def test_ray_executor_without_ray_says_how_to_install_it(monkeypatch):
     import sys
 
-    from langtraj.synth.executors import EXECUTORS
+    from langtraj.executors import EXECUTORS
     from langtraj.synth.sumo import SynthError
 
     monkeypatch.setitem(sys.modules, "ray", None)  # import ray now raises ImportError

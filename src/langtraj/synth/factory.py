@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 
 from langtraj import __version__
+from langtraj.executors import EXECUTORS
 from langtraj.fileio import atomic_open
-from langtraj.synth.executors import EXECUTORS
 from langtraj.synth.shard import ShardConfig, ShardOutcome, ShardTask, run_shard, shard_seed
 from langtraj.synth.sumo import SynthError, sumo_version
 

@@ -1,4 +1,4 @@
-"""Where shards run: the extension point between the factory and a compute engine.
+"""Where corpus shards run (synthesis, labeling): the extension point between a job and a compute engine.
 
 An executor maps a picklable function over independent items and yields the results as they finish.
 `process` (the default) is a local process pool; `ray` hands each item to a Ray cluster as a task
@@ -15,8 +15,8 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any, ClassVar
 
+from langtraj.errors import LangTrajError
 from langtraj.registry import Registry
-from langtraj.synth.sumo import SynthError
 
 
 class ShardExecutor(ABC):
@@ -64,7 +64,7 @@ class RayExecutor(ShardExecutor):
         try:
             import ray
         except ImportError:
-            raise SynthError("the ray executor needs Ray: pip install 'langtraj[ray]'") from None
+            raise LangTrajError("the ray executor needs Ray: pip install 'langtraj[ray]'") from None
         if not ray.is_initialized():
             address = os.environ.get("RAY_ADDRESS")
             local = {} if address else {"num_cpus": workers}
