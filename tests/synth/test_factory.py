@@ -193,9 +193,9 @@ def test_ray_executor_writes_the_same_shards(first_run, tmp_path):
 def test_ray_executor_without_ray_says_how_to_install_it(monkeypatch):
     import sys
 
+    from langtraj.errors import LangTrajError
     from langtraj.executors import EXECUTORS
-    from langtraj.synth.sumo import SynthError
 
     monkeypatch.setitem(sys.modules, "ray", None)  # import ray now raises ImportError
-    with pytest.raises(SynthError, match=r"pip install 'langtraj\[ray\]'"):
+    with pytest.raises(LangTrajError, match=r"pip install 'langtraj\[ray\]'"):
         list(EXECUTORS.create("ray").map(len, ["a"], 1))
