@@ -1,0 +1,833 @@
+"""Heuristic single-agent labels (InterDrive 'Heuristic Annotation Process') over a scene's future window.
+
+Every agent valid at the current step and over at least `HeuristicConfig.min_future_fraction` of the future
+steps [current_index, num_steps) gets the labels whose rule holds, each with the window steps [start, end)
+where it holds, so prompts can order them. Speed and acceleration come from positions (gaps filled
+linearly, then smoothed), not from the velocity fields. Each label (or small family) is one `LabelRule`
+registered in `RULES`; `label_agents` runs them all. Where the map lacks what a rule needs (lanes,
+connectivity, neighbour lists, road edges, crosswalks) the rule returns `Undecided` naming it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Iterator
+from dataclasses import dataclass, fields
+from functools import cached_property
+from typing import ClassVar
+
+import numpy as np
+
+from langtraj.interdrive.labels import AgentLabel, Undecided
+from langtraj.interdrive.mapindex import LaneMatch, MapIndex, wrap_angle
+from langtraj.registry import Registry
+from langtraj.scenario.model import Scenario
+from langtraj.scenario.types import AgentType
+
+
+@dataclass(frozen=True)
+class HeuristicConfig:
+    """Every threshold of the heuristic labeler; units: m, s, m/s, m/s^2, rad."""
+
+    min_future_fraction: float = 0.5
+    """Share of the future steps an agent must be valid on to be labelled at all."""
+    position_smoothing_s: float = 0.5
+    """Moving-average window over positions before differencing (s)."""
+    speed_smoothing_s: float = 0.5
+    """Moving-average window over speeds (s)."""
+    accel_smoothing_s: float = 0.9
+    """Moving-average window over accelerations (s)."""
+    static_speed: float = 0.5
+    """A vehicle at or below this speed is stopped (m/s)."""
+    slow_speed: float = 3.0
+    """A moving vehicle at or below this speed moves slowly (m/s)."""
+    vru_static_speed: float = 0.4
+    """A pedestrian or cyclist at or below this speed is static (m/s)."""
+    accel_threshold: float = 0.4
+    """Acceleration at or beyond which a vehicle speeds up / slows down; below it, constant speed (m/s^2)."""
+    min_speed_change: float = 1.0
+    """Least speed change over a speeding-up or slowing-down span (m/s); smaller changes count as constant."""
+    min_duration_s: float = 1.0
+    """Shortest span of a speed, static, moving, crossing-street or walking-along label (s)."""
+    slow_min_duration_s: float = 2.0
+    """Shortest span of `moving_slowly` (s)."""
+    parked_max_displacement: float = 1.0
+    """A parked vehicle moves at most this far over all its valid steps, history included (m)."""
+    parked_min_lane_offset: float = 1.5
+    """A static vehicle this far or farther from the nearest lane centre is at the road side (m)."""
+    parked_max_edge_distance: float = 1.5
+    """A static vehicle whose centre is this close to a road edge is at the kerb (m)."""
+    turn_min_angle: float = math.radians(45.0)
+    """Net heading change over the moving future that makes a turn (rad); positive is left."""
+    straight_max_angle: float = math.radians(15.0)
+    """Largest net heading change of a vehicle going straight (rad)."""
+    turn_span_fraction: float = 0.15
+    """A turn's span runs from this fraction of its heading change to one minus it."""
+    min_path_length: float = 5.0
+    """Shortest future path of a vehicle given a turn / straight label (m)."""
+    lane_match_radius: float = 3.0
+    """Largest distance from a vehicle to the centerline of its matched lane (m)."""
+    lane_match_max_heading: float = math.radians(45.0)
+    """Largest heading disagreement between a vehicle and its matched lane (rad)."""
+    off_road_distance: float = 4.0
+    """A vehicle farther than this from every drivable lane centerline is off the main roads (m)."""
+    junction_min_duration_s: float = 0.5
+    """Shortest stay on junction lanes that counts, and longest gap bridged inside one (s)."""
+    approach_lookahead: float = 40.0
+    """A vehicle within this distance of a junction ahead (along its lanes or its path) approaches it (m)."""
+    lane_min_run_s: float = 0.5
+    """A matched lane must hold this long to count; shorter flickers join the lane before (s)."""
+    lane_change_min_lateral: float = 2.0
+    """Least lateral displacement, across the lane, that confirms a lane change (m)."""
+    lane_change_settle_offset: float = 0.5
+    """A lane change starts/ends where the vehicle is within this of its old/new lane centre (m)."""
+    lane_position_max_offset: float = 1.5
+    """Largest distance from the lane centre at which a vehicle gets a lane position (m)."""
+    crossing_lane_radius: float = 2.0
+    """A pedestrian or cyclist this close to a lane centerline, moving across it, crosses the street (m)."""
+    crossing_min_angle: float = math.radians(50.0)
+    """Least angle between VRU motion and the lane to count as crossing it (rad, folded to [0, pi/2])."""
+    along_road_distance: float = 7.0
+    """A VRU within this distance of a lane centerline is by the road (m)."""
+    along_max_angle: float = math.radians(30.0)
+    """Largest angle between VRU motion and the nearest lane to count as walking along it (rad, folded)."""
+    infer_neighbors: bool = False
+    """Infer lane neighbours from geometry when the map has none (otherwise lane positions are undecided)."""
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not isinstance(value, bool) and not value >= 0:
+                raise ValueError(f"HeuristicConfig.{f.name} must be >= 0, got {value!r}")
+        if not 0 < self.min_future_fraction <= 1:
+            raise ValueError(f"HeuristicConfig.min_future_fraction must be in (0, 1], got {self.min_future_fraction}")
+
+
+# ---------------------------------------------------------------------------------------------- kinematics
+
+
+@dataclass(frozen=True, eq=False)
+class Kinematics:
+    """Motion of every agent over all steps, from positions: gaps filled linearly, then smoothed."""
+
+    xy: np.ndarray  # float64 [A, T, 2], smoothed; meaningful where `span`
+    span: np.ndarray  # bool [A, T], from the first to the last valid step of the agent
+    speed: np.ndarray  # float64 [A, T]
+    accel: np.ndarray  # float64 [A, T], derivative of the smoothed speed
+    course: np.ndarray  # float64 [A, T], direction of motion
+    yaw: np.ndarray  # float64 [A, T], box heading, unwrapped and gap-filled
+    dt: float  # median step (s)
+
+    @classmethod
+    def compute(cls, scenario: Scenario, config: HeuristicConfig) -> Kinematics:
+        """Kinematics of every agent of `scenario`."""
+        agents = scenario.agents
+        times = scenario.timestamps
+        dt = float(np.median(np.diff(times))) if len(times) > 1 else 0.1
+        xy, yaw, span = _fill_gaps(agents.xy.astype(np.float64), agents.heading.astype(np.float64), agents.valid)
+        xy = _smooth(xy, span, _steps(config.position_smoothing_s, dt))
+        step_dt = np.maximum(np.diff(times), 1e-6) if len(times) > 1 else np.ones(0)
+        velocity = _derivative(xy, span, step_dt)
+        speed = _smooth(np.linalg.norm(velocity, axis=-1), span, _steps(config.speed_smoothing_s, dt))
+        accel = _smooth(_derivative(speed, span, step_dt), span, _steps(config.accel_smoothing_s, dt))
+        course = np.arctan2(velocity[..., 1], velocity[..., 0])
+        return cls(xy, span, speed, accel, course, _smooth(yaw, span, _steps(config.position_smoothing_s, dt)), dt)
+
+
+def _steps(seconds: float, dt: float) -> int:
+    return max(1, round(seconds / dt))
+
+
+def _fill_gaps(xy: np.ndarray, yaw: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions and unwrapped yaw interpolated linearly across invalid steps inside each agent's valid span."""
+    num_agents, num_steps = valid.shape
+    span = np.zeros_like(valid)
+    xy_out = np.zeros_like(xy)
+    yaw_out = np.zeros_like(yaw)
+    steps = np.arange(num_steps)
+    for a in range(num_agents):
+        idx = np.flatnonzero(valid[a])
+        if len(idx) == 0:
+            continue
+        span[a, idx[0] : idx[-1] + 1] = True
+        for c in range(2):
+            xy_out[a, :, c] = np.interp(steps, idx, xy[a, idx, c])
+        yaw_out[a] = np.interp(steps, idx, np.unwrap(yaw[a, idx]))
+    return xy_out, yaw_out, span
+
+
+def _smooth(values: np.ndarray, span: np.ndarray, window: int) -> np.ndarray:
+    """Centred moving average over axis 1 inside each agent's (contiguous) span; the window shrinks
+    symmetrically near the span's ends, so a linear motion is left unbiased there."""
+    if window <= 1 or values.shape[1] == 0:
+        return values
+    num_steps = values.shape[1]
+    steps = np.arange(num_steps)
+    first = np.argmax(span, axis=1)[:, None]
+    last = (num_steps - 1 - np.argmax(span[:, ::-1], axis=1))[:, None]
+    half = np.clip(np.minimum(np.minimum(steps - first, last - steps), window // 2), 0, None)
+    lo, hi = steps - half, steps + half + 1
+    extra = (1,) * (values.ndim - 2)
+    padded = np.concatenate([np.zeros_like(values[:, :1]), np.cumsum(values, axis=1)], axis=1)
+    total = np.take_along_axis(padded, hi.reshape(hi.shape + extra), 1) - np.take_along_axis(
+        padded, lo.reshape(lo.shape + extra), 1
+    )
+    smooth = total / (hi - lo).reshape(hi.shape + extra)
+    return np.where(span.reshape(span.shape + extra), smooth, values)
+
+
+def _derivative(values: np.ndarray, span: np.ndarray, step_dt: np.ndarray) -> np.ndarray:
+    """Time derivative over axis 1: the mean of the differences on either side of each step inside `span`."""
+    out = np.zeros_like(values)
+    if values.shape[1] < 2:
+        return out
+    ok = (span[:, 1:] & span[:, :-1]).astype(np.float64)
+    shape = ok.shape + (1,) * (values.ndim - 2)
+    diff = np.diff(values, axis=1) / step_dt.reshape((1, -1) + (1,) * (values.ndim - 2)) * ok.reshape(shape)
+    count = np.zeros(span.shape)
+    out[:, 1:] += diff
+    out[:, :-1] += diff
+    count[:, 1:] += ok
+    count[:, :-1] += ok
+    return out / np.maximum(count, 1.0).reshape(count.shape + (1,) * (values.ndim - 2))
+
+
+# ---------------------------------------------------------------------------------------------- runs
+
+INVALID = -99
+"""Class of a step outside the agent's valid span in a per-step class sequence."""
+
+
+def runs(classes: np.ndarray) -> list[tuple[int, int, int]]:
+    """Maximal runs (value, start, end) of equal values in a 1-D integer array; end is exclusive."""
+    if len(classes) == 0:
+        return []
+    cuts = np.flatnonzero(classes[1:] != classes[:-1]) + 1
+    starts = np.concatenate([[0], cuts])
+    ends = np.concatenate([cuts, [len(classes)]])
+    return [(int(classes[s]), int(s), int(e)) for s, e in zip(starts, ends, strict=True)]
+
+
+def absorb_short_runs(classes: np.ndarray, min_len: int) -> np.ndarray:
+    """Runs shorter than `min_len` (not INVALID) take the class of the run before them (or after, at the start)."""
+    out = classes.copy()
+    spans = runs(out)
+    for i, (value, start, end) in enumerate(spans):
+        if value == INVALID or end - start >= min_len:
+            continue
+        before = out[start - 1] if start > 0 else INVALID
+        after = spans[i + 1][0] if i + 1 < len(spans) else INVALID
+        fill = before if before != INVALID else after
+        if fill != INVALID:
+            out[start:end] = fill
+    return out
+
+
+def true_runs(mask: np.ndarray, min_len: int, max_gap: int = 0) -> list[tuple[int, int]]:
+    """Runs of True at least `min_len` long, after bridging False gaps of at most `max_gap` steps inside them."""
+    mask = mask.copy()
+    if max_gap > 0:
+        spans = runs(mask.astype(np.int64))
+        for i, (value, start, end) in enumerate(spans):
+            if value == 0 and 0 < i < len(spans) - 1 and end - start <= max_gap:
+                mask[start:end] = True
+    return [(s, e) for v, s, e in runs(mask.astype(np.int64)) if v == 1 and e - s >= min_len]
+
+
+# ---------------------------------------------------------------------------------------------- context
+
+
+@dataclass(frozen=True)
+class LaneChange:
+    """A confirmed switch of a vehicle's matched lane to a neighbour lane, over future steps [start, end)."""
+
+    agent: int
+    side: str  # "left" | "right"
+    from_lane: int
+    to_lane: int
+    start: int
+    end: int
+    lateral: float  # lateral displacement across the lanes (m), left positive
+    from_position: str  # a LANE_POSITIONS value or "unknown"
+    to_position: str
+
+
+@dataclass(frozen=True, eq=False)
+class LabelContext:
+    """What the rules share for one scene: config, map index, kinematics, and lane matches computed once."""
+
+    scenario: Scenario
+    config: HeuristicConfig
+    map_index: MapIndex
+    kin: Kinematics
+
+    # ------------------------------------------------------------------ window and agents
+    @property
+    def current(self) -> int:
+        return self.scenario.current_index
+
+    @cached_property
+    def future(self) -> np.ndarray:
+        """bool [A, F]: future steps inside each agent's valid span."""
+        return self.kin.span[:, self.current :]
+
+    @cached_property
+    def eligible(self) -> np.ndarray:
+        """bool [A]: valid at the current step and over enough of the future."""
+        valid = self.scenario.agents.valid
+        fut = valid[:, self.current :]
+        share = fut.mean(axis=1) if fut.shape[1] else np.zeros(len(valid))
+        return valid[:, self.current] & (share >= self.config.min_future_fraction)
+
+    def agents_of(self, *types: AgentType) -> np.ndarray:
+        """Indices of eligible agents of `types`."""
+        return np.flatnonzero(self.eligible & np.isin(self.scenario.agents.types, [int(t) for t in types]))
+
+    def track_id(self, agent: int) -> int:
+        return int(self.scenario.agents.ids[agent])
+
+    def steps(self, seconds: float) -> int:
+        """A duration in whole steps (at least one)."""
+        return _steps(seconds, self.kin.dt)
+
+    def label(self, agent: int, key: str, start: int, end: int, **params: str) -> AgentLabel:
+        """A label of `agent` over future steps [start, end), converted to window steps."""
+        return AgentLabel(self.track_id(agent), key, self.current + start, self.current + end, params)
+
+    def undecided(self, agent: int, key: str, reason: str) -> Undecided:
+        return Undecided(self.track_id(agent), key, reason)
+
+    def fut(self, array: np.ndarray) -> np.ndarray:
+        """The future steps of a per-step [A, T, ...] array."""
+        return array[:, self.current :]
+
+    # ------------------------------------------------------------------ motion
+    @cached_property
+    def moving(self) -> np.ndarray:
+        """bool [A, F]: above the stopped speed of the agent's type, inside its span."""
+        types = self.scenario.agents.types
+        limit = np.where(
+            np.isin(types, [int(AgentType.VEHICLE)]), self.config.static_speed, self.config.vru_static_speed
+        )
+        return self.future & (self.fut(self.kin.speed) > limit[:, None])
+
+    @cached_property
+    def path_length(self) -> np.ndarray:
+        """float64 [A, F]: distance travelled from the current step up to each future step."""
+        xy = self.fut(self.kin.xy)
+        step = np.linalg.norm(np.diff(xy, axis=1), axis=-1) * (self.future[:, 1:] & self.future[:, :-1])
+        return np.concatenate([np.zeros((len(xy), 1)), np.cumsum(step, axis=1)], axis=1)
+
+    # ------------------------------------------------------------------ lane matches [A, F]
+    def _match(self, agents: np.ndarray, use_heading: bool, radius: float, drivable_only: bool) -> LaneMatch:
+        num_agents, num_future = self.future.shape
+        mask = np.zeros_like(self.future)
+        mask[agents] = self.future[agents]
+        xy = self.fut(self.kin.xy)[mask]
+        heading = self.fut(self.kin.yaw)[mask] if use_heading else None
+        found = self.map_index.match_lanes(
+            xy,
+            heading,
+            radius=radius,
+            max_heading_diff=self.config.lane_match_max_heading,
+            drivable_only=drivable_only,
+        )
+        grid = LaneMatch(
+            np.full((num_agents, num_future), -1, np.int64),
+            *(np.full((num_agents, num_future), fill) for fill in (np.inf, np.nan, np.nan, np.nan)),
+        )
+        for name in ("lane", "distance", "lateral", "station", "heading"):
+            getattr(grid, name)[mask] = getattr(found, name)
+        return grid
+
+    @cached_property
+    def vehicle_lanes(self) -> LaneMatch:
+        """Heading-aware drivable-lane match of every eligible vehicle at each future step."""
+        return self._match(self.agents_of(AgentType.VEHICLE), True, self.config.lane_match_radius, True)
+
+    @cached_property
+    def nearest_road(self) -> LaneMatch:
+        """Nearest drivable lane (any heading) of every eligible vehicle, within the off-road distance."""
+        return self._match(self.agents_of(AgentType.VEHICLE), False, self.config.off_road_distance, True)
+
+    @cached_property
+    def junction_runs(self) -> dict[int, list[tuple[int, int]]]:
+        """Future spans each eligible vehicle spends on junction lanes (short gaps bridged, short stays dropped)."""
+        lanes = self.vehicle_lanes.lane
+        if self.map_index.num_lanes:
+            on = (lanes >= 0) & self.map_index.is_junction[np.maximum(lanes, 0)]
+        else:
+            on = np.zeros(lanes.shape, bool)
+        n = self.steps(self.config.junction_min_duration_s)
+        return {int(a): true_runs(on[a], n, n) for a in self.agents_of(AgentType.VEHICLE)}
+
+    # ------------------------------------------------------------------ shared decisions
+    @cached_property
+    def parked(self) -> dict[int, tuple[bool | None, str]]:
+        """Parked decision (True / False / None = undecided) and its reason, per eligible vehicle."""
+        return {int(a): _parked_decision(self, int(a)) for a in self.agents_of(AgentType.VEHICLE)}
+
+    @cached_property
+    def lane_changes(self) -> dict[int, list[LaneChange]]:
+        """Lane changes (confirmed by lateral displacement) per eligible vehicle; the side is geometric when
+        the map has no neighbour lists."""
+        if not self.map_index.has_lanes:
+            return {}
+        return {int(a): _lane_changes(self, int(a)) for a in self.agents_of(AgentType.VEHICLE)}
+
+    @cached_property
+    def vru_crossing(self) -> np.ndarray:
+        """bool [A, F]: a moving VRU inside a crosswalk or moving across a nearby lane centerline."""
+        out = np.zeros_like(self.future)
+        mask = self.moving.copy()
+        mask[~np.isin(np.arange(len(mask)), self.agents_of(AgentType.PEDESTRIAN, AgentType.CYCLIST))] = False
+        xy = self.fut(self.kin.xy)[mask]
+        course = self.fut(self.kin.course)[mask]
+        cfg = self.config
+        hit = self.map_index.in_crosswalk(xy)
+        if self.map_index.has_lanes:
+            hit |= self.map_index.lanes_crossing(
+                xy, course, radius=cfg.crossing_lane_radius, min_angle=cfg.crossing_min_angle
+            )
+        out[mask] = hit
+        return out
+
+
+def _parked_decision(ctx: LabelContext, a: int) -> tuple[bool | None, str]:
+    """Parked: stopped over every valid step (history included) and at the road side (see `ParkedRule`)."""
+    cfg, index = ctx.config, ctx.map_index
+    span = ctx.kin.span[a]
+    xy = ctx.kin.xy[a, span]
+    still = ctx.kin.speed[a, span].max(initial=0.0) <= cfg.static_speed
+    if not still or np.linalg.norm(xy - xy[0], axis=1).max(initial=0.0) > cfg.parked_max_displacement:
+        return False, "moves"
+    if not index.has_lanes:
+        return None, "the map has no lanes to tell the road side from a traffic lane"
+    road = ctx.nearest_road
+    lane = int(road.lane[a, 0])
+    if lane < 0:
+        return True, "off every drivable lane"
+    offset = abs(float(road.lateral[a, 0]))
+    if offset >= cfg.parked_min_lane_offset:
+        return True, "beside the lane centre"
+    if index.is_junction[lane]:
+        return False, "stopped in a junction lane"
+    if not index.has_road_edges:
+        return None, "stopped on a lane centre and the map has no road edges to check the kerb"
+    edge = float(index.distance_to_road_edge(ctx.fut(ctx.kin.xy)[a, 0], cfg.parked_max_edge_distance)[0])
+    return (True, "at the kerb") if edge <= cfg.parked_max_edge_distance else (False, "stopped in a traffic lane")
+
+
+def _lane_changes(ctx: LabelContext, a: int) -> list[LaneChange]:
+    """Switches between stable lane runs to a neighbour lane, confirmed by the lateral displacement."""
+    cfg, index = ctx.config, ctx.map_index
+    match = ctx.vehicle_lanes
+    seq = np.where(ctx.future[a], match.lane[a], INVALID)
+    seq = absorb_short_runs(seq, ctx.steps(cfg.lane_min_run_s))
+    spans = runs(seq)
+    xy = ctx.fut(ctx.kin.xy)[a]
+    out = []
+    for (lane_a, a0, a1), (lane_b, b0, b1) in itertools.pairwise(spans):
+        if lane_a < 0 or lane_b < 0 or lane_a == lane_b or index.is_junction[lane_a] or index.is_junction[lane_b]:
+            continue  # choosing among junction lanes is turning, not changing lanes
+        lat_a, lat_b = match.lateral[a, a0:a1], match.lateral[a, b0:b1]
+        if index.neighbor_source == "none":
+            side = index.geometric_side(lane_a, lane_b, xy[b0])
+        else:
+            side = index.neighbor_side(lane_a, lane_b, xy[b0])
+        if side is None or not (np.isfinite(lat_a).all() and np.isfinite(lat_b).all()):
+            continue
+        sign = 1.0 if side == "left" else -1.0
+        settled_a = np.flatnonzero(sign * lat_a <= cfg.lane_change_settle_offset)
+        start = a0 + int(settled_a[-1]) if len(settled_a) else a0
+        settled_b = np.flatnonzero(sign * lat_b >= -cfg.lane_change_settle_offset)
+        end = b0 + int(settled_b[0]) if len(settled_b) else b1 - 1
+        _, lat_a_at_switch = index.project_to_lane(lane_a, xy[b0])
+        between = float(lat_a_at_switch[0]) - float(match.lateral[a, b0])
+        lateral = between + float(match.lateral[a, end]) - float(match.lateral[a, start])
+        if sign * lateral < cfg.lane_change_min_lateral:
+            continue
+        out.append(
+            LaneChange(
+                a,
+                side,
+                lane_a,
+                lane_b,
+                start,
+                end + 1,
+                lateral,
+                index.lane_position(lane_a, float(match.station[a, start])),
+                index.lane_position(lane_b, float(match.station[a, end])),
+            )
+        )
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- rules
+
+Output = Iterator[AgentLabel | Undecided]
+
+
+class LabelRule(ABC):
+    """One heuristic label (or a small family of them): `apply` yields labels and undecided labels."""
+
+    name: ClassVar[str]
+    keys: ClassVar[tuple[str, ...]]
+
+    @abstractmethod
+    def apply(self, ctx: LabelContext) -> Output:
+        """Labels and undecided labels of every eligible agent of the scene in `ctx`."""
+
+
+RULES: Registry[LabelRule] = Registry("heuristic label rule")
+"""Every heuristic rule, by name; `label_agents` runs them in registration order."""
+
+
+@RULES.register
+class SpeedProfileRule(LabelRule):
+    """Vehicles: static / speeding_up / slowing_down / constant_speed spans from the smoothed speed and
+    acceleration; spans shorter than `min_duration_s` join the span before, and a speed-up or slow-down
+    that changes the speed by less than `min_speed_change` counts as constant speed."""
+
+    name = "speed_profile"
+    keys = ("static", "speeding_up", "slowing_down", "constant_speed")
+    STOP, DOWN, CONST, UP = 0, 1, 2, 3
+
+    def apply(self, ctx: LabelContext) -> Output:
+        cfg = ctx.config
+        speed, accel = ctx.fut(ctx.kin.speed), ctx.fut(ctx.kin.accel)
+        min_len = ctx.steps(cfg.min_duration_s)
+        for a in ctx.agents_of(AgentType.VEHICLE):
+            classes = np.select(
+                [speed[a] <= cfg.static_speed, accel[a] >= cfg.accel_threshold, accel[a] <= -cfg.accel_threshold],
+                [self.STOP, self.UP, self.DOWN],
+                self.CONST,
+            )
+            classes = absorb_short_runs(np.where(ctx.future[a], classes, INVALID), min_len)
+            for value, start, end in runs(classes):
+                change = speed[a, end - 1] - speed[a, start]
+                if (value == self.UP and change < cfg.min_speed_change) or (
+                    value == self.DOWN and -change < cfg.min_speed_change
+                ):
+                    classes[start:end] = self.CONST
+            for value, start, end in runs(classes):
+                if value != INVALID and end - start >= min_len:
+                    key = {self.STOP: "static", self.UP: "speeding_up", self.DOWN: "slowing_down"}.get(
+                        value, "constant_speed"
+                    )
+                    yield ctx.label(a, key, start, end)
+
+
+@RULES.register
+class MovingSlowlyRule(LabelRule):
+    """Vehicles: moving_slowly over spans of at least `slow_min_duration_s` between `static_speed` and
+    `slow_speed`."""
+
+    name = "moving_slowly"
+    keys = ("moving_slowly",)
+
+    def apply(self, ctx: LabelContext) -> Output:
+        speed = ctx.fut(ctx.kin.speed)
+        slow = ctx.moving & (speed <= ctx.config.slow_speed)
+        min_len = ctx.steps(ctx.config.slow_min_duration_s)
+        for a in ctx.agents_of(AgentType.VEHICLE):
+            for start, end in true_runs(slow[a], min_len, ctx.steps(0.3)):
+                yield ctx.label(a, "moving_slowly", start, end)
+
+
+@RULES.register
+class ParkedRule(LabelRule):
+    """Vehicles: parked when stopped over all valid steps (history included, moving at most
+    `parked_max_displacement`) and at the road side: off every drivable lane, or at least
+    `parked_min_lane_offset` from the nearest lane centre, or (not in a junction lane) within
+    `parked_max_edge_distance` of a road edge. A vehicle stopped on a lane centre where the map has no road
+    edges is undecided (queue or kerb cannot be told apart); so is any stopped vehicle on a map without lanes."""
+
+    name = "parked"
+    keys = ("parked",)
+
+    def apply(self, ctx: LabelContext) -> Output:
+        for a, (decision, reason) in ctx.parked.items():
+            if decision is None:
+                yield ctx.undecided(a, "parked", reason)
+            elif decision:
+                span = np.flatnonzero(ctx.future[a])
+                yield ctx.label(a, "parked", int(span[0]), int(span[-1]) + 1)
+
+
+@RULES.register
+class OffMainRoadRule(LabelRule):
+    """Vehicles: off_main_road over spans of at least `min_duration_s` farther than `off_road_distance` from
+    every drivable lane centerline; undecided when the map has no lanes."""
+
+    name = "off_main_road"
+    keys = ("off_main_road",)
+
+    def apply(self, ctx: LabelContext) -> Output:
+        vehicles = ctx.agents_of(AgentType.VEHICLE)
+        if not ctx.map_index.is_drivable.any():
+            for a in vehicles:
+                yield ctx.undecided(a, "off_main_road", "the map has no drivable lanes")
+            return
+        off = ctx.future & ~ctx.nearest_road.matched
+        min_len = ctx.steps(ctx.config.min_duration_s)
+        for a in vehicles:
+            for start, end in true_runs(off[a], min_len):
+                yield ctx.label(a, "off_main_road", start, end)
+
+
+@RULES.register
+class TurnRule(LabelRule):
+    """Vehicles that travel at least `min_path_length`: turning_left / turning_right when the net heading
+    change between the first and last moving future steps is at least `turn_min_angle` (span: where the
+    heading covers the middle of that change), going_straight when it is at most `straight_max_angle`
+    (span: the moving steps); bends in between get neither."""
+
+    name = "turn"
+    keys = ("turning_left", "turning_right", "going_straight")
+
+    def apply(self, ctx: LabelContext) -> Output:
+        cfg = ctx.config
+        yaw = ctx.fut(ctx.kin.yaw)
+        for a in ctx.agents_of(AgentType.VEHICLE):
+            moving = np.flatnonzero(ctx.moving[a])
+            if len(moving) < 2 or ctx.path_length[a, moving[-1]] < cfg.min_path_length:
+                continue
+            first, last = int(moving[0]), int(moving[-1])
+            heading = yaw[a, first : last + 1] - yaw[a, first]
+            net = float(heading[-1])
+            if abs(net) <= cfg.straight_max_angle:
+                yield ctx.label(a, "going_straight", first, last + 1)
+            elif abs(net) >= cfg.turn_min_angle:
+                progress = heading / net
+                start = first + int(np.argmax(progress >= cfg.turn_span_fraction))
+                end = first + int(np.argmax(progress >= 1.0 - cfg.turn_span_fraction)) + 1
+                yield ctx.label(a, "turning_left" if net > 0 else "turning_right", start, max(end, start + 1))
+
+
+@RULES.register
+class CrossingIntersectionRule(LabelRule):
+    """Vehicles: crossing_intersection over each stay on junction lanes (see `MapIndex`) of at least
+    `junction_min_duration_s` during which the vehicle moves; undecided for moving vehicles on a map
+    without lanes."""
+
+    name = "crossing_intersection"
+    keys = ("crossing_intersection",)
+
+    def apply(self, ctx: LabelContext) -> Output:
+        for a in ctx.agents_of(AgentType.VEHICLE):
+            if not ctx.map_index.has_lanes:
+                if ctx.moving[a].any():
+                    yield ctx.undecided(a, "crossing_intersection", "the map has no lanes")
+                continue
+            for start, end in ctx.junction_runs[int(a)]:
+                if ctx.moving[a, start:end].any():
+                    yield ctx.label(a, "crossing_intersection", start, end)
+
+
+@RULES.register
+class ApproachingIntersectionRule(LabelRule):
+    """Vehicles on a non-junction lane at the current step (and not parked): approaching_intersection when
+    their future path enters a junction lane within `approach_lookahead` metres (span: until it enters), or
+    else when the lane graph reaches a junction lane within that distance ahead (span: the whole future).
+    Without lane connectivity, a vehicle whose path does not enter a junction is undecided (unless the map
+    has no junction lanes at all)."""
+
+    name = "approaching_intersection"
+    keys = ("approaching_intersection",)
+
+    def apply(self, ctx: LabelContext) -> Output:
+        index, cfg = ctx.map_index, ctx.config
+        match = ctx.vehicle_lanes
+        for a in ctx.agents_of(AgentType.VEHICLE):
+            if ctx.parked[int(a)][0]:
+                continue
+            if not index.has_lanes:
+                yield ctx.undecided(a, "approaching_intersection", "the map has no lanes")
+                continue
+            lane = int(match.lane[a, 0])
+            if lane < 0 or index.is_junction[lane]:
+                continue
+            entries = [s for s, _ in ctx.junction_runs[int(a)] if s > 0]
+            if entries and ctx.path_length[a, entries[0]] <= cfg.approach_lookahead:
+                yield ctx.label(a, "approaching_intersection", 0, entries[0])
+            elif entries:
+                continue
+            elif not index.is_junction.any():
+                continue  # the map has no junction to approach
+            elif not index.has_connectivity:
+                yield ctx.undecided(
+                    a, "approaching_intersection", "the map has no lane connectivity (exit lanes) to look ahead"
+                )
+            elif index.distance_to_junction(lane, float(match.station[a, 0])) <= cfg.approach_lookahead:
+                span = np.flatnonzero(ctx.future[a])
+                yield ctx.label(a, "approaching_intersection", 0, int(span[-1]) + 1)
+
+
+@RULES.register
+class LanePositionRule(LabelRule):
+    """Vehicles within `lane_position_max_offset` of their matched lane's centre at the current step (not
+    parked): lane_position among same-direction neighbours, from the current step until the vehicle changes
+    lanes or enters a junction; undecided where the map has no neighbour lists or the lane is a junction
+    lane."""
+
+    name = "lane_position"
+    keys = ("lane_position",)
+
+    def apply(self, ctx: LabelContext) -> Output:
+        index, match = ctx.map_index, ctx.vehicle_lanes
+        for a in ctx.agents_of(AgentType.VEHICLE):
+            if ctx.parked[int(a)][0]:
+                continue
+            if not index.has_lanes:
+                yield ctx.undecided(a, "lane_position", "the map has no lanes")
+                continue
+            lane = int(match.lane[a, 0])
+            if lane < 0 or abs(float(match.lateral[a, 0])) > ctx.config.lane_position_max_offset:
+                continue
+            position = index.lane_position(lane, float(match.station[a, 0]))
+            if position == "unknown":
+                reason = (
+                    "the vehicle is on a junction lane, where lanes have no neighbours"
+                    if index.is_junction[lane]
+                    else "the map has no lane neighbour information"
+                )
+                yield ctx.undecided(a, "lane_position", reason)
+                continue
+            stops = [int(np.flatnonzero(ctx.future[a])[-1]) + 1]
+            stops += [c.start for c in ctx.lane_changes.get(int(a), []) if c.start > 0]
+            stops += [s for s, _ in ctx.junction_runs[int(a)] if s > 0]
+            yield ctx.label(a, "lane_position", 0, min(stops), position=position)
+
+
+@RULES.register
+class LaneChangeRule(LabelRule):
+    """Vehicles: changing_lanes(from, to) where the matched lane switches (after absorbing flickers shorter
+    than `lane_min_run_s`) to a left or right neighbour lane, not to an exit lane nor between junction
+    lanes, and the lateral displacement across the lanes is at least `lane_change_min_lateral`; span: from
+    the last step near the old lane's centre to the first near the new one's. Undecided when the switch is
+    seen between parallel lanes but the map has no neighbour lists (or a lane position is unknown)."""
+
+    name = "changing_lanes"
+    keys = ("changing_lanes",)
+
+    def apply(self, ctx: LabelContext) -> Output:
+        for a in ctx.agents_of(AgentType.VEHICLE):
+            if not ctx.map_index.has_lanes:
+                if ctx.moving[a].any():
+                    yield ctx.undecided(a, "changing_lanes", "the map has no lanes")
+                continue
+            for change in ctx.lane_changes.get(int(a), []):
+                if ctx.map_index.neighbor_source == "none":
+                    yield ctx.undecided(
+                        a,
+                        "changing_lanes",
+                        f"a {change.lateral:+.1f} m lateral move to a parallel lane on the {change.side} at window "
+                        f"steps {ctx.current + change.start}-{ctx.current + change.end}; the map has no lane "
+                        "neighbour information",
+                    )
+                elif "unknown" in (change.from_position, change.to_position):
+                    yield ctx.undecided(a, "changing_lanes", f"lane change to the {change.side}: lane position unknown")
+                else:
+                    yield ctx.label(
+                        a,
+                        "changing_lanes",
+                        change.start,
+                        change.end,
+                        **{"from": change.from_position, "to": change.to_position},
+                    )
+
+
+@RULES.register
+class VruMotionRule(LabelRule):
+    """Pedestrians and cyclists: static / moving spans of at least `min_duration_s`, split at
+    `vru_static_speed`."""
+
+    name = "vru_motion"
+    keys = ("static", "moving")
+
+    def apply(self, ctx: LabelContext) -> Output:
+        min_len = ctx.steps(ctx.config.min_duration_s)
+        for a in ctx.agents_of(AgentType.PEDESTRIAN, AgentType.CYCLIST):
+            classes = np.where(ctx.future[a], ctx.moving[a].astype(np.int64), INVALID)
+            for value, start, end in runs(absorb_short_runs(classes, min_len)):
+                if value != INVALID and end - start >= min_len:
+                    yield ctx.label(a, "moving" if value else "static", start, end)
+
+
+@RULES.register
+class CrossingStreetRule(LabelRule):
+    """Pedestrians and cyclists: crossing_street over spans of at least `min_duration_s` where they move
+    inside a crosswalk polygon or across a lane centerline within `crossing_lane_radius` at
+    `crossing_min_angle` or more; undecided for moving VRUs when the map has neither lanes nor crosswalks."""
+
+    name = "crossing_street"
+    keys = ("crossing_street",)
+
+    def apply(self, ctx: LabelContext) -> Output:
+        index = ctx.map_index
+        min_len = ctx.steps(ctx.config.min_duration_s)
+        for a in ctx.agents_of(AgentType.PEDESTRIAN, AgentType.CYCLIST):
+            if not (index.has_lanes or index.has_crosswalks):
+                if ctx.moving[a].any():
+                    yield ctx.undecided(a, "crossing_street", "the map has no lanes and no crosswalks")
+                continue
+            for start, end in true_runs(ctx.vru_crossing[a], min_len, ctx.steps(0.5)):
+                yield ctx.label(a, "crossing_street", start, end)
+
+
+@RULES.register
+class WalkingAlongRoadRule(LabelRule):
+    """Pedestrians and cyclists: walking_along_road over spans of at least `min_duration_s` where they move,
+    are not crossing, and the nearest lane centerline within `along_road_distance` runs within
+    `along_max_angle` of their motion (either direction); undecided for moving VRUs on a map without lanes."""
+
+    name = "walking_along_road"
+    keys = ("walking_along_road",)
+
+    def apply(self, ctx: LabelContext) -> Output:
+        cfg, index = ctx.config, ctx.map_index
+        vrus = ctx.agents_of(AgentType.PEDESTRIAN, AgentType.CYCLIST)
+        if not index.has_lanes:
+            for a in vrus:
+                if ctx.moving[a].any():
+                    yield ctx.undecided(a, "walking_along_road", "the map has no lanes")
+            return
+        mask = ctx.moving & ~ctx.vru_crossing
+        mask[~np.isin(np.arange(len(mask)), vrus)] = False
+        near = index.match_lanes(ctx.fut(ctx.kin.xy)[mask], radius=cfg.along_road_distance, drivable_only=False)
+        diff = np.abs(wrap_angle(ctx.fut(ctx.kin.course)[mask] - near.heading))
+        along = np.zeros_like(mask)
+        along[mask] = near.matched & (np.minimum(diff, np.pi - diff) <= cfg.along_max_angle)
+        min_len = ctx.steps(cfg.min_duration_s)
+        for a in vrus:
+            for start, end in true_runs(along[a], min_len, ctx.steps(0.5)):
+                yield ctx.label(a, "walking_along_road", start, end)
+
+
+# ---------------------------------------------------------------------------------------------- entry point
+
+
+def label_agents(
+    scenario: Scenario, config: HeuristicConfig | None = None, map_index: MapIndex | None = None
+) -> tuple[tuple[AgentLabel, ...], tuple[Undecided, ...]]:
+    """Heuristic single-agent labels of `scenario`'s future window, and the labels the map could not decide;
+    each sorted by agent order, start step and key. `map_index` may be passed to reuse one across windows."""
+    config = config or HeuristicConfig()
+    if map_index is None:
+        map_index = MapIndex.build(scenario.road_map, infer_neighbors=config.infer_neighbors)
+    ctx = LabelContext(scenario, config, map_index, Kinematics.compute(scenario, config))
+    labels: list[AgentLabel] = []
+    undecided: dict[tuple[int, str], Undecided] = {}
+    for name in RULES.names():
+        for item in RULES.create(name).apply(ctx):
+            if isinstance(item, Undecided):
+                undecided.setdefault((item.track_id, item.key), item)
+            else:
+                labels.append(item)
+    order = {int(t): i for i, t in enumerate(scenario.agents.ids)}
+    labels.sort(key=lambda lab: (order[lab.track_id], lab.start, lab.key, lab.end))
+    kept = sorted(undecided.values(), key=lambda u: (order[u.track_id], u.key))
+    return tuple(labels), tuple(kept)
