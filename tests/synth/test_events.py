@@ -115,7 +115,8 @@ def test_junction_passes_carry_the_link_direction_and_junction(scripted):
     log, tracks, events, names = scripted
     (changer,) = _of(events, "junction_pass", names, "changer")
     assert changer.attributes == {
-        "junction": "C", "direction": "l", "control": "priority", "legs": 4, "roundabout": False
+        "junction": "C", "direction": "l", "control": "priority", "legs": 4, "intersection": True,
+        "roundabout": False,
     }  # fmt: skip
     track = next(t for t in tracks if t.sumo_id == "changer")
     on_junction = [log.lane_names[i].startswith(":C_") for i in track.lane]

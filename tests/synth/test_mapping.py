@@ -23,6 +23,7 @@ from langtraj.synth.mapping import (  # noqa: E402  (needs sumolib)
     NetMap,
     build_net_map,
     crop_road_map,
+    is_intersection,
     offset_polyline,
 )
 from langtraj.synth.sumo import run_tool  # noqa: E402
@@ -135,7 +136,8 @@ def test_every_drivable_lane_is_a_lane_feature(built: dict[str, Built], name: st
         f = b.feature(lane_id)
         sumo_lane = b.net.getLane(lane_id)
         assert f.type.is_lane and len(f.points) >= 2 and np.isfinite(f.points).all()
-        assert f.interpolating == lane_id.startswith(":")
+        internal = lane_id.startswith(":")
+        assert f.interpolating == (internal and is_intersection(sumo_lane.getEdge().getFromNode()))
         assert f.speed_limit_mph == pytest.approx(sumo_lane.getSpeed() / 0.44704)
         # points follow the SUMO lane shape (resampled): same ends, every SUMO vertex on the polyline
         shape = np.asarray(sumo_lane.getShape())
@@ -218,8 +220,9 @@ def test_neighbours_are_symmetric_and_span_the_lanes(built: dict[str, Built], na
 def test_boundaries_reference_existing_lines_and_edges(built: dict[str, Built], name: str) -> None:
     road_map = built[name].netmap.road_map
     by_id = road_map.by_id
+    internal = {fid for sid, fid in built[name].netmap.lane_ids.items() if sid.startswith(":")}
     for lane in road_map.lanes:
-        if not lane.interpolating:
+        if lane.id not in internal:
             assert lane.left_boundaries and lane.right_boundaries, lane.id
         for seg in (*lane.left_boundaries, *lane.right_boundaries):
             target = by_id[seg.boundary_feature_id]
@@ -296,9 +299,10 @@ def test_road_edges_bound_the_drivable_area(built: dict[str, Built], name: str) 
         assert shapely.contains(inside, shapely.points(lane.points[:, :2])).all(), lane.id
     # the outer border of each outermost lane runs along a road edge
     edges = shapely.union_all([LineString(f.points[:, :2]) for f in b.netmap.road_map.road_edges])
+    internal = {fid for sid, fid in b.netmap.lane_ids.items() if sid.startswith(":")}
     for lane in b.netmap.road_map.lanes:
         for side, sign in (("left", 1.0), ("right", -1.0)):
-            if lane.interpolating or _boundary_types(lane, side) != {MapFeatureType.ROAD_LINE_UNKNOWN}:
+            if lane.id in internal or _boundary_types(lane, side) != {MapFeatureType.ROAD_LINE_UNKNOWN}:
                 continue
             width = b.net.getLane(next(k for k, v in b.netmap.lane_ids.items() if v == lane.id)).getWidth()
             border = offset_polyline(lane.points, sign * width / 2.0)

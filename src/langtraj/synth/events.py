@@ -17,7 +17,8 @@ Every event is a `BehaviorEvent(kind, track_id, start, end, other_id, attributes
   (priority / first_come), `min_speed`, `stopped`, `ego_lane`, `foe_lane`, `roundabout`.
 - `junction_pass`: a vehicle or cyclist on the internal lanes of one junction, entry to exit. Attributes:
   `junction`, `direction` (SUMO link direction: s, l, r, t, L, R), `control` (SUMO junction type),
-  `legs` (roads meeting there; 2 at a mid-block crossing), `roundabout` (the junction lies on a roundabout).
+  `legs` (roads meeting there; 2 at a mid-block crossing), `intersection` (roads from two or more places
+  meet roads to two or more: not a merge, split or mid-block crossing), `roundabout` (on a roundabout).
 - `yield_to_pedestrian`: a slow or braking vehicle whose path within `PED_LOOKAHEAD_M` runs over a
   crosswalk on which a pedestrian is walking. Attributes: `crosswalk`, `min_speed`, `stopped`.
 - `ped_waiting`: a pedestrian standing on a walking area right before walking onto a crossing.
@@ -74,8 +75,8 @@ class NetContext:
     edge ids to their polygons [K, 2]; `walkingareas` holds walking-area edge ids; `signal_columns` maps
     a SUMO lane id to the columns of the recorded signal states of the links leaving it; `link_direction`
     maps a junction-internal lane to its connection's direction, `junction_control` a junction to its SUMO
-    type and `junction_legs` to its number of roads; `roundabout_junctions` and `ending_lanes` (lanes
-    that end where the road goes on) are id sets.
+    type and `junction_legs` to its number of roads; `intersections`, `roundabout_junctions` and
+    `ending_lanes` (lanes that end where the road goes on) are id sets.
     """
 
     junction_of_lane: Mapping[str, str]
@@ -85,6 +86,7 @@ class NetContext:
     link_direction: Mapping[str, str] = field(default_factory=dict)
     junction_control: Mapping[str, str] = field(default_factory=dict)
     junction_legs: Mapping[str, int] = field(default_factory=dict)
+    intersections: frozenset[str] = frozenset()
     roundabout_junctions: frozenset[str] = frozenset()
     ending_lanes: frozenset[str] = frozenset()
 
@@ -331,6 +333,7 @@ def junction_pass_events(tracks: Iterable[Track], log: SimulationLog, ctx: NetCo
                             "direction": ctx.link_direction.get(first_lane, ""),
                             "control": ctx.junction_control.get(node, ""),
                             "legs": ctx.junction_legs.get(node, 0),
+                            "intersection": node in ctx.intersections,
                             "roundabout": node in ctx.roundabout_junctions,
                         },
                     )

@@ -7,8 +7,9 @@ net has elevation (lanes only; road edges, road lines and crosswalks are flat).
 Conventions (WOMD-like):
 - Every polyline is resampled so consecutive points are at most `point_spacing` apart (WOMD samples
   its map at about 0.5 m), so a window crop by "any point inside" keeps every feature that crosses it.
-- Lanes: every lane a road vehicle or bicycle may use, junction-internal lanes included
-  (`interpolating=True`); sidewalks, crossings and walking areas are not lanes.
+- Lanes: every lane a road vehicle or bicycle may use, junction-internal lanes included; those inside
+  intersections (not merges, splits or mid-block crossings) are `interpolating`, as in WOMD; sidewalks,
+  crossings and walking areas are not lanes.
 - Road edges are the boundary of the drivable area (the union of all lane surfaces and the junction
   areas less their walking areas). Every ring runs with the drivable area on its LEFT (WOSAC's
   convention: port side on-road): outer rings counter-clockwise (ROAD_EDGE_BOUNDARY), holes clockwise
@@ -115,6 +116,7 @@ class NetMap:
     link_direction: Mapping[str, str] = field(default_factory=dict)  # via lane id -> SUMO direction (s, l, r, t, L, R)
     junction_control: Mapping[str, str] = field(default_factory=dict)  # junction id -> SUMO type (priority, ...)
     junction_legs: Mapping[str, int] = field(default_factory=dict)  # junction id -> number of roads meeting there
+    intersections: frozenset[str] = frozenset()  # junctions that are intersections (`is_intersection`)
     roundabout_junctions: frozenset[str] = frozenset()  # junctions on a roundabout ring
     ending_lanes: frozenset[str] = frozenset()  # vehicle lanes with no onward connection where the road goes on
 
@@ -186,6 +188,7 @@ class _Lane:
     edge_id: str
     index: int
     internal: bool
+    intersection: bool  # an internal lane of an intersection (see `is_intersection`)
     width: float
     speed: float
     bike_only: bool
@@ -221,6 +224,7 @@ def _read_lanes(net: sumolib.net.Net, spacing: float | None) -> dict[str, _Lane]
                 edge_id=edge.getID(),
                 index=lane.getIndex(),
                 internal=function == "internal",
+                intersection=function == "internal" and is_intersection(edge.getFromNode()),
                 width=float(lane.getWidth()),
                 speed=float(lane.getSpeed()),
                 bike_only=_is_bike_only(lane),
@@ -555,7 +559,7 @@ def _lane_features(
                 left_boundaries=tuple(bounds.get((lane_id, "left"), ())),
                 right_boundaries=tuple(bounds.get((lane_id, "right"), ())),
                 speed_limit_mph=lane.speed / MPH_TO_MPS,
-                interpolating=lane.internal,
+                interpolating=lane.intersection,
             )
         )
     return features
@@ -637,6 +641,14 @@ def _link_directions(net: sumolib.net.Net) -> dict[str, str]:
     }
 
 
+def is_intersection(node: sumolib.net.node.Node) -> bool:
+    """Roads from two or more places meet roads to two or more places, three roads at least: not a merge,
+    a split or a mid-block crossing."""
+    sources = {e.getFromNode().getID() for e in node.getIncoming() if not e.getFunction()}
+    targets = {e.getToNode().getID() for e in node.getOutgoing() if not e.getFunction()}
+    return len(sources) >= 2 and len(targets) >= 2 and _legs(node) >= 3
+
+
 def _legs(node: sumolib.net.node.Node) -> int:
     """Roads meeting at a junction: its distinct neighbouring junctions (2 at a mid-block crossing)."""
     ends = {e.getFromNode().getID() for e in node.getIncoming() if not e.getFunction()}
@@ -700,6 +712,7 @@ def build_net_map(net_file: Path, *, point_spacing: float | None = POINT_SPACING
         link_direction=_link_directions(net),
         junction_control={node.getID(): node.getType() for node in net.getNodes()},
         junction_legs={node.getID(): _legs(node) for node in net.getNodes()},
+        intersections=frozenset(node.getID() for node in net.getNodes() if is_intersection(node)),
         roundabout_junctions=frozenset(n for r in net.getRoundabouts() for n in r.getNodes()),
         ending_lanes=_ending_lanes(net),
     )

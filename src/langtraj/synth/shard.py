@@ -97,6 +97,7 @@ def _net_context(net_map: NetMap) -> NetContext:
         link_direction=dict(net_map.link_direction),
         junction_control=dict(net_map.junction_control),
         junction_legs=dict(net_map.junction_legs),
+        intersections=net_map.intersections,
         roundabout_junctions=net_map.roundabout_junctions,
         ending_lanes=net_map.ending_lanes,
     )
