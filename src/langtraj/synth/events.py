@@ -3,7 +3,8 @@
 Every event is a `BehaviorEvent(kind, track_id, start, end, other_id, attributes)` over global steps
 [start, end). Kinds:
 
-- `lane_change`: from SUMO's lane-change output; start at the manoeuvre start, end one past its end;
+- `lane_change`: from SUMO's lane-change output; start at the latest manoeuvre start before the switch,
+  end one past the manoeuvre's end, at most `MAX_MANOEUVRE_STEPS` either side of the switch;
   `other_id` is the leader on the target lane right after the change (or -1). Attributes: `direction`
   (left/right), `reason` (strategic, cooperative, speedGain, keepRight, or SUMO's first reason token),
   `reason_detail` (SUMO's full reason), `from_lane`, `to_lane`, `change_step`, `from_lane_ends` (the
@@ -39,6 +40,10 @@ from langtraj.scenario.model import STEP_SECONDS, BehaviorEvent
 from langtraj.scenario.types import AgentType
 from langtraj.synth.runner import FoeObservation, LaneChangeRecord, SimulationLog
 from langtraj.synth.tracks import Track
+
+MAX_MANOEUVRE_STEPS = 50
+"""A lane-change event spans at most 5 s either side of the switch (SUMO may start a manoeuvre, pause it
+for a long time and finish it much later)."""
 
 MIN_FOLLOW_STEPS = 10
 """A leader must be followed for at least 1 s to make a `follow` event."""
@@ -137,8 +142,8 @@ def lane_change_events(
                 continue
             started = [r.step for r in recs[:i] if r.tag == "changeStarted" and r.step > previous_change]
             ended = [r.step for r in recs[i + 1 :] if r.tag == "changeEnded"]
-            start = max(min(started) if started else rec.step, track.start)
-            end = min((ended[0] if ended else rec.step) + 1, track.stop)
+            start = max(max(started) if started else rec.step, rec.step - MAX_MANOEUVRE_STEPS, track.start)
+            end = min((ended[0] if ended else rec.step) + 1, rec.step + MAX_MANOEUVRE_STEPS + 1, track.stop)
             previous_change = rec.step
             after = track.local(min(rec.step + 1, track.stop - 1))
             events.append(
