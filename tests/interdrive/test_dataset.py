@@ -178,6 +178,14 @@ def test_show_renders_a_window_with_its_labels(dataset, tmp_path, capsys):
     assert "track 99999 is not in this window" in capsys.readouterr().err
 
 
+def test_an_unreachable_llm_endpoint_fails_before_anything_is_written(corpus, tmp_path, capsys):
+    out = tmp_path / "d"
+    args = ["interdrive", "build", str(corpus[0]), "--out", str(out), "--llm-url", "http://127.0.0.1:9/v1"]
+    assert main(args) == 2
+    assert "127.0.0.1:9" in capsys.readouterr().err
+    assert not (out / "manifest.json").exists()
+
+
 def test_build_refuses_a_file_listed_twice(corpus, tmp_path, capsys):
     assert main(["interdrive", "build", str(corpus[0]), str(corpus[0]), "--out", str(tmp_path / "d")]) == 2
     assert "listed twice" in capsys.readouterr().err

@@ -528,3 +528,32 @@ def test_llm_errors(fake_llm: _FakeLLM, tmp_path) -> None:
 def test_interaction_types_all_have_subtypes_with_phrases() -> None:
     for kind in InteractionType:
         assert any(s.type is kind for s in SUBTYPES), kind
+
+
+class _FakeRephraser:
+    """Answers every phrase with two rephrasings of its own, counting the calls."""
+
+    def __init__(self):
+        self.calls = 0
+
+    def rephrase(self, phrase, n=None):
+        self.calls += 1
+        return (f"{phrase} (version one)", f"{phrase} (version two)")
+
+
+def test_an_llm_phrase_bank_extends_every_table_and_feeds_the_prompts():
+    from langtraj.interdrive.labels import AgentLabel, WindowLabels
+    from langtraj.interdrive.prompts import build_prompt_pool, llm_phrase_bank, phrase_tables
+
+    fake = _FakeRephraser()
+    bank = llm_phrase_bank(fake)
+    tables = phrase_tables()
+    assert fake.calls == len(tables)
+    assert bank.labels("speeding_up")[-1] == "speeds up (version two)"
+    assert bank.interactions("yielding/intersection")[-2:] == (
+        "yields to <other> at the intersection (version one)",
+        "yields to <other> at the intersection (version two)",
+    )
+    labels = WindowLabels("w", (AgentLabel(3, "speeding_up", 20, 40),))
+    texts = {p.text for seed in range(60) for p in build_prompt_pool(labels, seed, per_agent=1, bank=bank)}
+    assert "@3 speeds up (version one)" in texts

@@ -25,6 +25,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     build.add_argument("--prompts-per-agent", type=int, default=3, help="prompts drawn per labelled agent")
     build.add_argument("--no-detector", action="store_true", help="skip the detector on scenes with SUMO events")
     build.add_argument("--workers", type=int, default=1, help="scenario files labelled at once")
+    build.add_argument("--llm-url", help="OpenAI-compatible API base adding LLM rephrasings (off by default; cached)")
+    build.add_argument("--llm-model", default="gpt-4o-mini", help="model name for --llm-url")
     build.add_argument("--executor", default="process", choices=("process", "ray"), help="where shards run")
     build.set_defaults(func=run_build)
 
@@ -58,7 +60,13 @@ def run_build(args: argparse.Namespace) -> int:
     for name, value in (("--workers", args.workers), ("--prompts-per-agent", args.prompts_per_agent)):
         if value < 1:
             raise InputError(f"must be at least 1, got {value}", where=name)
-    config = BuildConfig(seed=args.seed, prompts_per_agent=args.prompts_per_agent, detector=not args.no_detector)
+    config = BuildConfig(
+        seed=args.seed,
+        prompts_per_agent=args.prompts_per_agent,
+        detector=not args.no_detector,
+        llm_url=args.llm_url,
+        llm_model=args.llm_model,
+    )
     manifest = build_dataset([Path(s) for s in args.scenarios], Path(args.out), config, args.workers, args.executor)
     interactions = sum(sum(s["interactions"].values()) for s in manifest["shards"])
     prompts = sum(s["prompts"] for s in manifest["shards"])

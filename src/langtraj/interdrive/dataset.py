@@ -28,7 +28,16 @@ from langtraj.interdrive.ground_truth import ground_truth_interactions
 from langtraj.interdrive.heuristics import HeuristicConfig, label_agents
 from langtraj.interdrive.labels import InteractionLabel, LabelSource, WindowLabels
 from langtraj.interdrive.mapindex import MapIndex
-from langtraj.interdrive.prompts import Prompt, build_prompt_pool, role_rephrase
+from langtraj.interdrive.prompts import (
+    TEMPLATES_ONLY,
+    LLMConfig,
+    LLMRephraser,
+    PhraseBank,
+    Prompt,
+    build_prompt_pool,
+    llm_phrase_bank,
+    role_rephrase,
+)
 from langtraj.scenario.io import read_scenarios
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.windowing import WindowSpec, iter_windows
@@ -47,6 +56,8 @@ class BuildConfig:
     detector: bool = True  # run the rule-based interaction detector (always on for scenes without events)
     window_stride: int | None = None  # steps between windows of long scenes (default: non-overlapping)
     heuristics: HeuristicConfig = field(default_factory=HeuristicConfig)
+    llm_url: str | None = None  # an OpenAI-compatible endpoint adding LLM rephrasings to the phrase tables (off)
+    llm_model: str = "gpt-4o-mini"
 
     def fingerprint(self) -> str:
         return hashlib.sha256(json.dumps(asdict(self), sort_keys=True, default=str).encode()).hexdigest()[:16]
@@ -154,11 +165,21 @@ def label_window(scenario: Scenario, config: BuildConfig = BuildConfig()) -> Win
     return WindowLabels(scenario.scenario_id, tuple(agent_labels), tuple(undecided), tuple(interactions))
 
 
-def window_prompts(labels: WindowLabels, config: BuildConfig) -> tuple[PromptEntry, ...]:
+def phrase_bank(config: BuildConfig) -> PhraseBank:
+    """The phrases prompts are drawn from: the templates, plus LLM rephrasings when `llm_url` is set
+    (asked once per phrase and cached on disk)."""
+    if config.llm_url is None:
+        return TEMPLATES_ONLY
+    return llm_phrase_bank(LLMRephraser(LLMConfig(url=config.llm_url, model=config.llm_model)))
+
+
+def window_prompts(
+    labels: WindowLabels, config: BuildConfig, bank: PhraseBank = TEMPLATES_ONLY
+) -> tuple[PromptEntry, ...]:
     """The window's prompt pool, seeded by the build seed and the window id (same input, same prompts)."""
     digest = hashlib.sha256(f"{config.seed}:{labels.scenario_id}".encode()).digest()
     seed = int.from_bytes(digest[:8], "little")
-    return tuple(PromptEntry.of(p) for p in build_prompt_pool(labels, seed, config.prompts_per_agent))
+    return tuple(PromptEntry.of(p) for p in build_prompt_pool(labels, seed, config.prompts_per_agent, bank))
 
 
 def _windows(scenario: Scenario, spec: WindowSpec) -> Iterator[tuple[int, Scenario]]:
@@ -170,7 +191,7 @@ def _windows(scenario: Scenario, spec: WindowSpec) -> Iterator[tuple[int, Scenar
         yield int(window.metadata["window"]["start"]), window
 
 
-def label_file(path: Path, config: BuildConfig) -> list[WindowRecord]:
+def label_file(path: Path, config: BuildConfig, bank: PhraseBank = TEMPLATES_ONLY) -> list[WindowRecord]:
     """Records of every window of every scene in one scenario file."""
     spec = WindowSpec(stride=config.window_stride)
     records = []
@@ -189,7 +210,7 @@ def label_file(path: Path, config: BuildConfig) -> list[WindowRecord]:
                     window.num_steps,
                     tuple(int(i) for i in window.agents.ids),
                     labels,
-                    window_prompts(labels, config),
+                    window_prompts(labels, config, bank),
                 )
             )
     return records
@@ -203,6 +224,7 @@ class _ShardJob:
     source: Path
     target: Path
     config: BuildConfig
+    bank: PhraseBank
 
 
 def _sha256(path: Path) -> str:
@@ -216,7 +238,7 @@ def _sha256(path: Path) -> str:
 def _run_job(job: _ShardJob) -> tuple[Path, dict[str, Any]]:
     """Label one scenario file into its shard; returns the source and the shard's counts."""
     try:
-        records = label_file(job.source, job.config)
+        records = label_file(job.source, job.config, job.bank)
     except InputError as exc:
         raise exc.located(path=job.source) from None
     write_shard(job.target, records)
@@ -308,6 +330,7 @@ def build_dataset(
         seen.add(src.resolve())
     previous = _previous_shards(out)
     fingerprint = config.fingerprint()
+    bank = phrase_bank(config)
     entries: dict[int, dict[str, Any]] = {}
     jobs: list[tuple[int, _ShardJob, dict[str, Any]]] = []
     for number, src in enumerate(sources):
@@ -321,7 +344,7 @@ def build_dataset(
         ):
             entries[number] = old
         else:
-            jobs.append((number, _ShardJob(src, out / name, config), entry))
+            jobs.append((number, _ShardJob(src, out / name, config, bank), entry))
     by_source = {job.source: (number, entry) for number, job, entry in jobs}
     engine = EXECUTORS.create(executor, where="--executor")
     for source, result in engine.map(_run_job, [job for _, job, _ in jobs], workers):
@@ -359,11 +382,13 @@ def refresh_manifest_counts(out: Path) -> dict[str, Any]:
     return manifest
 
 
-def with_human_labels(record: WindowRecord, human: Sequence[InteractionLabel], config: BuildConfig) -> WindowRecord:
+def with_human_labels(
+    record: WindowRecord, human: Sequence[InteractionLabel], config: BuildConfig, bank: PhraseBank = TEMPLATES_ONLY
+) -> WindowRecord:
     """The record with its human interaction labels replaced by `human` and its prompt pool redrawn."""
     kept = tuple(i for i in record.labels.interactions if i.source is not LabelSource.HUMAN)
     labels = replace(record.labels, interactions=kept + tuple(human))
-    return replace(record, labels=labels, prompts=window_prompts(labels, config))
+    return replace(record, labels=labels, prompts=window_prompts(labels, config, bank))
 
 
 def load_window(record: WindowRecord) -> Scenario:

@@ -23,6 +23,7 @@ from langtraj.interdrive.dataset import (
     BuildConfig,
     WindowRecord,
     iter_records,
+    phrase_bank,
     read_manifest,
     refresh_manifest_counts,
     with_human_labels,
@@ -155,7 +156,14 @@ def import_json(json_dir: Path, dataset: Path) -> int:
     if not files:
         raise InputError("no *.json files", path=json_dir)
     manifest = read_manifest(dataset)
-    config = BuildConfig(seed=manifest["config"]["seed"], prompts_per_agent=manifest["config"]["prompts_per_agent"])
+    built = manifest["config"]
+    config = BuildConfig(
+        seed=built["seed"],
+        prompts_per_agent=built["prompts_per_agent"],
+        llm_url=built.get("llm_url"),
+        llm_model=built.get("llm_model", "gpt-4o-mini"),
+    )
+    bank = phrase_bank(config)
     shards = list(iter_records(dataset))
     where = {rec.scenario_id: (n, i) for n, (_, recs) in enumerate(shards) for i, rec in enumerate(recs)}
     updates: dict[tuple[int, int], list[InteractionLabel]] = {}
@@ -175,7 +183,7 @@ def import_json(json_dir: Path, dataset: Path) -> int:
             continue
         new = list(records)
         for i in touched:
-            new[i] = with_human_labels(records[i], updates[(n, i)], config)
+            new[i] = with_human_labels(records[i], updates[(n, i)], config, bank)
         write_shard(shard_path, new)
     refresh_manifest_counts(dataset)
     return len(updates)

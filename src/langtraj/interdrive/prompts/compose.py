@@ -16,7 +16,7 @@ import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.interdrive.labels import AgentLabel, InteractionLabel
-from langtraj.interdrive.prompts.phrases import OTHER_FALLBACK, OTHER_SLOT, interaction_phrases, label_phrases
+from langtraj.interdrive.prompts.phrases import OTHER_FALLBACK, OTHER_SLOT, TEMPLATES_ONLY, PhraseBank
 
 MENTION = re.compile(r"(?<![\w@])@(\d+)(?!\w)")
 """An agent mention `@<track_id>` (not inside a word, not followed by letters or digits)."""
@@ -75,14 +75,14 @@ def _pick(options: Sequence[str], rng: np.random.Generator, simple: bool) -> str
 
 
 def _interaction_clause(
-    track_id: int, interaction: InteractionLabel, rng: np.random.Generator, simple: bool
+    track_id: int, interaction: InteractionLabel, rng: np.random.Generator, simple: bool, bank: PhraseBank
 ) -> _Clause:
     if interaction.track_id != track_id:
         raise InputError(f"interaction of track {interaction.track_id} given for track {track_id}")
     if interaction.other_id == track_id:
         raise InputError(f"interaction of track {track_id} names itself as the other agent")
     other = f"@{interaction.other_id}" if interaction.other_id >= 0 else OTHER_FALLBACK
-    phrase = _pick(interaction_phrases(interaction.subtype.id), rng, simple).replace(OTHER_SLOT, other)
+    phrase = _pick(bank.interactions(interaction.subtype.id), rng, simple).replace(OTHER_SLOT, other)
     return _Clause(interaction.start, interaction.end, phrase, None)
 
 
@@ -116,9 +116,10 @@ def compose_prompt(
     labels: Sequence[AgentLabel],
     rng: np.random.Generator,
     max_labels: int = 3,
+    bank: PhraseBank = TEMPLATES_ONLY,
 ) -> Prompt:
     """A prompt for `track_id` joining `interaction` (if any) with up to `max_labels` of its single-agent
-    `labels` (a random subset when there are more), phrases drawn with `rng`, ordered by start step."""
+    `labels` (a random subset when there are more), phrases drawn with `rng` from `bank`, ordered by start step."""
     if max_labels < 0:
         raise InputError(f"max_labels must be >= 0, got {max_labels}")
     for lab in labels:
@@ -131,9 +132,9 @@ def compose_prompt(
     if interaction is None and not chosen:
         raise InputError(f"nothing to describe for track {track_id}: no interaction and no labels")
     simple = len(chosen) + (interaction is not None) > 1
-    clauses = [] if interaction is None else [_interaction_clause(track_id, interaction, rng, simple)]
+    clauses = [] if interaction is None else [_interaction_clause(track_id, interaction, rng, simple, bank)]
     clauses += [
-        _Clause(lab.start, lab.end, _pick(label_phrases(lab.key, lab.params), rng, simple), lab.key) for lab in chosen
+        _Clause(lab.start, lab.end, _pick(bank.labels(lab.key, lab.params), rng, simple), lab.key) for lab in chosen
     ]
     clauses.sort(key=lambda c: c.start)  # stable: the interaction first among equal starts
     text = f"@{track_id} {_join(clauses)}"

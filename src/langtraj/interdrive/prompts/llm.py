@@ -16,12 +16,14 @@ import unicodedata
 import urllib.error
 import urllib.request
 from collections import Counter
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from langtraj.errors import LangTrajError
 from langtraj.fileio import atomic_open
+from langtraj.interdrive.prompts.phrases import PhraseBank, phrase_tables
 
 _PLACEHOLDER = re.compile(r"<[A-Za-z_][A-Za-z0-9_]*>")
 _LIST_MARK = re.compile(r"^\s*(?:[-*•]|\d+[.)])\s*")
@@ -167,3 +169,14 @@ class LLMRephraser:
         if not isinstance(content, str):
             raise LLMError(f"LLM response from {endpoint} has no text content")
         return content
+
+
+def llm_phrase_bank(rephraser: LLMRephraser, keys: Iterable[str] | None = None) -> PhraseBank:
+    """A phrase bank extending the templates with the LLM's rephrasings of each table's canonical phrase
+    (every table, or those of `keys`); answers come from the rephraser's disk cache when present."""
+    tables = phrase_tables()
+    extra = {}
+    for key in keys if keys is not None else tables:
+        known = set(tables[key])
+        extra[key] = tuple(p for p in rephraser.rephrase(tables[key][0]) if p not in known)
+    return PhraseBank(extra)

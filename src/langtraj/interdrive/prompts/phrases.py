@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 from types import MappingProxyType
 
 from langtraj.errors import InputError
@@ -412,3 +413,28 @@ def _canonical() -> Mapping[str, str]:
 CANONICAL: Mapping[str, str] = _canonical()
 """One canonical phrase (the first expansion) per label variant (`phrase_key`), for plain
 `changing_lanes`, and per interaction subtype id, for stats and plots."""
+
+
+def phrase_tables() -> Mapping[str, tuple[str, ...]]:
+    """Every template phrase table, keyed like `CANONICAL` (label variants by `phrase_key`, subtypes by id)."""
+    tables = {phrase_key(key, params): label_phrases(key, params) for key, params in label_variants()}
+    tables.update({sid: interaction_phrases(sid) for sid in SUBTYPES_BY_ID})
+    return tables
+
+
+@dataclass(frozen=True)
+class PhraseBank:
+    """The template phrases plus optional extra rephrasings (e.g. from an LLM), keyed like `CANONICAL`:
+    `phrase_key(key, params)` for labels, the subtype id for interactions."""
+
+    extra: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+
+    def labels(self, key: str, params: Mapping[str, str] = MappingProxyType({})) -> tuple[str, ...]:
+        return label_phrases(key, params) + tuple(self.extra.get(phrase_key(key, params), ()))
+
+    def interactions(self, subtype_id: str) -> tuple[str, ...]:
+        return interaction_phrases(subtype_id) + tuple(self.extra.get(subtype_id, ()))
+
+
+TEMPLATES_ONLY = PhraseBank()
+"""The default bank: the template grammar's phrases alone."""

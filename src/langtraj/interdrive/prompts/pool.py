@@ -10,6 +10,7 @@ import numpy as np
 from langtraj.errors import InputError
 from langtraj.interdrive.labels import AgentLabel, InteractionLabel, WindowLabels
 from langtraj.interdrive.prompts.compose import Prompt, compose_prompt
+from langtraj.interdrive.prompts.phrases import TEMPLATES_ONLY, PhraseBank
 
 SKIPPED_SUBTYPES = frozenset({"other/unknown"})
 """Interactions that say nothing usable: never turned into prompts."""
@@ -32,6 +33,7 @@ def _agent_prompts(
     labels: Sequence[AgentLabel],
     rng: np.random.Generator,
     per_agent: int,
+    bank: PhraseBank,
 ) -> list[Prompt]:
     order = rng.permutation(len(interactions)).tolist() if interactions else []
     made: dict[str, Prompt] = {}
@@ -43,15 +45,18 @@ def _agent_prompts(
             subset = _subset(labels, rng, at_least=0) if labels else []
         else:
             interaction, subset = None, _subset(labels, rng, at_least=1)
-        prompt = compose_prompt(track_id, interaction, subset, rng, max_labels=MAX_LABELS_PER_PROMPT)
+        prompt = compose_prompt(track_id, interaction, subset, rng, MAX_LABELS_PER_PROMPT, bank)
         made.setdefault(prompt.text, prompt)
     return list(made.values())
 
 
-def build_prompt_pool(labels: WindowLabels, seed: int, per_agent: int = 3) -> tuple[Prompt, ...]:
+def build_prompt_pool(
+    labels: WindowLabels, seed: int, per_agent: int = 3, bank: PhraseBank = TEMPLATES_ONLY
+) -> tuple[Prompt, ...]:
     """Up to `per_agent` distinct prompts for every agent with interactions or single-agent labels, in
     order of track id: each interaction combined with a random 0-3 of the agent's labels, or 1-3 labels
-    alone for agents without interactions; `other/unknown` interactions are skipped. Deterministic in `seed`."""
+    alone for agents without interactions; `other/unknown` interactions are skipped. Phrases come from `bank`.
+    Deterministic in `seed`."""
     if per_agent < 1:
         raise InputError(f"per_agent must be >= 1, got {per_agent}")
     rng = np.random.default_rng(seed)
@@ -60,5 +65,5 @@ def build_prompt_pool(labels: WindowLabels, seed: int, per_agent: int = 3) -> tu
     pool: list[Prompt] = []
     for track_id in track_ids:
         interactions = [i for i in usable if i.track_id == track_id]
-        pool += _agent_prompts(track_id, interactions, labels.labels_of(track_id), rng, per_agent)
+        pool += _agent_prompts(track_id, interactions, labels.labels_of(track_id), rng, per_agent, bank)
     return tuple(pool)
