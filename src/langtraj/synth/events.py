@@ -38,7 +38,7 @@ from matplotlib.path import Path as MplPath
 
 from langtraj.scenario.model import STEP_SECONDS, BehaviorEvent
 from langtraj.scenario.types import AgentType
-from langtraj.synth.runner import FoeObservation, LaneChangeRecord, SimulationLog
+from langtraj.synth.runner import LEADER_RANGE_M, FoeObservation, LaneChangeRecord, SimulationLog
 from langtraj.synth.tracks import Track
 
 MAX_MANOEUVRE_STEPS = 50
@@ -171,10 +171,11 @@ def lane_change_events(
 
 
 def follow_events(tracks: Iterable[Track]) -> list[BehaviorEvent]:
-    """Runs of at least `MIN_FOLLOW_STEPS` steps behind the same leader."""
+    """Runs of at least `MIN_FOLLOW_STEPS` steps behind the same leader at most `LEADER_RANGE_M` ahead (SUMO
+    may report leaders further away than the range it was asked for)."""
     events = []
     for track in tracks:
-        leader = track.leader
+        leader = np.where(track.gap <= LEADER_RANGE_M, track.leader, -1)
         if not (leader >= 0).any():
             continue
         change = np.flatnonzero(np.diff(leader) != 0) + 1
