@@ -73,12 +73,43 @@ def test_pedestrian_crossing_in_front_of_a_waiting_car():
 
 def test_pedestrian_waits_for_a_car_over_the_crosswalk():
     stand = straight(30, -4.5, np.pi / 2, np.where(np.arange(T) < 50, 0.0, 1.2))
-    tracks = {1: (VEH, straight(0, 0, 0, 10.0)), 5: (PED, stand)}
+    tracks = {1: (VEH, straight(20, 0, 0, 3.0)), 5: (PED, stand)}  # the car is on the crosswalk steps 29..45
     labels = detect_interactions(scene(tracks, features=[crosswalk(900, 29, 33, -3.5, 3.5)]))
     assert {(lab.track_id, lab.other_id, lab.subtype.id) for lab in labels} >= {
         (5, 1, "yielding/pedestrian_to_vehicle"),
         (1, 5, "passing/pedestrian"),
     }
+
+
+def test_pedestrian_standing_at_a_crosswalk_to_the_end_of_the_window_waits():
+    tracks = {1: (VEH, straight(20, 0, 0, 3.0)), 5: (PED, straight(30, -4.5, np.pi / 2, 0.0))}
+    labels = detect_interactions(scene(tracks, features=[crosswalk(900, 29, 33, -3.5, 3.5)]))
+    assert (5, 1, "yielding/pedestrian_to_vehicle") in {(lab.track_id, lab.other_id, lab.subtype.id) for lab in labels}
+    far = {1: tracks[1], 5: (PED, straight(30, -12, np.pi / 2, 0.0))}  # 8.5 m from it: no crosswalk of its own
+    assert not pairs(detect_interactions(scene(far, features=[crosswalk(900, 29, 33, -3.5, 3.5)])), "yielding")
+
+
+def test_queued_car_follows_and_does_not_yield():
+    wait = np.where(np.arange(T) < 50, 0.0, 5.0)
+    tracks = {
+        1: (VEH, straight(-8, 0, 0, wait)),  # first at the junction: yields
+        3: (VEH, straight(-16, 0, 0, wait)),  # queued behind 1: follows 1, yields to nobody
+        2: (VEH, straight(0, -40, np.pi / 2, 10.0)),  # crosses northbound
+    }
+    labels = detect_interactions(scene(tracks))
+    assert pairs(labels, "yielding") == {(1, 2)}
+    assert (3, 1) in pairs(labels, "following")
+
+
+def test_no_yield_to_a_foe_that_waits_itself():
+    wait = np.where(np.arange(T) < 60, 0.0, 5.0)
+    tracks = {
+        1: (VEH, straight(-8, 0, 0, np.where(np.arange(T) < 75, 0.0, 5.0))),  # waits, goes last
+        2: (VEH, straight(0, -8, np.pi / 2, wait)),  # waits too, then crosses first: 1 waited for nobody moving
+    }
+    labels = detect_interactions(scene(tracks))
+    y = [lab for lab in labels if lab.type is InteractionType.YIELDING]
+    assert all(lab.start >= 55 for lab in y)  # only once 2 moves off does 1 wait for it
 
 
 def _two_lanes() -> list[MapFeature]:
@@ -116,6 +147,68 @@ def test_lane_change_names_the_target_lane_leader():
     labels = detect_interactions(scene(tracks, features=_two_lanes()))
     assert pairs(labels, "lane_change") == {(1, 2)}
     assert not pairs(labels, "overtaking")
+
+
+def test_lane_change_leader_on_the_target_lane_far_ahead_and_not_the_one_left_behind():
+    mover = straight(0, 0, 0, 10.0)
+    ramp = np.clip((np.arange(T) - 10) / 15.0, 0.0, 1.0)
+    mover[:, 1] = 3.5 * (3 * ramp**2 - 2 * ramp**3)
+    tracks = {
+        1: (VEH, mover),
+        2: (VEH, straight(25, 0, 0, 10.0)),  # ahead on the lane left, same speed: no overtake
+        3: (VEH, straight(110, 3.5, 0, 10.0)),  # 110 m ahead on the target lane
+    }
+    labels = detect_interactions(scene(tracks, features=_two_lanes()))
+    assert pairs(labels, "lane_change") == {(1, 3)}
+
+
+def _ramp_lanes() -> list[MapFeature]:
+    """An acceleration lane 10 (ending at x 150, entered from ramp lane 9) beside main lane 11 (from 12, on to 13)."""
+
+    def lane(fid, x0, x1, y, **kw):
+        xs = np.linspace(x0, x1, int(2 * (x1 - x0)) + 1)
+        return MapFeature(fid, MapFeatureType.LANE_FREEWAY, np.stack([xs, np.full_like(xs, y), 0 * xs], 1), **kw)
+
+    n = 400
+    return [
+        lane(9, -100, -50, -3.5, exit_lanes=(10,)),
+        lane(10, -50, 150, -3.5, entry_lanes=(9,), left_neighbors=(LaneNeighbor(11, 0, n, 0, n),)),
+        lane(12, -100, -50, 0.0, exit_lanes=(11,)),
+        lane(11, -50, 150, 0.0, entry_lanes=(12,), exit_lanes=(13,), right_neighbors=(LaneNeighbor(10, 0, n, 0, n),)),
+        lane(13, 150, 400, 0.0, entry_lanes=(11,)),
+    ]
+
+
+def test_change_out_of_an_acceleration_lane_is_a_merge_far_from_its_end():
+    mover = straight(-40, -3.5, 0, np.linspace(12.0, 20.0, T))
+    ramp = np.clip((np.arange(T) - 20) / 20.0, 0.0, 1.0)
+    mover[:, 1] = -3.5 + 3.5 * (3 * ramp**2 - 2 * ramp**3)  # switches near x -10, 160 m before the lane ends
+    tracks = {1: (VEH, mover), 2: (VEH, straight(40, 0, 0, 20.0))}
+    labels = detect_interactions(scene(tracks, features=_ramp_lanes()))
+    assert pairs(labels, "merging") == {(1, 2)} and not pairs(labels, "lane_change")
+    merge = next(lab for lab in labels if lab.type is InteractionType.MERGING)
+    assert merge.subtype.id == "merging/on_ramp_accelerating"
+    # the same move between two lanes that both go on (or both end, as at a map crop) is no merge
+    both_end = [
+        f if f.id != 11 else MapFeature(11, f.type, f.points, right_neighbors=f.right_neighbors) for f in _ramp_lanes()
+    ]
+    labels = detect_interactions(scene(tracks, features=[f for f in both_end if f.id != 13]))
+    assert pairs(labels, "lane_change") == {(1, 2)} and not pairs(labels, "merging")
+
+
+def test_roundabout_is_told_from_the_map():
+    angles = np.linspace(0, 2 * np.pi, 9)
+    ring = []
+    for k in range(8):
+        arc = np.linspace(angles[k], angles[k + 1], 20)
+        pts = np.stack([20 * np.cos(arc), 20 * np.sin(arc), 0 * arc], 1)
+        ring.append(MapFeature(200 + k, MapFeatureType.LANE_SURFACE_STREET, pts, exit_lanes=(200 + (k + 1) % 8,)))
+    wait = np.where(np.arange(T) < 50, 0.0, 5.0)
+    tracks = {1: (VEH, straight(-8, 0, 0, wait)), 2: (VEH, straight(0, -40, np.pi / 2, 10.0))}
+    labels = detect_interactions(scene(tracks, kind="priority", features=ring))
+    assert {lab.subtype.id for lab in labels if lab.type is InteractionType.YIELDING} == {"yielding/roundabout"}
+    plain = detect_interactions(scene(tracks, kind="roundabout"))  # the window kind is not read
+    assert {lab.subtype.id for lab in plain if lab.type is InteractionType.YIELDING} == {"yielding/intersection"}
 
 
 def _lab(track: int, other: int, sub: str, start: int, end: int) -> InteractionLabel:

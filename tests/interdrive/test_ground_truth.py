@@ -154,7 +154,7 @@ def test_yield_to_pedestrian_and_reverse():
 def test_waiting_pedestrian_yields_to_the_cars_over_its_crosswalk():
     stand = straight(30, -4.5, np.pi / 2, np.where(np.arange(T) < 50, 0.0, 1.2))
     tracks = {
-        1: (VEH, straight(0, 0, 0, 10.0)),  # over the crosswalk (x 29..33) around steps 29..33
+        1: (VEH, straight(20, 0, 0, 3.0)),  # over the crosswalk (x 29..33) around steps 29..45
         2: (VEH, straight(-200, 0, 0, 10.0)),  # never reaches it
         5: (PED, stand),
     }
@@ -164,7 +164,7 @@ def test_waiting_pedestrian_yields_to_the_cars_over_its_crosswalk():
     got = [(lab.track_id, lab.other_id, lab.subtype.id) for lab in labels]
     assert got == [(5, 1, "yielding/pedestrian_to_vehicle"), (1, 5, "passing/pedestrian")]
     passing = labels[1]
-    assert 25 <= passing.start <= 30 and 31 <= passing.end <= 36
+    assert 26 <= passing.start <= 30 and 44 <= passing.end <= 48
 
 
 def test_window_filter_and_missing_agents():
@@ -172,6 +172,40 @@ def test_window_filter_and_missing_agents():
     ghost = BehaviorEvent("yield", 1, 20, 40, 99, {"junction": "C"})  # the foe is not in the scene
     alone = BehaviorEvent("lane_change", 1, 5, 30, -1, {"reason": "strategic"})
     assert triples(_two_cars([past, ghost, alone])) == [(1, -1, "lane_change/for_turn_or_exit")]
+
+
+def test_labels_need_a_second_of_the_current_and_future_steps():
+    short = BehaviorEvent("yield", 1, 0, 19, 2, {"junction": "C"})  # 9 steps from current_index 10
+    enough = BehaviorEvent("yield", 1, 0, 20, 2, {"junction": "C"})
+    assert triples(_two_cars([short])) == []
+    assert triples(_two_cars([enough]))[0] == (1, 2, "yielding/intersection")
+    assert ground_truth_interactions(_two_cars([short]), GroundTruthConfig(min_window_s=0.5)) != ()
+
+
+def test_labels_need_the_other_agent_valid_during_the_overlap():
+    s = _two_cars([BehaviorEvent("yield", 1, 20, 40, 2, {"junction": "C"})])
+    s.agents.valid[1, 10:] = False  # the foe leaves the scene at the current step: neither label is observable
+    assert triples(s) == []
+
+
+def test_lane_change_needs_its_switch_inside_the_window():
+    late = BehaviorEvent("lane_change", 1, 70, 91, 2, {"reason": "strategic", "change_step": 95, "clipped_end": True})
+    early = BehaviorEvent("lane_change", 1, 0, 30, 2, {"reason": "strategic", "change_step": -5, "clipped_start": True})
+    inside = BehaviorEvent("lane_change", 1, 70, 91, 2, {"reason": "strategic", "change_step": 88, "clipped_end": True})
+    assert triples(_two_cars([late, early])) == []
+    assert triples(_two_cars([inside])) == [(1, 2, "lane_change/for_turn_or_exit")]
+
+
+def test_follow_keeps_the_steps_with_the_leader_within_range():
+    follow = [BehaviorEvent("follow", 1, 10, 91, 2)]
+    near = scene({1: (VEH, straight(0, 0, 0, 10.0)), 2: (VEH, straight(40, 0, 0, 10.0))}, follow)
+    assert [(lab.start, lab.end) for lab in ground_truth_interactions(near)] == [(10, 91)]
+    # the leader pulls away: the bumper gap 35.5 + 0.5 m per step passes 60 m after step 49
+    away = scene({1: (VEH, straight(0, 0, 0, 10.0)), 2: (VEH, straight(40, 0, 0, 15.0))}, follow)
+    ((lab,),) = [ground_truth_interactions(away)]
+    assert (lab.start, lab.end) == (10, 50)
+    far = scene({1: (VEH, straight(0, 0, 0, 10.0)), 2: (VEH, straight(80, 0, 0, 10.0))}, follow)
+    assert ground_truth_interactions(far) == ()
 
 
 def test_output_is_sorted_and_deterministic():

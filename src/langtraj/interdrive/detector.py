@@ -7,28 +7,39 @@ The rules mirror how `ground_truth.py` defines each type from SUMO's events, so 
 
 - leader (shared): agent L is F's leader at step t when L's centre lies on F's path (F's own trajectory over
   the window, extended straight at both ends) within `leader_lateral` of it, heading along it, ahead of F by a
-  bumper gap of at most `leader_range`, and no other vehicle or cyclist is nearer on that path.
+  bumper gap of at most `leader_range` (60 m, the range of SUMO's `follow` events), and no other vehicle or
+  cyclist is nearer on that path.
+- lane leader (shared): the leader of agent A on map lane X at step t is the nearest vehicle or cyclist ahead of A
+  (within `target_lane_range`) whose centre lies within `target_lane_lateral` of X or of X's successors along A's
+  way (junction lanes included; at a split only the branches A's later trajectory runs along), heading along them.
 - following: runs of at least `min_follow_steps` with the same leader (flickers up to `follow_merge_gap` joined).
 - lane change: the agent's map lane (nearest non-junction lane centreline within `lane_match_distance`, heading
   within `lane_match_heading`) switches to a left/right neighbour lane (or, without neighbour data, to a
-  parallel lane `lane_width_range` aside); the other is the leader right after the switch, or -1. Where the map
-  has no lanes, `changing_lanes` agent labels stand in. An overtaking lane change names the overtaken agent.
-- merging: a lane change out of a lane without successors that ends within `lane_end_distance` of the switch.
-- overtaking: a lane change of A whose leader B just before it was slower, after which A gets ahead of B along
-  B's heading within the window.
+  parallel lane `lane_width_range` aside); the other is the lane leader on the target lane right after the
+  switch, or -1. Where the map has no lanes, `changing_lanes` agent labels stand in (the other is then the path
+  leader). An overtaking lane change names the overtaken agent.
+- merging: a lane change out of a lane that ends while the lane entered goes on: the lane left has no successors,
+  and the target lane has some or runs on `lane_runs_on` past the lane left's end (a map crop cuts both alike).
+  On-ramp subtypes when no lane before the lane left lies beside (or is) a lane before the target lane.
+- overtaking: a lane change of A whose former leader B (the lane leader on the lane left right before the switch)
+  was slower, after which A gets ahead of B along B's heading within the window.
 - yielding: (vehicles) the paths of A and B come within `conflict_radius` at a heading difference above
   `conflict_heading` (the conflict point); B reaches it first, and A is held (slower than `held_speed` or
-  braking harder than `braking`, not in front of a red light) before it while B is at most `foe_horizon_s` from
-  it or inside it, for `min_event_steps` (runs up to `merge_gap` apart joined). (pedestrians) A held vehicle whose
+  braking harder than `braking`, not in front of a red light, and not queued behind its own leader that is
+  still before the conflict point) before it while B, not held itself, is at most `foe_horizon_s` from it, or
+  is inside it, for `min_event_steps` (runs up to `merge_gap` apart joined). (pedestrians) A held vehicle whose
   look-ahead `ped_lookahead` m ahead of its front runs over a map crosswalk on which a pedestrian walks yields to
   the nearest such pedestrian. (pedestrian to vehicle) a pedestrian standing next to a crosswalk that it then
-  steps onto yields to each vehicle that is on that crosswalk while it stands.
-- passing: the reverse of every yield: B -> A at junctions (at roundabout when the scene's metadata kind says
-  so; `vru_crossing` for a cyclist B), pedestrian -> vehicle `vru_crossing`, vehicle -> waiting pedestrian
-  `pedestrian`.
+  steps onto (or, standing to the window's end, the crosswalk within `crosswalk_search`) yields to each vehicle
+  that is on that crosswalk while it stands.
+- passing: the reverse of every yield: B -> A at junctions (at roundabout when the map holds a ring of lanes,
+  see `SceneGeometry.has_roundabout`; `vru_crossing` for a cyclist B), pedestrian -> vehicle `vru_crossing`,
+  vehicle -> waiting pedestrian `pedestrian`.
 
-Single-agent labels are optional inputs: `changing_lanes` spans are used when the map has no lanes. Labels are
-kept when they overlap [current_index, num_steps) and are sorted as the ground truth's.
+Only trajectories and the map are read (no simulator ids, events or window kind), so the rules run on real
+scenes too. Single-agent labels are optional inputs: `changing_lanes` spans are used when the map has no lanes.
+Labels are kept when they overlap [current_index, num_steps) by `min_window_s` (the ground truth's own window
+filter) and are sorted as the ground truth's.
 """
 
 from __future__ import annotations
@@ -56,8 +67,8 @@ from langtraj.scenario.types import AgentType, MapFeatureType, TrafficLightState
 class DetectorConfig:
     """Thresholds of the rules (m, m/s, m/s^2, radians, steps of 0.1 s)."""
 
-    leader_range: float = 100.0  # m: largest bumper gap to a leader along the path
-    leader_search: float = 110.0  # m: centre distance within which leaders are looked for
+    leader_range: float = 60.0  # m: largest bumper gap to a leader along the path
+    leader_search: float = 70.0  # m: centre distance within which leaders are looked for
     leader_lateral: float = 1.5  # m: a leader's centre is at most this far from the follower's path
     straight_range: float = 30.0  # m: a leader straight ahead in the follower's heading frame counts up to this gap
     leader_heading: float = math.radians(45.0)  # a leader heads along the path within this
@@ -82,17 +93,22 @@ class DetectorConfig:
     ped_lookahead: float = 12.0  # m ahead of a vehicle's front checked against crosswalks
     crosswalk_margin: float = 0.5  # m: a vehicle centre this close to a crosswalk is on it
     wait_to_cross_steps: int = 10  # a standing pedestrian must step onto the crosswalk within this many steps
+    crosswalk_search: float = 5.0  # m: a pedestrian standing to the window's end waits at a crosswalk this near
     lane_match_distance: float = 2.0  # m: a lane centreline at most this far is the agent's lane
     lane_match_heading: float = math.radians(45.0)  # and heading along the agent within this
     lane_width_range: tuple[float, float] = (2.0, 5.0)  # m: offset of a parallel neighbour lane (no neighbour data)
     min_lane_steps: int = 3  # steps an agent must stay on a lane for the lane to count
     lane_change_half_span: int = 20  # steps a lane-change label reaches either side of the switch
-    lane_end_distance: float = 80.0  # m: a lane without successors ending this close to the switch is merged out of
+    target_lane_range: float = 150.0  # m: a leader on the target lane of a lane change is looked for this far
+    target_lane_lateral: float = 1.6  # m: a centre this close to a lane centreline is on that lane
+    ring_length: float = 250.0  # m: a roundabout ring is at most this long
+    lane_runs_on: float = 5.0  # m: a target lane without successors must run on this far past the lane left
     overtake_lookback: int = 15  # steps before a switch at which the former leader is looked up
     high_speed: float = 20.0  # m/s: an overtake at or above this top speed is high-speed
     tailgating_headway_s: float = 0.6  # s: following with a time headway below this at speed is tailgating
     tailgating_speed: float = 5.0  # m/s
     slow_lead_ratio: float = 0.6  # a leader at most this share of the follower's earlier top speed is slow
+    min_window_s: float = 1.0  # a label must overlap the current and future steps by this long
 
 
 _MOVERS = (AgentType.VEHICLE, AgentType.CYCLIST)
@@ -354,23 +370,133 @@ class SceneGeometry:
         ]
 
     def is_merge(self, change: LaneChange) -> bool:
-        """Whether the change leaves a lane without successors that ends near the switch."""
-        lane = self.scenario.road_map.by_id.get(change.from_lane)
-        if lane is None or lane.exit_lanes:
+        """Whether the change leaves a lane that ends while the lane entered goes on: the lane left has no
+        successors and the target lane has some or runs on past the left lane's end (so a map crop that cut both
+        is no merge)."""
+        by_id = self.scenario.road_map.by_id
+        lane, target = by_id.get(change.from_lane), by_id.get(change.to_lane)
+        if lane is None or target is None or lane.exit_lanes:
             return False
-        here = self.xy[change.agent, change.switch]
-        return float(np.linalg.norm(lane.points[-1, :2] - here)) <= self.config.lane_end_distance
+        if target.exit_lanes:
+            return True
+        end = lane.points[-1, :2]
+        d = lane.points[-1, :2] - lane.points[max(len(lane.points) - 3, 0), :2]
+        direction = d / max(float(np.linalg.norm(d)), 1e-6)
+        return float((target.points[-1, :2] - end) @ direction) > self.config.lane_runs_on
+
+    def from_other_road(self, change: LaneChange) -> bool:
+        """Whether the lane left came from another road than the lane entered (an on-ramp's acceleration lane, not
+        a lane drop): no lane before it lies beside a lane before the target lane, nor is one of those."""
+        by_id = self.scenario.road_map.by_id
+        lane, target = by_id.get(change.from_lane), by_id.get(change.to_lane)
+        if lane is None or target is None or not lane.entry_lanes:
+            return False
+        beside = set()
+        for e in target.entry_lanes:
+            f = by_id.get(e)
+            if f is not None:
+                beside |= {n.feature_id for n in (*f.left_neighbors, *f.right_neighbors)}
+        before = set(lane.entry_lanes)
+        return not (beside | set(target.entry_lanes)) & before
+
+    @cached_property
+    def has_roundabout(self) -> bool:
+        """Whether the map holds a ring: a chain of successor lanes shorter than `ring_length` back to its start
+        that turns by a full circle one way."""
+        polylines = self._lane_polylines
+        by_id = self.scenario.road_map.by_id
+        turn = {}
+        length = {}
+        for lid, (pts, heads) in polylines.items():
+            turn[lid] = float(np.sum(_wrap(np.diff(heads)))) if len(heads) > 1 else 0.0
+            length[lid] = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+        for start in polylines:
+            stack = [(start, 0.0, 0.0)]
+            seen = {start}
+            while stack:
+                lid, total, angle = stack.pop()
+                total, angle = total + length[lid], angle + turn[lid]
+                if total > self.config.ring_length:
+                    continue
+                for n in by_id[lid].exit_lanes:
+                    if n == start and abs(angle) > 1.5 * math.pi:
+                        return True
+                    if n in polylines and n not in seen:
+                        seen.add(n)
+                        stack.append((n, total, angle))
+        return False
+
+    def _lane_chain(self, lane_id: int, a: int, t: int) -> set[int]:
+        """`lane_id` and its successors (junction lanes included) up to `target_lane_range` ahead of agent `a` at
+        step `t`; at a split only the branches a's later trajectory runs along (all when it runs along none)."""
+        polylines = self._lane_polylines
+        by_id = self.scenario.road_map.by_id
+        later = self.xy[a, t:][self.valid[a, t:]]
+        seen = {lane_id}
+        stack: list[tuple[int, float, np.ndarray | None]] = [(lane_id, 0.0, self.xy[a, t])]
+        while stack:
+            lid, length, start = stack.pop()
+            if lid not in polylines:
+                continue
+            pts = polylines[lid][0]
+            k = int(np.argmin(np.linalg.norm(pts - start, axis=1))) if start is not None else 0
+            length += float(np.linalg.norm(np.diff(pts[k:], axis=0), axis=1).sum())
+            if length >= self.config.target_lane_range:
+                continue
+            nexts = [n for n in by_id[lid].exit_lanes if n not in seen and n in polylines]
+            if len(nexts) > 1 and len(later):
+                driven = [n for n in nexts if self._near(polylines[n][0], later, self.config.target_lane_lateral)]
+                nexts = driven or nexts
+            for n in nexts:
+                seen.add(n)
+                stack.append((n, length, None))
+        return seen
+
+    @staticmethod
+    def _near(points: np.ndarray, track: np.ndarray, radius: float) -> bool:
+        """Whether some point of `track` lies within `radius` of `points`' polyline points."""
+        step = max(len(points) // 16, 1)
+        d = np.linalg.norm(points[::step, None, :] - track[None, :, :], axis=-1)
+        return bool((d < radius + 0.5 * step).any())
 
     def leader_after(self, change: LaneChange) -> int:
-        """The leader right after the switch (agent index, -1 when none)."""
-        return int(self.leaders[change.agent, min(change.switch + 1, self.num_steps - 1)])
+        """The leader on the target lane right after the switch (agent index, -1 when none)."""
+        return self._lane_leader(change.agent, min(change.switch + 1, self.num_steps - 1), change.to_lane)
 
     def former_leader(self, change: LaneChange) -> int:
-        """The last leader before the switch (agent index, -1 when none)."""
-        lo = max(change.switch - self.config.overtake_lookback, 0)
-        before = self.leaders[change.agent, lo : change.switch]
-        found = before[before >= 0]
-        return int(found[-1]) if found.size else -1
+        """The leader on the lane left right before the switch (agent index, -1 when none)."""
+        return self._lane_leader(change.agent, max(change.switch - 1, 0), change.from_lane)
+
+    def _lane_leader(self, a: int, t: int, lane_id: int) -> int:
+        """The nearest vehicle or cyclist ahead of agent `a` at step `t` whose centre lies on lane `lane_id` or
+        its successors along a's way (heading along them); a's leader on its own path where the map has no such
+        lane."""
+        if lane_id < 0 or lane_id not in self._lane_polylines:
+            return int(self.leaders[a, t])
+        cfg = self.config
+        others = np.flatnonzero(self.movers & self.valid[:, t])
+        others = others[others != a]
+        if not others.size or not self.valid[a, t]:
+            return -1
+        rel = self.xy[others, t] - self.xy[a, t]
+        head = self.heading[a, t]
+        along = rel[:, 0] * math.cos(head) + rel[:, 1] * math.sin(head)
+        dist = np.linalg.norm(rel, axis=1)
+        half = 0.5 * (self.length[others, t] + self.length[a, t])
+        keep = (along - half > -0.5) & (dist < cfg.target_lane_range)
+        others, dist = others[keep], dist[keep]
+        if not others.size:
+            return -1
+        polylines = self._lane_polylines
+        chain = [polylines[i] for i in self._lane_chain(lane_id, a, t)]
+        pts = np.concatenate([c[0] for c in chain])
+        heads = np.concatenate([c[1] for c in chain])
+        d = np.linalg.norm(self.xy[others, t][:, None, :] - pts[None], axis=-1)
+        aligned = np.abs(_wrap(heads[None, :] - self.heading[others, t][:, None])) < cfg.lane_match_heading
+        on = np.where(aligned, d, np.inf).min(axis=1) < cfg.target_lane_lateral
+        if not on.any():
+            return -1
+        return int(others[on][np.argmin(dist[on])])
 
     @cached_property
     def overtakes(self) -> dict[LaneChange, Pair]:
@@ -478,9 +604,21 @@ class SceneGeometry:
             first_in = last_in = self.num_steps
         if first_in > reach_a or (first_in == reach_a and reach_a < self.num_steps):
             return None
-        approaching = dist_b / np.maximum(self.speed[b], 1.0) <= cfg.foe_horizon_s
+        approaching = (dist_b / np.maximum(self.speed[b], 1.0) <= cfg.foe_horizon_s) & ~self.held[b]
         near = self.valid[b] & (steps <= last_in) & (approaching | inside_b)
-        return self.held[a] & near & (steps < reach_a)
+        return self.held[a] & near & (steps < reach_a) & ~self._queued(a, point)
+
+    def _queued(self, a: int, point: np.ndarray) -> np.ndarray:
+        """[T]: a's leader (on a's path) is between a and `point`, so a waits behind it, not for a foe."""
+        lead = self.leaders[a]
+        out = np.zeros(self.num_steps, bool)
+        steps = np.flatnonzero(lead >= 0)
+        if not steps.size:
+            return out
+        to_point = np.linalg.norm(point - self.xy[a, steps], axis=1)
+        to_lead = np.linalg.norm(self.xy[lead[steps], steps] - self.xy[a, steps], axis=1)
+        out[steps] = to_lead < to_point
+        return out
 
     def _candidate_pairs(self) -> list[tuple[int, int]]:
         """Ordered mover pairs whose trajectory boxes (grown by the wait extension) overlap."""
@@ -625,6 +763,18 @@ class SceneGeometry:
         inside = cw.contains_points(xy, radius=m) | cw.contains_points(xy, radius=-m)
         return start + np.flatnonzero(inside & self.valid[v, start:end])
 
+    def _crosswalk_near(self, point: np.ndarray) -> np.ndarray:
+        """[C]: the one crosswalk nearest to `point` within `crosswalk_search` (none when none is)."""
+        out = np.zeros(len(self.crosswalks), bool)
+        best, best_d = -1, self.config.crosswalk_search
+        for c, cw in enumerate(self.crosswalks):
+            d = 0.0 if cw.contains_point(point) else float(np.min(np.linalg.norm(cw.vertices - point, axis=1)))
+            if d < best_d:
+                best, best_d = c, d
+        if best >= 0:
+            out[best] = True
+        return out
+
     @cached_property
     def pedestrian_waits(self) -> list[tuple[Pair, Pair]]:
         """(P yields to V over its wait, V passes P over its steps on the crosswalk) for pedestrians standing
@@ -638,6 +788,8 @@ class SceneGeometry:
                 if w1 - w0 < cfg.min_event_steps:
                     continue
                 later = self.ped_on_crosswalk[:, p, w1 : w1 + cfg.wait_to_cross_steps].any(axis=1)
+                if w1 >= self.num_steps and not later.any():
+                    later = self._crosswalk_near(self.xy[p, w1 - 1])
                 for c in np.flatnonzero(later).tolist():
                     for v in np.flatnonzero(self.movers).tolist():
                         steps = self._on_crosswalk(c, v, w0, w1)
@@ -738,7 +890,7 @@ class FollowingRule(InteractionRule):
 
 
 def _roundabout(scene: SceneGeometry) -> bool:
-    return scene.scenario.metadata.get("kind") == "roundabout"
+    return scene.has_roundabout
 
 
 @RULES.register
@@ -817,11 +969,11 @@ class MergingRule(InteractionRule):
 
     def detect(self, scene: SceneGeometry) -> list[InteractionLabel]:
         labels = []
-        onramp = scene.scenario.metadata.get("kind") == "onramp"
         for change in scene.lane_changes:
             if not scene.is_merge(change):
                 continue
             a, s = change.agent, change.switch
+            onramp = scene.from_other_road(change)
             before = scene.speed[a, max(s - 30, 0) : s][scene.valid[a, max(s - 30, 0) : s]]
             during = scene.speed[a, change.start : change.end][scene.valid[a, change.start : change.end]]
             if before.size and before.min() < scene.config.held_speed:
@@ -840,4 +992,5 @@ def detect_interactions(
     """Interaction labels of `scenario` from its trajectories and map by every registered rule (source DETECTOR)."""
     scene = SceneGeometry(scenario, agent_labels, config or DetectorConfig())
     labels = [lab for cls in RULES.classes() for lab in cls().detect(scene)]
-    return tuple(sorted(filter_to_window(labels, scenario), key=label_sort_key))
+    min_steps = round(scene.config.min_window_s / STEP_SECONDS)
+    return tuple(sorted(filter_to_window(labels, scenario, min_steps), key=label_sort_key))

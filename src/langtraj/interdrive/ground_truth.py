@@ -33,14 +33,27 @@ Mapping (checked top to bottom per event; A the event's agent, "lead" its `other
 - `ped_crossing`, `junction_pass`: context only, no label.
 
 "lead" is the event's `other_id`: the leader on the target lane right after the switch (-1 when none).
-A label is kept when it overlaps the window's current and future steps [current_index, num_steps) and both
-agents (or the one agent, for other -1) are in the scene. Labels are sorted by (start, track, other, subtype, end).
+
+Observability (what nobody could see in the window is not ground truth; each rule applies to both labelers where
+it concerns the window, see `filter_to_window`):
+
+- A label is kept when it overlaps the window's current and future steps [current_index, num_steps) by at least
+  `min_window_s` (1 s, as the window builder's own test of an interaction), both agents (or the one agent, for
+  other -1) are in the scene, and each is valid at some step of that overlap.
+- A lane change (and the merge or overtake made of it) needs its switch (`change_step`) inside the window:
+  SUMO's manoeuvre may start up to 5 s before a switch that happens after the window's last step (or end after
+  one before its first), and then no lane boundary is crossed in the scene.
+- A follow keeps only the steps at which the leader's bumper gap (from positions) is at most `follow_range`
+  (60 m: the range of the `follow` event as documented; SUMO also reports same-lane leaders farther ahead);
+  runs shorter than 1 s are dropped.
+
+Labels are sorted by (start, track, other, subtype, end).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from matplotlib.path import Path as MplPath
@@ -69,6 +82,9 @@ class GroundTruthConfig:
     recent_s: float = 3.0  # how far back "recent" speed reaches before a follow event
     crosswalk_margin: float = 0.5  # m: a vehicle centre this close to a crosswalk polygon is on it
     crosswalk_search: float = 5.0  # m: the crosswalk of a waiting pedestrian is at most this far from its first step
+    min_window_s: float = 1.0  # a label must overlap the current and future steps by this long
+    follow_range: float = 60.0  # m: a follow counts while the leader's bumper gap is at most this
+    min_follow_s: float = 1.0  # a follow (after the range cut) lasts at least this long
 
 
 _SUB = SUBTYPES_BY_ID
@@ -122,7 +138,8 @@ def ground_truth_interactions(
         *_pedestrian_yield_labels(ctx),
         *_pedestrian_waiting_labels(ctx),
     ]
-    return tuple(sorted(filter_to_window(labels, scenario), key=label_sort_key))
+    min_steps = round(cfg.min_window_s / STEP_SECONDS)
+    return tuple(sorted(filter_to_window(labels, scenario, min_steps), key=label_sort_key))
 
 
 def label_sort_key(label: InteractionLabel) -> tuple:
@@ -130,17 +147,24 @@ def label_sort_key(label: InteractionLabel) -> tuple:
     return (label.start, label.track_id, label.other_id, label.subtype.id, label.end)
 
 
-def filter_to_window(labels: Sequence[InteractionLabel], scenario: Scenario) -> list[InteractionLabel]:
-    """Labels overlapping [current_index, num_steps) whose agents are in the scene (other -1 allowed)."""
-    ids = set(scenario.agents.ids.tolist())
-    return [
-        lab
-        for lab in labels
-        if lab.end > scenario.current_index
-        and lab.start < scenario.num_steps
-        and lab.track_id in ids
-        and (lab.other_id == -1 or lab.other_id in ids)
-    ]
+def filter_to_window(
+    labels: Sequence[InteractionLabel], scenario: Scenario, min_steps: int = 1
+) -> list[InteractionLabel]:
+    """Labels overlapping [current_index, num_steps) by at least `min_steps` whose agents are in the scene
+    (other -1 allowed) and valid, each, at some step of that overlap."""
+    index = {int(i): n for n, i in enumerate(scenario.agents.ids)}
+    valid = scenario.agents.valid
+    out = []
+    for lab in labels:
+        lo, hi = max(lab.start, scenario.current_index), min(lab.end, scenario.num_steps)
+        if hi - lo < max(min_steps, 1) or lab.track_id not in index:
+            continue
+        if not valid[index[lab.track_id], lo:hi].any():
+            continue
+        if lab.other_id != -1 and (lab.other_id not in index or not valid[index[lab.other_id], lo:hi].any()):
+            continue
+        out.append(lab)
+    return out
 
 
 # ---------------------------------------------------------------- lane changes, merges, overtakes
@@ -151,7 +175,7 @@ def _lane_change_labels(ctx: _Context) -> list[InteractionLabel]:
     returns: set[tuple[int, int]] = set()
     changes = ctx.events("lane_change")
     for event in changes:
-        if event.track_id not in ctx.index:
+        if event.track_id not in ctx.index or not 0 <= _change_step(event) < ctx.scenario.num_steps:
             continue
         if event.attributes.get("from_lane_ends", False):
             labels.append(_merge_label(ctx, event))
@@ -266,10 +290,39 @@ def _overtake(
 
 
 def _follow_labels(ctx: _Context) -> list[InteractionLabel]:
+    labels = []
+    for event in ctx.events("follow"):
+        if event.track_id not in ctx.index or event.other_id not in ctx.index:
+            continue
+        for start, end in _in_range(ctx, event):
+            part = replace(event, start=start, end=end)
+            labels.append(_label(event.track_id, event.other_id, _follow_subtype(ctx, part), start, end))
+    return labels
+
+
+def _gaps(ctx: _Context, track: int, other: int, start: int, end: int) -> np.ndarray:
+    """Bumper gaps (centre distance less half of both lengths) over [start, end); NaN where either is invalid."""
+    agents = ctx.scenario.agents
+    a, b = ctx.index[track], ctx.index[other]
+    s = slice(start, end)
+    half = 0.5 * (agents.states[a, s, 6] + agents.states[b, s, 6])
+    gap = np.linalg.norm(agents.xy[a, s] - agents.xy[b, s], axis=-1) - half
+    return np.where(agents.valid[a, s] & agents.valid[b, s], gap, np.nan)
+
+
+def _in_range(ctx: _Context, event: BehaviorEvent) -> list[tuple[int, int]]:
+    """[start, end) runs of a follow event with the leader within `follow_range`, at least `min_follow_s` long
+    (invalid steps inside the event are kept: SUMO saw the leader there)."""
+    start, end = max(event.start, 0), min(event.end, ctx.scenario.num_steps)
+    if end <= start:
+        return []
+    gap = _gaps(ctx, event.track_id, event.other_id, start, end)
+    inside = ~(gap > ctx.config.follow_range)
+    padded = np.concatenate([[False], inside, [False]])
+    edges = np.flatnonzero(padded[1:] != padded[:-1])
+    min_steps = round(ctx.config.min_follow_s / STEP_SECONDS)
     return [
-        _label(e.track_id, e.other_id, _follow_subtype(ctx, e), e.start, e.end)
-        for e in ctx.events("follow")
-        if e.track_id in ctx.index and e.other_id in ctx.index
+        (start + int(a), start + int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= min_steps
     ]
 
 
