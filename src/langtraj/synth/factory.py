@@ -54,13 +54,16 @@ def shard_path(out: Path, kind: str, index: int) -> Path:
 
 
 def _finished(task: ShardTask, config: ShardConfig) -> ShardOutcome | None:
-    """The sidecar of a finished shard with the same seed, quota and settings, else None."""
-    if not (task.path.exists() and task.stats_path.exists()):
+    """The sidecar of a finished shard with the same seed, quota and settings (and its file, unless it has
+    no windows), else None."""
+    if not task.stats_path.exists():
         return None
     try:
         data = json.loads(task.stats_path.read_text())
         outcome = ShardOutcome(**data)
     except (OSError, ValueError, TypeError):
+        return None
+    if outcome.windows and not task.path.exists():
         return None
     if (outcome.seed, outcome.quota, outcome.settings) != (
         task.seed,
@@ -189,5 +192,7 @@ def build_manifest(config: FactoryConfig, outcomes: Sequence[ShardOutcome], targ
                 "windows": o.windows,
             }
             for o in ordered
+            if o.windows
         ],
+        "empty_shards": sum(1 for o in ordered if not o.windows),
     }

@@ -224,7 +224,10 @@ def run_shard(task: ShardTask, config: ShardConfig) -> ShardOutcome:
     }
     scenarios, rejections = cut_windows(task, network, run, net_map, config, meta)
     task.path.parent.mkdir(parents=True, exist_ok=True)
-    write_scenarios(task.path, scenarios, "womd")
+    if scenarios:
+        write_scenarios(task.path, scenarios, "womd")
+    else:  # no file for a shard without windows: an empty file is not a valid scenario file
+        task.path.unlink(missing_ok=True)
     outcome = ShardOutcome(
         kind=task.kind,
         index=task.index,
