@@ -157,7 +157,8 @@ def run(corpus: Path) -> dict:
     windows = 0
     began = time.perf_counter()
     label_seconds = detect_seconds = 0.0
-    for path in sorted((corpus / "shards").glob("*.tfrecord")):
+    manifest = json.loads((corpus / "manifest.json").read_text())
+    for path in [corpus / shard["file"] for shard in manifest["shards"] if shard["windows"]]:
         for scenario in read_scenarios(path):
             windows += 1
             t0 = time.perf_counter()

@@ -112,7 +112,7 @@ def main() -> None:
                 seconds = time.perf_counter() - began
                 rates.append(outcome.windows / seconds * 60.0)
                 windows += outcome.windows
-                scenarios.extend(read_scenarios(path))
+                scenarios.extend(read_scenarios(path) if outcome.windows else [])
             all_rates.extend(rates)
             agents = [s.num_agents for s in scenarios]
             throughput.append(
