@@ -4,9 +4,10 @@ SUMO knows the answer for some single-agent labels, and this script scores the h
 see only positions and the map) against it, per agent over the future of each window:
 
 - changing lanes (any, left, right): SUMO's lane-change output (`lane_change` events, direction);
-  a change counts when SUMO's switch lies in the future and the manoeuvre ends within the window;
+  a change counts when SUMO's switch lies in the future at least 2 s before the window's end (agents
+  whose only switch is in the last 2 s are not scored for lane changes);
   a prediction must overlap the event in time, and its direction is read from its from/to positions
-  (from the path's sideways motion when both are "middle");
+  (from the path's sideways motion against the heading 1 s before the label when both are "middle");
 - stops (`static` label): SUMO's own speed at or below 0.3 m/s for at least 1 s;
 - speeding up / slowing down: SUMO's speed rising / falling by at least `min_speed_change` over a run
   of at least `min_duration_s` whose acceleration stays beyond `accel_threshold` (the heuristics'
@@ -47,6 +48,9 @@ from langtraj.synth.factory import FactoryConfig, run_factory
 from langtraj.synth.network import kind_names
 
 STOP_SPEED = 0.3
+SETTLE_STEPS = 20
+"""A SUMO lane switch in the last 2 s of a window may not show in the motion yet: such agents are not scored
+for lane changes (unless they also change lanes earlier)."""
 ORDER = {"rightmost": 0, "middle": 1, "leftmost": 2}
 LEFT = ("l", "L")
 RIGHT = ("r", "R")
@@ -91,9 +95,26 @@ def _direction(label: AgentLabel, scenario: Scenario, agent: int) -> str:
         return "left" if b > a else "right"
     states = scenario.agents.states[agent]
     start, end = label.start, min(label.end, scenario.num_steps - 1)
-    heading = states[start, StateField.HEADING]
+    heading = states[max(start - SETTLE_STEPS // 2, 0), StateField.HEADING]  # before the car turns into the change
     d = states[end, :2] - states[start, :2]
     return "left" if np.cos(heading) * d[1] - np.sin(heading) * d[0] > 0 else "right"
+
+
+def _score_lane_changes(scenario: Scenario, agent: int, events: list, mine: list[AgentLabel], scores: Scores) -> None:
+    """Lane changes of one agent: any, and per direction (a predicted direction must overlap the event)."""
+    current = scenario.current_index
+    switches = [e for e in events if e.kind == "lane_change" and e.attributes["change_step"] >= current]
+    last = scenario.num_steps - SETTLE_STEPS
+    changes = [e for e in switches if e.attributes["change_step"] < last]
+    if not changes and any(last <= e.attributes["change_step"] < scenario.num_steps for e in switches):
+        return  # a switch in the last seconds: whether the change shows yet is undecidable; not scored
+    predicted = [lab for lab in mine if lab.key == "changing_lanes"]
+    scores.add("changing_lanes", bool(changes), bool(predicted))
+    for side in ("left", "right"):
+        truth_side = [e for e in changes if e.attributes["direction"] == side]
+        pred_side = [lab for lab in predicted if _direction(lab, scenario, agent) == side]
+        overlap = any(lab.start < e.end and e.start < lab.end for lab in pred_side for e in truth_side)
+        scores.add(f"changing_lanes_{side}", bool(truth_side), bool(pred_side) and (overlap or not truth_side))
 
 
 def score_single(scenario: Scenario, labels: tuple[AgentLabel, ...], config: HeuristicConfig, scores: Scores) -> None:
@@ -122,20 +143,7 @@ def score_single(scenario: Scenario, labels: tuple[AgentLabel, ...], config: Heu
         for key, truth in _speed_truth(np.hypot(vel[:, 0], vel[:, 1]), config).items():
             scores.add(key, truth, key in keys)
 
-        changes = [
-            e
-            for e in events.get(tid, [])
-            if e.kind == "lane_change"
-            and current <= e.attributes["change_step"] < scenario.num_steps
-            and not e.attributes.get("clipped_end")
-        ]
-        predicted = [lab for lab in mine if lab.key == "changing_lanes"]
-        scores.add("changing_lanes", bool(changes), bool(predicted))
-        for side in ("left", "right"):
-            truth_side = [e for e in changes if e.attributes["direction"] == side]
-            pred_side = [lab for lab in predicted if _direction(lab, scenario, agent) == side]
-            overlap = any(lab.start < e.end and e.start < lab.end for lab in pred_side for e in truth_side)
-            scores.add(f"changing_lanes_{side}", bool(truth_side), bool(pred_side) and (overlap or not truth_side))
+        _score_lane_changes(scenario, agent, events.get(tid, []), mine, scores)
 
         passes = [e for e in events.get(tid, []) if e.kind == "junction_pass" and e.attributes["intersection"]]
         crossing = any(min(e.end, scenario.num_steps) - max(e.start, current) >= 5 for e in passes)

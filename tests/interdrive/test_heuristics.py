@@ -20,11 +20,11 @@ from langtraj.interdrive.heuristics import (
 from langtraj.interdrive.labels import AgentLabel, Undecided
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.taxonomy import LABELS_BY_KEY, check_params
-from langtraj.scenario import Agents, AgentType, RoadMap, Scenario
+from langtraj.scenario import Agents, AgentType, LaneNeighbor, MapFeature, MapFeatureType, RoadMap, Scenario
 from langtraj.scenario.io import read_scenario
 from langtraj.scenario.windowing import cut_window
 
-from .test_mapindex import arc, junction_map, line, three_lane_road
+from .test_mapindex import LANE_WIDTH, ROAD_X, arc, junction_map, line, three_lane_road
 
 T = 91
 CURRENT = 10
@@ -219,6 +219,14 @@ def test_going_straight_through_a_junction():
     assert not {"turning_left", "turning_right"} & set(keys_of(labels))
 
 
+def test_going_straight_through_a_skewed_junction():
+    bend = math.radians(30.0)
+    skewed = np.concatenate([APPROACH, line(0, -10, 80 * math.sin(bend), -10 + 80 * math.cos(bend))[1:]])
+    labels, _ = label_agents(scene(junction_map(), junction_drive(skewed)))
+    assert "going_straight" in keys_of(labels)
+    assert not {"turning_left", "turning_right"} & set(keys_of(labels))
+
+
 def test_car_stopped_before_a_junction_approaches_it_along_the_lane_graph():
     xy, heading = along(APPROACH, np.full(T, 45.0))  # 25 m before the junction, waiting
     labels, _ = label_agents(scene(junction_map(), (AgentType.VEHICLE, xy, heading)))
@@ -256,6 +264,81 @@ def test_lane_change_from_the_rightmost_to_the_middle_lane():
     position = only(labels, "lane_position")
     assert position.params == {"position": "rightmost"} and position.end == change.start
     assert not undecided
+
+
+def sideways_track(
+    t0: float, t1: float, dy: float = 3.5, speed: float = 10.0
+) -> tuple[AgentType, np.ndarray, np.ndarray]:
+    """An eastbound car at `speed` moving from y = 0 to y = `dy` between t = `t0` and `t1` (s)."""
+    x = speed * TIME
+    blend = np.clip((TIME - t0) / (t1 - t0), 0.0, 1.0)
+    y = dy * (1 - np.cos(np.pi * blend)) / 2
+    heading = np.arctan2(np.gradient(y), np.gradient(x))
+    return AgentType.VEHICLE, np.stack([x, y], axis=1), heading
+
+
+def test_lane_change_begun_before_the_current_step_is_seen_whole():
+    labels, _ = label_agents(scene(three_lane_road(), sideways_track(0.3, 2.3)))  # switch at about step 13
+    change = only(labels, "changing_lanes")
+    assert change.params == {"from": "rightmost", "to": "middle"}
+    assert change.start == CURRENT and change.end <= 30
+
+
+def test_lane_change_whose_switch_is_before_the_current_step_is_not_labelled():
+    labels, _ = label_agents(scene(three_lane_road(), sideways_track(0.0, 1.4)))  # switch at about step 7
+    assert "changing_lanes" not in keys_of(labels)
+
+
+def test_lane_change_still_under_way_at_the_last_step_is_left_out():
+    labels, _ = label_agents(scene(three_lane_road(), sideways_track(7.0, 10.0)))
+    assert "changing_lanes" not in keys_of(labels)
+    kept, _ = label_agents(
+        scene(three_lane_road(), sideways_track(7.0, 10.0)), HeuristicConfig(lane_change_require_settled=False)
+    )
+    assert only(kept, "changing_lanes").end == T
+
+
+def test_lane_change_that_stops_short_of_the_new_lane_centre_still_counts():
+    labels, _ = label_agents(scene(three_lane_road(), sideways_track(4.0, 6.0, dy=2.8, speed=3.0)))
+    assert only(labels, "changing_lanes").params == {"from": "rightmost", "to": "middle"}
+
+
+def split_middle_lane_road() -> RoadMap:
+    """`three_lane_road` without its leftmost lane, the middle lane split at x = 50 into lanes 21 and 22."""
+    pts = line(ROAD_X[0], 0.0, ROAD_X[1], 0.0)
+    split = int(np.flatnonzero(pts[:, 0] == 50.0)[0])
+    first = line(ROAD_X[0], LANE_WIDTH, 50.0, LANE_WIDTH, split + 1)
+    second = line(50.0, LANE_WIDTH, ROAD_X[1], LANE_WIDTH, len(pts) - split)
+    car = MapFeatureType.LANE_SURFACE_STREET
+    return RoadMap(
+        [
+            MapFeature(
+                1,
+                car,
+                pts,
+                left_neighbors=(
+                    LaneNeighbor(21, 0, split, 0, split),
+                    LaneNeighbor(22, split, len(pts) - 1, 0, len(second) - 1),
+                ),
+            ),
+            MapFeature(21, car, first, exit_lanes=(22,), right_neighbors=(LaneNeighbor(1, 0, split, 0, split),)),
+            MapFeature(
+                22,
+                car,
+                second,
+                entry_lanes=(21,),
+                right_neighbors=(LaneNeighbor(1, 0, len(second) - 1, split, len(pts) - 1),),
+            ),
+        ]
+    )
+
+
+def test_lane_change_into_a_lane_that_is_split_along_the_road_settles_on_its_continuation():
+    # The switch is at x = 45 on lane 21, half a second before the car goes on into lane 22.
+    labels, _ = label_agents(scene(split_middle_lane_road(), sideways_track(3.5, 5.5)))
+    change = only(labels, "changing_lanes")
+    assert change.params == {"from": "rightmost", "to": "leftmost"}
+    assert 50 <= change.end <= 65
 
 
 def test_lane_change_without_neighbour_lists_is_undecided():

@@ -154,6 +154,53 @@ def test_lane_positions_unknown_without_neighbours_unless_inferred():
     assert positions == ["rightmost", "middle", "leftmost"]
 
 
+def two_lanes_beside(kind: MapFeatureType, ends: bool = False) -> RoadMap:
+    """Car lanes 1 (y = 0) and 2 (y = 3.5) going on into lanes 11 and 12, and a lane 0 of `kind` on their right
+    (y = -3.5) that also goes on (into lane 10) unless it `ends`."""
+    pts = line(0, 0, 100, 0)
+    last = len(pts) - 1
+
+    def nb(feature_id: int) -> tuple[LaneNeighbor, ...]:
+        return (LaneNeighbor(feature_id, 0, last, 0, last),)
+
+    car = MapFeatureType.LANE_SURFACE_STREET
+    features = [
+        MapFeature(0, kind, pts - [0, LANE_WIDTH], left_neighbors=nb(1), exit_lanes=() if ends else (10,)),
+        MapFeature(1, car, pts, left_neighbors=nb(2), right_neighbors=nb(0), exit_lanes=(11,)),
+        MapFeature(2, car, pts + [0, LANE_WIDTH], right_neighbors=nb(1), exit_lanes=(12,)),
+        MapFeature(11, car, line(100, 0, 200, 0), entry_lanes=(1,)),
+        MapFeature(12, car, line(100, LANE_WIDTH, 200, LANE_WIDTH), entry_lanes=(2,)),
+    ]
+    if not ends:
+        features.append(MapFeature(10, kind, line(100, -LANE_WIDTH, 200, -LANE_WIDTH), entry_lanes=(0,)))
+    return RoadMap(features)
+
+
+def test_a_bike_lane_beside_the_rightmost_car_lane_does_not_make_it_a_middle_lane():
+    index = MapIndex.build(two_lanes_beside(MapFeatureType.LANE_BIKE_LANE))
+    assert [index.lane_position(lane_index(index, i), 50.0) for i in (1, 2)] == ["rightmost", "leftmost"]
+    assert index.lane_position(lane_index(index, 0), 50.0) == "single"  # the only bike lane there
+    cars = MapIndex.build(two_lanes_beside(MapFeatureType.LANE_SURFACE_STREET))
+    assert [cars.lane_position(lane_index(cars, i), 50.0) for i in (0, 1, 2)] == ["rightmost", "middle", "leftmost"]
+
+
+def test_a_lane_that_ends_beside_the_road_does_not_count_for_the_others():
+    index = MapIndex.build(two_lanes_beside(MapFeatureType.LANE_SURFACE_STREET, ends=True))
+    assert index.is_ending.tolist() == [i == lane_index(index, 0) for i in range(index.num_lanes)]
+    assert [index.lane_position(lane_index(index, i), 50.0) for i in (0, 1, 2)] == [
+        "rightmost",
+        "rightmost",
+        "leftmost",
+    ]
+    # A change into or out of the ending lane places both lanes among all the lanes there.
+    assert index.lane_position(lane_index(index, 1), 50.0, with_ending=True) == "middle"
+    # Without exit lanes anywhere (a map cut across the road) no lane counts as ending.
+    cut = MapIndex.build(
+        RoadMap([f for f in two_lanes_beside(MapFeatureType.LANE_SURFACE_STREET).features if f.id < 10])
+    )
+    assert not cut.is_ending.any()
+
+
 def test_neighbour_side_counts_neighbours_not_exit_lanes():
     road = three_lane_road()
     ahead = MapFeature(4, MapFeatureType.LANE_SURFACE_STREET, line(ROAD_X[1], 0, ROAD_X[1] + 50, 0), entry_lanes=(1,))

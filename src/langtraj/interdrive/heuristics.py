@@ -61,8 +61,9 @@ class HeuristicConfig:
     """A static vehicle whose centre is this close to a road edge is at the kerb (m)."""
     turn_min_angle: float = math.radians(45.0)
     """Net heading change over the moving future that makes a turn (rad); positive is left."""
-    straight_max_angle: float = math.radians(15.0)
-    """Largest net heading change of a vehicle going straight (rad)."""
+    straight_max_angle: float = math.radians(35.0)
+    """Largest net heading change of a vehicle going straight (rad): roads that meet at an angle, or bend
+    near a junction, make a through movement turn by up to about 35 degrees (turns are 60 degrees or more)."""
     turn_span_fraction: float = 0.15
     """A turn's span runs from this fraction of its heading change to one minus it."""
     min_path_length: float = 5.0
@@ -82,7 +83,20 @@ class HeuristicConfig:
     lane_change_min_lateral: float = 2.0
     """Least lateral displacement, across the lane, that confirms a lane change (m)."""
     lane_change_settle_offset: float = 0.5
-    """A lane change starts/ends where the vehicle is within this of its old/new lane centre (m)."""
+    """A lane change ends where the vehicle is first within this of its new lane centre (m)."""
+    lane_change_start_offset: float = 0.2
+    """A lane change starts at the last step where the vehicle is within this of its least offset toward the
+    new lane over the `lane_change_max_duration_s` before the switch (that least offset counted as between
+    the lane centre and `lane_change_settle_offset`): where its sideways motion begins, before its heading
+    turns (m)."""
+    lane_change_max_duration_s: float = 5.0
+    """How far before the switch a lane change's start is looked for (s)."""
+    lane_change_require_settled: bool = True
+    """Leave out a lane change still under way at the agent's last step: not yet within
+    `lane_change_settle_offset` of the new lane's centre and still moving toward it by more than
+    `lane_change_start_offset` over the last `lane_change_settle_s` (the manoeuvre must end in the scene)."""
+    lane_change_settle_s: float = 1.0
+    """See `lane_change_require_settled` (s)."""
     lane_position_max_offset: float = 1.5
     """Largest distance from the lane centre at which a vehicle gets a lane position (m)."""
     crossing_lane_radius: float = 2.0
@@ -321,12 +335,16 @@ class LabelContext:
         return np.concatenate([np.zeros((len(xy), 1)), np.cumsum(step, axis=1)], axis=1)
 
     # ------------------------------------------------------------------ lane matches [A, F]
-    def _match(self, agents: np.ndarray, use_heading: bool, radius: float, drivable_only: bool) -> LaneMatch:
-        num_agents, num_future = self.future.shape
-        mask = np.zeros_like(self.future)
-        mask[agents] = self.future[agents]
-        xy = self.fut(self.kin.xy)[mask]
-        heading = self.fut(self.kin.yaw)[mask] if use_heading else None
+    def _match(
+        self, agents: np.ndarray, use_heading: bool, radius: float, drivable_only: bool, history: bool = False
+    ) -> LaneMatch:
+        """Lane matches of `agents` at their future steps [A, F], or at all their steps [A, T] with `history`."""
+        span = self.kin.span if history else self.future
+        num_agents, num_steps = span.shape
+        mask = np.zeros_like(span)
+        mask[agents] = span[agents]
+        xy = (self.kin.xy if history else self.fut(self.kin.xy))[mask]
+        heading = (self.kin.yaw if history else self.fut(self.kin.yaw))[mask] if use_heading else None
         found = self.map_index.match_lanes(
             xy,
             heading,
@@ -335,17 +353,24 @@ class LabelContext:
             drivable_only=drivable_only,
         )
         grid = LaneMatch(
-            np.full((num_agents, num_future), -1, np.int64),
-            *(np.full((num_agents, num_future), fill) for fill in (np.inf, np.nan, np.nan, np.nan)),
+            np.full((num_agents, num_steps), -1, np.int64),
+            *(np.full((num_agents, num_steps), fill) for fill in (np.inf, np.nan, np.nan, np.nan)),
         )
         for name in ("lane", "distance", "lateral", "station", "heading"):
             getattr(grid, name)[mask] = getattr(found, name)
         return grid
 
     @cached_property
+    def vehicle_lanes_all(self) -> LaneMatch:
+        """Heading-aware drivable-lane match of every eligible vehicle at each step of its span [A, T], history
+        included (a lane change that begins before the current step is seen whole)."""
+        return self._match(self.agents_of(AgentType.VEHICLE), True, self.config.lane_match_radius, True, True)
+
+    @cached_property
     def vehicle_lanes(self) -> LaneMatch:
-        """Heading-aware drivable-lane match of every eligible vehicle at each future step."""
-        return self._match(self.agents_of(AgentType.VEHICLE), True, self.config.lane_match_radius, True)
+        """Heading-aware drivable-lane match of every eligible vehicle at each future step [A, F]."""
+        every = self.vehicle_lanes_all
+        return LaneMatch(*(getattr(every, f.name)[:, self.current :] for f in fields(LaneMatch)))
 
     @cached_property
     def nearest_road(self) -> LaneMatch:
@@ -420,46 +445,87 @@ def _parked_decision(ctx: LabelContext, a: int) -> tuple[bool | None, str]:
     return (True, "at the kerb") if edge <= cfg.parked_max_edge_distance else (False, "stopped in a traffic lane")
 
 
+def _lane_chains(index: MapIndex, spans: list[tuple[int, int, int]]) -> list[tuple[list[int], int, int]]:
+    """Lane runs joined where the next lane continues the previous one (an exit lane): the lanes one after
+    another along the road, so a lane split at a node is not mistaken for a change; (lanes, start, end)."""
+    chains: list[tuple[list[int], int, int]] = []
+    for lane, start, end in spans:
+        if chains and lane >= 0 and chains[-1][0][-1] >= 0 and lane in index.exits[chains[-1][0][-1]]:
+            chains[-1][0].append(lane)
+            chains[-1] = (chains[-1][0], chains[-1][1], end)
+        else:
+            chains.append(([lane], start, end))
+    return chains
+
+
 def _lane_changes(ctx: LabelContext, a: int) -> list[LaneChange]:
-    """Switches between stable lane runs to a neighbour lane, confirmed by the lateral displacement."""
+    """Switches between stable lane runs to a neighbour lane, confirmed by the lateral displacement.
+
+    Lanes are matched over the agent's whole span (history included) so that a change begun before the
+    current step is seen whole; a change counts when its switch (the first step on the new lane) lies in the
+    future, and its span is clipped to the future."""
     cfg, index = ctx.config, ctx.map_index
-    match = ctx.vehicle_lanes
-    seq = np.where(ctx.future[a], match.lane[a], INVALID)
+    match = ctx.vehicle_lanes_all
+    current = ctx.current
+    seq = np.where(ctx.kin.span[a], match.lane[a], INVALID)
     seq = absorb_short_runs(seq, ctx.steps(cfg.lane_min_run_s))
-    spans = runs(seq)
-    xy = ctx.fut(ctx.kin.xy)[a]
+    chains = _lane_chains(index, runs(seq))
+    lookback = ctx.steps(cfg.lane_change_max_duration_s)
     out = []
-    for (lane_a, a0, a1), (lane_b, b0, b1) in itertools.pairwise(spans):
-        if lane_a < 0 or lane_b < 0 or lane_a == lane_b or index.is_junction[lane_a] or index.is_junction[lane_b]:
+    for (lanes_a, a0, a1), (lanes_b, b0, b1) in itertools.pairwise(chains):
+        lane_a, lane_b = lanes_a[-1], lanes_b[0]
+        if b0 < current or lane_a < 0 or lane_b < 0 or lane_a == lane_b:
+            continue
+        if index.is_junction[lane_a] or index.is_junction[lane_b]:
             continue  # choosing among junction lanes is turning, not changing lanes
         lat_a, lat_b = match.lateral[a, a0:a1], match.lateral[a, b0:b1]
+        xy_switch = ctx.kin.xy[a, b0]
         if index.neighbor_source == "none":
-            side = index.geometric_side(lane_a, lane_b, xy[b0])
+            side = index.geometric_side(lane_a, lane_b, xy_switch)
         else:
-            side = index.neighbor_side(lane_a, lane_b, xy[b0])
+            side = index.neighbor_side(lane_a, lane_b, xy_switch)
         if side is None or not (np.isfinite(lat_a).all() and np.isfinite(lat_b).all()):
             continue
         sign = 1.0 if side == "left" else -1.0
-        settled_a = np.flatnonzero(sign * lat_a <= cfg.lane_change_settle_offset)
-        start = a0 + int(settled_a[-1]) if len(settled_a) else a0
-        settled_b = np.flatnonzero(sign * lat_b >= -cfg.lane_change_settle_offset)
+        # Start: the last step before the switch near the least offset toward the new lane over the lookback,
+        # on the lanes before the switch that are not junction lanes (offsets there follow the turn's lanes).
+        first = max(a0, b0 - lookback)
+        while first < b0 - 1 and index.is_junction[max(int(match.lane[a, first]), 0)]:
+            first += 1
+        # Offsets from flickers into other lanes (absorbed into the runs) do not count.
+        own_a = np.isin(match.lane[a, first:b0], lanes_a)
+        near = sign * match.lateral[a, first:b0]
+        baseline = float(np.clip(near[own_a].min(initial=0.0), 0.0, cfg.lane_change_settle_offset))
+        settled_a = np.flatnonzero(own_a & (near <= baseline + cfg.lane_change_start_offset))
+        start = first + int(settled_a[-1]) if len(settled_a) else first
+        own_b = np.isin(match.lane[a, b0:b1], lanes_b)
+        settled_b = np.flatnonzero(own_b & (sign * lat_b >= -cfg.lane_change_settle_offset))
+        if not len(settled_b) and cfg.lane_change_require_settled and not ctx.kin.span[a, b1:].any():
+            tail = sign * lat_b[-ctx.steps(cfg.lane_change_settle_s) :]
+            if tail[-1] - tail[0] > cfg.lane_change_start_offset:
+                continue  # still moving across at the agent's last step
         end = b0 + int(settled_b[0]) if len(settled_b) else b1 - 1
-        _, lat_a_at_switch = index.project_to_lane(lane_a, xy[b0])
+        _, lat_a_at_switch = index.project_to_lane(lane_a, xy_switch)
         between = float(lat_a_at_switch[0]) - float(match.lateral[a, b0])
-        lateral = between + float(match.lateral[a, end]) - float(match.lateral[a, start])
+        # Across the lanes: from the start to the farthest the vehicle gets into the new lane.
+        deepest = sign * float((sign * lat_b)[own_b].max(initial=sign * match.lateral[a, end]))
+        lateral = between + deepest - float(match.lateral[a, start])
         if sign * lateral < cfg.lane_change_min_lateral:
             continue
+        merge = bool(index.is_ending[lane_a] or index.is_ending[lane_b])
+        s_a = float(index.project_to_lane(lane_a, ctx.kin.xy[a, start])[0][0])
+        s_b = float(index.project_to_lane(lane_b, ctx.kin.xy[a, end])[0][0])
         out.append(
             LaneChange(
                 a,
                 side,
                 lane_a,
                 lane_b,
-                start,
-                end + 1,
+                max(start - current, 0),
+                end + 1 - current,
                 lateral,
-                index.lane_position(lane_a, float(match.station[a, start])),
-                index.lane_position(lane_b, float(match.station[a, end])),
+                index.lane_position(lane_a, s_a, with_ending=merge),
+                index.lane_position(lane_b, s_b, with_ending=merge),
             )
         )
     return out
@@ -707,7 +773,10 @@ class LaneChangeRule(LabelRule):
     """Vehicles: changing_lanes(from, to) where the matched lane switches (after absorbing flickers shorter
     than `lane_min_run_s`) to a left or right neighbour lane, not to an exit lane nor between junction
     lanes, and the lateral displacement across the lanes is at least `lane_change_min_lateral`; span: from
-    the last step near the old lane's centre to the first near the new one's. Undecided when the switch is
+    where the sideways motion begins (`lane_change_start_offset`) to the first step near the new lane's centre.
+    Lanes are matched over the history too, so a change begun before the current step counts when its switch
+    lies in the future; a lane that goes on into its exit lane counts as one lane; a change still under way at
+    the last step is left out (`lane_change_require_settled`). Undecided when the switch is
     seen between parallel lanes but the map has no neighbour lists (or a lane position is unknown)."""
 
     name = "changing_lanes"

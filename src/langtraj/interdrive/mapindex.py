@@ -19,6 +19,7 @@ from __future__ import annotations
 import heapq
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -223,6 +224,7 @@ class MapIndex:
     left_spans: tuple[tuple[_NeighborSpan, ...], ...]
     right_spans: tuple[tuple[_NeighborSpan, ...], ...]
     junction_distance_from_start: np.ndarray  # float64 [L], along the lane graph to the next junction lane
+    is_ending: np.ndarray  # bool [L], a lane that ends beside a neighbour that goes on (see `_ending_lanes`)
 
     @classmethod
     def build(cls, road_map: RoadMap, infer_neighbors: bool = False) -> MapIndex:
@@ -262,6 +264,7 @@ class MapIndex:
             left_spans=left,
             right_spans=right,
             junction_distance_from_start=_junction_distances(junction, lengths, entries),
+            is_ending=_ending_lanes(exits, left, right),
         )
 
     # ------------------------------------------------------------------ what the map has
@@ -281,7 +284,7 @@ class MapIndex:
     def has_crosswalks(self) -> bool:
         return bool(self.crosswalks)
 
-    @property
+    @cached_property
     def is_drivable(self) -> np.ndarray:
         """bool [L]: lanes cars use (not bike lanes)."""
         return np.isin(self.lane_types, [int(t) for t in DRIVABLE_LANE_TYPES])
@@ -351,21 +354,31 @@ class MapIndex:
         return out
 
     # ------------------------------------------------------------------ neighbours and lane position
-    def lane_position(self, lane: int, station: float) -> LanePosition:
+    def lane_position(self, lane: int, station: float, with_ending: bool = False) -> LanePosition:
         """Position of `lane` among its same-direction neighbours at `station`: "unknown" where the map has no
-        neighbour information (and none is inferred) or the lane is a junction lane."""
+        neighbour information (and none is inferred) or the lane is a junction lane. Only lanes of the same
+        kind count: a bike lane beside the rightmost car lane does not make that lane a middle one; nor does a
+        lane that ends beside it (an acceleration lane, a lane drop: `is_ending`), unless this lane ends too or
+        `with_ending` (a change into or out of such a lane is placed among all the lanes there)."""
         if self.neighbor_source == "none" or self.is_junction[lane]:
             return "unknown"
         if self.neighbor_source == "map":
-            has_left = _covers(self.left_spans[lane], station)
-            has_right = _covers(self.right_spans[lane], station)
+            left = tuple(s for s in self.left_spans[lane] if self._counts_beside(lane, s.lane, with_ending))
+            right = tuple(s for s in self.right_spans[lane] if self._counts_beside(lane, s.lane, with_ending))
+            has_left, has_right = _covers(left, station), _covers(right, station)
         else:
-            has_left, has_right = self._geometric_sides(lane, station)
+            has_left, has_right = self._geometric_sides(lane, station, with_ending)
         if has_left and has_right:
             return "middle"
         if has_left:
             return "rightmost"
         return "leftmost" if has_right else "single"
+
+    def _counts_beside(self, lane: int, other: int, with_ending: bool) -> bool:
+        """Whether lane `other` beside `lane` counts for `lane`'s position (see `lane_position`)."""
+        drivable = self.is_drivable
+        ending = with_ending or self.is_ending[lane] or not self.is_ending[other]
+        return bool(drivable[other] == drivable[lane] and ending)
 
     def neighbor_side(self, lane_from: int, lane_to: int, xy: np.ndarray) -> Side | None:
         """Whether `lane_to` is a left or right neighbour of `lane_from` near point `xy` (None if neither).
@@ -412,12 +425,15 @@ class MapIndex:
         t = (station - self.lanes.station[seg]) / max(float(np.linalg.norm(direction)), 1e-9)
         return self.lanes.start[seg] + np.clip(t, 0.0, 1.0) * direction
 
-    def _geometric_sides(self, lane: int, station: float) -> tuple[bool, bool]:
+    def _geometric_sides(self, lane: int, station: float, with_ending: bool = False) -> tuple[bool, bool]:
         """Whether a same-direction lane runs 2.5-4.5 m to the left / right of `lane` at `station`."""
         point = self.point_at(lane, station)[None]
         heading = self.heading_at(lane, station)
         _, seg = self.lanes.candidates(point, NEIGHBOR_MAX_OFFSET_M)
-        seg = seg[self.lanes.owner[seg] != lane]
+        owner = self.lanes.owner[seg]
+        ending = with_ending or self.is_ending[lane]
+        counts = (self.is_drivable[owner] == self.is_drivable[lane]) & (ending | ~self.is_ending[owner])
+        seg = seg[(owner != lane) & counts]
         _, lateral, _ = self.lanes.project(np.repeat(point, len(seg), axis=0), seg)
         same = np.abs(wrap_angle(self.lanes.heading[seg] - heading)) <= NEIGHBOR_MAX_HEADING_DIFF
         apart = (np.abs(lateral) >= NEIGHBOR_MIN_OFFSET_M) & (np.abs(lateral) <= NEIGHBOR_MAX_OFFSET_M)
@@ -491,6 +507,20 @@ def _neighbor_spans(
                 if not any(s.lane == i for s in mirror[j]):
                     mirror[j].append(_NeighborSpan(i, *span))
     return tuple(tuple(s) for s in left), tuple(tuple(s) for s in right)
+
+
+def _ending_lanes(
+    exits: tuple[tuple[int, ...], ...],
+    left: tuple[tuple[_NeighborSpan, ...], ...],
+    right: tuple[tuple[_NeighborSpan, ...], ...],
+) -> np.ndarray:
+    """bool [L]: lanes without exit lanes beside a map neighbour that has some, i.e. lanes that end where the
+    road goes on (an acceleration lane, a lane drop). A map cut across the road leaves both without exits."""
+    ending = np.zeros(len(exits), bool)
+    for lane, outs in enumerate(exits):
+        if not outs:
+            ending[lane] = any(exits[s.lane] for s in (*left[lane], *right[lane]))
+    return ending
 
 
 def _station_range(stations: np.ndarray, start: int, end: int) -> tuple[float, float]:
