@@ -5,7 +5,8 @@ see only positions and the map) against it, per agent over the future of each wi
 
 - changing lanes (any, left, right): SUMO's lane-change output (`lane_change` events, direction);
   a change counts when SUMO's switch lies in the future at least 2 s before the window's end (agents
-  whose only switch is in the last 2 s are not scored for lane changes);
+  whose only switches are in the last 2 s, or in the 1 s before the current step, are not scored for
+  lane changes);
   a prediction must overlap the event in time, and its direction is read from its from/to positions
   (from the path's sideways motion against the heading 1 s before the label when both are "middle");
 - stops (`static` label): SUMO's own speed at or below 0.3 m/s for at least 1 s;
@@ -49,8 +50,9 @@ from langtraj.synth.network import kind_names
 
 STOP_SPEED = 0.3
 SETTLE_STEPS = 20
-"""A SUMO lane switch in the last 2 s of a window may not show in the motion yet: such agents are not scored
-for lane changes (unless they also change lanes earlier)."""
+"""A SUMO lane switch in the last 2 s of a window may not show in the motion yet, and one in the last 1 s
+before the current step may show only after it: agents whose only switches are there are not scored for
+lane changes."""
 ORDER = {"rightmost": 0, "middle": 1, "leftmost": 2}
 LEFT = ("l", "L")
 RIGHT = ("r", "R")
@@ -103,11 +105,13 @@ def _direction(label: AgentLabel, scenario: Scenario, agent: int) -> str:
 def _score_lane_changes(scenario: Scenario, agent: int, events: list, mine: list[AgentLabel], scores: Scores) -> None:
     """Lane changes of one agent: any, and per direction (a predicted direction must overlap the event)."""
     current = scenario.current_index
-    switches = [e for e in events if e.kind == "lane_change" and e.attributes["change_step"] >= current]
-    last = scenario.num_steps - SETTLE_STEPS
-    changes = [e for e in switches if e.attributes["change_step"] < last]
-    if not changes and any(last <= e.attributes["change_step"] < scenario.num_steps for e in switches):
-        return  # a switch in the last seconds: whether the change shows yet is undecidable; not scored
+    switches = [e for e in events if e.kind == "lane_change"]
+    first, last = current - SETTLE_STEPS // 2, scenario.num_steps - SETTLE_STEPS
+    changes = [e for e in switches if current <= e.attributes["change_step"] < last]
+    if not changes and any(
+        first <= e.attributes["change_step"] < current or last <= e.attributes["change_step"] for e in switches
+    ):
+        return  # a switch at the edges of the future: whether it shows in the future is undecidable; not scored
     predicted = [lab for lab in mine if lab.key == "changing_lanes"]
     scores.add("changing_lanes", bool(changes), bool(predicted))
     for side in ("left", "right"):
