@@ -484,3 +484,15 @@ def test_real_nuscenes_window(real_data_dir: Path):
     reasons = {u.key: u.reason for u in undecided}
     assert "neighbour" in reasons.get("lane_position", "")  # nuScenes ScenarioNet maps have no neighbour lists
     assert any("road edges" in u.reason or "connectivity" in u.reason for u in undecided)
+
+
+def test_car_stopped_on_the_lane_centre_before_a_junction_is_queued_not_parked():
+    kerb = MapFeature(99, MapFeatureType.ROAD_EDGE_BOUNDARY, line(1.4, -80, 1.4, -10))
+    road = RoadMap((*junction_map().features, kerb))
+
+    def stopped_at(y: float) -> tuple[AgentType, np.ndarray, np.ndarray]:
+        return AgentType.VEHICLE, np.tile([0.0, y], (T, 1)), np.full(T, math.pi / 2)
+
+    labels, _ = label_agents(scene(road, stopped_at(-20.0), stopped_at(-70.0)))
+    assert "parked" not in keys_of(labels, 1)  # 10 m before the junction, by the kerb: waiting in the queue
+    assert "parked" in keys_of(labels, 2)  # 60 m before it, by the kerb

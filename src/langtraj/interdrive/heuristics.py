@@ -59,6 +59,9 @@ class HeuristicConfig:
     """A static vehicle this far or farther from the nearest lane centre is at the road side (m)."""
     parked_max_edge_distance: float = 1.5
     """A static vehicle whose centre is this close to a road edge is at the kerb (m)."""
+    parked_queue_distance: float = 30.0
+    """A static vehicle on a lane centre at most this far before a junction along its lane is queued, not parked
+    (m; needs lane connectivity)."""
     turn_min_angle: float = math.radians(45.0)
     """Net heading change over the moving future that makes a turn (rad); positive is left."""
     straight_max_angle: float = math.radians(35.0)
@@ -439,6 +442,8 @@ def _parked_decision(ctx: LabelContext, a: int) -> tuple[bool | None, str]:
         return True, "beside the lane centre"
     if index.is_junction[lane]:
         return False, "stopped in a junction lane"
+    if index.distance_to_junction(lane, float(road.station[a, 0])) <= cfg.parked_queue_distance:
+        return False, "stopped in a lane before a junction (a queue)"
     if not index.has_road_edges:
         return None, "stopped on a lane centre and the map has no road edges to check the kerb"
     edge = float(index.distance_to_road_edge(ctx.fut(ctx.kin.xy)[a, 0], cfg.parked_max_edge_distance)[0])
@@ -607,9 +612,10 @@ class MovingSlowlyRule(LabelRule):
 class ParkedRule(LabelRule):
     """Vehicles: parked when stopped over all valid steps (history included, moving at most
     `parked_max_displacement`) and at the road side: off every drivable lane, or at least
-    `parked_min_lane_offset` from the nearest lane centre, or (not in a junction lane) within
-    `parked_max_edge_distance` of a road edge. A vehicle stopped on a lane centre where the map has no road
-    edges is undecided (queue or kerb cannot be told apart); so is any stopped vehicle on a map without lanes."""
+    `parked_min_lane_offset` from the nearest lane centre, or (not in a junction lane, nor within
+    `parked_queue_distance` before one, where it would be queued) within `parked_max_edge_distance` of a road
+    edge. A vehicle stopped on a lane centre where the map has no road edges is undecided (queue or kerb cannot
+    be told apart); so is any stopped vehicle on a map without lanes."""
 
     name = "parked"
     keys = ("parked",)
