@@ -42,6 +42,7 @@ from langtraj.interdrive.ground_truth import ground_truth_interactions
 from langtraj.interdrive.heuristics import HeuristicConfig, label_agents
 from langtraj.interdrive.labels import AgentLabel
 from langtraj.interdrive.mapindex import MapIndex
+from langtraj.runs import true_runs
 from langtraj.scenario.io import read_scenarios
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.types import AgentType, StateField
@@ -70,20 +71,14 @@ class Scores:
         self.single[key] = self.single[key] + more
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    padded = np.concatenate([[False], mask, [False]])
-    edges = np.flatnonzero(padded[1:] != padded[:-1])
-    return list(zip(edges[::2], edges[1::2], strict=True))
-
-
 def _speed_truth(speed: np.ndarray, config: HeuristicConfig) -> dict[str, bool]:
     """Stops and speed changes from SUMO's speed (10 Hz) over the future."""
     min_steps = round(config.min_duration_s / STEP_SECONDS)
     accel = np.diff(speed) / STEP_SECONDS
-    truth = {"static": any(b - a >= min_steps for a, b in _runs(speed <= STOP_SPEED))}
+    truth = {"static": any(b - a >= min_steps for a, b in true_runs(speed <= STOP_SPEED))}
     for key, sign in (("speeding_up", 1.0), ("slowing_down", -1.0)):
         hits = False
-        for a, b in _runs(sign * accel > config.accel_threshold):
+        for a, b in true_runs(sign * accel > config.accel_threshold):
             if b - a >= min_steps and sign * (speed[b] - speed[a]) >= config.min_speed_change:
                 hits = True
         truth[key] = hits

@@ -15,11 +15,11 @@ from langtraj.interdrive.heuristics import (
     Kinematics,
     absorb_short_runs,
     label_agents,
-    runs,
 )
 from langtraj.interdrive.labels import AgentLabel, Undecided
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.taxonomy import LABELS_BY_KEY, check_params
+from langtraj.runs import value_runs as runs
 from langtraj.scenario import Agents, AgentType, LaneNeighbor, MapFeature, MapFeatureType, RoadMap, Scenario
 from langtraj.scenario.io import read_scenario
 from langtraj.scenario.windowing import cut_window

@@ -23,6 +23,7 @@ import numpy as np
 from langtraj.interdrive.labels import AgentLabel, Undecided
 from langtraj.interdrive.mapindex import LaneMatch, MapIndex, wrap_angle
 from langtraj.registry import Registry
+from langtraj.runs import true_runs, value_runs
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
 
@@ -217,20 +218,10 @@ INVALID = -99
 """Class of a step outside the agent's valid span in a per-step class sequence."""
 
 
-def runs(classes: np.ndarray) -> list[tuple[int, int, int]]:
-    """Maximal runs (value, start, end) of equal values in a 1-D integer array; end is exclusive."""
-    if len(classes) == 0:
-        return []
-    cuts = np.flatnonzero(classes[1:] != classes[:-1]) + 1
-    starts = np.concatenate([[0], cuts])
-    ends = np.concatenate([cuts, [len(classes)]])
-    return [(int(classes[s]), int(s), int(e)) for s, e in zip(starts, ends, strict=True)]
-
-
 def absorb_short_runs(classes: np.ndarray, min_len: int) -> np.ndarray:
     """Runs shorter than `min_len` (not INVALID) take the class of the run before them (or after, at the start)."""
     out = classes.copy()
-    spans = runs(out)
+    spans = value_runs(out)
     for i, (value, start, end) in enumerate(spans):
         if value == INVALID or end - start >= min_len:
             continue
@@ -240,17 +231,6 @@ def absorb_short_runs(classes: np.ndarray, min_len: int) -> np.ndarray:
         if fill != INVALID:
             out[start:end] = fill
     return out
-
-
-def true_runs(mask: np.ndarray, min_len: int, max_gap: int = 0) -> list[tuple[int, int]]:
-    """Runs of True at least `min_len` long, after bridging False gaps of at most `max_gap` steps inside them."""
-    mask = mask.copy()
-    if max_gap > 0:
-        spans = runs(mask.astype(np.int64))
-        for i, (value, start, end) in enumerate(spans):
-            if value == 0 and 0 < i < len(spans) - 1 and end - start <= max_gap:
-                mask[start:end] = True
-    return [(s, e) for v, s, e in runs(mask.astype(np.int64)) if v == 1 and e - s >= min_len]
 
 
 # ---------------------------------------------------------------------------------------------- context
@@ -474,7 +454,7 @@ def _lane_changes(ctx: LabelContext, a: int) -> list[LaneChange]:
     current = ctx.current
     seq = np.where(ctx.kin.span[a], match.lane[a], INVALID)
     seq = absorb_short_runs(seq, ctx.steps(cfg.lane_min_run_s))
-    chains = _lane_chains(index, runs(seq))
+    chains = _lane_chains(index, value_runs(seq))
     lookback = ctx.steps(cfg.lane_change_max_duration_s)
     out = []
     for (lanes_a, a0, a1), (lanes_b, b0, b1) in itertools.pairwise(chains):
@@ -577,13 +557,13 @@ class SpeedProfileRule(LabelRule):
                 self.CONST,
             )
             classes = absorb_short_runs(np.where(ctx.future[a], classes, INVALID), min_len)
-            for value, start, end in runs(classes):
+            for value, start, end in value_runs(classes):
                 change = speed[a, end - 1] - speed[a, start]
                 if (value == self.UP and change < cfg.min_speed_change) or (
                     value == self.DOWN and -change < cfg.min_speed_change
                 ):
                     classes[start:end] = self.CONST
-            for value, start, end in runs(classes):
+            for value, start, end in value_runs(classes):
                 if value != INVALID and end - start >= min_len:
                     key = {self.STOP: "static", self.UP: "speeding_up", self.DOWN: "slowing_down"}.get(
                         value, "constant_speed"
@@ -827,7 +807,7 @@ class VruMotionRule(LabelRule):
         min_len = ctx.steps(ctx.config.min_duration_s)
         for a in ctx.agents_of(AgentType.PEDESTRIAN, AgentType.CYCLIST):
             classes = np.where(ctx.future[a], ctx.moving[a].astype(np.int64), INVALID)
-            for value, start, end in runs(absorb_short_runs(classes, min_len)):
+            for value, start, end in value_runs(absorb_short_runs(classes, min_len)):
                 if value != INVALID and end - start >= min_len:
                     yield ctx.label(a, "moving" if value else "static", start, end)
 

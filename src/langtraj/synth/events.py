@@ -31,11 +31,11 @@ from __future__ import annotations
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from itertools import pairwise
 
 import numpy as np
 from matplotlib.path import Path as MplPath
 
+from langtraj.runs import true_runs, value_runs
 from langtraj.scenario.model import STEP_SECONDS, BehaviorEvent
 from langtraj.scenario.types import AgentType
 from langtraj.synth.runner import LEADER_RANGE_M, FoeObservation, LaneChangeRecord, SimulationLog
@@ -94,17 +94,6 @@ class NetContext:
     intersections: frozenset[str] = frozenset()
     roundabout_junctions: frozenset[str] = frozenset()
     ending_lanes: frozenset[str] = frozenset()
-
-
-def _runs(mask: np.ndarray, max_gap: int = 0) -> list[tuple[int, int]]:
-    """[start, end) index runs where `mask` is True, joining runs separated by at most `max_gap`."""
-    idx = np.flatnonzero(mask)
-    if idx.size == 0:
-        return []
-    breaks = np.flatnonzero(np.diff(idx) > max_gap + 1)
-    starts = np.concatenate([[idx[0]], idx[breaks + 1]])
-    ends = np.concatenate([idx[breaks], [idx[-1]]]) + 1
-    return list(zip(starts.tolist(), ends.tolist(), strict=True))
 
 
 def _acceleration(track: Track) -> np.ndarray:
@@ -284,7 +273,7 @@ def yield_events(
             continue
         mask = np.zeros(steps.max() - steps.min() + 1, bool)
         mask[steps[keep] - steps.min()] = True
-        for a, b in _runs(mask, MERGE_GAP):
+        for a, b in true_runs(mask, max_gap=MERGE_GAP):
             start, end = int(steps.min() + a), int(steps.min() + b)
             if end - start < MIN_EVENT_STEPS:
                 continue
@@ -323,8 +312,9 @@ def junction_pass_events(tracks: Iterable[Track], log: SimulationLog, ctx: NetCo
             continue
         lane = np.maximum(track.lane, 0)
         junction = np.where(track.lane >= 0, junction_of[lane], "")
-        for a, b in _runs(junction != ""):
-            for c, d in _same_value_runs(junction[a:b]):
+        codes = np.unique(junction.astype(str), return_inverse=True)[1].reshape(-1)
+        for a, b in true_runs(junction != ""):
+            for _, c, d in value_runs(codes[a:b]):
                 node = str(junction[a + c])
                 first_lane = str(names[lane[a + c]])
                 events.append(
@@ -347,13 +337,6 @@ def junction_pass_events(tracks: Iterable[Track], log: SimulationLog, ctx: NetCo
     return events
 
 
-def _same_value_runs(values: np.ndarray) -> list[tuple[int, int]]:
-    """[start, end) runs of equal consecutive values."""
-    cuts = np.flatnonzero(values[1:] != values[:-1]) + 1
-    bounds = [0, *cuts.tolist(), len(values)]
-    return list(pairwise(bounds))
-
-
 # ---------------------------------------------------------------- pedestrians
 
 
@@ -370,7 +353,7 @@ def pedestrian_events(tracks: Iterable[Track], log: SimulationLog, ctx: NetConte
             continue
         edge = np.where(track.lane >= 0, edges[np.maximum(track.lane, 0)], "")
         on_crossing = np.array([e in ctx.crosswalks for e in edge], bool)
-        for a, b in _runs(on_crossing):
+        for a, b in true_runs(on_crossing):
             crossing = str(edge[a])
             events.append(
                 BehaviorEvent(
@@ -380,7 +363,7 @@ def pedestrian_events(tracks: Iterable[Track], log: SimulationLog, ctx: NetConte
             if a == 0 or edge[a - 1] not in ctx.walkingareas:
                 continue
             standing = (track.speed[:a] <= STOPPED_SPEED) & (edge[:a] == edge[a - 1])
-            wait = _runs(standing)
+            wait = true_runs(standing)
             if wait and wait[-1][1] >= a - 2 and wait[-1][1] - wait[-1][0] >= MIN_EVENT_STEPS:
                 w0, w1 = wait[-1]
                 events.append(
@@ -451,7 +434,7 @@ def _pedestrian_yields(track: Track, crossing: str, hits: Mapping[int, list[int]
         first = min(steps)
         mask = np.zeros(max(steps) - first + 1, bool)
         mask[np.array(steps) - first] = True
-        for a, b in _runs(mask, MERGE_GAP):
+        for a, b in true_runs(mask, max_gap=MERGE_GAP):
             if b - a < MIN_EVENT_STEPS:
                 continue
             speed = track.speed[track.local(first + a) : track.local(first + b)]
