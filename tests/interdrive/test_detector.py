@@ -7,11 +7,12 @@ import time
 import numpy as np
 import pytest
 
-from langtraj.interdrive.detector import RULES, DetectorConfig, InteractionRule, detect_interactions
+from langtraj.interdrive.detector import RULES, DetectorConfig, InteractionRule, SceneGeometry, detect_interactions
 from langtraj.interdrive.evaluation import TypeCounts, add_counts, macro_f1, match_interactions
 from langtraj.interdrive.labels import InteractionLabel, LabelSource
 from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID, InteractionType
 from langtraj.scenario import LaneNeighbor, MapFeature, MapFeatureType
+from langtraj.scenario.types import StateField
 
 from .test_ground_truth import PED, VEH, T, crosswalk, scene, straight
 
@@ -274,3 +275,81 @@ def test_both_labelers_on_a_tiny_synth_corpus(tmp_path):
             counts = add_counts(counts, match_interactions(detect_interactions(s), truth))
     assert counts["following"].tp > 0
     assert 0.0 < macro_f1(counts) <= 1.0
+
+
+# ---------------------------------------------------------------- real-scene plausibility rules
+
+
+def test_cars_parked_in_a_row_follow_no_one_but_a_queue_on_a_lane_does():
+    kerb = {1: (VEH, straight(0, -6, 0, 0.0)), 2: (VEH, straight(7, -6, 0, 0.0)), 3: (VEH, straight(14, -6, 0, 0.0))}
+    assert not pairs(detect_interactions(scene(kerb, features=_two_lanes())), "following")
+    queue = {1: (VEH, straight(0, 0, 0, 0.0)), 2: (VEH, straight(7, 0, 0, 0.0))}  # standing on lane 100
+    assert pairs(detect_interactions(scene(queue, features=_two_lanes())), "following") == {(1, 2)}
+
+
+def test_following_subtype_reads_only_steps_where_both_are_valid():
+    s = scene({1: (VEH, straight(0, 0, 0, 10.0)), 2: (VEH, straight(20, 0, 0, 10.0))})
+    s.agents.valid[0, 40:42] = False  # a 2-step gap in the track, joined into one run: its zero speed is no stop
+    s.agents.states[0, 40:42, StateField.VX : StateField.VY + 1] = 0.0
+    subs = {lab.subtype.id for lab in detect_interactions(s) if lab.type is InteractionType.FOLLOWING}
+    assert subs == {"following/with_lead"}
+
+
+def _boundary_track(speed: float) -> np.ndarray:
+    """A car on the line between lanes 100 and 101, its nearest lane flickering every 5 steps."""
+    track = straight(0, 1.75, 0, speed)
+    track[:, 1] += np.where((np.arange(T) // 5) % 2 == 0, -0.1, 0.1)
+    return track
+
+
+def test_flickering_nearest_lane_is_no_lane_change():
+    for speed in (0.0, 10.0):  # standing all window, or driving along the lane boundary
+        labels = detect_interactions(scene({1: (VEH, _boundary_track(speed))}, features=_two_lanes()))
+        assert not pairs(labels, "lane_change") and not pairs(labels, "merging"), speed
+
+
+def test_slow_sideways_creep_is_no_lane_change():
+    creep = straight(0, 0, 0, 1.0)  # 1 m/s: below lane_change_min_speed
+    creep[:, 1] = np.linspace(0.0, 3.5, T)
+    assert not pairs(detect_interactions(scene({1: (VEH, creep)}, features=_two_lanes())), "lane_change")
+
+
+def test_without_lane_connectivity_a_change_is_no_merge():
+    mover = straight(0, 0, 0, 10.0)
+    ramp = np.clip((np.arange(T) - 10) / 15.0, 0.0, 1.0)
+    mover[:, 1] = 3.5 * (3 * ramp**2 - 2 * ramp**3)
+    short = [f if f.id != 100 else MapFeature(100, f.type, f.points[:200], left_neighbors=()) for f in _two_lanes()]
+    labels = detect_interactions(scene({1: (VEH, mover)}, features=short))  # lane 100 ends, but nothing is linked
+    assert pairs(labels, "lane_change") == {(1, -1)} and not pairs(labels, "merging")
+
+
+def test_no_yield_from_a_parked_car_nor_to_a_standing_one():
+    tracks = {
+        1: (VEH, straight(50, -6, np.pi / 2, 0.0)),  # parked off the lane, nose to the road
+        2: (VEH, straight(0, 0, 0, 10.0)),  # drives past on lane 100, across its straight extension
+    }
+    labels = detect_interactions(scene(tracks, features=_two_lanes()))
+    assert not pairs(labels, "yielding") and not pairs(labels, "passing")
+    slow = np.where(np.arange(T) < 50, 1.0, 0.0)
+    tracks = {1: (VEH, straight(-12, 0, 0, slow)), 2: (VEH, straight(0, -3, np.pi / 2, 0.0))}  # 2 stands all window
+    labels = detect_interactions(scene(tracks))
+    assert not pairs(labels, "yielding") and not pairs(labels, "passing")
+
+
+def test_a_loop_around_a_block_is_no_roundabout():
+    def corner(fid: int, cx: float, cy: float, a0: float, straight_from, nxt: int) -> MapFeature:
+        arc = np.linspace(a0, a0 + np.pi / 2, 10)
+        bend = np.stack([cx + 5 * np.cos(arc), cy + 5 * np.sin(arc)], 1)
+        run = np.linspace(straight_from, bend[0], 20, endpoint=False)
+        pts = np.concatenate([run, bend])
+        return MapFeature(fid, MapFeatureType.LANE_SURFACE_STREET, np.c_[pts, 0 * pts[:, 0]], exit_lanes=(nxt,))
+
+    # a 40 m x 20 m rounded rectangle (a parking aisle): four lanes, each a straight then a 90 degree bend
+    loop = [
+        corner(300, 15, -5, -np.pi / 2, (-15, -10), 301),
+        corner(301, 15, 5, 0.0, (20, -5), 302),
+        corner(302, -15, 5, np.pi / 2, (15, 10), 303),
+        corner(303, -15, -5, np.pi, (-20, 5), 300),
+    ]
+    tracks = {1: (VEH, straight(-8, 0, 0, 0.0))}
+    assert not SceneGeometry(scene(tracks, features=loop), (), DetectorConfig()).has_roundabout

@@ -12,14 +12,24 @@ The rules mirror how `ground_truth.py` defines each type from SUMO's events, so 
 - lane leader (shared): the leader of agent A on map lane X at step t is the nearest vehicle or cyclist ahead of A
   (within `target_lane_range`) whose centre lies within `target_lane_lateral` of X or of X's successors along A's
   way (junction lanes included; at a split only the branches A's later trajectory runs along), heading along them.
+- standing agents: an agent whose valid positions over the whole window (history included) span at most
+  `static_displacement` is static; a static one on no map lane (road side, parking lot) is parked.
 - following: runs of at least `min_follow_steps` with the same leader (flickers up to `follow_merge_gap` joined).
+  A parked follower follows no one, and a static follower no parked leader (cars parked in a row); a static
+  follower on a lane behind a leader on a lane is a queue (at a red light or a junction) and is kept. Subtypes
+  read only steps where both are valid.
 - lane change: the agent's map lane (nearest non-junction lane centreline within `lane_match_distance`, heading
   within `lane_match_heading`) switches to a left/right neighbour lane (or, without neighbour data, to a
-  parallel lane `lane_width_range` aside); the other is the lane leader on the target lane right after the
-  switch, or -1. Where the map has no lanes, `changing_lanes` agent labels stand in (the other is then the path
-  leader). An overtaking lane change names the overtaken agent.
+  parallel lane `lane_width_range` aside), confirmed as a manoeuvre (not a flicker of the nearest lane): the
+  agent is not static, drives at a median `lane_change_min_speed` around the switch, and its signed offset from
+  both the lane left and the lane entered changes by `lane_change_min_lateral` to `lane_change_max_lateral`
+  within `lane_change_lateral_steps` of it; switches of one agent closer than `lane_change_half_span` are one
+  manoeuvre. The other is the lane leader on the target lane right after the switch, or -1. Where the map has
+  no lanes, `changing_lanes` agent labels stand in (the other is then the path leader). An overtaking lane change
+  names the overtaken agent.
 - merging: a lane change out of a lane that ends while the lane entered goes on: the lane left has no successors,
-  and the target lane has some or runs on `lane_runs_on` past the lane left's end (a map crop cuts both alike).
+  and the target lane has some or runs on `lane_runs_on` past the lane left's end (a map crop cuts both alike);
+  a map without lane connectivity (nuScenes) shows no lane ending, so it has no merges.
   On-ramp subtypes when no lane before the lane left lies beside (or is) a lane before the target lane.
 - overtaking: a lane change of A whose former leader B (the lane leader on the lane left right before the switch)
   was slower, after which A gets ahead of B along B's heading within the window.
@@ -27,14 +37,15 @@ The rules mirror how `ground_truth.py` defines each type from SUMO's events, so 
   `conflict_heading` (the conflict point); B reaches it first, and A is held (slower than `held_speed` or
   braking harder than `braking`, not in front of a red light, and not queued behind its own leader that is
   still before the conflict point) before it while B, not held itself, is at most `foe_horizon_s` from it, or
-  is inside it, for `min_event_steps` (runs up to `merge_gap` apart joined). (pedestrians) A held vehicle whose
+  is inside it, for `min_event_steps` (runs up to `merge_gap` apart joined); a parked A yields to no one and
+  no one yields to a B static all window. (pedestrians) A held vehicle whose
   look-ahead `ped_lookahead` m ahead of its front runs over a map crosswalk on which a pedestrian walks yields to
   the nearest such pedestrian. (pedestrian to vehicle) a pedestrian standing next to a crosswalk that it then
   steps onto (or, standing to the window's end, the crosswalk within `crosswalk_search`) yields to each vehicle
   that is on that crosswalk while it stands.
-- passing: the reverse of every yield: B -> A at junctions (at roundabout when the map holds a ring of lanes,
-  see `SceneGeometry.has_roundabout`; `vru_crossing` for a cyclist B), pedestrian -> vehicle `vru_crossing`,
-  vehicle -> waiting pedestrian `pedestrian`.
+- passing: the reverse of every yield: B -> A at junctions (at roundabout when the map holds a round ring of
+  curving lanes, see `SceneGeometry.has_roundabout`; `vru_crossing` for a cyclist B), pedestrian -> vehicle
+  `vru_crossing`, vehicle -> waiting pedestrian `pedestrian`.
 
 Only trajectories and the map are read (no simulator ids, events or window kind), so the rules run on real
 scenes too. Single-agent labels are optional inputs: `changing_lanes` spans are used when the map has no lanes.
@@ -102,6 +113,15 @@ class DetectorConfig:
     target_lane_range: float = 150.0  # m: a leader on the target lane of a lane change is looked for this far
     target_lane_lateral: float = 1.6  # m: a centre this close to a lane centreline is on that lane
     ring_length: float = 250.0  # m: a roundabout ring is at most this long
+    ring_min_curvature: float = math.radians(0.5)  # rad/m: every ring lane turns the ring's way at least this much
+    ring_min_roundness: float = 0.7  # a ring's least centroid distance is at least this share of its largest
+    ring_short_lane: float = 2.0  # m: ring lanes shorter than this are exempt from `ring_min_curvature`
+    static_displacement: float = 1.0  # m: an agent whose valid positions span at most this stands all window
+    lane_change_min_speed: float = 2.0  # m/s: median speed within `lane_change_speed_steps` of a lane switch
+    lane_change_speed_steps: int = 10  # steps either side of a switch over which its speed is taken
+    lane_change_min_lateral: float = 1.5  # m: least sideways move across the target lane that confirms a switch
+    lane_change_lateral_steps: int = 30  # steps either side of a switch between which the sideways move is taken
+    lane_change_max_lateral: float = 8.0  # m: a larger sideways move is no change to a neighbour lane
     lane_runs_on: float = 5.0  # m: a target lane without successors must run on this far past the lane left
     overtake_lookback: int = 15  # steps before a switch at which the former leader is looked up
     high_speed: float = 20.0  # m/s: an overtake at or above this top speed is high-speed
@@ -127,6 +147,26 @@ def _runs(mask: np.ndarray, max_gap: int = 0) -> list[tuple[int, int]]:
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
     return (angle + np.pi) % (2 * np.pi) - np.pi
+
+
+def _signed_offset(line: np.ndarray, point: np.ndarray) -> float:
+    """Signed distance (left positive) of `point` from polyline `line` [N, 2], the polyline extended straight past
+    both ends."""
+    if len(line) < 2:
+        return 0.0
+    a, b = line[:-1], line[1:]
+    seg = b - a
+    sq = np.maximum(np.einsum("nd,nd->n", seg, seg), 1e-12)
+    t = np.einsum("nd,nd->n", point - a, seg) / sq
+    lo = np.zeros(len(t))
+    hi = np.ones(len(t))
+    lo[0], hi[-1] = -np.inf, np.inf
+    t = np.clip(t, lo, hi)
+    proj = a + t[:, None] * seg
+    k = int(np.argmin(np.linalg.norm(point - proj, axis=1)))
+    rel = point - proj[k]
+    side = seg[k, 0] * rel[1] - seg[k, 1] * rel[0]
+    return float(math.copysign(np.linalg.norm(rel), side))
 
 
 @dataclass(frozen=True)
@@ -181,6 +221,26 @@ class SceneGeometry:
         self.movers = np.isin(self.types, _MOVERS)
         steps = agents.num_steps
         self.accel = np.gradient(self.speed, STEP_SECONDS, axis=1) if steps > 1 else np.zeros_like(self.speed)
+
+    # ------------------------------------------------------------ standing agents
+    @cached_property
+    def static(self) -> np.ndarray:
+        """[A]: the agent stands over the whole window, history included: its valid positions span at most
+        `static_displacement` (a parked car, or one waiting all window long)."""
+        out = np.zeros(len(self.ids), bool)
+        for a in range(len(self.ids)):
+            pts = self.xy[a, self.valid[a]]
+            if len(pts):
+                out[a] = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) <= self.config.static_displacement
+        return out
+
+    @cached_property
+    def parked(self) -> np.ndarray:
+        """[A]: static and on no map lane at any step (the road side, a parking lot); every static agent where the
+        map has no lanes."""
+        if not self.scenario.road_map.lanes:
+            return self.static.copy()
+        return self.static & ~(self.lanes >= 0).any(axis=1)
 
     @property
     def num_steps(self) -> int:
@@ -269,12 +329,18 @@ class SceneGeometry:
     # ------------------------------------------------------------ following
     @cached_property
     def follows(self) -> list[Pair]:
-        """Runs of at least `min_follow_steps` behind one leader."""
+        """Runs of at least `min_follow_steps` behind one leader. A parked follower follows no one, nor does a
+        static one behind a static leader (cars parked in a row); a static follower is kept behind a leader that
+        moves in the window (queued at a junction)."""
         cfg = self.config
         pairs = []
         for f in range(len(self.ids)):
+            if self.parked[f]:
+                continue
             leaders = self.leaders[f]
             for lead in np.unique(leaders[leaders >= 0]).tolist():
+                if self.static[f] and self.parked[lead]:
+                    continue
                 for a, b in _runs(leaders == lead, cfg.follow_merge_gap):
                     if b - a >= cfg.min_follow_steps:
                         pairs.append(Pair(f, lead, a, b))
@@ -356,10 +422,38 @@ class SceneGeometry:
             runs.sort(key=lambda r: r[1])
             for (la, _, ea), (lb, sb, _) in itertools.pairwise(runs):
                 if la != lb and sb - ea <= 10 and self._neighbours(by_id[la], by_id[lb]):
+                    if not self._confirmed(a, la, lb, sb):
+                        continue
+                    if changes and changes[-1].agent == a and sb - changes[-1].switch < cfg.lane_change_half_span:
+                        continue  # one manoeuvre over several lane pieces
                     start = max(sb - cfg.lane_change_half_span, 0)
                     end = min(sb + cfg.lane_change_half_span, self.num_steps)
                     changes.append(LaneChange(a, sb, start, end, la, lb))
         return changes
+
+    def _confirmed(self, a: int, from_lane: int, to_lane: int, switch: int) -> bool:
+        """Whether a lane switch of agent `a` at step `switch` is a manoeuvre, not a flicker of the nearest lane:
+        `a` does not stand all window, drives at a median speed of at least `lane_change_min_speed` within
+        `lane_change_speed_steps` of the switch, and its signed offset from the lane left or the lane entered (each
+        extended straight past its ends) changes by `lane_change_min_lateral` to `lane_change_max_lateral` between
+        its first and last valid steps within `lane_change_lateral_steps` of the switch (larger changes come from
+        lanes curving away, not from a move across one lane)."""
+        cfg = self.config
+        if self.static[a]:
+            return False
+        near = slice(max(switch - cfg.lane_change_speed_steps, 0), switch + cfg.lane_change_speed_steps + 1)
+        speed = self.speed[a, near][self.valid[a, near]]
+        if not speed.size or float(np.median(speed)) < cfg.lane_change_min_speed:
+            return False
+        lo = max(switch - cfg.lane_change_lateral_steps, 0)
+        steps = lo + np.flatnonzero(self.valid[a, lo : switch + cfg.lane_change_lateral_steps + 1])
+        if steps.size < 2:
+            return False
+        moves = [
+            abs(_signed_offset(line, self.xy[a, steps[-1]]) - _signed_offset(line, self.xy[a, steps[0]]))
+            for line in (self._lane_polylines[i][0] for i in (from_lane, to_lane) if i in self._lane_polylines)
+        ]
+        return bool(moves) and cfg.lane_change_min_lateral <= min(moves) and max(moves) <= cfg.lane_change_max_lateral
 
     def _labelled_lane_changes(self) -> list[LaneChange]:
         index = {int(i): n for n, i in enumerate(self.ids)}
@@ -372,10 +466,10 @@ class SceneGeometry:
     def is_merge(self, change: LaneChange) -> bool:
         """Whether the change leaves a lane that ends while the lane entered goes on: the lane left has no
         successors and the target lane has some or runs on past the left lane's end (so a map crop that cut both
-        is no merge)."""
+        is no merge). A map without lane connectivity (nuScenes) shows no lane ending, so it has no merges."""
         by_id = self.scenario.road_map.by_id
         lane, target = by_id.get(change.from_lane), by_id.get(change.to_lane)
-        if lane is None or target is None or lane.exit_lanes:
+        if lane is None or target is None or lane.exit_lanes or not self.has_connectivity:
             return False
         if target.exit_lanes:
             return True
@@ -383,6 +477,11 @@ class SceneGeometry:
         d = lane.points[-1, :2] - lane.points[max(len(lane.points) - 3, 0), :2]
         direction = d / max(float(np.linalg.norm(d)), 1e-6)
         return float((target.points[-1, :2] - end) @ direction) > self.config.lane_runs_on
+
+    @cached_property
+    def has_connectivity(self) -> bool:
+        """Whether some lane of the map names a successor or a predecessor."""
+        return any(lane.exit_lanes or lane.entry_lanes for lane in self.scenario.road_map.lanes)
 
     def from_other_road(self, change: LaneChange) -> bool:
         """Whether the lane left came from another road than the lane entered (an on-ramp's acceleration lane, not
@@ -402,7 +501,9 @@ class SceneGeometry:
     @cached_property
     def has_roundabout(self) -> bool:
         """Whether the map holds a ring: a chain of successor lanes shorter than `ring_length` back to its start
-        that turns by a full circle one way."""
+        that turns by a full circle one way, every lane of it (but those shorter than `ring_short_lane`) curving
+        that way by at least `ring_min_curvature` (a loop of straight roads and turns around a block is none)."""
+        cfg = self.config
         polylines = self._lane_polylines
         by_id = self.scenario.road_map.by_id
         turn = {}
@@ -410,21 +511,35 @@ class SceneGeometry:
         for lid, (pts, heads) in polylines.items():
             turn[lid] = float(np.sum(_wrap(np.diff(heads)))) if len(heads) > 1 else 0.0
             length[lid] = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+
+        def curving(lid: int, sign: float) -> bool:
+            return length[lid] < cfg.ring_short_lane or sign * turn[lid] >= cfg.ring_min_curvature * length[lid]
+
         for start in polylines:
-            stack = [(start, 0.0, 0.0)]
+            sign = math.copysign(1.0, turn[start])
+            if length[start] < cfg.ring_short_lane or not curving(start, sign):
+                continue
+            stack: list[tuple[int, float, float, tuple[int, ...]]] = [(start, 0.0, 0.0, (start,))]
             seen = {start}
             while stack:
-                lid, total, angle = stack.pop()
+                lid, total, angle, chain = stack.pop()
                 total, angle = total + length[lid], angle + turn[lid]
-                if total > self.config.ring_length:
+                if total > cfg.ring_length:
                     continue
                 for n in by_id[lid].exit_lanes:
-                    if n == start and abs(angle) > 1.5 * math.pi:
+                    if n == start and abs(angle) > 1.5 * math.pi and self._round(chain):
                         return True
-                    if n in polylines and n not in seen:
+                    if n in polylines and n not in seen and curving(n, sign):
                         seen.add(n)
-                        stack.append((n, total, angle))
+                        stack.append((n, total, angle, (*chain, n)))
         return False
+
+    def _round(self, chain: tuple[int, ...]) -> bool:
+        """Whether the ring of lanes `chain` is about a circle: its points' least distance from their centroid is at
+        least `ring_min_roundness` of the largest (a rounded rectangle around a block or a parking aisle is not)."""
+        pts = np.concatenate([self._lane_polylines[i][0] for i in chain])
+        radius = np.linalg.norm(pts - pts.mean(axis=0), axis=1)
+        return float(radius.min()) >= self.config.ring_min_roundness * float(radius.max())
 
     def _lane_chain(self, lane_id: int, a: int, t: int) -> set[int]:
         """`lane_id` and its successors (junction lanes included) up to `target_lane_range` ahead of agent `a` at
@@ -684,12 +799,13 @@ class SceneGeometry:
 
     @cached_property
     def vehicle_yields(self) -> list[Pair]:
-        """A (held before the conflict point) yields to B (reaching it first) where their paths cross."""
+        """A (held before the conflict point) yields to B (reaching it first) where their paths cross. A parked car
+        yields to no one, and no one yields to a car standing all window (it never goes first)."""
         cfg = self.config
         out = []
         branches: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
         for a, b in self._candidate_pairs():
-            if not self.held[a].any():
+            if not self.held[a].any() or self.parked[a] or self.static[b]:
                 continue
             if a not in branches:
                 branches[a] = self._branches(a)
@@ -875,15 +991,17 @@ class FollowingRule(InteractionRule):
         cfg = scene.config
         s = slice(pair.start, pair.end)
         speed = scene.speed[pair.agent, s]
-        if (speed <= cfg.stopped_speed).any():
+        both = scene.valid[pair.agent, s] & scene.valid[pair.other, s]
+        if (both & (speed <= cfg.stopped_speed)).any():
             return "following/stopping_behind_lead"
+        speed = np.where(both, speed, 0.0)
         gap = np.linalg.norm(scene.xy[pair.agent, s] - scene.xy[pair.other, s], axis=1)
         gap -= 0.5 * (scene.length[pair.agent, s] + scene.length[pair.other, s])
-        close = (speed >= cfg.tailgating_speed) & (gap < cfg.tailgating_headway_s * np.maximum(speed, 1e-3))
+        close = both & (speed >= cfg.tailgating_speed) & (gap < cfg.tailgating_headway_s * np.maximum(speed, 1e-3))
         if close.sum() >= cfg.min_follow_steps:
             return "following/tailgating"
         earlier = scene.speed[pair.agent, max(pair.start - 30, 0) : pair.start + 1]
-        lead = scene.speed[pair.other, s].mean()
+        lead = scene.speed[pair.other, s][both].mean() if both.any() else 0.0
         if earlier.size and 0.5 <= lead <= cfg.slow_lead_ratio * earlier.max():
             return "following/slow_lead"
         return "following/with_lead"
