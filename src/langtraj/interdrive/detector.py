@@ -70,6 +70,7 @@ from langtraj.interdrive.ground_truth import filter_to_window, label_sort_key
 from langtraj.interdrive.labels import AgentLabel, InteractionLabel, LabelSource
 from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID, InteractionType
 from langtraj.registry import Registry
+from langtraj.runs import true_runs
 from langtraj.scenario.model import STEP_SECONDS, MapFeature, Scenario
 from langtraj.scenario.types import AgentType, MapFeatureType, TrafficLightState
 
@@ -132,17 +133,6 @@ class DetectorConfig:
 
 
 _MOVERS = (AgentType.VEHICLE, AgentType.CYCLIST)
-
-
-def _runs(mask: np.ndarray, max_gap: int = 0) -> list[tuple[int, int]]:
-    """[start, end) runs where `mask` is True, joining runs separated by at most `max_gap` False steps."""
-    idx = np.flatnonzero(mask)
-    if idx.size == 0:
-        return []
-    breaks = np.flatnonzero(np.diff(idx) > max_gap + 1)
-    starts = np.concatenate([[idx[0]], idx[breaks + 1]])
-    ends = np.concatenate([idx[breaks], [idx[-1]]]) + 1
-    return list(zip(starts.tolist(), ends.tolist(), strict=True))
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
@@ -341,7 +331,7 @@ class SceneGeometry:
             for lead in np.unique(leaders[leaders >= 0]).tolist():
                 if self.static[f] and self.parked[lead]:
                     continue
-                for a, b in _runs(leaders == lead, cfg.follow_merge_gap):
+                for a, b in true_runs(leaders == lead, max_gap=cfg.follow_merge_gap):
                     if b - a >= cfg.min_follow_steps:
                         pairs.append(Pair(f, lead, a, b))
         return pairs
@@ -416,7 +406,7 @@ class SceneGeometry:
             runs = [
                 (lane, s, e)
                 for lane in np.unique(lanes[lanes >= 0]).tolist()
-                for s, e in _runs(lanes == lane, 2)
+                for s, e in true_runs(lanes == lane, max_gap=2)
                 if e - s >= cfg.min_lane_steps
             ]
             runs.sort(key=lambda r: r[1])
@@ -815,7 +805,7 @@ class SceneGeometry:
                 found = None if point is None else self._yield_mask(a, b, point)
                 if found is not None:
                     mask |= found
-            out.extend(Pair(a, b, s, e) for s, e in _runs(mask, cfg.merge_gap) if e - s >= cfg.min_event_steps)
+            out.extend(Pair(a, b, s, e) for s, e in true_runs(mask, cfg.min_event_steps, cfg.merge_gap))
         return out
 
     # ------------------------------------------------------------ pedestrians and crosswalks
@@ -869,7 +859,7 @@ class SceneGeometry:
         for (v, p), steps in sorted(hits.items()):
             mask = np.zeros(self.num_steps, bool)
             mask[steps] = True
-            out.extend(Pair(v, p, s, e) for s, e in _runs(mask, cfg.merge_gap) if e - s >= cfg.min_event_steps)
+            out.extend(Pair(v, p, s, e) for s, e in true_runs(mask, cfg.min_event_steps, cfg.merge_gap))
         return out
 
     def _on_crosswalk(self, c: int, v: int, start: int, end: int) -> np.ndarray:
@@ -900,7 +890,7 @@ class SceneGeometry:
         on_any = self.ped_on_crosswalk.any(axis=0) if len(self.crosswalks) else np.zeros(self.valid.shape, bool)
         for p in self._peds.tolist():
             standing = self.valid[p] & (self.speed[p] <= cfg.stopped_speed) & ~on_any[p]
-            for w0, w1 in _runs(standing):
+            for w0, w1 in true_runs(standing):
                 if w1 - w0 < cfg.min_event_steps:
                     continue
                 later = self.ped_on_crosswalk[:, p, w1 : w1 + cfg.wait_to_cross_steps].any(axis=1)
