@@ -63,11 +63,12 @@ class HeuristicConfig:
     parked_queue_distance: float = 30.0
     """A static vehicle on a lane centre at most this far before a junction along its lane is queued, not parked
     (m; needs lane connectivity)."""
-    turn_min_angle: float = math.radians(45.0)
-    """Net heading change over the moving future that makes a turn (rad); positive is left."""
+    turn_min_angle: float = math.radians(40.0)
+    """Net heading change over the moving future that makes a turn (rad); positive is left. A turn at a skewed
+    junction can change the heading by only about 45 degrees, and a window may not hold all of it."""
     straight_max_angle: float = math.radians(35.0)
     """Largest net heading change of a vehicle going straight (rad): roads that meet at an angle, or bend
-    near a junction, make a through movement turn by up to about 35 degrees (turns are 60 degrees or more)."""
+    near a junction, make a through movement turn by up to about 35 degrees."""
     turn_span_fraction: float = 0.15
     """A turn's span runs from this fraction of its heading change to one minus it."""
     min_path_length: float = 5.0
