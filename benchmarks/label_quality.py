@@ -5,8 +5,9 @@ see only positions and the map) against it, per agent over the future of each wi
 
 - changing lanes (any, left, right): SUMO's lane-change output (`lane_change` events, direction);
   a change counts when SUMO's switch lies in the future at least 2 s before the window's end (agents
-  whose only switches are in the last 2 s, or in the 1 s before the current step, are not scored for
-  lane changes);
+  whose only switches are in the last 2 s, in the 1 s before the current step, on junction-internal
+  lanes (the labeler leaves lane choice inside a junction to the turn), or swerves undone within 3 s,
+  are not scored for lane changes);
   a prediction must overlap the event in time, and its direction is read from its from/to positions
   (from the path's sideways motion against the heading 1 s before the label when both are "middle");
 - stops (`static` label): SUMO's own speed at or below 0.3 m/s for at least 1 s;
@@ -32,6 +33,7 @@ import sys
 import tempfile
 import time
 from collections import defaultdict
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +56,10 @@ SETTLE_STEPS = 20
 """A SUMO lane switch in the last 2 s of a window may not show in the motion yet, and one in the last 1 s
 before the current step may show only after it: agents whose only switches are there are not scored for
 lane changes."""
+SWERVE_STEPS = 30
+"""A SUMO lane change undone by the opposite change within 3 s is a swerve (the sublane model moves a car
+just past a lane line and back), not a change from one lane to another: agents with only swerves are not
+scored for lane changes."""
 ORDER = {"rightmost": 0, "middle": 1, "leftmost": 2}
 LEFT = ("l", "L")
 RIGHT = ("r", "R")
@@ -97,16 +103,31 @@ def _direction(label: AgentLabel, scenario: Scenario, agent: int) -> str:
     return "left" if np.cos(heading) * d[1] - np.sin(heading) * d[0] > 0 else "right"
 
 
+def _settled(changes: list) -> list:
+    """Lane changes without the swerves: a change undone by the opposite change within `SWERVE_STEPS`."""
+    changes = sorted(changes, key=lambda e: e.attributes["change_step"])
+    swerves = set()
+    for a, b in pairwise(changes):
+        close = b.attributes["change_step"] - a.attributes["change_step"] <= SWERVE_STEPS
+        if close and a.attributes["direction"] != b.attributes["direction"]:
+            swerves |= {id(a), id(b)}
+    return [e for e in changes if id(e) not in swerves]
+
+
 def _score_lane_changes(scenario: Scenario, agent: int, events: list, mine: list[AgentLabel], scores: Scores) -> None:
     """Lane changes of one agent: any, and per direction (a predicted direction must overlap the event)."""
     current = scenario.current_index
-    switches = [e for e in events if e.kind == "lane_change"]
+    everything = [e for e in events if e.kind == "lane_change"]
+    switches = _settled(everything)
     first, last = current - SETTLE_STEPS // 2, scenario.num_steps - SETTLE_STEPS
-    changes = [e for e in switches if current <= e.attributes["change_step"] < last]
-    if not changes and any(
-        first <= e.attributes["change_step"] < current or last <= e.attributes["change_step"] for e in switches
-    ):
-        return  # a switch at the edges of the future: whether it shows in the future is undecidable; not scored
+
+    def undecidable(e) -> bool:
+        step = e.attributes["change_step"]
+        return first <= step < current or last <= step or e.attributes["from_lane"].startswith(":")
+
+    changes = [e for e in switches if current <= e.attributes["change_step"] < last and not undecidable(e)]
+    if not changes and (any(undecidable(e) for e in switches) or len(switches) < len(everything)):
+        return  # only switches whose showing is undecidable (SETTLE_STEPS, SWERVE_STEPS, junction lanes): not scored
     predicted = [lab for lab in mine if lab.key == "changing_lanes"]
     scores.add("changing_lanes", bool(changes), bool(predicted))
     for side in ("left", "right"):
