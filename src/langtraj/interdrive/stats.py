@@ -74,7 +74,7 @@ def plot_stats(stats: DatasetStats, path: Path, source: str | None = None) -> No
     colours = {k: plt.cm.tab10(i) for i, k in enumerate(kinds)}
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(12, 9), gridspec_kw={"height_ratios": [1, 2]})
     totals = [sum(counts[s.id] for s in subs if s.type is k) for k in kinds]
-    top.bar([k.title for k in kinds], totals, color=[colours[k] for k in kinds])
+    top.bar([k.title.replace("/", "/\n") for k in kinds], totals, color=[colours[k] for k in kinds])
     top.set_ylabel("interactions")
     top.set_title(f"InterDrive interaction types ({source or 'all sources'}, {stats.windows} windows)")
     bottom.barh(
