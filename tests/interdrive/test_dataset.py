@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -141,6 +142,8 @@ def test_import_rejects_malformed_json(dataset, tmp_path, capsys):
 
 def test_stats_prints_counts_and_plots_them(dataset, tmp_path, capsys):
     stats = dataset_stats(dataset)
+    per_source = [stats.by_subtype(src) for src in stats.sources()]
+    assert len(per_source) >= 2 and stats.by_subtype() == sum(per_source, Counter())
     table = format_stats(stats)
     assert f"{stats.windows} windows" in table and "Yielding" in table and "changing lanes" in table
     plot = tmp_path / "fig2.png"

@@ -21,7 +21,11 @@ class DatasetStats:
     undecided: Counter[str]  # label key -> count
 
     def by_subtype(self, source: str | None = None) -> Counter[str]:
-        return Counter({sub: n for (src, sub), n in self.interactions.items() if source in (None, src)})
+        counts: Counter[str] = Counter()
+        for (src, sub), n in self.interactions.items():
+            if source in (None, src):
+                counts[sub] += n
+        return counts
 
     def sources(self) -> list[str]:
         return sorted({src for src, _ in self.interactions})
