@@ -353,3 +353,22 @@ def test_a_loop_around_a_block_is_no_roundabout():
     ]
     tracks = {1: (VEH, straight(-8, 0, 0, 0.0))}
     assert not SceneGeometry(scene(tracks, features=loop), (), DetectorConfig()).has_roundabout
+
+
+def test_car_standing_all_window_far_before_the_junction_yields_along_its_lanes():
+    xs = np.linspace(-60, -5, 111)
+    approach = np.stack([xs, np.zeros_like(xs), np.zeros_like(xs)], axis=1)
+    inner = np.stack([np.linspace(-5, 5, 21), np.zeros(21), np.zeros(21)], axis=1)
+    lanes = [
+        MapFeature(200, MapFeatureType.LANE_SURFACE_STREET, approach, exit_lanes=(201,)),
+        MapFeature(201, MapFeatureType.LANE_SURFACE_STREET, inner, entry_lanes=(200,), interpolating=True),
+    ]
+    tracks = {
+        1: (VEH, straight(-30, 0, 0, 0.0)),  # stands 30 m west of the junction all window: 15 m ahead is no conflict
+        2: (VEH, straight(0, -40, np.pi / 2, 10.0)),  # crosses northbound, at the centre at step 40
+    }
+    on = DetectorConfig(continue_on_map=True)
+    assert pairs(detect_interactions(scene(tracks), config=on), "yielding") == set()  # no map: straight extension
+    labels = detect_interactions(scene(tracks, features=lanes), config=on)
+    assert pairs(labels, "yielding") == {(1, 2)} and pairs(labels, "passing") == {(2, 1)}
+    assert not pairs(detect_interactions(scene(tracks, features=lanes)), "yielding")  # off by default

@@ -37,7 +37,11 @@ The rules mirror how `ground_truth.py` defines each type from SUMO's events, so 
   `conflict_heading` (the conflict point); B reaches it first, and A is held (slower than `held_speed` or
   braking harder than `braking`, not in front of a red light, and not queued behind its own leader that is
   still before the conflict point) before it while B, not held itself, is at most `foe_horizon_s` from it, or
-  is inside it, for `min_event_steps` (runs up to `merge_gap` apart joined); a parked A yields to no one and
+  is inside it, for `min_event_steps` (runs up to `merge_gap` apart joined); A's path is its trajectory extended
+  straight by `wait_extension`, or, for an A standing all window (queued far back: its way on is unknown), its
+  map lane and every chain of successor lanes when `continue_on_map` (off by default: on real scenes cars standing
+  on lanes all window triple the yields; not over a signal-controlled lane, where the light decides, see `red`);
+  a parked A yields to no one and
   no one yields to a B static all window. (pedestrians) A held vehicle whose
   look-ahead `ped_lookahead` m ahead of its front runs over a map crosswalk on which a pedestrian walks yields to
   the nearest such pedestrian. (pedestrian to vehicle) a pedestrian standing next to a crosswalk that it then
@@ -95,9 +99,7 @@ class DetectorConfig:
     conflict_radius: float = 1.5  # m: two paths this close form a conflict point
     conflict_heading: float = math.radians(20.0)  # paths must cross at more than this angle
     wait_extension: float = 15.0  # m a yielding vehicle's path is extended past its last step (no map lane)
-    continue_on_map: bool = (
-        False  # continue a vehicle held at its last step along every map lane branch (more recall, less precision)
-    )
+    continue_on_map: bool = False  # continue a vehicle standing all window along its map lane branches (opt-in)
     continuation_length: float = 60.0  # m of map lanes a path is continued by past its last step
     merge_gap: int = 5  # yield runs up to this many steps apart are joined
     min_event_steps: int = 5  # yield runs shorter than this are dropped
@@ -659,12 +661,13 @@ class SceneGeometry:
         return slow & self.valid & ~self.red
 
     def _branches(self, a: int) -> list[tuple[np.ndarray, np.ndarray]]:
-        """a's possible paths from its first valid step: its trajectory, then each map continuation (or a short
-        straight extension when no lane matches); points [N, 2] and headings [N]."""
+        """a's possible paths from its first valid step: its trajectory extended straight by `wait_extension`; for
+        a vehicle standing all window (its way on is unknown), its lane and each chain of successor lanes instead
+        (`continuations`, none on a signal-controlled approach); points [N, 2] and headings [N]."""
         path = self._yield_paths[a]
         real = path.points[path.real]
         last = np.flatnonzero(self.valid[a])[-1]
-        conts = self.continuations(a) if self.config.continue_on_map and self.held[a, last] else []
+        conts = self.continuations(a) if self.config.continue_on_map and self.static[a] and self.held[a, last] else []
         if not conts:
             return [(path.points, path.heading)]
         out = []
@@ -758,7 +761,8 @@ class SceneGeometry:
 
     def continuations(self, a: int) -> list[np.ndarray]:
         """Map polylines [N, 2] an agent may drive on after its last valid step: the rest of its lane, then each
-        chain of successor lanes up to `continuation_length` (empty when no lane matches)."""
+        chain of successor lanes up to `continuation_length` (empty when no lane matches, and when the way runs
+        over a lane with a traffic light: there the light gives the right of way, see `red`)."""
         cfg = self.config
         steps = np.flatnonzero(self.valid[a])
         if steps.size == 0 or not self._lane_polylines:
@@ -774,12 +778,15 @@ class SceneGeometry:
         if best is None:
             return []
         by_id = self.scenario.road_map.by_id
+        signalled = {int(n) for n in self.scenario.traffic_lights.lane_ids}
         out = []
         stack = [(self._lane_polylines[best][0][best_k:], by_id[best])]
         while stack:
             pts, lane = stack.pop()
             length = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()) if len(pts) > 1 else 0.0
             nexts = [n for n in lane.exit_lanes if n in self._lane_polylines]
+            if signalled & {lane.id, *nexts}:
+                return []  # a signal-controlled approach: the light gives the right of way (see `red`)
             if length >= cfg.continuation_length or not nexts or len(out) + len(stack) > 16:
                 out.append(pts)
                 continue
