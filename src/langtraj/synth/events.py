@@ -13,9 +13,11 @@ Every event is a `BehaviorEvent(kind, track_id, start, end, other_id, attributes
   `min_gap`, `mean_gap`, `start_gap`, `end_gap` (m, bumper to bumper).
 - `yield`: SUMO made the vehicle respond to a junction foe (libsumo junction foes) and the vehicle was
   slow or braking while the foe was inside the conflict area or at most `FOE_HORIZON_S` from it, and
-  the foe entered the conflict area while the vehicle was still before it. Equal-rank links (all-way
-  stops) use first come: the foe must have stopped at the junction before the vehicle. Attributes: `junction`, `rule`
-  (priority / first_come), `min_speed`, `stopped`, `ego_lane`, `foe_lane`, `roundabout`.
+  the foe entered the conflict area while the vehicle was still before it, first in line (a vehicle
+  queued behind a leader that is still before the conflict area follows it; it does not yield).
+  Equal-rank links (all-way stops) use first come: the foe must have stopped at the junction before the
+  vehicle. Attributes: `junction`, `rule` (priority / first_come), `min_speed`, `stopped`, `ego_lane`,
+  `foe_lane`, `roundabout`.
 - `junction_pass`: a vehicle or cyclist on the internal lanes of one junction, entry to exit. Attributes:
   `junction`, `direction` (SUMO link direction: s, l, r, t, L, R), `control` (SUMO junction type),
   `legs` (roads meeting there; 2 at a mid-block crossing), `intersection` (roads from two or more places
@@ -268,7 +270,9 @@ def yield_events(
         foe_speed = np.maximum(foe_track.speed[steps - foe_track.start], 1.0)
         foe_dist = np.array([o.foe_dist for o in obs_list])
         near = foe_dist / foe_speed <= FOE_HORIZON_S
-        keep = before & near & held.of(track)[local]
+        ego_dist = np.array([o.ego_dist for o in obs_list])
+        queued = (track.leader[local] >= 0) & (track.gap[local] < ego_dist)  # a leader still before the conflict
+        keep = before & near & ~queued & held.of(track)[local]
         if not keep.any():
             continue
         mask = np.zeros(steps.max() - steps.min() + 1, bool)
