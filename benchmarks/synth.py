@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
+from langtraj.angles import wrap_angle
 from langtraj.scenario.io import read_scenarios
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.types import AgentType, StateField
-from langtraj.synth.convert import wrap_angle
 from langtraj.synth.network import parse_kinds
 from langtraj.synth.shard import ShardConfig, ShardTask, run_shard, shard_seed
 from langtraj.synth.windows import boxes_overlap

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from langtraj.synth.convert import centre_from_front, heading_from_sumo_angle, sumo_angle_from_heading, wrap_angle
+from langtraj.angles import wrap_angle
+from langtraj.synth.convert import centre_from_front, heading_from_sumo_angle, sumo_angle_from_heading
 from langtraj.synth.smoothing import (
     MAX_CURVATURE,
     YAW_ALLOWANCE,

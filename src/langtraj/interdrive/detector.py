@@ -70,6 +70,7 @@ from typing import ClassVar
 import numpy as np
 from matplotlib.path import Path as MplPath
 
+from langtraj.angles import wrap_angle
 from langtraj.interdrive.ground_truth import filter_to_window, label_sort_key
 from langtraj.interdrive.labels import AgentLabel, InteractionLabel, LabelSource
 from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID, InteractionType
@@ -135,10 +136,6 @@ class DetectorConfig:
 
 
 _MOVERS = (AgentType.VEHICLE, AgentType.CYCLIST)
-
-
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    return (angle + np.pi) % (2 * np.pi) - np.pi
 
 
 def _signed_offset(line: np.ndarray, point: np.ndarray) -> float:
@@ -302,12 +299,12 @@ class SceneGeometry:
             half = 0.5 * (self.length[lead, ti] + self.length[f, ti])
             arc, lateral, heading = self.project(path, self.xy[lead, ti])
             on_path = (lateral < cfg.leader_lateral) & (arc - path.step_arc[ti] > 0.5)
-            same_heading = np.abs(_wrap(self.heading[lead, ti] - heading)) < cfg.leader_heading
+            same_heading = np.abs(wrap_angle(self.heading[lead, ti] - heading)) < cfg.leader_heading
             gap = arc - path.step_arc[ti] - half
             # straight ahead in the follower's own lane too (its path bends away before a lane change)
             side = np.abs(rel[li, ti, 1] * cos[0, ti] - rel[li, ti, 0] * sin[0, ti])
             ahead = (side < cfg.leader_lateral) & (along[li, ti] - half < cfg.straight_range)
-            ahead &= np.abs(_wrap(self.heading[lead, ti] - self.heading[f, ti])) < cfg.leader_heading
+            ahead &= np.abs(wrap_angle(self.heading[lead, ti] - self.heading[f, ti])) < cfg.leader_heading
             gap = np.where(on_path & same_heading, gap, along[li, ti] - half)
             ok = ((on_path & same_heading) | ahead) & (gap > -1.0) & (gap < cfg.leader_range)
             if not ok.any():
@@ -373,7 +370,7 @@ class SceneGeometry:
             if box.size == 0:
                 continue
             d = np.linalg.norm(xy[:, None, :] - pts[None, box, :], axis=-1)
-            aligned = np.abs(_wrap(heads[None, box] - self.heading[a, steps][:, None])) < cfg.lane_match_heading
+            aligned = np.abs(wrap_angle(heads[None, box] - self.heading[a, steps][:, None])) < cfg.lane_match_heading
             d = np.where(aligned, d, np.inf)
             k = np.argmin(d, axis=1)
             hit = d[np.arange(len(k)), k] < cfg.lane_match_distance
@@ -501,7 +498,7 @@ class SceneGeometry:
         turn = {}
         length = {}
         for lid, (pts, heads) in polylines.items():
-            turn[lid] = float(np.sum(_wrap(np.diff(heads)))) if len(heads) > 1 else 0.0
+            turn[lid] = float(np.sum(wrap_angle(np.diff(heads)))) if len(heads) > 1 else 0.0
             length[lid] = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
 
         def curving(lid: int, sign: float) -> bool:
@@ -599,7 +596,7 @@ class SceneGeometry:
         pts = np.concatenate([c[0] for c in chain])
         heads = np.concatenate([c[1] for c in chain])
         d = np.linalg.norm(self.xy[others, t][:, None, :] - pts[None], axis=-1)
-        aligned = np.abs(_wrap(heads[None, :] - self.heading[others, t][:, None])) < cfg.lane_match_heading
+        aligned = np.abs(wrap_angle(heads[None, :] - self.heading[others, t][:, None])) < cfg.lane_match_heading
         on = np.where(aligned, d, np.inf).min(axis=1) < cfg.target_lane_lateral
         if not on.any():
             return -1
@@ -687,7 +684,7 @@ class SceneGeometry:
         if not len(pa) or not len(pb):
             return None
         d = np.linalg.norm(pa[:, None, :] - pb[None, :, :], axis=-1)
-        crossing = (d < cfg.conflict_radius) & (np.abs(_wrap(ha[:, None] - hb[None, :])) > cfg.conflict_heading)
+        crossing = (d < cfg.conflict_radius) & (np.abs(wrap_angle(ha[:, None] - hb[None, :])) > cfg.conflict_heading)
         rows = np.flatnonzero(crossing.any(axis=1))
         return pa[rows[0]] if rows.size else None
 
@@ -771,7 +768,7 @@ class SceneGeometry:
         best, best_d, best_k = None, cfg.lane_match_distance, 0
         for lane_id, (pts, heads) in self._lane_polylines.items():
             d = np.linalg.norm(pts - here, axis=1)
-            d = np.where(np.abs(_wrap(heads - head)) < cfg.lane_match_heading, d, np.inf)
+            d = np.where(np.abs(wrap_angle(heads - head)) < cfg.lane_match_heading, d, np.inf)
             k = int(np.argmin(d))
             if d[k] < best_d:
                 best, best_d, best_k = lane_id, float(d[k]), k
@@ -968,7 +965,7 @@ class LaneChangeRule(InteractionRule):
         if before >= 0 and scene.speed[before, change.switch] < scene.speed[change.agent, change.switch]:
             return "lane_change/avoiding_slower_traffic"
         heads = scene.heading[change.agent][scene.valid[change.agent]]
-        if heads.size and np.abs(_wrap(heads - heads[0])).max() > math.radians(45.0):
+        if heads.size and np.abs(wrap_angle(heads - heads[0])).max() > math.radians(45.0):
             return "lane_change/for_turn_or_exit"
         return "lane_change/with_lead_or_trail"
 

@@ -20,8 +20,9 @@ from typing import ClassVar
 
 import numpy as np
 
+from langtraj.angles import wrap_angle
 from langtraj.interdrive.labels import AgentLabel, Undecided
-from langtraj.interdrive.mapindex import LaneMatch, MapIndex, wrap_angle
+from langtraj.interdrive.mapindex import LaneMatch, MapIndex
 from langtraj.registry import Registry
 from langtraj.runs import true_runs, value_runs
 from langtraj.scenario.model import Scenario

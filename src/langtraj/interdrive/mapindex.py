@@ -24,6 +24,7 @@ from typing import Literal
 
 import numpy as np
 
+from langtraj.angles import wrap_angle
 from langtraj.scenario.model import MapFeature, RoadMap
 from langtraj.scenario.types import MapFeatureType
 
@@ -47,11 +48,6 @@ JUNCTION_DISTANCE_CAP_M = 500.0
 LanePosition = Literal["leftmost", "middle", "rightmost", "single", "unknown"]
 Side = Literal["left", "right"]
 DRIVABLE_LANE_TYPES = (MapFeatureType.LANE_UNKNOWN, MapFeatureType.LANE_FREEWAY, MapFeatureType.LANE_SURFACE_STREET)
-
-
-def wrap_angle(angle: np.ndarray | float) -> np.ndarray:
-    """Angles wrapped to [-pi, pi)."""
-    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
 
 
 def _resample(points: np.ndarray, spacing: float) -> np.ndarray:

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from langtraj.angles import wrap_angle
+
 
 def heading_from_sumo_angle(angle_deg: np.ndarray | float) -> np.ndarray:
     """SUMO angle (degrees, clockwise from north) to heading (radians, counter-clockwise from east)."""
@@ -26,9 +28,3 @@ def centre_from_front(front_xy: np.ndarray, heading: np.ndarray, length: float |
     heading = np.asarray(heading, np.float64)
     half = 0.5 * np.asarray(length, np.float64)
     return front_xy - np.stack([np.cos(heading), np.sin(heading)], axis=-1) * half[..., None]
-
-
-def wrap_angle(angle: np.ndarray | float) -> np.ndarray:
-    """Angles wrapped to (-pi, pi]."""
-    wrapped = np.pi - np.mod(np.pi - np.asarray(angle, np.float64), 2 * np.pi)
-    return wrapped

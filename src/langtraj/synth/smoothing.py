@@ -16,8 +16,8 @@ import math
 
 import numpy as np
 
+from langtraj.angles import wrap_angle
 from langtraj.scenario.model import STEP_SECONDS
-from langtraj.synth.convert import wrap_angle
 
 MAX_CURVATURE = 0.25
 """1/m: tightest turn of a car (4 m radius), bounds the yaw rate at a given speed."""
