@@ -190,9 +190,10 @@ def run(corpus: Path) -> dict:
         for scenario in read_scenarios(path):
             windows += 1
             t0 = time.perf_counter()
-            labels, _ = label_agents(scenario, config, MapIndex.build(scenario.road_map))
+            index = MapIndex.build(scenario.road_map)
+            labels, _ = label_agents(scenario, config, index)
             t1 = time.perf_counter()
-            predicted = detect_interactions(scenario, labels)
+            predicted = detect_interactions(scenario, labels, map_index=index)
             detect_seconds += time.perf_counter() - t1
             label_seconds += t1 - t0
             interactions = add_counts(interactions, match_interactions(predicted, ground_truth_interactions(scenario)))

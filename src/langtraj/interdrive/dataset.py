@@ -161,7 +161,7 @@ def label_window(scenario: Scenario, config: BuildConfig = BuildConfig()) -> Win
     if scenario.events:
         interactions += ground_truth_interactions(scenario)
     if config.detector or not scenario.events:
-        interactions += detect_interactions(scenario, agent_labels)
+        interactions += detect_interactions(scenario, agent_labels, map_index=index)
     return WindowLabels(scenario.scenario_id, tuple(agent_labels), tuple(undecided), tuple(interactions))
 
 

@@ -73,6 +73,7 @@ from matplotlib.path import Path as MplPath
 from langtraj.angles import wrap_angle
 from langtraj.interdrive.ground_truth import filter_to_window, label_sort_key
 from langtraj.interdrive.labels import AgentLabel, InteractionLabel, LabelSource
+from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID, InteractionType
 from langtraj.registry import Registry
 from langtraj.runs import true_runs
@@ -195,10 +196,17 @@ class Pair:
 class SceneGeometry:
     """Per-scene quantities the rules share, each computed once on first use."""
 
-    def __init__(self, scenario: Scenario, agent_labels: Sequence[AgentLabel], config: DetectorConfig):
+    def __init__(
+        self,
+        scenario: Scenario,
+        agent_labels: Sequence[AgentLabel],
+        config: DetectorConfig,
+        map_index: MapIndex | None = None,
+    ):
         self.scenario = scenario
         self.agent_labels = tuple(agent_labels)
         self.config = config
+        self.map_index = map_index or MapIndex.build(scenario.road_map)
         agents = scenario.agents
         self.xy = agents.xy.astype(np.float64)
         self.heading = agents.heading.astype(np.float64)
@@ -229,7 +237,11 @@ class SceneGeometry:
         map has no lanes."""
         if not self.scenario.road_map.lanes:
             return self.static.copy()
-        return self.static & ~(self.lanes >= 0).any(axis=1)
+        out = self.static.copy()
+        for a in np.flatnonzero(out).tolist():
+            steps = self.valid[a]
+            out[a] = not (self._match(self.xy[a, steps], self.heading[a, steps], exclude_junctions=False) >= 0).any()
+        return out
 
     @property
     def num_steps(self) -> int:
@@ -336,45 +348,23 @@ class SceneGeometry:
         return pairs
 
     # ------------------------------------------------------------ lanes and lane changes
-    @cached_property
-    def _lane_points(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Points [K, 2], tangent headings [K] and feature ids [K] of every non-junction lane."""
-        pts, heads, ids = [], [], []
-        for lane in self.scenario.road_map.lanes:
-            if lane.interpolating or len(lane.points) < 2:
-                continue
-            p = lane.points[:, :2]
-            d = np.gradient(p, axis=0)
-            pts.append(p)
-            heads.append(np.arctan2(d[:, 1], d[:, 0]))
-            ids.append(np.full(len(p), lane.id, np.int64))
-        if not pts:
-            return np.zeros((0, 2)), np.zeros(0), np.zeros(0, np.int64)
-        return np.concatenate(pts), np.concatenate(heads), np.concatenate(ids)
+    def _match(self, xy: np.ndarray, heading: np.ndarray, exclude_junctions: bool) -> np.ndarray:
+        """Map lane id of each point (-1 where none): the nearest centreline within `lane_match_distance` among
+        lanes heading within `lane_match_heading`."""
+        cfg = self.config
+        match = self.map_index.match_lanes(
+            xy, heading, radius=cfg.lane_match_distance, max_heading_diff=cfg.lane_match_heading,
+            heading_weight=0.0, drivable_only=False, exclude_junctions=exclude_junctions,
+        )  # fmt: skip
+        return np.where(match.matched, self.map_index.lane_ids[np.maximum(match.lane, 0)], -1)
 
     @cached_property
     def lanes(self) -> np.ndarray:
-        """Map lane id of each vehicle and cyclist per step [A, T] (-1 when none matches)."""
-        cfg = self.config
+        """Map lane id (junction lanes left out) of each vehicle and cyclist per step [A, T] (-1 when none)."""
         out = np.full(self.valid.shape, -1, np.int64)
-        pts, heads, ids = self._lane_points
-        if not len(pts):
-            return out
-        for a in np.flatnonzero(self.movers).tolist():
-            steps = np.flatnonzero(self.valid[a])
-            if steps.size == 0:
-                continue
-            xy = self.xy[a, steps]
-            lo, hi = xy.min(axis=0) - cfg.lane_match_distance - 1, xy.max(axis=0) + cfg.lane_match_distance + 1
-            box = np.flatnonzero(((pts >= lo) & (pts <= hi)).all(axis=1))
-            if box.size == 0:
-                continue
-            d = np.linalg.norm(xy[:, None, :] - pts[None, box, :], axis=-1)
-            aligned = np.abs(wrap_angle(heads[None, box] - self.heading[a, steps][:, None])) < cfg.lane_match_heading
-            d = np.where(aligned, d, np.inf)
-            k = np.argmin(d, axis=1)
-            hit = d[np.arange(len(k)), k] < cfg.lane_match_distance
-            out[a, steps[hit]] = ids[box[k[hit]]]
+        mask = self.valid & self.movers[:, None]
+        if self.map_index.has_lanes and mask.any():
+            out[mask] = self._match(self.xy[mask], self.heading[mask], exclude_junctions=True)
         return out
 
     def _neighbours(self, a: MapFeature, b: MapFeature) -> bool:
@@ -765,15 +755,10 @@ class SceneGeometry:
         if steps.size == 0 or not self._lane_polylines:
             return []
         here, head = self.xy[a, steps[-1]], self.heading[a, steps[-1]]
-        best, best_d, best_k = None, cfg.lane_match_distance, 0
-        for lane_id, (pts, heads) in self._lane_polylines.items():
-            d = np.linalg.norm(pts - here, axis=1)
-            d = np.where(np.abs(wrap_angle(heads - head)) < cfg.lane_match_heading, d, np.inf)
-            k = int(np.argmin(d))
-            if d[k] < best_d:
-                best, best_d, best_k = lane_id, float(d[k]), k
-        if best is None:
+        best = int(self._match(here[None], np.array([head]), exclude_junctions=False)[0])
+        if best < 0 or best not in self._lane_polylines:
             return []
+        best_k = int(np.argmin(np.linalg.norm(self._lane_polylines[best][0] - here, axis=1)))
         by_id = self.scenario.road_map.by_id
         signalled = {int(n) for n in self.scenario.traffic_lights.lane_ids}
         out = []
@@ -1099,10 +1084,14 @@ class MergingRule(InteractionRule):
 
 
 def detect_interactions(
-    scenario: Scenario, agent_labels: Sequence[AgentLabel] = (), config: DetectorConfig | None = None
+    scenario: Scenario,
+    agent_labels: Sequence[AgentLabel] = (),
+    config: DetectorConfig | None = None,
+    map_index: MapIndex | None = None,
 ) -> tuple[InteractionLabel, ...]:
-    """Interaction labels of `scenario` from its trajectories and map by every registered rule (source DETECTOR)."""
-    scene = SceneGeometry(scenario, agent_labels, config or DetectorConfig())
+    """Interaction labels of `scenario` from its trajectories and map by every registered rule (source DETECTOR);
+    pass the scene's `map_index` to share the one the heuristic labeler used."""
+    scene = SceneGeometry(scenario, agent_labels, config or DetectorConfig(), map_index)
     labels = [lab for cls in RULES.classes() for lab in cls().detect(scene)]
     min_steps = round(scene.config.min_window_s / STEP_SECONDS)
     return tuple(sorted(filter_to_window(labels, scenario, min_steps), key=label_sort_key))

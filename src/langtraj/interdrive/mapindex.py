@@ -295,9 +295,11 @@ class MapIndex:
         max_heading_diff: float = math.pi,
         heading_weight: float = 2.0,
         drivable_only: bool = True,
+        exclude_junctions: bool = False,
     ) -> LaneMatch:
         """The best lane of each point within `radius`: least distance plus `heading_weight` (m/rad) times
-        the heading disagreement, among lanes within `max_heading_diff` of `heading` (any lane without one)."""
+        the heading disagreement, among lanes within `max_heading_diff` of `heading` (any lane without one);
+        `drivable_only` leaves out bike lanes, `exclude_junctions` junction lanes."""
         xy = np.asarray(xy, np.float64).reshape(-1, 2)
         num = len(xy)
         out = LaneMatch(
@@ -307,6 +309,9 @@ class MapIndex:
         query, seg = self.lanes.candidates(xy, radius)
         if drivable_only and len(seg):
             keep = self.is_drivable[self.lanes.owner[seg]]
+            query, seg = query[keep], seg[keep]
+        if exclude_junctions and len(seg):
+            keep = ~self.is_junction[self.lanes.owner[seg]]
             query, seg = query[keep], seg[keep]
         dist, lateral, station = self.lanes.project(xy[query], seg)
         keep = dist <= radius
