@@ -78,7 +78,7 @@ def test_rebuild_reuses_shards_and_a_new_seed_redraws_prompts(corpus, dataset, t
         assert rec.labels == old[sid].labels
 
 
-def test_export_then_import_round_trips_as_human_labels(dataset, tmp_path):
+def test_export_then_import_round_trips_as_human_labels(corpus, dataset, tmp_path):
     ds = tmp_path / "ds"
     shutil.copytree(dataset, ds)
     first = tmp_path / "json1"
@@ -104,6 +104,10 @@ def test_export_then_import_round_trips_as_human_labels(dataset, tmp_path):
     assert _snapshot(first) == _snapshot(second)
     assert import_json(second, ds) == len(files)  # importing again is idempotent
     assert records_by_id(ds) == records
+    build_dataset(corpus, ds, BuildConfig(seed=9))  # a rebuild with other settings keeps the human labels
+    for sid, rec in records_by_id(ds).items():
+        human = {i for i in rec.labels.interactions if i.source is LabelSource.HUMAN}
+        assert human == {i for i in records[sid].labels.interactions if i.source is LabelSource.HUMAN}
 
 
 @pytest.mark.parametrize(

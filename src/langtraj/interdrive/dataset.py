@@ -38,9 +38,9 @@ from langtraj.interdrive.prompts import (
     llm_phrase_bank,
     role_rephrase,
 )
-from langtraj.scenario.io import read_scenarios
+from langtraj.scenario.io import read_scenario, read_scenarios
 from langtraj.scenario.model import Scenario
-from langtraj.scenario.windowing import WindowSpec, iter_windows
+from langtraj.scenario.windowing import WindowSpec, cut_window, iter_windows
 
 MANIFEST = "manifest.json"
 LABELS_DIR = "labels"
@@ -241,8 +241,25 @@ def _run_job(job: _ShardJob) -> tuple[Path, dict[str, Any]]:
         records = label_file(job.source, job.config, job.bank)
     except InputError as exc:
         raise exc.located(path=job.source) from None
+    records = _keep_human_labels(records, job.target, job.config, job.bank)
     write_shard(job.target, records)
     return job.source, {"windows": len(records), **_counts(records)}
+
+
+def _keep_human_labels(
+    records: list[WindowRecord], previous: Path, config: BuildConfig, bank: PhraseBank
+) -> list[WindowRecord]:
+    """`records` with the human labels the shard at `previous` held for the same windows (a rebuild must not
+    lose imported labels)."""
+    if not previous.is_file():
+        return records
+    human = {
+        rec.scenario_id: [i for i in rec.labels.interactions if i.source is LabelSource.HUMAN]
+        for rec in read_shard(previous)
+    }
+    return [
+        with_human_labels(r, human[r.scenario_id], config, bank) if human.get(r.scenario_id) else r for r in records
+    ]
 
 
 def write_shard(path: Path, records: Sequence[WindowRecord]) -> None:
@@ -393,9 +410,6 @@ def with_human_labels(
 
 def load_window(record: WindowRecord) -> Scenario:
     """The scenario window a record labels, read from its source file."""
-    from langtraj.scenario.io import read_scenario
-    from langtraj.scenario.windowing import cut_window
-
     scene = read_scenario(record.source, record.record)
     if scene.num_steps == record.num_steps and record.window_start == 0:
         return scene
