@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -452,11 +451,7 @@ def _moving_vehicles(scenario: Scenario) -> set[int]:
 @pytest.mark.real_data
 def test_real_womd_scene(real_data_dir: Path):
     scenario = read_scenario(real_data_dir / "motion_data_one_scenario.tfrecord", 0)
-    label_agents(scenario)  # warm-up (imports, caches)
-    began = time.perf_counter()
     labels, _ = label_agents(scenario)
-    elapsed = time.perf_counter() - began
-    assert elapsed < 1.0, f"labelling took {elapsed:.2f} s"
     _check_valid(labels, scenario)
     moving = _moving_vehicles(scenario)
     manoeuvre = {"going_straight", "turning_left", "turning_right", "crossing_intersection", "lane_position"}
@@ -474,9 +469,7 @@ def test_real_nuscenes_window(real_data_dir: Path):
         pytest.skip(f"{path.name} not found in {real_data_dir}")
     scenario = cut_window(read_scenario(path, 0), 50)
     assert scenario.num_steps == 91
-    began = time.perf_counter()
     labels, undecided = label_agents(scenario)
-    assert time.perf_counter() - began < 2.0
     _check_valid(labels, scenario)
     moving = _moving_vehicles(scenario)
     labelled = {lab.track_id for lab in labels}
