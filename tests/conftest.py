@@ -25,6 +25,15 @@ def real_data_dir() -> Path:
 
 
 @pytest.fixture(scope="session")
+def wosac_reference(real_data_dir: Path) -> Path:
+    """The WOSAC reference folder (rollouts and the official implementation's metrics for them)."""
+    folder = real_data_dir.parent / "wosac_reference"
+    if not (folder / "official_metrics.json").is_file():
+        pytest.skip(f"WOSAC reference rollouts not found in {folder}")
+    return folder
+
+
+@pytest.fixture(scope="session")
 def real_files(real_data_dir: Path) -> list[Path]:
     return sorted(p for p in real_data_dir.iterdir() if p.suffix in (".tfrecord", ".pkl"))
 

@@ -460,14 +460,6 @@ def test_messages_of_another_class_with_the_public_names_interoperate(tmp_path: 
 # ---------------------------------------------------------------- real data
 
 
-@pytest.fixture(scope="module")
-def wosac_reference(real_data_dir: Path) -> Path:
-    folder = real_data_dir.parent / "wosac_reference"
-    if not (folder / "rollouts_637f20cafde22ff8_log.npz").is_file():
-        pytest.skip(f"WOSAC reference rollouts not found in {folder}")
-    return folder
-
-
 @pytest.mark.real_data
 def test_reference_rollouts_validate_and_round_trip(real_data_dir: Path, wosac_reference: Path, tmp_path: Path):
     scenario = read_scenario(real_data_dir / "motion_data_one_scenario.tfrecord")

@@ -234,17 +234,9 @@ def test_log_replay_noise_is_seeded_gaussian_on_xy_and_heading():
 # ---------------------------------------------------------------------------- the WOSAC reference files
 
 
-def find_reference_dir(real_data_dir: Path) -> Path:
-    """`wosac_reference` beside the real data folder (`../shared/data`); skips the test when it is absent."""
-    path = real_data_dir.parent / "wosac_reference"
-    if not (path / f"rollouts_{WOMD_ID}_log.npz").is_file():
-        pytest.skip(f"WOSAC reference rollouts not found in {path}")
-    return path
-
-
 @pytest.fixture(scope="module")
-def reference_dir(real_data_dir: Path) -> Path:
-    return find_reference_dir(real_data_dir)
+def reference_dir(wosac_reference: Path) -> Path:
+    return wosac_reference
 
 
 @pytest.fixture(scope="module")

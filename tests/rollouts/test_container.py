@@ -16,7 +16,7 @@ from langtraj.rollouts.validation import check_rollouts
 from langtraj.scenario import Scenario
 from langtraj.scenario.io import read_scenario
 
-from .test_baselines import REFERENCE, WOMD_FILE, WOMD_ID, find_reference_dir, load_reference
+from .test_baselines import REFERENCE, WOMD_FILE, WOMD_ID, load_reference
 
 FIELDS = ("x", "y", "z", "heading")
 
@@ -177,8 +177,8 @@ def test_generated_rollouts_pass_after_a_round_trip(toy, tmp_path):
 
 
 @pytest.fixture(scope="module")
-def reference_dir(real_data_dir: Path) -> Path:
-    return find_reference_dir(real_data_dir)
+def reference_dir(wosac_reference: Path) -> Path:
+    return wosac_reference
 
 
 @pytest.fixture(scope="module")

@@ -146,3 +146,35 @@ def time_to_collision(
     with np.errstate(divide="ignore", invalid="ignore"):
         ttc = np.where(closing > 0, np.minimum(gap / closing, MAX_TTC), MAX_TTC)
     return ttc
+
+
+def pair_signed_distance(
+    x_a: np.ndarray,
+    y_a: np.ndarray,
+    heading_a: np.ndarray,
+    length_a: np.ndarray,
+    width_a: np.ndarray,
+    x_b: np.ndarray,
+    y_b: np.ndarray,
+    heading_b: np.ndarray,
+    length_b: np.ndarray,
+    width_b: np.ndarray,
+) -> np.ndarray:
+    """Signed distance between the rounded boxes of objects A and B (negative: they overlap), elementwise.
+
+    The inputs broadcast to one shape (e.g. [R, T] poses with scalar sizes), which the result has. The
+    rule is that of `distance_to_nearest_object`, for one given pair instead of the nearest of all.
+    """
+    args = np.broadcast_arrays(
+        *(np.asarray(v, np.float64) for v in (x_a, y_a, heading_a, length_a, width_a))
+        + tuple(np.asarray(v, np.float64) for v in (x_b, y_b, heading_b, length_b, width_b))
+    )
+    shape = args[0].shape
+    xa, ya, ha, la, wa, xb, yb, hb, lb, wb = (a.reshape(-1) for a in args)
+    shrink_a = np.minimum(la, wa) * CORNER_ROUNDING / 2
+    shrink_b = np.minimum(lb, wb) * CORNER_ROUNDING / 2
+    half_a = np.stack([la / 2 - shrink_a, wa / 2 - shrink_a], -1)
+    half_b = np.stack([lb / 2 - shrink_b, wb / 2 - shrink_b], -1)
+    d = np.stack([xb - xa, yb - ya], -1)
+    core = _rect_signed_distance(d, half_a, np.cos(ha), np.sin(ha), half_b, np.cos(hb), np.sin(hb))
+    return (core - shrink_a - shrink_b).reshape(shape)

@@ -1,0 +1,75 @@
+"""`langtraj evaluate SCENARIOS ROLLOUTS [--index I] [--config 2025|2024] [--json] [--out FILE]`.
+
+WOSAC realism metrics of rollouts. ROLLOUTS is one `.npz` (scored against scenario I of the file) or a
+folder of `<scenario_id>.npz` files (every matching scenario in SCENARIOS, a file or a folder of
+files, is scored in parallel and the corpus mean is reported too).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from langtraj.fileio import atomic_open
+from langtraj.metrics.config import BUCKETS, CONFIGS
+from langtraj.metrics.corpus import EvalJob, aggregate, evaluate_corpus, pair_jobs, run_job, scenario_files
+from langtraj.metrics.wosac import ScenarioMetrics
+
+_RATES = (
+    "average_displacement_error",
+    "min_average_displacement_error",
+    "simulated_collision_rate",
+    "simulated_offroad_rate",
+    "simulated_traffic_light_violation_rate",
+)
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser("evaluate", help="WOSAC realism metrics of rollouts (.npz) against their scenarios")
+    p.add_argument("scenarios", metavar="SCENARIOS", help="scenario file, or a folder of scenario files")
+    p.add_argument("rollouts", metavar="ROLLOUTS", help="rollouts .npz, or a folder of <scenario_id>.npz files")
+    p.add_argument("--index", type=int, default=0, help="scenario in the file, for a single .npz (default 0)")
+    p.add_argument("--config", choices=sorted(CONFIGS), default="2025", help="challenge configuration")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--out", type=Path, help="also write the JSON report to this file (atomically)")
+    p.add_argument("--workers", type=int, default=1, help="scenarios scored at once (folder mode)")
+    p.add_argument("--executor", default="process", help="process (default) or ray")
+    p.set_defaults(func=run)
+
+
+def _table(values: dict, title: str) -> str:
+    lines = [title, f"  {'metametric':<42}{values['metametric']:.4f}"]
+    for bucket, names in BUCKETS.items():
+        lines.append(f"  {bucket + '_metrics':<42}{values[bucket + '_metrics']:.4f}")
+        lines.extend(f"    {name + '_likelihood':<40}{values[name + '_likelihood']:.4f}" for name in names)
+    lines.extend(f"  {name:<42}{values[name]:.4f}" for name in _RATES)
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    rollouts = Path(args.rollouts)
+    if rollouts.is_dir():
+        jobs = pair_jobs(scenario_files(args.scenarios), rollouts, args.config)
+        results = evaluate_corpus(jobs, workers=args.workers, executor=args.executor)
+        report = {
+            "config": args.config,
+            "num_scenarios": len(results),
+            **aggregate(results),
+            "scenarios": [r.to_dict() for r in results],
+        }
+        title = f"WOSAC {args.config}, mean over {len(results)} scenarios"
+    else:
+        result: ScenarioMetrics = run_job(EvalJob(args.scenarios, args.index, str(rollouts), args.config))
+        report = result.to_dict()
+        title = f"WOSAC {args.config}, scenario {result.scenario_id}"
+    text = json.dumps(report, indent=2)
+    if args.out:
+        with atomic_open(args.out, "w") as fh:
+            fh.write(text + "\n")
+    if args.json:
+        sys.stdout.write(text + "\n")
+    else:
+        print(_table(report, title))
+    return 0
