@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -48,6 +49,15 @@ def _table(values: dict, title: str) -> str:
     return "\n".join(lines)
 
 
+def _finite_or_null(value):
+    """The report with NaN (a feature the scene cannot measure) as JSON null."""
+    if isinstance(value, dict):
+        return {k: _finite_or_null(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite_or_null(v) for v in value]
+    return None if isinstance(value, float) and math.isnan(value) else value
+
+
 def run(args: argparse.Namespace) -> int:
     rollouts = Path(args.rollouts)
     if rollouts.is_dir():
@@ -64,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         result: ScenarioMetrics = run_job(EvalJob(args.scenarios, args.index, str(rollouts), args.config))
         report = result.to_dict()
         title = f"WOSAC {args.config}, scenario {result.scenario_id}"
-    text = json.dumps(report, indent=2)
+    text = json.dumps(_finite_or_null(report), indent=2, allow_nan=False)
     if args.out:
         with atomic_open(args.out, "w") as fh:
             fh.write(text + "\n")

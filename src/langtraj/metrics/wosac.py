@@ -5,6 +5,11 @@ Challenge Metrics'): time-series features are scored per evaluated agent with a 
 rollouts and steps, averaged over the log's valid steps and exponentiated; collision, offroad and
 red-light indicators are aggregated over time per agent and scored with a Bernoulli estimate. Buckets
 are weight-normalised averages; the meta-metric is the weighted sum.
+
+A map without road edges (nuScenes through ScenarioNet) has no road-edge distance or offroad
+indication: those likelihoods and the offroad rate are NaN, and the buckets and the meta-metric are
+taken over the remaining features with their weights rescaled to the same total. Such figures are
+not comparable with the challenge's (the official code refuses these scenes).
 """
 
 from __future__ import annotations
@@ -67,6 +72,13 @@ def _mean_where(values: np.ndarray, mask: np.ndarray) -> float:
     return float(np.where(mask, values, 0.0).sum() / count) if count else float("nan")
 
 
+def _weighted(config: WosacConfig, names, likelihood: dict[str, float]) -> float:
+    """Weight-normalised mean of the finite likelihoods among `names` (NaN when none has weight)."""
+    pairs = [(config.weight(n), likelihood[n]) for n in names if not np.isnan(likelihood[n])]
+    total = sum(w for w, _ in pairs)
+    return sum(w * v for w, v in pairs) / total if total > 0 else float("nan")
+
+
 def score_features(
     config: WosacConfig, scenario_id: str, log: Features, sim: Features, log_valid: np.ndarray, is_vehicle: np.ndarray
 ) -> ScenarioMetrics:
@@ -100,12 +112,12 @@ def score_features(
         log_prob = estimator.log_prob(log_any[:, None], sim_any[name].T)[:, 0]
         likelihood[name] = float(np.exp(log_prob.mean()))
 
-    buckets = {}
-    for bucket, names in BUCKETS.items():
-        weights = np.array([config.weight(n) for n in names])
-        values = np.array([likelihood[n] for n in names])
-        buckets[bucket] = float((weights * values).sum() / weights.sum()) if weights.sum() > 0 else float("nan")
-    metametric = float(sum(config.weight(n) * likelihood[n] for n in FEATURES))
+    offroad_rate = float(sim_any["offroad_indication"].mean())
+    if np.isnan(sim.distance_to_road_edge).all():  # a map without road edges (e.g. nuScenes)
+        likelihood["distance_to_road_edge"] = likelihood["offroad_indication"] = float("nan")
+        offroad_rate = float("nan")
+    buckets = {bucket: _weighted(config, names, likelihood) for bucket, names in BUCKETS.items()}
+    metametric = _weighted(config, FEATURES, likelihood) * sum(config.weight(n) for n in FEATURES)
     ade = sim.average_displacement_error
     red_light_rate = (sim.traffic_light_violation & log_valid[None]).any(-1)
     return ScenarioMetrics(
@@ -119,7 +131,7 @@ def score_features(
         average_displacement_error=float(ade.mean()),
         min_average_displacement_error=float(ade.mean(axis=1).min()),
         simulated_collision_rate=float(sim_any["collision_indication"].mean()),
-        simulated_offroad_rate=float(sim_any["offroad_indication"].mean()),
+        simulated_offroad_rate=offroad_rate,
         simulated_traffic_light_violation_rate=float(red_light_rate.mean()),
     )
 
