@@ -79,11 +79,12 @@ def test_nearest_among_several() -> None:
     boxes = [(0, 0, 0), (20, 0, 0), (0, -7, 0), (-9, 1, 0), (5, 6, math.pi / 2)]
     # Gaps from box 0: 16, 5, 5 (along x: 9 - 4; y offset 1 < 2 so faces overlap), and box 4 (4 x 2
     # turned upright at (5, 6)): its core spans x 4.7..5.3, y 4.7..7.3; box 0's core corner (1.3, 0.3)
-    # -> gap (3.4, 4.4), so 5.5606... - 1.4.
+    # -> gap (3.4, 4.4), so 5.5606 - 1.4 = 4.16, the nearest.
     corner = math.hypot(3.4, 4.4) - 2 * SHRINK
-    np.testing.assert_allclose(_nearest(*boxes), [min(16.0, 5.0, 5.0, corner)], atol=1e-9)
+    np.testing.assert_allclose(_nearest(*boxes), [corner], atol=1e-9)
+    # Box 1 (core x 18.7..21.3, y -0.3..0.3) is nearer box 4 (gap (13.4, 4.4)) than box 0 (16 m).
     got = _nearest(*boxes, evaluated=(0, 1, 2))
-    np.testing.assert_allclose(got, [min(5.0, corner), 16.0, 5.0], atol=1e-9)
+    np.testing.assert_allclose(got, [corner, math.hypot(13.4, 4.4) - 2 * SHRINK, 5.0], atol=1e-9)
 
 
 def test_batched_over_rollouts_and_steps() -> None:
