@@ -47,9 +47,10 @@ def track(start, step, heading: float = 0.0, size=CAR) -> np.ndarray:
     return out
 
 
-def straight_edge(y: float, feature_id: int = 900) -> MapFeature:
-    """A road edge along +x at height 0: the road is on its left (y above the line)."""
-    xs = np.linspace(-100, 200, 31)
+def straight_edge(y: float, feature_id: int = 900, *, reverse: bool = False) -> MapFeature:
+    """A road edge along +x at height 0, so the road is on its left (above the line); `reverse` runs it
+    along -x, putting the road below it."""
+    xs = np.linspace(-100, 200, 31)[:: -1 if reverse else 1]
     return MapFeature(feature_id, MapFeatureType.ROAD_EDGE_BOUNDARY, np.stack([xs, np.full(31, y), np.zeros(31)], 1))
 
 
@@ -119,12 +120,10 @@ def test_half_the_rollouts_colliding_gives_one_half():
     assert json.loads(json.dumps(result.to_dict()))["collision_step"] == [27, 27, -1, -1]
 
 
-def test_rotated_boxes_use_the_rounded_corners():
-    """Corner to corner at 45 degrees: sharp boxes would touch, the rounded ones (WOSAC) do not."""
-    half_diag = math.hypot(2.25, 1.0)
-    d = pair_signed_distance(0.0, 0.0, 0.0, 4.5, 2.0, 2 * 2.25, 2 * 1.0 + 0.01, 0.0, 4.5, 2.0)
-    assert d > 0.1  # the corners are 0.01 m apart vertically, but rounded by 0.7 m
-    assert half_diag > 0  # (geometry reminder: sharp corners would be 0.01 m apart)
+def test_boxes_touching_corner_to_corner_are_apart_once_rounded():
+    """Sharp 4.5 x 2 boxes meeting at a corner touch; WOSAC's rounded ones are (1.4 sqrt 2 - 1.4) m apart."""
+    d = pair_signed_distance(0.0, 0.0, 0.0, 4.5, 2.0, 4.5, 2.0, 0.0, 4.5, 2.0)
+    assert d == pytest.approx(1.4 * math.sqrt(2) - 1.4)
 
 
 def test_pair_distance_agrees_with_the_nearest_object_distance():
@@ -195,9 +194,7 @@ def test_offroad_with_a_straight_road_edge():
 
 def test_edge_direction_decides_the_road_side():
     """The same edge reversed puts the road below it: now the car at y = 0 is off road."""
-    edge = straight_edge(-2)
-    reversed_edge = MapFeature(edge.id, edge.type, edge.points[::-1])
-    sc = scene([track((0, 0), (1, 0))], edges=[reversed_edge])
+    sc = scene([track((0, 0), (1, 0))], edges=[straight_edge(-2, reverse=True)])
     assert offroad_rate(sc, log_rollouts(sc)) == 1.0
 
 
@@ -216,14 +213,15 @@ def test_offroad_default_needs_a_vehicle():
 
 def test_safety_result_to_json():
     sc = scene(
-        [track((-10, 0), (1, 0)), track((70, 0), (-1, 0), heading=math.pi)], edges=[straight_edge(-2), straight_edge(5)]
+        [track((-10, 0), (1, 0)), track((70, 0), (-1, 0), heading=math.pi)],
+        edges=[straight_edge(-2), straight_edge(5, 901, reverse=True)],
     )
     result = safety(sc, log_rollouts(sc, 2), 101, 102)
     data = json.loads(json.dumps(result.to_dict()))
     assert data["pair_collision_rate"] == 1.0 == result.pair_collision_rate
     assert data["pair"]["collision_step"] == [27, 27]
     assert data["collision_rate"] == 1.0
-    assert data["offroad_rate"] == 1.0  # the westbound car sees the y = 5 edge's road on its right... and y=-2's
+    assert data["offroad_rate"] == 0.0  # both stay between the edges at y = -2 and y = 5
     assert data["num_rollouts"] == 2
 
 

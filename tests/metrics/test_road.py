@@ -59,9 +59,7 @@ def test_right_angle_corners() -> None:
     np.testing.assert_allclose(_signed(left, (9, 1, 0), (12, -2, 0), (12, 5, 0)), [-1, math.sqrt(8), 2], atol=1e-12)
     # Right turn (0,0) -> (10,0) -> (10,-10): the road is everything but the quadrant x < 10, y < 0.
     right = _index([[[0, 0, 0], [10, 0, 0], [10, -10, 0]]])
-    np.testing.assert_allclose(
-        _signed(right, (8, -2, 0), (12, 2, 0), (12, -5, 0)), [2, -math.sqrt(8), -2], atol=1e-12
-    )
+    np.testing.assert_allclose(_signed(right, (8, -2, 0), (12, 2, 0), (12, -5, 0)), [2, -math.sqrt(8), -2], atol=1e-12)
 
 
 def test_sharp_convex_corner_takes_the_off_road_side() -> None:
@@ -70,8 +68,8 @@ def test_sharp_convex_corner_takes_the_off_road_side() -> None:
     # first segment but right of the second, so off the road: +sqrt(5).
     index = _index([[[0, 0, 0], [10, 0, 0], [0, 10, 0]]])
     np.testing.assert_allclose(_signed(index, (12, 1, 0)), [math.sqrt(5)], atol=1e-12)
-    # Inside the wedge near the joint.
-    np.testing.assert_allclose(_signed(index, (8, 1, 0)), [-1], atol=1e-12)
+    # Inside the wedge near the joint: nearest the second segment (the line x + y = 10).
+    np.testing.assert_allclose(_signed(index, (8, 1, 0)), [-1 / math.sqrt(2)], atol=1e-12)
 
 
 def test_sharp_concave_corner_takes_the_road_side() -> None:
@@ -79,7 +77,8 @@ def test_sharp_concave_corner_takes_the_road_side() -> None:
     # point (12, -1) is right of the first segment but left of the second: on the road, -sqrt(5).
     index = _index([[[0, 0, 0], [10, 0, 0], [0, -10, 0]]])
     np.testing.assert_allclose(_signed(index, (12, -1, 0)), [-math.sqrt(5)], atol=1e-12)
-    np.testing.assert_allclose(_signed(index, (8, -1, 0)), [1], atol=1e-12)
+    # Between the segments, right of both (the second lies on x - y = 10): off the road.
+    np.testing.assert_allclose(_signed(index, (8, -1, 0)), [1 / math.sqrt(2)], atol=1e-12)
 
 
 def test_open_end_keeps_its_own_side() -> None:
@@ -112,12 +111,8 @@ def test_cyclic_polyline_wraps_at_its_start() -> None:
     # (-1, 1) is nearest the closing vertex (0, 0): left of the first segment, right of the last
     # (the joint turns left, so the off-road side wins): outside the triangle, +sqrt(2).
     np.testing.assert_allclose(_signed(index, (-1, 1, 0)), [math.sqrt(2)], atol=1e-12)
-    np.testing.assert_allclose(_signed(index, (8, 1, 0), (5, -2, 0)), [-(10 - 8) * 0 - 0.4 * 0 - _tri_inside(8, 1), 2])
-
-
-def _tri_inside(x: float, y: float) -> float:
-    """Distance from a point inside TRIANGLE to its nearest side (the hypotenuse y = 0.3 x, the base or x = 10)."""
-    return min(y, 10 - x, abs(3 * x - 10 * y) / math.hypot(3, 10))
+    # Inside: 1 m from the base (2 m from x = 10, 14 / sqrt(109) from y = 0.3 x); outside: 2 m below the base.
+    np.testing.assert_allclose(_signed(index, (8, 1, 0), (5, -2, 0)), [-1, 2], atol=1e-12)
 
 
 def test_shorter_loop_does_not_wrap() -> None:
@@ -179,11 +174,8 @@ def test_kdtree_matches_brute_force() -> None:
     best = dist.min(axis=1)
     rows = np.arange(len(points))
     np.testing.assert_allclose(dist[rows, chosen], best, rtol=0, atol=1e-9)
-    # Where the minimum is clear, the very same segment.
-    second = np.partition(dist, 1, axis=1)[:, 1]
-    clear = second - best > 1e-6
-    assert clear.mean() > 0.9
-    np.testing.assert_array_equal(chosen[clear], dist.argmin(axis=1)[clear])
+    # The very same segment, ties (points nearest a joint) going to the lower index.
+    np.testing.assert_array_equal(chosen, dist.argmin(axis=1))
 
 
 def test_kdtree_on_a_tiny_map() -> None:

@@ -114,6 +114,9 @@ def average_displacement(scenario: Scenario, rollouts: Rollouts, agent_ids: Sequ
     control signal. Steps where the log is invalid (or past the scenario's end) are left out of the
     average, as there is nothing to compare with; an agent without any valid logged future step raises
     InputError, since its displacement is undefined.
+
+    This is not WOSAC's `average_displacement_error`, which is 3-D and averages over the history steps
+    too (where the error is 0), so it reads about 80/91 of a future-only figure.
     """
     tracks = check_rollouts(scenario, rollouts)
     cols = _columns(rollouts, agent_ids, "agent_ids")

@@ -165,10 +165,8 @@ def pair_signed_distance(
     The inputs broadcast to one shape (e.g. [R, T] poses with scalar sizes), which the result has. The
     rule is that of `distance_to_nearest_object`, for one given pair instead of the nearest of all.
     """
-    args = np.broadcast_arrays(
-        *(np.asarray(v, np.float64) for v in (x_a, y_a, heading_a, length_a, width_a))
-        + tuple(np.asarray(v, np.float64) for v in (x_b, y_b, heading_b, length_b, width_b))
-    )
+    values = (x_a, y_a, heading_a, length_a, width_a, x_b, y_b, heading_b, length_b, width_b)
+    args = np.broadcast_arrays(*(np.asarray(v, np.float64) for v in values))
     shape = args[0].shape
     xa, ya, ha, la, wa, xb, yb, hb, lb, wb = (a.reshape(-1) for a in args)
     shrink_a = np.minimum(la, wa) * CORNER_ROUNDING / 2
