@@ -178,6 +178,18 @@ def test_kdtree_matches_brute_force() -> None:
     np.testing.assert_array_equal(chosen, dist.argmin(axis=1))
 
 
+def test_kdtree_falls_back_when_many_pieces_are_equally_near() -> None:
+    # Near the centre of a ring of 300 segments, far more than the k searched pieces are about equally
+    # far: the brute-force fallback decides.
+    rng = np.random.default_rng(1)
+    angle = np.linspace(0, 2 * np.pi, 301)
+    ring = np.stack([40 * np.cos(angle), 40 * np.sin(angle), np.zeros(301)], -1)
+    index = _index([ring, [[100, 0, 0], [200, 0, 0]]])
+    points = rng.normal(0, 0.3, (300, 3)) * [1, 1, 0.1]
+    dist = _brute_nearest(points, index.edges.start, index.edges.end)
+    np.testing.assert_array_equal(index.nearest_segment(points), dist.argmin(axis=1))
+
+
 def test_kdtree_on_a_tiny_map() -> None:
     # Fewer pieces than neighbours asked for: still exact.
     index = _index(STRAIGHT)
