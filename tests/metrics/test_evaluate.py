@@ -168,3 +168,39 @@ def test_baseline_verb_writes_rollouts_that_evaluate_scores(corpus, capsys, tmp_
         capsys,
     )
     assert code == 2 and "noise_std" in err and not (tmp_path / "x.npz").exists()
+
+
+def test_safety_and_controllability_blocks(corpus, capsys, tmp_path):
+    scenario_file, rollouts = corpus
+    scene = make_scenario(5, scenario_id="toy0", seed=0)
+    stationary = tmp_path / "stationary.npz"
+    generate_baseline("stationary", scene, 4).save(stationary)
+    code, stdout, _ = run_cli(
+        [
+            "evaluate", str(scenario_file), str(rollouts / "toy0.npz"), "--json",
+            "--adversary", "7", "--target", "17", "--unconditioned", str(stationary), "--agents", "7,17",
+        ],
+        capsys,
+    )  # fmt: skip
+    assert code == 0
+    report = json.loads(stdout)
+    assert report["safety"]["pair_collision_rate"] == 0.0
+    control = report["controllability"]
+    assert control["agent_ids"] == [7, 17]
+    assert control["min_ade_conditioned"] < control["min_ade_unconditioned"]
+    assert 0 < control["relative_reduction"] <= 1
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--adversary", "7"], "--adversary and --target go together"),
+        (["--adversary", "7", "--target", "7"], "same object 7"),
+        (["--adversary", "7", "--target", "9999"], "9999"),
+        (["--agents", "7"], "--unconditioned and --agents go together"),
+    ],
+)
+def test_bad_safety_arguments(corpus, capsys, extra, message):
+    scenario_file, rollouts = corpus
+    code, stdout, err = run_cli(["evaluate", str(scenario_file), str(rollouts / "toy0.npz"), *extra], capsys)
+    assert code == 2 and message in err and stdout == ""

@@ -1,8 +1,11 @@
-"""`langtraj evaluate SCENARIOS ROLLOUTS [--index I] [--config 2025|2024] [--json] [--out FILE]`.
+"""`langtraj evaluate SCENARIOS ROLLOUTS [--index I] [--config 2025|2024] [--json] [--out FILE]
+[--adversary ID --target ID] [--unconditioned NPZ --agents ID,...]`.
 
 WOSAC realism metrics of rollouts. ROLLOUTS is one `.npz` (scored against scenario I of the file) or a
 folder of `<scenario_id>.npz` files (every matching scenario in SCENARIOS, a file or a folder of
-files, is scored in parallel and the corpus mean is reported too).
+files, is scored in parallel and the corpus mean is reported too). For one file, `--adversary` and
+`--target` add the safety-critical figures, `--unconditioned` and `--agents` the minADE of prompted
+agents with and without text (`langtraj.metrics.controllability`).
 """
 
 from __future__ import annotations
@@ -13,10 +16,14 @@ import math
 import sys
 from pathlib import Path
 
+from langtraj.errors import InputError
 from langtraj.fileio import atomic_open
 from langtraj.metrics.config import BUCKETS, CONFIGS
+from langtraj.metrics.controllability import controllability, safety
 from langtraj.metrics.corpus import EvalJob, aggregate, evaluate_corpus, pair_jobs, run_job, scenario_files
 from langtraj.metrics.wosac import ScenarioMetrics
+from langtraj.rollouts.container import Rollouts
+from langtraj.scenario.io import read_scenario
 
 _RATES = (
     "average_displacement_error",
@@ -37,7 +44,40 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, help="also write the JSON report to this file (atomically)")
     p.add_argument("--workers", type=int, default=1, help="scenarios scored at once (folder mode)")
     p.add_argument("--executor", default="process", help="process (default) or ray")
+    extra = p.add_argument_group("controllability and safety (single .npz only)")
+    extra.add_argument("--adversary", type=int, help="track id of the adversary: adds its collision rate with --target")
+    extra.add_argument("--target", type=int, help="track id of the target of --adversary")
+    extra.add_argument(
+        "--unconditioned", type=Path, help="rollouts of the same scene without text: adds minADE with and without"
+    )
+    extra.add_argument("--agents", type=_ids, help="comma-separated prompted track ids for --unconditioned")
     p.set_defaults(func=run)
+
+
+def _ids(text: str) -> list[int]:
+    try:
+        return [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated track ids, got {text!r}") from None
+
+
+def _extras(args: argparse.Namespace, scenario_file: str, index: int, rollouts_file: Path) -> dict:
+    """The controllability / safety blocks asked for on the command line."""
+    if (args.adversary is None) != (args.target is None):
+        raise InputError("--adversary and --target go together", where="arguments")
+    if (args.unconditioned is None) != (args.agents is None):
+        raise InputError("--unconditioned and --agents go together", where="arguments")
+    if args.adversary is None and args.unconditioned is None:
+        return {}
+    scenario = read_scenario(scenario_file, index)
+    rollouts = Rollouts.load(rollouts_file)
+    out = {}
+    if args.adversary is not None:
+        out["safety"] = safety(scenario, rollouts, args.adversary, args.target).to_dict()
+    if args.unconditioned is not None:
+        unconditioned = Rollouts.load(args.unconditioned)
+        out["controllability"] = controllability(scenario, rollouts, unconditioned, args.agents).to_dict()
+    return out
 
 
 def _table(values: dict, title: str) -> str:
@@ -46,6 +86,18 @@ def _table(values: dict, title: str) -> str:
         lines.append(f"  {bucket + '_metrics':<42}{values[bucket + '_metrics']:.4f}")
         lines.extend(f"    {name + '_likelihood':<40}{values[name + '_likelihood']:.4f}" for name in names)
     lines.extend(f"  {name:<42}{values[name]:.4f}" for name in _RATES)
+    if "safety" in values:
+        sv = values["safety"]
+        lines.append(f"  {'adversary-target collision rate':<42}{sv['pair_collision_rate']:.4f}")
+        lines.append(f"  {'collision rate (all agents)':<42}{sv['collision_rate']:.4f}")
+        if sv["offroad_rate"] is not None:
+            lines.append(f"  {'offroad rate (vehicles)':<42}{sv['offroad_rate']:.4f}")
+    if "controllability" in values:
+        cv = values["controllability"]
+        lines.append(f"  {'minADE with text':<42}{cv['min_ade_conditioned']:.4f}")
+        lines.append(f"  {'minADE without text':<42}{cv['min_ade_unconditioned']:.4f}")
+        if cv["relative_reduction"] is not None:
+            lines.append(f"  {'relative reduction':<42}{cv['relative_reduction']:.4f}")
     return "\n".join(lines)
 
 
@@ -61,6 +113,8 @@ def _finite_or_null(value):
 def run(args: argparse.Namespace) -> int:
     rollouts = Path(args.rollouts)
     if rollouts.is_dir():
+        if args.adversary is not None or args.unconditioned is not None:
+            raise InputError("--adversary / --unconditioned need a single rollouts .npz", where="arguments")
         jobs = pair_jobs(scenario_files(args.scenarios), rollouts, args.config)
         results = evaluate_corpus(jobs, workers=args.workers, executor=args.executor)
         report = {
@@ -72,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
         title = f"WOSAC {args.config}, mean over {len(results)} scenarios"
     else:
         result: ScenarioMetrics = run_job(EvalJob(args.scenarios, args.index, str(rollouts), args.config))
-        report = result.to_dict()
+        report = {**result.to_dict(), **_extras(args, args.scenarios, args.index, rollouts)}
         title = f"WOSAC {args.config}, scenario {result.scenario_id}"
     text = json.dumps(_finite_or_null(report), indent=2, allow_nan=False)
     if args.out:
