@@ -19,7 +19,7 @@ from langtraj.metrics.traffic_lights import SignalLanes, red_light_violations
 from langtraj.rollouts.agents import evaluated_agent_indices, sim_agent_indices
 from langtraj.rollouts.container import FUTURE_STEPS, Rollouts
 from langtraj.scenario.model import STEP_SECONDS, Scenario
-from langtraj.scenario.types import StateField
+from langtraj.scenario.types import AgentType, StateField
 
 COLLISION_THRESHOLD = 0.0
 """Objects closer than this (m, signed) collide."""
@@ -101,8 +101,6 @@ def rollout_tracks(scenario: Scenario, rollouts: Rollouts, agents: np.ndarray) -
 
 
 def _tracks(scenario: Scenario, agents: np.ndarray, pose: np.ndarray, dims: np.ndarray, valid: np.ndarray):
-    from langtraj.scenario.types import AgentType
-
     num = pose.shape[0]
     evaluated_scene = evaluated_agent_indices(scenario)
     position = {int(a): i for i, a in enumerate(agents)}

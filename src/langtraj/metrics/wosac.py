@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from langtraj.errors import InputError
 from langtraj.metrics.config import BUCKETS, FEATURES, WosacConfig, wosac_config
 from langtraj.metrics.features import Features, SceneMap, compute_features, log_tracks, rollout_tracks
 from langtraj.metrics.kinematics import kinematic_validity
@@ -143,8 +144,6 @@ def evaluate_scenario(
 
     Raises InputError when the rollouts do not fit the scenario (agent set, steps, NaN or inf).
     """
-    from langtraj.errors import InputError
-
     config = wosac_config(config)
     future = scenario.num_steps - scenario.current_index - 1
     if future < rollouts.num_steps:
