@@ -55,7 +55,7 @@ def make_scenario(
         MapFeature(101, MapFeatureType.LANE_SURFACE_STREET, lane_pts + [0, 3.5, 0], entry_lanes=(100,)),
         MapFeature(200, MapFeatureType.ROAD_LINE_BROKEN_SINGLE_WHITE, lane_pts + [0, 1.75, 0]),
         MapFeature(300, MapFeatureType.ROAD_EDGE_BOUNDARY, lane_pts + [0, -1.75, 0]),
-        MapFeature(301, MapFeatureType.ROAD_EDGE_BOUNDARY, lane_pts + [0, 5.25, 0]),
+        MapFeature(301, MapFeatureType.ROAD_EDGE_BOUNDARY, (lane_pts + [0, 5.25, 0])[::-1]),  # road on its left
         MapFeature(400, MapFeatureType.CROSSWALK, [[40, -1.75, 0], [44, -1.75, 0], [44, 5.25, 0], [40, 5.25, 0]]),
         MapFeature(500, MapFeatureType.STOP_SIGN, [[38, -2.5, 0]], controlled_lanes=(100,)),
     )

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import itertools
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -491,13 +490,11 @@ def test_renders(built: dict[str, Built]) -> None:
     assert image.shape == (128, 128, 3) and image.std() > 0
 
 
-def test_build_and_crop_are_fast(built: dict[str, Built]) -> None:
+def test_build_and_crop_repeatedly(built: dict[str, Built]) -> None:
+    """Building and cropping work on repeated calls (speed is measured by benchmarks/synth.py)."""
     b = built["four_way"]
-    start = time.perf_counter()
     netmap = build_net_map(b.net_file)
-    assert time.perf_counter() - start < 2.0  # generous: shared test machines
     crop_road_map(netmap.road_map, (0, 0), (1, 1))  # builds the cached index
-    start = time.perf_counter()
-    for k in range(20):
-        crop_road_map(netmap.road_map, (70 + k, 70), (130 + k, 130))
-    assert (time.perf_counter() - start) / 20 < 0.02
+    crops = [crop_road_map(netmap.road_map, (70 + k, 70), (130 + k, 130)) for k in range(20)]
+    assert all(len(c) > 0 for c in crops)
+    assert len(crops[0]) == len(crop_road_map(netmap.road_map, (70, 70), (130, 130)))

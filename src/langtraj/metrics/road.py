@@ -113,7 +113,7 @@ class RoadEdgeIndex:
 
     def __init__(self, edges: RoadEdges):
         self.edges = edges
-        lengths = np.sqrt(((edges.end - edges.start) * [1.0, 1.0, Z_STRETCH]) ** 2).sum(-1)
+        lengths = np.sqrt((((edges.end - edges.start) * [1.0, 1.0, Z_STRETCH]) ** 2).sum(-1))
         pieces = np.maximum(np.ceil(lengths / _PIECE).astype(np.int64), 1)
         self._piece_parent = np.repeat(np.arange(edges.num_segments), pieces)
         first = np.repeat(np.cumsum(pieces) - pieces, pieces)
