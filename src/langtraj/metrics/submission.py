@@ -17,7 +17,7 @@ import os
 import re
 import tarfile
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from itertools import islice
 from pathlib import Path
 
@@ -206,39 +206,17 @@ class SubmissionMetadata:
 
     def to_proto(self) -> pb.SimAgentsChallengeSubmission:
         """A `SimAgentsChallengeSubmission` with this metadata, the submission type set and no rollouts."""
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
         return pb.SimAgentsChallengeSubmission(
             submission_type=pb.SimAgentsChallengeSubmission.SIM_AGENTS_SUBMISSION,
-            account_name=self.account_name,
-            unique_method_name=self.unique_method_name,
-            authors=list(self.authors),
-            affiliation=self.affiliation,
-            description=self.description,
-            method_link=self.method_link,
-            uses_lidar_data=self.uses_lidar_data,
-            uses_camera_data=self.uses_camera_data,
-            uses_public_model_pretraining=self.uses_public_model_pretraining,
-            public_model_names=list(self.public_model_names),
-            num_model_parameters=self.num_model_parameters,
-            acknowledge_complies_with_closed_loop_requirement=self.acknowledge_complies_with_closed_loop_requirement,
+            **{k: list(v) if isinstance(v, list) else v for k, v in values.items()},
         )
 
     @classmethod
     def from_proto(cls, msg: pb.SimAgentsChallengeSubmission) -> SubmissionMetadata:
         """The metadata a submission shard carries (unchecked)."""
-        return cls(
-            account_name=msg.account_name,
-            unique_method_name=msg.unique_method_name,
-            authors=list(msg.authors),
-            affiliation=msg.affiliation,
-            description=msg.description,
-            method_link=msg.method_link,
-            uses_lidar_data=msg.uses_lidar_data,
-            uses_camera_data=msg.uses_camera_data,
-            uses_public_model_pretraining=msg.uses_public_model_pretraining,
-            public_model_names=list(msg.public_model_names),
-            num_model_parameters=msg.num_model_parameters,
-            acknowledge_complies_with_closed_loop_requirement=msg.acknowledge_complies_with_closed_loop_requirement,
-        )
+        values = {f.name: getattr(msg, f.name) for f in fields(cls)}
+        return cls(**{k: v if isinstance(v, str | bool) else list(v) for k, v in values.items()})
 
 
 # ---------------------------------------------------------------- writing
