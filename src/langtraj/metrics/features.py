@@ -143,6 +143,13 @@ class Features:
         return self.distance_to_road_edge > OFFROAD_THRESHOLD
 
 
+_CHUNK_ROLLOUTS = 8
+
+
+def _chunks(num: int) -> list[slice]:
+    return [slice(i, min(i + _CHUNK_ROLLOUTS, num)) for i in range(0, num, _CHUNK_ROLLOUTS)]
+
+
 def compute_features(tracks: SceneTracks, scene_map: SceneMap, log: SceneTracks | None = None) -> Features:
     """All features of `tracks`; with `log`, also each rollout's average displacement error."""
     ev, fut, c = tracks.evaluated, tracks.future, tracks.current
@@ -150,10 +157,14 @@ def compute_features(tracks: SceneTracks, scene_map: SceneMap, log: SceneTracks 
     speed, accel, yaw_rate, yaw_accel = kinematic_features(
         t.x[:, ev], t.y[:, ev], t.z[:, ev], t.heading[:, ev], STEP_SECONDS
     )
-    box = (t.x[..., fut], t.y[..., fut], t.heading[..., fut], t.length[..., fut], t.width[..., fut])
-    nearest = distance_to_nearest_object(*box, t.valid[..., fut], ev)
     planar_speed = kinematic_features(t.x, t.y, np.zeros_like(t.x), t.heading, STEP_SECONDS)[0]
-    ttc = time_to_collision(*box, planar_speed[..., fut], t.valid[..., fut], ev)
+    nearest, ttc = [], []
+    for chunk in _chunks(t.x.shape[0]):  # pairwise arrays are [N, E, A, T]: bound their memory
+        box = tuple(a[chunk][..., fut] for a in (t.x, t.y, t.heading, t.length, t.width))
+        valid = t.valid[chunk][..., fut]
+        nearest.append(distance_to_nearest_object(*box, valid, ev))
+        ttc.append(time_to_collision(*box, planar_speed[chunk][..., fut], valid, ev))
+    nearest, ttc = np.concatenate(nearest), np.concatenate(ttc)
     if scene_map.road_edges is not None:
         road = distance_to_road_edge(
             scene_map.road_edges,

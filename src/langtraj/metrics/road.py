@@ -27,6 +27,7 @@ CYCLIC_TOLERANCE_M2 = 1.0
 FAR = 1e10
 _PIECE = 1.0  # longest piece (stretched metres) indexed by the k-d tree
 _NEIGHBOURS = 24
+_QUERY_CHUNK = 8192  # points per query batch: bounds the [points, neighbours, 3] temporaries
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -183,5 +184,6 @@ def distance_to_road_edge(index: RoadEdgeIndex, x, y, z, heading, length, width,
     """Signed distance of each box's most off-road corner, any shape [...]; -FAR where invalid."""
     corners = box_bottom_corners(x, y, z, heading, length, width, height)
     flat = corners.reshape(-1, 3)
-    dist = index.signed_distance(flat).reshape(corners.shape[:-1]).max(axis=-1)
+    parts = [index.signed_distance(flat[i : i + _QUERY_CHUNK]) for i in range(0, len(flat), _QUERY_CHUNK)]
+    dist = np.concatenate(parts).reshape(corners.shape[:-1]).max(axis=-1)
     return np.where(valid, dist, -FAR)
