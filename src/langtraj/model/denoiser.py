@@ -1,0 +1,46 @@
+"""The denoiser: noisy future actions of all agents to their clean estimate (x0), given the scene and
+per-agent language conditions (paper 'LangTraj'; DESIGN.md section 6).
+
+Each block has (a) agent-agent attention over the noisy futures with relative pose, (b) cross-attention
+to the scene tokens, (c) cross-attention to the agents' language embeddings E_L (each fused with its
+agent's scene embedding; agents without text carry the learned null condition).
+"""
+
+from __future__ import annotations
+
+from torch import Tensor, nn
+
+from langtraj.model.config import ModelConfig
+from langtraj.model.layers import AttentionBlock, mlp, step_embedding
+from langtraj.model.scene_encoder import SceneContext
+
+
+class Denoiser(nn.Module):
+    """x_k [B, A, N, 2] and step k [B] -> x0 estimate [B, A, N, 2] (actions in network units)."""
+
+    def __init__(self, config: ModelConfig):
+        super().__init__()
+        d = config.hidden_dim
+        self.dim = d
+        self.action_in = mlp(config.num_actions * 2, d, d)
+        self.step = mlp(d, d, d)
+        self.blocks = nn.ModuleList(
+            nn.ModuleList(AttentionBlock(d, config.num_heads, config.dropout) for _ in range(3))
+            for _ in range(config.denoiser_blocks)
+        )
+        self.out = nn.Sequential(nn.LayerNorm(d), mlp(d, d, config.num_actions * 2))
+
+    def forward(self, x_k: Tensor, k: Tensor, scene: SceneContext, language: Tensor) -> Tensor:
+        """`language` [B, A, D] is E_L for every agent (null condition where it has no text)."""
+        b, a, n, c = x_k.shape
+        h = self.action_in(x_k.reshape(b, a, n * c)) + self.step(step_embedding(k, self.dim))[:, None, :]
+        h = h + scene.agent_tokens
+        pose, mask = scene.agent_pose, scene.agent_mask
+        pair = mask[:, :, None] & mask[:, None, :]
+        scene_attn = mask[:, :, None] & scene.mask[:, None, :]
+        tokens, token_pose = scene.tokens, scene.pose
+        for agents, context, text in self.blocks:
+            h = agents(h, pose, h, pose, pair)
+            h = context(h, pose, tokens, token_pose, scene_attn)
+            h = text(h, pose, language, pose, pair)
+        return self.out(h).reshape(b, a, n, c) * mask[..., None, None]

@@ -1,0 +1,151 @@
+"""The LangTraj model: scene encoder, language encoder, denoiser and diffusion in unicycle-action space.
+
+The network predicts the clean actions (x0) of every agent from noisy ones; actions are integrated by
+the dynamics model into 10 Hz states, and the training loss compares those states with the logged
+future in the scene frame, masked by validity (paper 'LangTraj', DESIGN.md section 6).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+
+import torch
+from torch import Tensor, nn
+
+from langtraj.model.batch import SceneBatch
+from langtraj.model.config import ModelConfig
+from langtraj.model.denoiser import Denoiser
+from langtraj.model.diffusion import classifier_free_guidance, cosine_schedule, sample
+from langtraj.model.dynamics import DYNAMICS
+from langtraj.model.layers import mlp
+from langtraj.model.scene_encoder import SceneContext, SceneEncoder
+from langtraj.model.text_encoder import TextEncoder
+
+Guidance = Callable[[Tensor, Tensor, Tensor], Tensor]
+"""(x0 [B, A, N, 2], k [B], x_k) -> modified x0: the hook for cost guidance (issue 7)."""
+
+
+class LangTraj(nn.Module):
+    """Denoising diffusion over all agents' future actions, conditioned on the scene and on text."""
+
+    def __init__(self, config: ModelConfig):
+        super().__init__()
+        self.config = config
+        d = config.hidden_dim
+        self.encoder = SceneEncoder(config)
+        self.denoiser = Denoiser(config)
+        self.dynamics = DYNAMICS.create(config.dynamics)
+        self.schedule = cosine_schedule(config.diffusion_steps)
+        self.text_encoder = TextEncoder(config.text, d) if config.use_text else None
+        self.null_condition = nn.Parameter(torch.zeros(d))
+        self.fuse = mlp(2 * d, d, d)
+        self.register_buffer("action_scale", torch.tensor(config.action_scale, dtype=torch.float32), persistent=False)
+
+    # ------------------------------------------------------------------ conditioning
+    def language(self, batch: SceneBatch, scene: SceneContext, *, drop_text: bool = False) -> Tensor:
+        """E_L [B, A, D]: each agent's sentence embedding (or the null condition) fused with its scene token."""
+        b, a = batch.agent_valid.shape
+        text = self.null_condition.expand(b, a, -1)
+        if self.text_encoder is not None and not drop_text:
+            embedded, has_text = self.text_encoder(batch.text)
+            text = torch.where(has_text[..., None], embedded, text)
+        return self.fuse(torch.cat([scene.agent_tokens, text], dim=-1))
+
+    # ------------------------------------------------------------------ actions <-> network units
+    def to_units(self, actions: Tensor) -> Tensor:
+        return actions / self.action_scale
+
+    def from_units(self, x: Tensor) -> Tensor:
+        return x * self.action_scale
+
+    def target_actions(self, batch: SceneBatch) -> tuple[Tensor, Tensor]:
+        """Clean actions fitted to the logged future by inverse dynamics, in network units, and where
+        they are defined: [B, A, N, 2], bool [B, A, N]."""
+        with torch.no_grad():
+            actions, valid = self.dynamics.inverse(batch.current_state, batch.future, batch.future_valid)
+        return self.to_units(actions).clamp(-4.0, 4.0), valid & batch.agent_valid[..., None]
+
+    def rollout(self, batch: SceneBatch, x0: Tensor) -> Tensor:
+        """States [B, A, T, 4] (x, y, heading, speed) from network-unit actions [B, A, N, 2]."""
+        return self.dynamics(batch.current_state, self.from_units(x0))
+
+    # ------------------------------------------------------------------ training
+    def loss(self, batch: SceneBatch, *, generator: torch.Generator | None = None) -> dict[str, Tensor]:
+        """Diffusion loss at a random step per scene: position (and heading) error of the states that
+        the predicted clean actions produce, against the log, masked by validity."""
+        x0, _ = self.target_actions(batch)
+        b = x0.shape[0]
+        k = torch.randint(0, self.schedule.num_steps, (b,), device=x0.device, generator=generator)
+        noise = torch.randn(x0.shape, device=x0.device, generator=generator)
+        x_k = self.schedule.q_sample(x0, k, noise)
+        scene = self.encoder(batch)
+        pred = self.denoiser(x_k, k, scene, self.language(batch, scene))
+        states = self.rollout(batch, pred)
+        mask = batch.future_valid & batch.agent_valid[..., None]
+        weight = mask.float()
+        count = weight.sum().clamp(min=1.0)
+        position = ((states[..., :2] - batch.future[..., :2]) ** 2).sum(-1)
+        dh = torch.remainder(states[..., 2] - batch.future[..., 2] + torch.pi, 2 * torch.pi) - torch.pi
+        position_loss = (position * weight).sum() / count
+        heading_loss = (dh**2 * weight).sum() / count
+        ade = (torch.sqrt(position + 1e-9) * weight).sum() / count
+        return {"loss": position_loss + heading_loss, "position": position_loss, "heading": heading_loss, "ade": ade}
+
+    # ------------------------------------------------------------------ sampling
+    @torch.no_grad()
+    def sample(
+        self,
+        batch: SceneBatch,
+        num_samples: int = 1,
+        *,
+        steps: int | None = None,
+        eta: float = 0.0,
+        guidance_weight: float = 0.0,
+        guidance: Guidance | None = None,
+        generator: torch.Generator | None = None,
+    ) -> tuple[Tensor, Tensor]:
+        """`num_samples` joint futures per scene: states [S, B, A, T, 4] and actions [S, B, A, N, 2].
+
+        `steps` DDIM steps (default K); `guidance_weight` w is classifier-free guidance (w = -1: no text,
+        0: text as given, > 0: stronger); `guidance` modifies x0 at every step (cost guidance).
+        """
+        expanded = _repeat_batch(batch, num_samples)
+        scene = self.encoder(expanded)
+        conditional = self.language(expanded, scene)
+        unconditional = self.language(expanded, scene, drop_text=True) if guidance_weight != 0.0 else None
+
+        def denoise(x_k: Tensor, k: Tensor) -> Tensor:
+            x0 = self.denoiser(x_k, k, scene, conditional)
+            if unconditional is not None:
+                x0 = classifier_free_guidance(x0, self.denoiser(x_k, k, scene, unconditional), guidance_weight)
+            return x0
+
+        b, a = expanded.agent_valid.shape
+        shape = (b, a, self.config.num_actions, 2)
+        x0 = sample(
+            denoise,
+            shape,
+            self.schedule,
+            num_inference_steps=steps or self.schedule.num_steps,
+            eta=eta,
+            guidance=guidance,
+            generator=generator,
+            device=expanded.agent_valid.device,
+        )
+        states = self.rollout(expanded, x0)
+        n = batch.batch_size
+        return states.reshape(num_samples, n, *states.shape[1:]), self.from_units(x0).reshape(num_samples, n, a, -1, 2)
+
+
+def _repeat_batch(batch: SceneBatch, times: int) -> SceneBatch:
+    """The batch with every scene repeated `times` times (sample-major: all scenes, then again)."""
+    if times == 1:
+        return batch
+    fields = {}
+    for name, value in vars(batch).items():
+        if isinstance(value, Tensor):
+            fields[name] = value.repeat(times, *([1] * (value.dim() - 1)))
+        else:
+            fields[name] = list(value) * times
+    return replace(batch, **fields)

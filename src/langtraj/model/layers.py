@@ -1,0 +1,97 @@
+"""Building blocks: relative-pose attention (the query-centric mechanism), MLPs, step embeddings.
+
+Every token carries a pose (x, y, heading) in the scene frame. Attention from token i to token j adds
+an embedding of j's pose seen from i (distance, bearing, heading difference) to j's key and value,
+so what a token learns depends only on relative geometry, never on where the scene frame lies.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import Tensor, nn
+
+
+def mlp(in_dim: int, hidden: int, out_dim: int, layers: int = 2) -> nn.Sequential:
+    """Linear-ReLU stack with a LayerNorm after each hidden layer."""
+    mods: list[nn.Module] = []
+    dim = in_dim
+    for _ in range(layers - 1):
+        mods += [nn.Linear(dim, hidden), nn.LayerNorm(hidden), nn.ReLU()]
+        dim = hidden
+    mods.append(nn.Linear(dim, out_dim))
+    return nn.Sequential(*mods)
+
+
+def relative_pose_features(query_pose: Tensor, key_pose: Tensor) -> Tensor:
+    """[..., Nq, Nk, 5]: log(1 + distance), sin and cos of the bearing of j from i in i's frame, and sin
+    and cos of the heading difference; poses are [..., N, 3] (x, y, heading)."""
+    dx = key_pose[..., None, :, 0] - query_pose[..., :, None, 0]
+    dy = key_pose[..., None, :, 1] - query_pose[..., :, None, 1]
+    heading = query_pose[..., :, None, 2]
+    cos_h, sin_h = torch.cos(heading), torch.sin(heading)
+    forward, left = cos_h * dx + sin_h * dy, -sin_h * dx + cos_h * dy  # j seen from i's frame
+    distance = torch.sqrt(dx**2 + dy**2 + 1e-6)
+    bearing = torch.atan2(left, forward)  # 0 for coincident tokens, whatever the frame
+    dheading = key_pose[..., None, :, 2] - heading
+    return torch.stack(
+        [torch.log1p(distance), torch.sin(bearing), torch.cos(bearing), torch.sin(dheading), torch.cos(dheading)],
+        dim=-1,
+    )
+
+
+class RelPoseAttention(nn.Module):
+    """Multi-head attention whose keys and values carry the key token's pose relative to the query's."""
+
+    def __init__(self, dim: int, heads: int, dropout: float = 0.0):
+        super().__init__()
+        if dim % heads:
+            raise ValueError(f"hidden size {dim} is not divisible by {heads} heads")
+        self.heads, self.head_dim = heads, dim // heads
+        self.q = nn.Linear(dim, dim)
+        self.k = nn.Linear(dim, dim)
+        self.v = nn.Linear(dim, dim)
+        self.rel = mlp(5, dim, dim)
+        self.out = nn.Linear(dim, dim)
+        self.drop = nn.Dropout(dropout)
+
+    def forward(self, query: Tensor, query_pose: Tensor, key: Tensor, key_pose: Tensor, mask: Tensor) -> Tensor:
+        """query [B, Nq, D], key [B, Nk, D], poses [B, N, 3], mask bool [B, Nq, Nk] (True: attend).
+        Rows with nothing to attend to return zeros."""
+        b, nq, d = query.shape
+        nk = key.shape[1]
+        rel = self.rel(relative_pose_features(query_pose, key_pose))  # [B, Nq, Nk, D]
+        q = self.q(query).view(b, nq, self.heads, self.head_dim)
+        k = (self.k(key)[:, None] + rel).view(b, nq, nk, self.heads, self.head_dim)
+        v = (self.v(key)[:, None] + rel).view(b, nq, nk, self.heads, self.head_dim)
+        logits = torch.einsum("bqhd,bqkhd->bhqk", q, k) / math.sqrt(self.head_dim)
+        logits = logits.masked_fill(~mask[:, None], float("-inf"))
+        any_key = mask.any(-1)[:, None, :, None]  # [B, 1, Nq, 1]
+        weights = torch.softmax(logits.masked_fill(~any_key, 0.0), dim=-1) * any_key
+        out = torch.einsum("bhqk,bqkhd->bqhd", self.drop(weights), v).reshape(b, nq, d)
+        return self.out(out)
+
+
+class AttentionBlock(nn.Module):
+    """Pre-norm residual block: relative-pose attention, then a feed-forward layer."""
+
+    def __init__(self, dim: int, heads: int, dropout: float = 0.0):
+        super().__init__()
+        self.norm_q = nn.LayerNorm(dim)
+        self.norm_k = nn.LayerNorm(dim)
+        self.attn = RelPoseAttention(dim, heads, dropout)
+        self.norm_ff = nn.LayerNorm(dim)
+        self.ff = nn.Sequential(nn.Linear(dim, 4 * dim), nn.GELU(), nn.Dropout(dropout), nn.Linear(4 * dim, dim))
+
+    def forward(self, x: Tensor, pose: Tensor, context: Tensor, context_pose: Tensor, mask: Tensor) -> Tensor:
+        x = x + self.attn(self.norm_q(x), pose, self.norm_k(context), context_pose, mask)
+        return x + self.ff(self.norm_ff(x))
+
+
+def step_embedding(k: Tensor, dim: int) -> Tensor:
+    """Sinusoidal embedding [..., dim] of diffusion step indices `k`."""
+    half = dim // 2
+    freqs = torch.exp(-math.log(10000.0) * torch.arange(half, device=k.device, dtype=torch.float32) / half)
+    angles = k.float()[..., None] * freqs
+    return torch.cat([torch.sin(angles), torch.cos(angles)], dim=-1)

@@ -1,0 +1,125 @@
+"""Query-centric scene encoder: each agent history and map polyline in its own frame, then
+relative-pose attention between them (paper 'LangTraj', DESIGN.md section 6)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor, nn
+
+from langtraj.model.batch import SceneBatch
+from langtraj.model.config import ModelConfig
+from langtraj.model.layers import AttentionBlock, mlp
+
+_AGENT_TYPES = 5  # padding + AgentType 1..4
+_MAP_TYPES = 40  # padding + MapFeatureType values (< 40)
+
+
+@dataclass
+class SceneContext:
+    """Encoded scene: agent and map tokens with their poses and masks."""
+
+    agent_tokens: Tensor  # [B, A, D]
+    agent_pose: Tensor  # [B, A, 3]
+    agent_mask: Tensor  # bool [B, A]
+    map_tokens: Tensor  # [B, M, D]
+    map_pose: Tensor  # [B, M, 3]
+    map_mask: Tensor  # bool [B, M]
+
+    @property
+    def tokens(self) -> Tensor:
+        return torch.cat([self.agent_tokens, self.map_tokens], dim=1)
+
+    @property
+    def pose(self) -> Tensor:
+        return torch.cat([self.agent_pose, self.map_pose], dim=1)
+
+    @property
+    def mask(self) -> Tensor:
+        return torch.cat([self.agent_mask, self.map_mask], dim=1)
+
+
+def _rotate(xy: Tensor, angle: Tensor) -> Tensor:
+    """Rotate [..., 2] vectors by `angle` [...] (broadcast)."""
+    c, s = torch.cos(angle), torch.sin(angle)
+    return torch.stack([c * xy[..., 0] - s * xy[..., 1], s * xy[..., 0] + c * xy[..., 1]], dim=-1)
+
+
+def agent_local_history(batch: SceneBatch) -> Tensor:
+    """History [B, A, H, 7] re-expressed in each agent's current frame (position, heading and velocity
+    relative to it), zero where invalid."""
+    hist = batch.agent_history
+    pose = batch.current_state[..., :3]
+    heading = pose[..., 2][..., None]  # [B, A, 1]
+    rel_xy = _rotate(hist[..., 0:2] - pose[..., None, 0:2], -heading)
+    hist_heading = torch.atan2(hist[..., 3], hist[..., 2])
+    dh = hist_heading - heading
+    vel = _rotate(hist[..., 4:6], -heading)
+    valid = batch.history_valid.float()
+    local = torch.cat([rel_xy, torch.cos(dh)[..., None], torch.sin(dh)[..., None], vel, valid[..., None]], dim=-1)
+    return local * valid[..., None]
+
+
+def polyline_pose(points: Tensor, valid: Tensor) -> Tensor:
+    """Pose [B, M, 3] of each polyline: the mean of its valid points, heading from its first to its last
+    valid point (0 for a single point)."""
+    w = valid.float()
+    count = w.sum(-1).clamp(min=1.0)
+    centre = (points * w[..., None]).sum(-2) / count[..., None]
+    idx = torch.arange(points.shape[-2], device=points.device)
+    first = torch.where(valid, idx, points.shape[-2]).min(-1).values.clamp(max=points.shape[-2] - 1)
+    last = torch.where(valid, idx, -1).max(-1).values.clamp(min=0)
+    start = torch.gather(points, -2, first[..., None, None].expand(*first.shape, 1, 2))[..., 0, :]
+    end = torch.gather(points, -2, last[..., None, None].expand(*last.shape, 1, 2))[..., 0, :]
+    d = end - start
+    heading = torch.where(d.norm(dim=-1) > 1e-3, torch.atan2(d[..., 1], d[..., 0]), torch.zeros_like(d[..., 0]))
+    return torch.cat([centre, heading[..., None]], dim=-1)
+
+
+class SceneEncoder(nn.Module):
+    """Agent histories and map polylines to tokens, each embedded in its own frame, then mixed by
+    relative-pose attention: map polylines attend to nearby polylines, agents to agents and the map."""
+
+    def __init__(self, config: ModelConfig):
+        super().__init__()
+        d = config.hidden_dim
+        self.radius = config.map_attention_radius
+        self.agent_embed = mlp(config.history_steps * 7, d, d)
+        self.agent_type = nn.Embedding(_AGENT_TYPES, d)
+        self.agent_size = mlp(2, d, d)
+        self.point_embed = mlp(4, d, d)
+        self.polyline_out = mlp(d, d, d)
+        self.map_type = nn.Embedding(_MAP_TYPES, d)
+        self.map_layers = nn.ModuleList(
+            AttentionBlock(d, config.num_heads, config.dropout) for _ in range(config.encoder_layers)
+        )
+        self.agent_layers = nn.ModuleList(
+            AttentionBlock(d, config.num_heads, config.dropout) for _ in range(config.encoder_layers)
+        )
+
+    def forward(self, batch: SceneBatch) -> SceneContext:
+        b, a = batch.agent_valid.shape
+        agent_pose = batch.current_state[..., :3]
+        agent = self.agent_embed(agent_local_history(batch).reshape(b, a, -1))
+        agent = agent + self.agent_type(batch.agent_type.clamp(0, _AGENT_TYPES - 1)) + self.agent_size(batch.agent_size)
+        map_pose = polyline_pose(batch.map_points, batch.map_valid)
+        local = _rotate(batch.map_points - map_pose[..., None, :2], -map_pose[..., 2][..., None])
+        seg = torch.diff(local, dim=-2, prepend=local[..., :1, :])
+        points = self.point_embed(torch.cat([local, seg], dim=-1))
+        points = points.masked_fill(~batch.map_valid[..., None], float("-inf")).max(dim=-2).values
+        map_mask = batch.map_valid.any(-1)
+        polylines = self.polyline_out(torch.where(map_mask[..., None], points, torch.zeros_like(points)))
+        polylines = polylines + self.map_type(batch.map_type.clamp(0, _MAP_TYPES - 1))
+        near = torch.cdist(map_pose[..., :2], map_pose[..., :2]) < self.radius
+        map_attn = near & map_mask[:, None, :] & map_mask[:, :, None]
+        for layer in self.map_layers:
+            polylines = layer(polylines, map_pose, polylines, map_pose, map_attn)
+        context_mask = torch.cat([batch.agent_valid, map_mask], dim=1)
+        context_pose = torch.cat([agent_pose, map_pose], dim=1)
+        agent_attn = context_mask[:, None, :].expand(b, a, -1) & batch.agent_valid[:, :, None]
+        for layer in self.agent_layers:
+            context = torch.cat([agent, polylines], dim=1)
+            agent = layer(agent, agent_pose, context, context_pose, agent_attn)
+        agent = agent * batch.agent_valid[..., None]
+        return SceneContext(agent, agent_pose, batch.agent_valid, polylines, map_pose, map_mask)

@@ -1,0 +1,1 @@
+"""Training LangTraj: turning InterDrive windows into model batches, and the sampling that balances them."""

@@ -1,0 +1,124 @@
+"""Training configuration: model, data, optimisation and hardware, read from YAML presets in `configs/`.
+
+A YAML file may name another with `extends: other.yaml` (relative to itself); its keys then override
+the other's, section by section. Hardware is configuration only: `accelerator`, `devices`,
+`num_nodes` and `strategy` (e.g. ddp) go straight to the Lightning Trainer, so the same command runs
+on a laptop CPU, one GPU or several nodes (launched with torchrun or a cluster scheduler).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from langtraj.errors import InputError
+from langtraj.model.config import ModelConfig
+from langtraj.training.data import SampleConfig
+
+
+@dataclass(frozen=True)
+class OptimConfig:
+    """AdamW with linear warm-up then cosine decay to `min_lr_ratio` of the peak at `max_steps`."""
+
+    lr: float = 3e-4
+    weight_decay: float = 0.01
+    warmup_steps: int = 200
+    min_lr_ratio: float = 0.05
+    grad_clip: float = 1.0
+
+
+@dataclass(frozen=True)
+class ValConfig:
+    """What validation measures: minADE over `num_samples` samples (with and without text in stage 2)
+    on up to `max_batches` batches, and WOSAC metrics on `wosac_scenes` scenes (0: off)."""
+
+    num_samples: int = 6
+    sample_steps: int = 10  # DDIM steps used when sampling for validation
+    max_batches: int = 4
+    wosac_scenes: int = 2
+    wosac_rollouts: int = 32
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One training stage. Stage 1 learns without text; stage 2 adds text (and LoRA), starting from
+    `init_from` (a stage-1 checkpoint) when given."""
+
+    name: str = "tiny"
+    stage: int = 1
+    model: ModelConfig = field(default_factory=ModelConfig)
+    data: SampleConfig = field(default_factory=SampleConfig)
+    optim: OptimConfig = field(default_factory=OptimConfig)
+    val: ValConfig = field(default_factory=ValConfig)
+    batch_size: int = 16
+    max_steps: int = 2000
+    val_every_steps: int = 500
+    checkpoint_every_steps: int = 100
+    num_workers: int = 0
+    seed: int = 0
+    init_from: str | None = None
+    accelerator: str = "auto"
+    devices: int | str = "auto"
+    num_nodes: int = 1
+    strategy: str = "auto"
+    precision: str = "32-true"
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], where: str = "config") -> TrainConfig:
+        data = dict(data)
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise InputError(f"unknown keys {', '.join(unknown)}; known: {', '.join(sorted(known))}", where=where)
+        try:
+            sections = {
+                "model": ModelConfig.from_dict(data.pop("model", {})),
+                "data": SampleConfig(**data.pop("data", {})),
+                "optim": OptimConfig(**data.pop("optim", {})),
+                "val": ValConfig(**data.pop("val", {})),
+            }
+            config = cls(**sections, **data)
+        except TypeError as exc:
+            raise InputError(str(exc), where=where) from None
+        if config.stage not in (1, 2):
+            raise InputError(f"stage must be 1 or 2, got {config.stage}", where=where)
+        if config.stage == 2 and not config.model.use_text:
+            raise InputError("stage 2 trains with text: model.use_text must be true", where=where)
+        return config
+
+
+def _merge(base: dict[str, Any], top: dict[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for key, value in top.items():
+        out[key] = _merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
+
+
+def read_yaml(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """The YAML mapping at `path` with its `extends` chain merged in."""
+    path = Path(path).resolve()
+    if path in _seen:
+        raise InputError("circular 'extends'", path=path)
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except FileNotFoundError:
+        raise InputError("no such file", path=path) from None
+    except yaml.YAMLError as exc:
+        raise InputError(f"not valid YAML: {exc}", path=path) from None
+    if not isinstance(data, dict):
+        raise InputError("expected a mapping of settings", path=path)
+    parent = data.pop("extends", None)
+    if parent is None:
+        return data
+    return _merge(read_yaml(path.parent / parent, (*_seen, path)), data)
+
+
+def load_config(path: str | Path) -> TrainConfig:
+    """The training configuration of a YAML preset (see `configs/`)."""
+    return TrainConfig.from_dict(read_yaml(Path(path)), where=str(path))

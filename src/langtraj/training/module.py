@@ -1,0 +1,164 @@
+"""Lightning wiring: the training step, validation measures, optimiser schedule, data loading and
+checkpoints that resume exactly (weights, optimiser, scheduler, step, data position; randomness
+derives from the step)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytorch_lightning as pl
+import torch
+from torch.utils.data import DataLoader, Sampler
+
+from langtraj import __version__
+from langtraj.errors import InputError
+from langtraj.model.langtraj import LangTraj
+from langtraj.training.config import TrainConfig
+from langtraj.training.data import MixingSampler, SceneDataset, collate_scenes
+from langtraj.training.evaluation import constant_velocity, min_ade
+
+CHECKPOINT_FORMAT = 1
+"""Bumped when a checkpoint's layout changes; loading another format is refused."""
+
+FROZEN_PREFIX = "model.text_encoder.encoder."
+"""Pretrained text-encoder weights: not stored in checkpoints (they load from the encoder's package)."""
+
+
+class LangTrajModule(pl.LightningModule):
+    """One training stage of `LangTraj` (stage 1: no text; stage 2: text and LoRA)."""
+
+    def __init__(self, config: dict[str, Any]):
+        super().__init__()
+        self.train_config = TrainConfig.from_dict(config)
+        self.save_hyperparameters({"config": self.train_config.to_dict(), "langtraj_version": __version__})
+        self.model = LangTraj(self.train_config.model)
+        self._val: dict[str, float] = {}
+
+    # ------------------------------------------------------------------ steps
+    def on_train_batch_start(self, batch, batch_idx: int) -> None:
+        """Every step's randomness (diffusion step, noise, dropout) derives from (seed, step) alone, so
+        a run resumed from a checkpoint draws exactly what the uninterrupted run would have."""
+        torch.manual_seed(self.train_config.seed * 1_000_003 + self.global_step)
+
+    def training_step(self, batch, batch_idx: int) -> torch.Tensor:
+        out = self.model.loss(batch)
+        size = batch.batch_size
+        for name, value in out.items():
+            self.log(f"train/{name}", value, batch_size=size, prog_bar=name in ("loss", "ade"))
+        return out["loss"]
+
+    def on_validation_epoch_start(self) -> None:
+        self._val = {}
+
+    def _accumulate(self, name: str, total: torch.Tensor, count: torch.Tensor) -> None:
+        s, n = self._val.get(name, (0.0, 0.0))
+        self._val[name] = (s + float(total), n + float(count))
+
+    def validation_step(self, batch, batch_idx: int) -> None:
+        val = self.train_config.val
+        if batch_idx >= val.max_batches:
+            return
+        out = self.model.loss(batch)
+        self._accumulate("loss", out["loss"] * batch.batch_size, torch.tensor(batch.batch_size))
+        generator = torch.Generator(device=self.device).manual_seed(self.train_config.seed + batch_idx)
+        kwargs = {"steps": val.sample_steps, "generator": generator}
+        states, _ = self.model.sample(batch, val.num_samples, **kwargs)
+        self._accumulate("minade", *min_ade(states, batch))
+        self._accumulate("cv_minade", *min_ade(constant_velocity(batch, states.shape[-2]), batch))
+        if self.model.text_encoder is not None:
+            prompted = batch.has_text & batch.agent_valid
+            self._accumulate("minade_prompted_text", *min_ade(states, batch, prompted))
+            generator.manual_seed(self.train_config.seed + batch_idx)
+            plain, _ = self.model.sample(batch, val.num_samples, guidance_weight=-1.0, **kwargs)
+            self._accumulate("minade_prompted_no_text", *min_ade(plain, batch, prompted))
+
+    def on_validation_epoch_end(self) -> None:
+        for name, (total, count) in self._val.items():
+            if count:
+                self.log(f"val/{name}", total / count, sync_dist=True)
+
+    # ------------------------------------------------------------------ optimisation
+    def configure_optimizers(self):
+        optim = self.train_config.optim
+        params = [p for p in self.model.parameters() if p.requires_grad]
+        optimizer = torch.optim.AdamW(params, lr=optim.lr, weight_decay=optim.weight_decay)
+        total = max(self.train_config.max_steps, 1)
+
+        def factor(step: int) -> float:
+            if step < optim.warmup_steps:
+                return (step + 1) / optim.warmup_steps
+            progress = min(1.0, (step - optim.warmup_steps) / max(1, total - optim.warmup_steps))
+            return optim.min_lr_ratio + (1 - optim.min_lr_ratio) * 0.5 * (1 + math.cos(math.pi * progress))
+
+        scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, factor)
+        return {"optimizer": optimizer, "lr_scheduler": {"scheduler": scheduler, "interval": "step"}}
+
+    # ------------------------------------------------------------------ checkpoints
+    def on_save_checkpoint(self, checkpoint: dict[str, Any]) -> None:
+        """Mark the format and drop the frozen pretrained text weights (they reload from the encoder's
+        package), which keeps checkpoints small."""
+        checkpoint["langtraj_format"] = CHECKPOINT_FORMAT
+        state = checkpoint["state_dict"]
+        for key in [k for k in state if k.startswith(FROZEN_PREFIX) and "lora_" not in k]:
+            del state[key]
+
+    def on_load_checkpoint(self, checkpoint: dict[str, Any]) -> None:
+        if checkpoint.get("langtraj_format") != CHECKPOINT_FORMAT:
+            raise InputError(
+                f"checkpoint format {checkpoint.get('langtraj_format')!r}, this LangTraj reads {CHECKPOINT_FORMAT}",
+                where="checkpoint",
+            )
+        state = checkpoint["state_dict"]
+        for key, value in self.state_dict().items():  # the frozen encoder weights come from the package
+            if key.startswith(FROZEN_PREFIX) and key not in state:
+                state[key] = value
+
+
+class _Skip(Sampler[int]):
+    """The first `skip` indices of an infinite sampler dropped: where training stopped."""
+
+    def __init__(self, sampler: Sampler[int], skip: int):
+        self.sampler, self.skip = sampler, skip
+
+    def __iter__(self) -> Iterator[int]:
+        return itertools.islice(iter(self.sampler), self.skip, None)
+
+
+class CorpusData(pl.LightningDataModule):
+    """Training and validation windows of an InterDrive dataset folder (labels over scenario files)."""
+
+    def __init__(self, labels_dir: str | Path, config: TrainConfig):
+        super().__init__()
+        self.labels_dir, self.config = Path(labels_dir), config
+        data = config.data if config.stage == 2 else _without_text(config.data)
+        self.train_set = SceneDataset(self.labels_dir, data, split="train", seed=config.seed)
+        self.val_set = SceneDataset(self.labels_dir, data, split="val", seed=config.seed)
+        if len(self.train_set) == 0:
+            raise InputError("no training window (every window fell in the validation split)", path=self.labels_dir)
+
+    def train_dataloader(self) -> DataLoader:
+        sampler = MixingSampler(self.train_set, self.config.batch_size, infinite=True, seed=self.config.seed)
+        step = self.trainer.global_step if self.trainer is not None else 0
+        return DataLoader(
+            self.train_set,
+            batch_size=self.config.batch_size,
+            sampler=_Skip(sampler, step * self.config.batch_size),
+            collate_fn=collate_scenes,
+            num_workers=self.config.num_workers,
+            persistent_workers=self.config.num_workers > 0,
+        )
+
+    def val_dataloader(self) -> DataLoader:
+        count = min(len(self.val_set), self.config.val.max_batches * self.config.batch_size)
+        subset = torch.utils.data.Subset(self.val_set, list(range(count)))
+        return DataLoader(subset, batch_size=self.config.batch_size, collate_fn=collate_scenes)
+
+
+def _without_text(data):
+    from dataclasses import replace
+
+    return replace(data, text=False)

@@ -1,0 +1,132 @@
+"""Running a training stage: seeding, model initialisation, loggers, checkpoints, resume.
+
+Checkpoints go to `RUN_DIR/checkpoints/` every `checkpoint_every_steps` steps (`last.ckpt` plus the two
+most recent numbered ones), each written to a temporary file and renamed, so a kill loses at most the
+steps since the last checkpoint and never leaves a half-written file. Logs: TensorBoard and CSV under
+`RUN_DIR/logs/`.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import pytorch_lightning as pl
+import torch
+from pytorch_lightning.callbacks import LearningRateMonitor, ModelCheckpoint
+from pytorch_lightning.loggers import CSVLogger, TensorBoardLogger
+from pytorch_lightning.plugins.io import TorchCheckpointIO
+
+from langtraj.errors import InputError
+from langtraj.fileio import atomic_path
+from langtraj.training.config import TrainConfig
+from langtraj.training.module import CHECKPOINT_FORMAT, CorpusData, LangTrajModule
+
+
+class AtomicCheckpointIO(TorchCheckpointIO):
+    """Checkpoints written to a temporary file beside the target, then renamed over it."""
+
+    def save_checkpoint(self, checkpoint: dict[str, Any], path, storage_options=None) -> None:
+        with atomic_path(path) as tmp:
+            torch.save(checkpoint, tmp)
+
+
+def load_checkpoint(path: str | Path) -> dict[str, Any]:
+    """A LangTraj checkpoint, checked for its format; errors name the file."""
+    path = Path(path)
+    try:
+        checkpoint = torch.load(path, map_location="cpu", weights_only=True)  # never runs code from the file
+    except FileNotFoundError:
+        raise InputError("no such checkpoint", path=path) from None
+    except Exception as exc:  # torch raises many kinds for a truncated or foreign file
+        raise InputError(f"not a readable checkpoint ({type(exc).__name__}: {exc})", path=path) from None
+    if not isinstance(checkpoint, dict) or checkpoint.get("langtraj_format") != CHECKPOINT_FORMAT:
+        found = checkpoint.get("langtraj_format") if isinstance(checkpoint, dict) else None
+        raise InputError(f"not a LangTraj checkpoint of format {CHECKPOINT_FORMAT} (found {found!r})", path=path)
+    return checkpoint
+
+
+def module_from_checkpoint(path: str | Path) -> LangTrajModule:
+    """The module a checkpoint was trained as, with its weights (frozen encoder weights from its package)."""
+    checkpoint = load_checkpoint(path)
+    module = LangTrajModule(checkpoint["hyper_parameters"]["config"])
+    module.on_load_checkpoint({**checkpoint, "rng": None})
+    module.load_state_dict(checkpoint["state_dict"])
+    return module
+
+
+def _initialise(module: LangTrajModule, path: str) -> None:
+    """Stage 2 starts from stage 1's weights; the new text branch keeps its fresh initialisation."""
+    checkpoint = load_checkpoint(path)
+    own = module.state_dict()
+    state = {k: v for k, v in checkpoint["state_dict"].items() if k in own and own[k].shape == v.shape}
+    module.load_state_dict(state, strict=False)
+
+
+def resolve_resume(resume: str | None, out: Path) -> str | None:
+    """`auto`: the run's `last.ckpt` when there is one; a path: that file; None: a fresh start."""
+    if resume is None:
+        return None
+    if resume == "auto":
+        last = out / "checkpoints" / "last.ckpt"
+        return str(last) if last.is_file() else None
+    load_checkpoint(resume)  # fail early with a clear message
+    return resume
+
+
+def train(
+    config: TrainConfig,
+    data_dir: str | Path,
+    out: str | Path,
+    *,
+    resume: str | None = None,
+    max_steps: int | None = None,
+    progress: bool = True,
+) -> Path:
+    """Run one training stage; returns the path of the last checkpoint."""
+    out = Path(out)
+    if max_steps is not None:
+        from dataclasses import replace
+
+        config = replace(config, max_steps=max_steps)
+    pl.seed_everything(config.seed, workers=True, verbose=False)
+    torch.set_num_threads(max(1, min(torch.get_num_threads(), os.cpu_count() or 1)))
+    data = CorpusData(data_dir, config)
+    module = LangTrajModule(config.to_dict())
+    ckpt_path = resolve_resume(resume, out)
+    if ckpt_path is None and config.init_from:
+        _initialise(module, config.init_from)
+    checkpoints = ModelCheckpoint(
+        dirpath=out / "checkpoints",
+        filename="step{step:07d}",
+        auto_insert_metric_name=False,
+        every_n_train_steps=config.checkpoint_every_steps,
+        save_last=True,
+        save_top_k=2,
+        monitor="step",
+        mode="max",
+    )
+    trainer = pl.Trainer(
+        default_root_dir=out,
+        max_steps=config.max_steps,
+        val_check_interval=config.val_every_steps,
+        check_val_every_n_epoch=None,
+        num_sanity_val_steps=0,
+        logger=[TensorBoardLogger(out / "logs", name="tb"), CSVLogger(out / "logs", name="csv")],
+        callbacks=[checkpoints, LearningRateMonitor(logging_interval="step")],
+        plugins=[AtomicCheckpointIO()],
+        gradient_clip_val=config.optim.grad_clip,
+        accelerator=config.accelerator,
+        devices=config.devices,
+        num_nodes=config.num_nodes,
+        strategy=config.strategy,
+        precision=config.precision,
+        enable_progress_bar=progress,
+        log_every_n_steps=10,
+        deterministic=False,
+    )
+    trainer.fit(module, datamodule=data, ckpt_path=ckpt_path)
+    last = out / "checkpoints" / "last.ckpt"
+    trainer.save_checkpoint(last)  # the end state, also when max_steps is not a multiple of the interval
+    return last

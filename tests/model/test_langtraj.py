@@ -1,0 +1,119 @@
+"""The assembled model: shapes, padding that cannot leak into real agents, loss, sampling, CFG."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+from scenario_builders import make_scenario
+
+from langtraj.model import LangTraj, ModelConfig
+from langtraj.training.data import SampleConfig, build_sample, collate_scenes
+
+SMALL_DATA = SampleConfig(max_agents=8, max_polylines=12, points_per_polyline=10, text=False)
+SMALL_MODEL = ModelConfig(hidden_dim=32, num_heads=4, encoder_layers=1, denoiser_blocks=1, dropout=0.0, use_text=False)
+
+
+def _batch(n: int = 2, agents: int = 5):
+    rng = np.random.default_rng(0)
+    samples = [build_sample(make_scenario(agents, seed=i), None, SMALL_DATA, rng, augment=False) for i in range(n)]
+    return collate_scenes(samples)
+
+
+@pytest.fixture(scope="module")
+def model() -> LangTraj:
+    torch.manual_seed(0)
+    return LangTraj(SMALL_MODEL).eval()
+
+
+def test_shapes_of_the_denoiser_and_of_samples(model):
+    batch = _batch()
+    scene = model.encoder(batch)
+    assert scene.agent_tokens.shape == (2, 8, 32) and scene.map_tokens.shape == (2, 12, 32)
+    x0, valid = model.target_actions(batch)
+    assert x0.shape == (2, 8, 16, 2) and valid.shape == (2, 8, 16)
+    out = model.denoiser(x0, torch.tensor([3, 50]), scene, model.language(batch, scene))
+    assert out.shape == x0.shape
+    states, actions = model.sample(batch, 3, steps=4, generator=torch.Generator().manual_seed(0))
+    assert states.shape == (3, 2, 8, 80, 4) and actions.shape == (3, 2, 8, 16, 2)
+    assert torch.isfinite(states).all()
+
+
+def test_padded_agents_and_map_slots_cannot_change_real_agents(model):
+    batch = _batch(agents=5)
+    pad = ~batch.agent_valid
+    assert pad.any()
+    noisy = replace(
+        batch,
+        agent_history=torch.where(
+            pad[..., None, None], torch.randn_like(batch.agent_history) * 50, batch.agent_history
+        ),
+        current_state=torch.where(pad[..., None], torch.randn_like(batch.current_state) * 50, batch.current_state),
+        map_points=torch.where(batch.map_valid[..., None], batch.map_points, torch.randn_like(batch.map_points) * 50),
+    )
+    x = torch.randn(2, 8, 16, 2, generator=torch.Generator().manual_seed(1))
+    k = torch.tensor([10, 90])
+    outs = []
+    for b in (batch, noisy):
+        scene = model.encoder(b)
+        outs.append(model.denoiser(x, k, scene, model.language(b, scene)))
+    valid = batch.agent_valid
+    torch.testing.assert_close(outs[0][valid], outs[1][valid], atol=1e-5, rtol=1e-5)
+    assert (outs[0][pad] == 0).all()
+
+
+def test_the_loss_ignores_invalid_future_steps(model):
+    batch = _batch()
+    torch.manual_seed(3)
+    clean = float(model.loss(batch)["position"])
+    broken = replace(batch, future=torch.where(batch.future_valid[..., None], batch.future, batch.future + 1e3))
+    torch.manual_seed(3)
+    assert float(model.loss(broken)["position"]) == pytest.approx(clean, rel=1e-5)
+
+
+def test_the_model_is_invariant_to_where_the_scene_frame_is(model):
+    """Query-centric encoding: rotating and shifting the whole scene moves the sampled states with it."""
+    batch = _batch(n=1)
+    angle, shift = 0.7, torch.tensor([30.0, -12.0])
+    c, s = np.cos(angle), np.sin(angle)
+    rot = torch.tensor([[c, -s], [s, c]], dtype=torch.float32)
+
+    def move_xy(xy):
+        return xy @ rot.T + shift
+
+    hist = batch.agent_history.clone()
+    hist[..., 0:2] = move_xy(hist[..., 0:2])
+    hist[..., 2:4] = hist[..., 2:4] @ rot.T
+    hist[..., 4:6] = hist[..., 4:6] @ rot.T
+    state = batch.current_state.clone()
+    state[..., 0:2] = move_xy(state[..., 0:2])
+    state[..., 2] += angle
+    moved = replace(
+        batch,
+        agent_history=hist * batch.history_valid[..., None],
+        current_state=state,
+        map_points=move_xy(batch.map_points) * batch.map_valid[..., None],
+    )
+    a, _ = model.sample(batch, 1, steps=3, generator=torch.Generator().manual_seed(5))
+    b, _ = model.sample(moved, 1, steps=3, generator=torch.Generator().manual_seed(5))
+    valid = batch.agent_valid[0]
+    torch.testing.assert_close(move_xy(a[0, 0, valid, :, :2]), b[0, 0, valid, :, :2], atol=2e-3, rtol=1e-4)
+
+
+def test_guidance_weight_minus_one_is_the_unconditional_model():
+    torch.manual_seed(0)
+    config = replace(SMALL_MODEL, use_text=True)
+    model = LangTraj(config).eval()
+    data = replace(SMALL_DATA, text=True)
+    rng = np.random.default_rng(0)
+    batch = collate_scenes([build_sample(make_scenario(5), None, data, rng, augment=False)])
+    batch = replace(batch, text=[["the target agent turns left"] + [None] * 7])
+    no_text = replace(batch, text=[[None] * 8])
+    gen = torch.Generator()
+    uncond, _ = model.sample(batch, 1, steps=3, guidance_weight=-1.0, generator=gen.manual_seed(2))
+    plain, _ = model.sample(no_text, 1, steps=3, generator=gen.manual_seed(2))
+    cond, _ = model.sample(batch, 1, steps=3, generator=gen.manual_seed(2))
+    torch.testing.assert_close(uncond, plain)
+    assert not torch.allclose(cond, plain)

@@ -1,0 +1,103 @@
+"""Training runs: the loss falls, checkpoints resume exactly, bad configurations and checkpoints fail
+clearly. Small model, toy scenes, CPU."""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+import torch
+from dataset_builders import write_dataset
+
+from langtraj.errors import InputError
+from langtraj.model import ModelConfig
+from langtraj.training.config import TrainConfig, load_config
+from langtraj.training.data import SampleConfig
+from langtraj.training.run import load_checkpoint, module_from_checkpoint, train
+
+ROOT = Path(__file__).resolve().parents[2]
+CONFIG = TrainConfig(
+    name="test",
+    model=ModelConfig(hidden_dim=32, num_heads=4, encoder_layers=1, denoiser_blocks=1, dropout=0.0, use_text=False),
+    data=SampleConfig(max_agents=8, max_polylines=12, points_per_polyline=10),
+    batch_size=4,
+    max_steps=20,
+    val_every_steps=1000,
+    checkpoint_every_steps=3,
+)
+
+
+@pytest.fixture(scope="module")
+def labels(tmp_path_factory) -> Path:
+    return write_dataset(tmp_path_factory.mktemp("train"), 24)
+
+
+def _losses(run: Path) -> list[float]:
+    rows = list(csv.DictReader((run / "logs" / "csv" / "version_0" / "metrics.csv").open()))
+    return [float(r["train/loss"]) for r in rows if r.get("train/loss")]
+
+
+def test_twenty_steps_lower_the_loss(labels, tmp_path):
+    config = replace(CONFIG, optim=replace(CONFIG.optim, lr=3e-3, warmup_steps=1))
+    last = train(config, labels, tmp_path / "run", progress=False)
+    losses = _losses(tmp_path / "run")
+    assert len(losses) == 2  # logged every 10 steps
+    assert losses[-1] < losses[0]
+    assert last.is_file() and load_checkpoint(last)["global_step"] == 20
+
+
+def test_resuming_from_a_checkpoint_continues_exactly(labels, tmp_path):
+    config = replace(CONFIG, max_steps=6)
+    train(config, labels, tmp_path / "a", progress=False)
+    middle = tmp_path / "a" / "checkpoints" / "step0000003.ckpt"
+    assert middle.is_file()
+    train(config, labels, tmp_path / "b", resume=str(middle), progress=False)
+    a = load_checkpoint(tmp_path / "a" / "checkpoints" / "last.ckpt")
+    b = load_checkpoint(tmp_path / "b" / "checkpoints" / "last.ckpt")
+    assert a["global_step"] == b["global_step"] == 6
+    for key, value in a["state_dict"].items():
+        torch.testing.assert_close(b["state_dict"][key], value, atol=1e-6, rtol=1e-5, msg=key)
+
+
+def test_resume_auto_picks_up_the_last_checkpoint(labels, tmp_path):
+    config = replace(CONFIG, max_steps=3)
+    train(config, labels, tmp_path / "run", progress=False)
+    train(config, labels, tmp_path / "run", resume="auto", max_steps=5, progress=False)
+    assert load_checkpoint(tmp_path / "run" / "checkpoints" / "last.ckpt")["global_step"] == 5
+    assert not list((tmp_path / "run" / "checkpoints").glob("*.tmp*"))
+
+
+def test_checkpoints_leave_out_the_pretrained_text_weights_and_reload(labels, tmp_path):
+    config = replace(CONFIG, stage=2, model=replace(CONFIG.model, use_text=True), max_steps=2)
+    last = train(config, labels, tmp_path / "run", progress=False)
+    state = load_checkpoint(last)["state_dict"]
+    assert not [k for k in state if k.startswith("model.text_encoder.encoder.") and "lora_" not in k]
+    assert [k for k in state if "lora_" in k]
+    module = module_from_checkpoint(last)
+    assert module.model.text_encoder is not None
+
+
+def test_bad_checkpoints_and_configs_are_input_errors(tmp_path):
+    junk = tmp_path / "junk.ckpt"
+    junk.write_bytes(b"not a checkpoint")
+    with pytest.raises(InputError, match=r"junk\.ckpt"):
+        load_checkpoint(junk)
+    foreign = tmp_path / "foreign.ckpt"
+    torch.save({"state_dict": {}}, foreign)
+    with pytest.raises(InputError, match="not a LangTraj checkpoint"):
+        load_checkpoint(foreign)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("stage: 3\n")
+    with pytest.raises(InputError, match="stage must be 1 or 2"):
+        load_config(bad)
+    bad.write_text("colour: red\n")
+    with pytest.raises(InputError, match="unknown keys colour"):
+        load_config(bad)
+
+
+@pytest.mark.parametrize("name", ["tiny.yaml", "tiny-text.yaml", "base.yaml", "base-text.yaml", "base-ddp.yaml"])
+def test_the_presets_load(name):
+    config = load_config(ROOT / "configs" / name)
+    assert config.stage == (2 if "text" in name else 1)
