@@ -34,3 +34,62 @@ def constant_velocity(batch: SceneBatch, steps: int) -> Tensor:
     px = x[..., None] + speed[..., None] * torch.cos(heading)[..., None] * t
     py = y[..., None] + speed[..., None] * torch.sin(heading)[..., None] * t
     return torch.stack([px, py, heading[..., None].expand_as(px), speed[..., None].expand_as(px)], -1)[None]
+
+
+def open_loop_table(
+    module,
+    labels_dir,
+    *,
+    split: str = "val",
+    num_samples: int = 6,
+    steps: int = 10,
+    batch_size: int = 16,
+    max_windows: int | None = None,
+    seed: int = 0,
+) -> dict[str, float]:
+    """Open-loop minADE over `num_samples` samples on held-out windows, against constant velocity.
+
+    Every window gets its ground-truth prompt (drawn from its labels' prompt pool, no dropout), so the
+    same agents are scored with and without text: `prompted_text` conditions on the sentences,
+    `prompted_no_text` samples with the text removed (classifier-free weight -1). `all_*` cover every
+    agent with a logged future; constant velocity is one deterministic sample.
+    """
+    from dataclasses import replace
+
+    from torch.utils.data import DataLoader, Subset
+
+    from langtraj.training.data import SceneDataset, collate_scenes
+
+    config = module.train_config
+    data = replace(config.data, text=True, text_dropout=0.0, history_dropout=0.0)
+    dataset = SceneDataset(labels_dir, data, split=split, seed=seed, augment=False)
+    count = len(dataset) if max_windows is None else min(max_windows, len(dataset))
+    loader = DataLoader(Subset(dataset, list(range(count))), batch_size=batch_size, collate_fn=collate_scenes)
+    sums: dict[str, list[float]] = {}
+
+    def add(name: str, total: Tensor, n: Tensor) -> None:
+        s = sums.setdefault(name, [0.0, 0.0])
+        s[0] += float(total)
+        s[1] += float(n)
+
+    model = module.model.eval()
+    has_text_branch = model.text_encoder is not None
+    for index, batch in enumerate(loader):
+        prompted = batch.has_text & batch.agent_valid
+        cv = constant_velocity(batch, 80)
+        add("cv_all", *min_ade(cv, batch))
+        add("cv_prompted", *min_ade(cv, batch, prompted))
+        gen = torch.Generator().manual_seed(seed + index)
+        plain, _ = model.sample(batch, num_samples, steps=steps, guidance_weight=-1.0, generator=gen)
+        add("model_no_text_all", *min_ade(plain, batch))
+        add("model_no_text_prompted", *min_ade(plain, batch, prompted))
+        if has_text_branch:
+            gen.manual_seed(seed + index)
+            text, _ = model.sample(batch, num_samples, steps=steps, generator=gen)
+            add("model_text_all", *min_ade(text, batch))
+            add("model_text_prompted", *min_ade(text, batch, prompted))
+    out = {name: total / n for name, (total, n) in sums.items() if n}
+    out["windows"] = float(count)
+    out["prompted_agents"] = sums["cv_prompted"][1]
+    out["scored_agents"] = sums["cv_all"][1]
+    return out

@@ -123,7 +123,7 @@ def train(
         strategy=config.strategy,
         precision=config.precision,
         enable_progress_bar=progress,
-        log_every_n_steps=10,
+        log_every_n_steps=max(1, min(10, config.max_steps)),
         deterministic=False,
     )
     trainer.fit(module, datamodule=data, ckpt_path=ckpt_path)

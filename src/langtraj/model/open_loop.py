@@ -1,0 +1,93 @@
+"""Open-loop sampling from a trained model on one scenario: futures for the agents the model drives,
+in world coordinates, optionally conditioned on a typed `@id` prompt."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import torch
+
+from langtraj.errors import InputError
+from langtraj.interdrive.dataset import PromptEntry
+from langtraj.interdrive.prompts import parse_user_prompt
+from langtraj.model.langtraj import LangTraj
+from langtraj.scenario.model import Scenario
+from langtraj.scenario.types import StateField
+from langtraj.training.data import SampleConfig, build_sample, collate_scenes
+
+
+@dataclass(frozen=True)
+class OpenLoopSamples:
+    """`states[s, a, t]` = (x, y, heading, speed) in world coordinates of scenario agent `agents[a]` at
+    future step t of sample s; `conditioned` are the track ids that carried text."""
+
+    agents: np.ndarray  # int64 [A]: scenario agent indices, most important first
+    states: np.ndarray  # float64 [S, A, T, 4]
+    conditioned: tuple[int, ...]
+
+    def scenario_with(self, scenario: Scenario, sample: int = 0) -> Scenario:
+        """The scenario with the driven agents' future replaced by sample `sample` (for rendering)."""
+        c = scenario.current_index
+        steps = min(self.states.shape[2], scenario.num_steps - c - 1)
+        states = scenario.agents.states.copy()
+        valid = scenario.agents.valid.copy()
+        future = self.states[sample, :, :steps]
+        cols = slice(c + 1, c + 1 + steps)
+        states[self.agents, cols, StateField.X] = future[..., 0]
+        states[self.agents, cols, StateField.Y] = future[..., 1]
+        states[self.agents, cols, StateField.HEADING] = np.angle(np.exp(1j * future[..., 2]))
+        states[self.agents, cols, StateField.VX] = future[..., 3] * np.cos(future[..., 2])
+        states[self.agents, cols, StateField.VY] = future[..., 3] * np.sin(future[..., 2])
+        sizes = [StateField.Z, StateField.LENGTH, StateField.WIDTH, StateField.HEIGHT]
+        states[np.ix_(self.agents, np.arange(cols.start, cols.stop), sizes)] = states[self.agents, c][:, None, sizes]
+        valid[self.agents, cols] = True
+        return replace(scenario, agents=replace(scenario.agents, states=states, valid=valid))
+
+
+def user_prompt_entry(scenario: Scenario, text: str) -> PromptEntry:
+    """A typed `@id` prompt validated against the scene and role-rephrased for each mentioned agent."""
+    prompt = parse_user_prompt(text, scenario.agents.ids.tolist())
+    return PromptEntry.of(prompt)
+
+
+def sample_open_loop(
+    model: LangTraj,
+    scenario: Scenario,
+    data: SampleConfig,
+    *,
+    prompt: str | None = None,
+    num_samples: int = 6,
+    steps: int = 10,
+    guidance_weight: float = 0.0,
+    seed: int = 0,
+) -> OpenLoopSamples:
+    """`num_samples` joint futures of the scenario's most important agents (up to the model's
+    `max_agents`; the rest are not driven). A prompt naming an agent outside that set is an error."""
+    entry = user_prompt_entry(scenario, prompt) if prompt is not None else None
+    config = replace(data, text=entry is not None, text_dropout=0.0, history_dropout=0.0)
+    row = build_sample(scenario, None, config, np.random.default_rng(seed), prompt=entry, augment=False)
+    batch = collate_scenes([row])
+    ids = batch.agent_id[0].numpy()
+    if entry is not None:
+        outside = [m for m in entry.mentions if m not in set(ids.tolist())]
+        if outside:
+            raise InputError(
+                f"agents {', '.join(f'@{m}' for m in outside)} are not among the {int((ids >= 0).sum())} agents the"
+                f" model drives in this scene (it takes the {data.max_agents} most important)",
+                where="prompt",
+            )
+    model.eval()
+    generator = torch.Generator().manual_seed(seed)
+    states, _ = model.sample(batch, num_samples, steps=steps, guidance_weight=guidance_weight, generator=generator)
+    real = ids >= 0
+    scene = states[:, 0, real].double().numpy()  # [S, A, T, 4] in the scene frame
+    ox, oy, oh = batch.origin[0].double().numpy()
+    c, s = np.cos(oh), np.sin(oh)
+    world = scene.copy()
+    world[..., 0] = ox + c * scene[..., 0] - s * scene[..., 1]
+    world[..., 1] = oy + s * scene[..., 0] + c * scene[..., 1]
+    world[..., 2] = scene[..., 2] + oh
+    agents = np.array([scenario.agents.index_of(int(i)) for i in ids[real]], np.int64)
+    conditioned = tuple(int(i) for i, t in zip(ids.tolist(), batch.text[0], strict=False) if t is not None and i >= 0)
+    return OpenLoopSamples(agents, world, conditioned)
