@@ -101,3 +101,16 @@ def test_bad_checkpoints_and_configs_are_input_errors(tmp_path):
 def test_the_presets_load(name):
     config = load_config(ROOT / "configs" / name)
     assert config.stage == (2 if "text" in name else 1)
+
+
+def test_validation_reports_min_ade_and_a_small_wosac_evaluation(labels, tmp_path):
+    from langtraj.training.config import ValConfig
+
+    val = ValConfig(num_samples=2, sample_steps=2, max_batches=1, wosac_scenes=1, wosac_rollouts=2)
+    config = replace(CONFIG, max_steps=2, val_every_steps=2, val=val)
+    train(config, labels, tmp_path / "run", progress=False)
+    rows = list(csv.DictReader((tmp_path / "run" / "logs" / "csv" / "version_0" / "metrics.csv").open()))
+    logged = {k for r in rows for k, v in r.items() if v}
+    assert {"val/minade", "val/cv_minade", "val/wosac_metametric", "val/wosac_map_based_metrics"} <= logged
+    value = next(float(r["val/wosac_metametric"]) for r in rows if r.get("val/wosac_metametric"))
+    assert 0.0 < value < 1.0

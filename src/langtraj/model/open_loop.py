@@ -12,6 +12,8 @@ from langtraj.errors import InputError
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
 from langtraj.model.langtraj import LangTraj
+from langtraj.rollouts.baselines import generate_baseline
+from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import StateField
 from langtraj.training.data import SampleConfig, build_sample, collate_scenes
@@ -91,3 +93,23 @@ def sample_open_loop(
     agents = np.array([scenario.agents.index_of(int(i)) for i in ids[real]], np.int64)
     conditioned = tuple(int(i) for i, t in zip(ids.tolist(), batch.text[0], strict=False) if t is not None and i >= 0)
     return OpenLoopSamples(agents, world, conditioned)
+
+
+def open_loop_rollouts(scenario: Scenario, samples: OpenLoopSamples) -> Rollouts:
+    """WOSAC rollouts (one per sample) for every sim agent: the driven agents follow the samples, the
+    others (beyond the model's agent budget) keep constant velocity; height stays at the current one."""
+    rollouts = generate_baseline("constant_velocity", scenario, samples.states.shape[0])
+    column = {int(a): i for i, a in enumerate(rollouts.object_id)}
+    cols = np.array([column[int(scenario.agents.ids[a])] for a in samples.agents], np.int64)
+    x, y, heading = rollouts.x.copy(), rollouts.y.copy(), rollouts.heading.copy()
+    steps = min(x.shape[-1], samples.states.shape[2])
+    x[:, cols, :steps] = samples.states[..., :steps, 0]
+    y[:, cols, :steps] = samples.states[..., :steps, 1]
+    heading[:, cols, :steps] = np.angle(np.exp(1j * samples.states[..., :steps, 2]))
+    z = np.broadcast_to(
+        scenario.agents.states[samples.agents, scenario.current_index, StateField.Z][None, :, None],
+        (x.shape[0], len(cols), x.shape[-1]),
+    )
+    zz = rollouts.z.copy()
+    zz[:, cols] = z
+    return replace(rollouts, x=x, y=y, z=zz, heading=heading)

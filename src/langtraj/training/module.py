@@ -10,13 +10,17 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytorch_lightning as pl
 import torch
 from torch.utils.data import DataLoader, Sampler
 
 from langtraj import __version__
 from langtraj.errors import InputError
+from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.model.langtraj import LangTraj
+from langtraj.model.open_loop import open_loop_rollouts, sample_open_loop
+from langtraj.rollouts.container import FUTURE_STEPS
 from langtraj.training.config import TrainConfig
 from langtraj.training.data import MixingSampler, SceneDataset, collate_scenes
 from langtraj.training.evaluation import constant_velocity, min_ade
@@ -80,6 +84,31 @@ class LangTrajModule(pl.LightningModule):
         for name, (total, count) in self._val.items():
             if count:
                 self.log(f"val/{name}", total / count, sync_dist=True)
+        if self.train_config.val.wosac_scenes and self.trainer is not None and self.trainer.datamodule is not None:
+            for name, value in self._wosac(self.trainer.datamodule.val_set).items():
+                self.log(f"val/wosac_{name}", value, sync_dist=True)
+
+    def _wosac(self, dataset) -> dict[str, float]:
+        """WOSAC metrics of open-loop rollouts (32 by default, no text) on the first validation windows
+        that log 80 future steps: the metrics issue's code on what the model samples."""
+        val = self.train_config.val
+        scores = []
+        for index in range(len(dataset)):
+            if len(scores) >= val.wosac_scenes:
+                break
+            scenario = dataset.window(index)
+            if scenario.num_steps - scenario.current_index - 1 < FUTURE_STEPS:
+                continue
+            samples = sample_open_loop(
+                self.model, scenario, self.train_config.data, num_samples=val.wosac_rollouts,
+                steps=val.sample_steps, seed=self.train_config.seed + index,
+            )  # fmt: skip
+            scores.append(evaluate_scenario(scenario, open_loop_rollouts(scenario, samples)))
+        self.model.train()
+        if not scores:
+            return {}
+        keys = ("metametric", "kinematic_metrics", "interactive_metrics", "map_based_metrics")
+        return {k: float(np.mean([getattr(s, k) for s in scores])) for k in keys}
 
     # ------------------------------------------------------------------ optimisation
     def configure_optimizers(self):
