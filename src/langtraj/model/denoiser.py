@@ -30,8 +30,12 @@ class Denoiser(nn.Module):
         )
         self.out = nn.Sequential(nn.LayerNorm(d), mlp(d, d, config.num_actions * 2))
 
-    def forward(self, x_k: Tensor, k: Tensor, scene: SceneContext, language: Tensor) -> Tensor:
-        """`language` [B, A, D] is E_L for every agent (null condition where it has no text)."""
+    def forward(
+        self, x_k: Tensor, k: Tensor, scene: SceneContext, language: Tensor, cache: dict | None = None
+    ) -> Tensor:
+        """`language` [B, A, D] is E_L for every agent (null condition where it has no text). `cache`, a dict
+        kept across the denoising steps of one scene, holds the relative-pose embeddings, which do not
+        change between steps (poses are the current ones)."""
         b, a, n, c = x_k.shape
         h = self.action_in(x_k.reshape(b, a, n * c)) + self.step(step_embedding(k, self.dim))[:, None, :]
         h = h + scene.agent_tokens
@@ -39,8 +43,13 @@ class Denoiser(nn.Module):
         pair = mask[:, :, None] & mask[:, None, :]
         scene_attn = mask[:, :, None] & scene.mask[:, None, :]
         tokens, token_pose = scene.tokens, scene.pose
-        for agents, context, text in self.blocks:
-            h = agents(h, pose, h, pose, pair)
-            h = context(h, pose, tokens, token_pose, scene_attn)
-            h = text(h, pose, language, pose, pair)
+        cache = {} if cache is None else cache
+        for i, (agents, context, text) in enumerate(self.blocks):
+            for j, (block, key_pose) in enumerate(((agents, pose), (context, token_pose), (text, pose))):
+                if (i, j) not in cache:
+                    cache[(i, j)] = block.attn.relative(pose, key_pose)
+            rel = [cache[(i, j)] for j in range(3)]
+            h = agents(h, pose, h, pose, pair, rel[0])
+            h = context(h, pose, tokens, token_pose, scene_attn, rel[1])
+            h = text(h, pose, language, pose, pair, rel[2])
         return self.out(h).reshape(b, a, n, c) * mask[..., None, None]

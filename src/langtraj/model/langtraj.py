@@ -115,10 +115,13 @@ class LangTraj(nn.Module):
         conditional = self.language(expanded, scene)
         unconditional = self.language(expanded, scene, drop_text=True) if guidance_weight != 0.0 else None
 
+        cache: dict = {}  # relative-pose embeddings: the same at every denoising step
+
         def denoise(x_k: Tensor, k: Tensor) -> Tensor:
-            x0 = self.denoiser(x_k, k, scene, conditional)
+            x0 = self.denoiser(x_k, k, scene, conditional, cache)
             if unconditional is not None:
-                x0 = classifier_free_guidance(x0, self.denoiser(x_k, k, scene, unconditional), guidance_weight)
+                uncond = self.denoiser(x_k, k, scene, unconditional, cache)
+                x0 = classifier_free_guidance(x0, uncond, guidance_weight)
             return x0
 
         b, a = expanded.agent_valid.shape

@@ -56,12 +56,18 @@ class RelPoseAttention(nn.Module):
         self.out = nn.Linear(dim, dim)
         self.drop = nn.Dropout(dropout)
 
-    def forward(self, query: Tensor, query_pose: Tensor, key: Tensor, key_pose: Tensor, mask: Tensor) -> Tensor:
-        """query [B, Nq, D], key [B, Nk, D], poses [B, N, 3], mask bool [B, Nq, Nk] (True: attend).
-        Rows with nothing to attend to return zeros."""
+    def relative(self, query_pose: Tensor, key_pose: Tensor) -> Tensor:
+        """The pose embeddings [B, Nq, Nk, D] added to keys and values (reusable while poses stay put)."""
+        return self.rel(relative_pose_features(query_pose, key_pose))
+
+    def forward(
+        self, query: Tensor, query_pose: Tensor, key: Tensor, key_pose: Tensor, mask: Tensor, rel: Tensor | None = None
+    ) -> Tensor:
+        """query [B, Nq, D], key [B, Nk, D], poses [B, N, 3], mask bool [B, Nq, Nk] (True: attend); `rel`
+        from `relative` when already computed. Rows with nothing to attend to return zeros."""
         b, nq, d = query.shape
         nk = key.shape[1]
-        rel = self.rel(relative_pose_features(query_pose, key_pose))  # [B, Nq, Nk, D]
+        rel = self.relative(query_pose, key_pose) if rel is None else rel  # [B, Nq, Nk, D]
         q = self.q(query).view(b, nq, self.heads, self.head_dim)
         k = (self.k(key)[:, None] + rel).view(b, nq, nk, self.heads, self.head_dim)
         v = (self.v(key)[:, None] + rel).view(b, nq, nk, self.heads, self.head_dim)
@@ -84,8 +90,10 @@ class AttentionBlock(nn.Module):
         self.norm_ff = nn.LayerNorm(dim)
         self.ff = nn.Sequential(nn.Linear(dim, 4 * dim), nn.GELU(), nn.Dropout(dropout), nn.Linear(4 * dim, dim))
 
-    def forward(self, x: Tensor, pose: Tensor, context: Tensor, context_pose: Tensor, mask: Tensor) -> Tensor:
-        x = x + self.attn(self.norm_q(x), pose, self.norm_k(context), context_pose, mask)
+    def forward(
+        self, x: Tensor, pose: Tensor, context: Tensor, context_pose: Tensor, mask: Tensor, rel: Tensor | None = None
+    ) -> Tensor:
+        x = x + self.attn(self.norm_q(x), pose, self.norm_k(context), context_pose, mask, rel)
         return x + self.ff(self.norm_ff(x))
 
 
