@@ -80,3 +80,37 @@ def test_a_checkpoint_that_is_not_langtraj_is_refused(trained, tmp_path, capsys)
     bad.write_bytes(b"\x00" * 10)
     code = main(["sample", str(scenes), "--checkpoint", str(bad), "--out", str(tmp_path / "s.png")])
     assert code == 2 and "bad.ckpt" in capsys.readouterr().err
+
+
+def test_a_killed_run_resumes_from_its_last_checkpoint(tmp_path):
+    """SIGKILL in the middle of training: every checkpoint on disk is whole, and --resume auto goes on
+    from the newest one."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from langtraj.training.run import load_checkpoint
+
+    labels = write_dataset(tmp_path, 12)
+    config = tmp_path / "tiny.yaml"
+    config.write_text(yaml.safe_dump({**TINY, "stage": 1, "model": {**TINY["model"], "use_text": False},
+                                      "max_steps": 100000, "checkpoint_every_steps": 2}))  # fmt: skip
+    run = tmp_path / "run"
+    cmd = [sys.executable, "-m", "langtraj.cli.main", "train", "--config", str(config), "--data", str(labels)]
+    proc = subprocess.Popen([*cmd, "--out", str(run)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(run.glob("checkpoints/step*.ckpt")) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        time.sleep(1.0)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    saved = sorted(run.glob("checkpoints/*.ckpt"))
+    assert saved, "no checkpoint was written before the kill"
+    steps = [load_checkpoint(p)["global_step"] for p in saved]  # every file on disk loads
+    newest = max(steps)
+    assert main(["train", "--config", str(config), "--data", str(labels), "--out", str(run), "--resume", "auto",
+                 "--max-steps", str(newest + 2)]) == 0  # fmt: skip
+    assert load_checkpoint(run / "checkpoints" / "last.ckpt")["global_step"] == newest + 2
