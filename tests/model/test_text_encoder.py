@@ -25,9 +25,9 @@ SENTENCES = [
 
 @pytest.fixture(scope="module")
 def minilm() -> TextEncoder:
-    """The default encoder (all-MiniLM-L6-v2, CLS pooling, LoRA on), in eval mode; tests must not mutate it."""
+    """all-MiniLM-L6-v2 with CLS pooling and LoRA on, in eval mode; tests must not mutate it."""
     torch.manual_seed(0)
-    return TextEncoder(TextEncoderConfig(), MODEL_DIM).eval()
+    return TextEncoder(TextEncoderConfig(pooling="cls"), MODEL_DIM).eval()
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,8 @@ per-agent language conditions (paper 'LangTraj'; DESIGN.md section 6).
 
 Each block has (a) agent-agent attention over the noisy futures with relative pose, (b) cross-attention
 to the scene tokens, (c) cross-attention to the agents' language embeddings E_L (each fused with its
-agent's scene embedding; agents without text carry the learned null condition).
+agent's scene embedding; agents without text carry the learned null condition). An agent's own E_L is
+also added to its input token, the direct path for its condition.
 """
 
 from __future__ import annotations
@@ -29,6 +30,11 @@ class Denoiser(nn.Module):
             for _ in range(config.denoiser_blocks)
         )
         self.out = nn.Sequential(nn.LayerNorm(d), mlp(d, d, config.num_actions * 2))
+        # Each agent's own E_L also enters its token directly; the last layer starts at zero, so a model
+        # trained without text (stage 1) is unchanged until stage 2 learns to use the condition.
+        self.condition_in = mlp(d, d, d)
+        nn.init.zeros_(self.condition_in[-1].weight)
+        nn.init.zeros_(self.condition_in[-1].bias)
 
     def forward(
         self, x_k: Tensor, k: Tensor, scene: SceneContext, language: Tensor, cache: dict | None = None
@@ -38,7 +44,7 @@ class Denoiser(nn.Module):
         change between steps (poses are the current ones)."""
         b, a, n, c = x_k.shape
         h = self.action_in(x_k.reshape(b, a, n * c)) + self.step(step_embedding(k, self.dim))[:, None, :]
-        h = h + scene.agent_tokens
+        h = h + scene.agent_tokens + self.condition_in(language)
         pose, mask = scene.agent_pose, scene.agent_mask
         pair = mask[:, :, None] & mask[:, None, :]
         scene_attn = mask[:, :, None] & scene.mask[:, None, :]

@@ -51,7 +51,7 @@ class TextEncoderConfig:
     """
 
     encoder: str = DEFAULT_ENCODER
-    pooling: str = "cls"  # "cls" | "mean"
+    pooling: str = "mean"  # "mean" (all-MiniLM-L6-v2 is trained for it) | "cls" (the paper, with DistilBERT)
     lora_rank: int = 16
     lora_alpha: float = 0.4
     lora_dropout: float = 0.0
