@@ -114,3 +114,13 @@ def test_validation_reports_min_ade_and_a_small_wosac_evaluation(labels, tmp_pat
     assert {"val/minade", "val/cv_minade", "val/wosac_metametric", "val/wosac_map_based_metrics"} <= logged
     value = next(float(r["val/wosac_metametric"]) for r in rows if r.get("val/wosac_metametric"))
     assert 0.0 < value < 1.0
+
+
+def test_a_checkpoint_of_another_model_version_is_refused(labels, tmp_path):
+    last = train(replace(CONFIG, max_steps=1), labels, tmp_path / "run", progress=False)
+    checkpoint = torch.load(last, weights_only=True)
+    del checkpoint["state_dict"][next(k for k in checkpoint["state_dict"] if "denoiser" in k)]
+    older = tmp_path / "older.ckpt"
+    torch.save(checkpoint, older)
+    with pytest.raises(InputError, match=r"do not match this version of the model; missing model\.denoiser"):
+        module_from_checkpoint(older)

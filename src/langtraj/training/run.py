@@ -51,7 +51,18 @@ def module_from_checkpoint(path: str | Path) -> LangTrajModule:
     """The module a checkpoint was trained as, with its weights (frozen encoder weights from its package)."""
     checkpoint = load_checkpoint(path)
     module = LangTrajModule(checkpoint["hyper_parameters"]["config"])
-    module.on_load_checkpoint({**checkpoint, "rng": None})
+    module.on_load_checkpoint(checkpoint)
+    own, saved = set(module.state_dict()), set(checkpoint["state_dict"])
+    if own != saved:
+        missing, unexpected = sorted(own - saved), sorted(saved - own)
+        raise InputError(
+            "weights do not match this version of the model"
+            + (f"; missing {', '.join(missing[:4])}{' ...' if len(missing) > 4 else ''}" if missing else "")
+            + (
+                f"; unexpected {', '.join(unexpected[:4])}{' ...' if len(unexpected) > 4 else ''}" if unexpected else ""
+            ),
+            path=path,
+        )
     module.load_state_dict(checkpoint["state_dict"])
     return module
 
