@@ -174,15 +174,25 @@ def test_stage_one_has_no_text():
     assert all(t is None for t in build_sample(scene, record, stage1, _rng())["text"])
 
 
-def test_an_interaction_prompt_conditions_every_agent_it_mentions():
+def test_an_interaction_prompt_conditions_every_agent_it_mentions_plus_single_agent_sentences():
+    """The paper's recipe: the interaction prompt's agents, and 30 % (at least one) of the other agents
+    with single-agent labels, here one of tracks 7 and 37."""
     scene = make_scenario(6)
     interaction = make_prompt((17, 47), "yield/yield_to")
-    record = make_record(scene, [interaction, make_prompt((7,)), make_prompt((37,))])
+    singles = {7: make_prompt((7,)), 37: make_prompt((37,))}
+    record = make_record(scene, [interaction, *singles.values()])
+    seen = set()
     for seed in range(10):
         sample = build_sample(scene, record, TEXT_ALWAYS, _rng(seed))
         got = {int(i): t for i, t in zip(sample["agent_id"], sample["text"], strict=True) if t is not None}
-        assert got == dict(interaction.roles)
+        extra = set(got) - {17, 47}
+        assert {k: got[k] for k in (17, 47)} == dict(interaction.roles)
+        assert len(extra) == 1 and extra <= set(singles)
+        (track,) = extra
+        assert got[track] == singles[track].roles[track]
+        seen |= extra
         assert bool(sample["interaction_labelled"])
+    assert seen == set(singles)
 
 
 def test_an_interaction_prompt_naming_an_agent_outside_the_sample_is_not_used():

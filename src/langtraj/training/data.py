@@ -8,9 +8,9 @@ conditioned on, or None.
 
 Text follows the paper's recipe (appendix, "biased sampling"): a sample carries no text at all with
 probability `text_dropout`, so one network learns the conditional and the unconditional model at once
-(classifier-free guidance); otherwise it carries one interaction prompt, every agent it mentions
-getting the sentence in which it is "the target agent", or, in windows without interaction prompts,
-single-agent-label sentences for 30% of the agents that have them. `MixingSampler` upsamples
+(classifier-free guidance); otherwise it carries one interaction prompt (when the window has one),
+every agent it mentions getting the sentence in which it is "the target agent", and single-agent-label
+sentences for 30% of the other agents that have them. `MixingSampler` upsamples
 interaction-labelled windows to half of every batch. History dropout (only the current step kept)
 trains the model for scenes started from one observed frame.
 
@@ -241,19 +241,20 @@ def _choose_text(
         return {slots[m]: prompt.roles[m] for m in prompt.mentions} if _prompt_fits(prompt, slots) else {}
     if record is None:
         return {}
+    text: dict[int, str] = {}
     interactions = [p for p in record.prompts if p.subtype is not None and _prompt_fits(p, slots)]
     if interactions:
         chosen = interactions[int(rng.integers(len(interactions)))]
-        return {slots[m]: chosen.roles[m] for m in chosen.mentions}
+        text = {slots[m]: chosen.roles[m] for m in chosen.mentions}
+    # The paper's 30 % of a scene's heuristic labels go to every sample, beside its interaction prompt.
     by_agent: dict[int, list[PromptEntry]] = {}
     for p in record.prompts:
-        if p.subtype is None and _prompt_fits(p, slots):
+        if p.subtype is None and _prompt_fits(p, slots) and slots[p.mentions[0]] not in text:
             by_agent.setdefault(p.mentions[0], []).append(p)
     if not by_agent:
-        return {}
+        return text
     agents = sorted(by_agent)
     count = max(1, round(config.heuristic_label_fraction * len(agents)))
-    text: dict[int, str] = {}
     for track in rng.choice(agents, size=count, replace=False).tolist():
         options = by_agent[int(track)]
         text[slots[int(track)]] = options[int(rng.integers(len(options)))].roles[int(track)]
@@ -282,11 +283,11 @@ def build_sample(
     the velocity is missing (`_velocities`); history vx, vy use the same velocities.
 
     Text (only when `config.text`): with `augment`, no text at all with probability `text_dropout`.
-    Otherwise `prompt`, when given, conditions every agent it mentions; else one interaction prompt of
-    the record drawn at random conditions every agent it mentions; else (no usable interaction prompt)
-    single-agent-label prompts condition a random `heuristic_label_fraction` (at least one) of the agents
-    that have them, one sentence each. A prompt mentioning an agent that is not in the sample is never
-    used. Without `augment` there is no dropout, but prompts are still drawn with `rng`.
+    Otherwise `prompt`, when given, conditions every agent it mentions (and nothing else); else one
+    interaction prompt of the record drawn at random (when one fits) conditions every agent it mentions,
+    and single-agent-label prompts condition a random `heuristic_label_fraction` (at least one) of the
+    other agents that have them, one sentence each. A prompt mentioning an agent that is not in the
+    sample is never used. Without `augment` there is no dropout, but prompts are still drawn with `rng`.
 
     History dropout (with `augment`, probability `history_dropout`): only the current step stays valid.
     `interaction_labelled` is True when the record has an interaction prompt (or `prompt` is one).
