@@ -107,7 +107,7 @@ def test_a_killed_run_resumes_from_its_last_checkpoint(tmp_path):
     finally:
         proc.send_signal(signal.SIGKILL)
         proc.wait()
-    saved = sorted(run.glob("checkpoints/*.ckpt"))
+    saved = sorted(run.glob("checkpoints/**/*.ckpt"))  # what users glob: partial writes must not match
     assert saved, "no checkpoint was written before the kill"
     steps = [load_checkpoint(p)["global_step"] for p in saved]  # every file on disk loads
     newest = max(steps)

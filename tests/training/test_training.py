@@ -66,7 +66,7 @@ def test_resume_auto_picks_up_the_last_checkpoint(labels, tmp_path):
     train(config, labels, tmp_path / "run", progress=False)
     train(config, labels, tmp_path / "run", resume="auto", max_steps=5, progress=False)
     assert load_checkpoint(tmp_path / "run" / "checkpoints" / "last.ckpt")["global_step"] == 5
-    assert not list((tmp_path / "run" / "checkpoints").glob("*.tmp*"))
+    assert not list((tmp_path / "run" / "checkpoints").glob(".*.partial"))
 
 
 def test_checkpoints_leave_out_the_pretrained_text_weights_and_reload(labels, tmp_path):

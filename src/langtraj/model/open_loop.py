@@ -8,6 +8,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import torch
 
+from langtraj.angles import wrap_angle
 from langtraj.errors import InputError
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
@@ -38,7 +39,7 @@ class OpenLoopSamples:
         cols = slice(c + 1, c + 1 + steps)
         states[self.agents, cols, StateField.X] = future[..., 0]
         states[self.agents, cols, StateField.Y] = future[..., 1]
-        states[self.agents, cols, StateField.HEADING] = np.angle(np.exp(1j * future[..., 2]))
+        states[self.agents, cols, StateField.HEADING] = wrap_angle(future[..., 2])
         states[self.agents, cols, StateField.VX] = future[..., 3] * np.cos(future[..., 2])
         states[self.agents, cols, StateField.VY] = future[..., 3] * np.sin(future[..., 2])
         sizes = [StateField.Z, StateField.LENGTH, StateField.WIDTH, StateField.HEIGHT]
@@ -105,7 +106,7 @@ def open_loop_rollouts(scenario: Scenario, samples: OpenLoopSamples) -> Rollouts
     steps = min(x.shape[-1], samples.states.shape[2])
     x[:, cols, :steps] = samples.states[..., :steps, 0]
     y[:, cols, :steps] = samples.states[..., :steps, 1]
-    heading[:, cols, :steps] = np.angle(np.exp(1j * samples.states[..., :steps, 2]))
+    heading[:, cols, :steps] = wrap_angle(samples.states[..., :steps, 2])
     z = np.broadcast_to(
         scenario.agents.states[samples.agents, scenario.current_index, StateField.Z][None, :, None],
         (x.shape[0], len(cols), x.shape[-1]),

@@ -7,6 +7,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -163,7 +164,7 @@ class CorpusData(pl.LightningDataModule):
     def __init__(self, labels_dir: str | Path, config: TrainConfig):
         super().__init__()
         self.labels_dir, self.config = Path(labels_dir), config
-        data = config.data if config.stage == 2 else _without_text(config.data)
+        data = config.data if config.stage == 2 else replace(config.data, text=False)
         self.train_set = SceneDataset(self.labels_dir, data, split="train", seed=config.seed)
         self.val_set = SceneDataset(self.labels_dir, data, split="val", seed=config.seed)
         if len(self.train_set) == 0:
@@ -185,9 +186,3 @@ class CorpusData(pl.LightningDataModule):
         count = min(len(self.val_set), self.config.val.max_batches * self.config.batch_size)
         subset = torch.utils.data.Subset(self.val_set, list(range(count)))
         return DataLoader(subset, batch_size=self.config.batch_size, collate_fn=collate_scenes)
-
-
-def _without_text(data):
-    from dataclasses import replace
-
-    return replace(data, text=False)

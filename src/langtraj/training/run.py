@@ -9,6 +9,7 @@ steps since the last checkpoint and never leaves a half-written file. Logs: Tens
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -19,17 +20,23 @@ from pytorch_lightning.loggers import CSVLogger, TensorBoardLogger
 from pytorch_lightning.plugins.io import TorchCheckpointIO
 
 from langtraj.errors import InputError
-from langtraj.fileio import atomic_path
 from langtraj.training.config import TrainConfig
 from langtraj.training.module import CHECKPOINT_FORMAT, CorpusData, LangTrajModule
 
 
 class AtomicCheckpointIO(TorchCheckpointIO):
-    """Checkpoints written to a temporary file beside the target, then renamed over it."""
+    """Checkpoints written to a hidden `.partial` file beside the target, then renamed over it: a kill
+    mid-write leaves no file that `RUN_DIR/**/*.ckpt` would match."""
 
     def save_checkpoint(self, checkpoint: dict[str, Any], path, storage_options=None) -> None:
-        with atomic_path(path) as tmp:
-            torch.save(checkpoint, tmp)
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        partial = path.with_name(f".{path.name}.partial")
+        try:
+            torch.save(checkpoint, partial)
+            os.replace(partial, path)
+        finally:
+            partial.unlink(missing_ok=True)
 
 
 def load_checkpoint(path: str | Path) -> dict[str, Any]:
@@ -98,11 +105,8 @@ def train(
     """Run one training stage; returns the path of the last checkpoint."""
     out = Path(out)
     if max_steps is not None:
-        from dataclasses import replace
-
         config = replace(config, max_steps=max_steps)
     pl.seed_everything(config.seed, workers=True, verbose=False)
-    torch.set_num_threads(max(1, min(torch.get_num_threads(), os.cpu_count() or 1)))
     data = CorpusData(data_dir, config)
     module = LangTrajModule(config.to_dict())
     ckpt_path = resolve_resume(resume, out)
