@@ -45,12 +45,16 @@ class Registry(Generic[T]):
         self._load()
         return tuple(self._classes.values())
 
-    def create(self, name: str, where: str | None = None) -> T:
-        """A new instance of the class called `name`; an unknown name raises InputError listing the known."""
+    def get(self, name: str, where: str | None = None) -> type[T]:
+        """The class called `name` (for classes that take parameters); an unknown name raises InputError
+        listing the known."""
         self._load()
         try:
-            cls = self._classes[name]
+            return self._classes[name]
         except KeyError:
             known = ", ".join(self._classes)
             raise InputError(f"unknown {self.what} {name!r}; known: {known}", where=where) from None
-        return cls()
+
+    def create(self, name: str, where: str | None = None) -> T:
+        """A new instance of the class called `name`; an unknown name raises InputError listing the known."""
+        return self.get(name, where)()

@@ -4,7 +4,9 @@ per-agent language conditions (paper 'LangTraj'; DESIGN.md section 6).
 Each block has (a) agent-agent attention over the noisy futures with relative pose, (b) cross-attention
 to the scene tokens, (c) cross-attention to the agents' language embeddings E_L (each fused with its
 agent's scene embedding; agents without text carry the learned null condition). An agent's own E_L is
-also added to its input token, the direct path for its condition.
+also added to its input token, and together with the diffusion step it scales and shifts every
+agent's token before each block (FiLM, zero-initialised as DiT's adaLN-Zero): the direct path for its
+condition, which cross-attention alone learns too slowly to use.
 """
 
 from __future__ import annotations
@@ -35,6 +37,10 @@ class Denoiser(nn.Module):
         self.condition_in = mlp(d, d, d)
         nn.init.zeros_(self.condition_in[-1].weight)
         nn.init.zeros_(self.condition_in[-1].bias)
+        self.modulation = nn.ModuleList(nn.Linear(d, 2 * d) for _ in range(config.denoiser_blocks))
+        for layer in self.modulation:
+            nn.init.zeros_(layer.weight)
+            nn.init.zeros_(layer.bias)
 
     def forward(
         self, x_k: Tensor, k: Tensor, scene: SceneContext, language: Tensor, cache: dict | None = None
@@ -43,8 +49,10 @@ class Denoiser(nn.Module):
         kept across the denoising steps of one scene, holds the relative-pose embeddings, which do not
         change between steps (poses are the current ones)."""
         b, a, n, c = x_k.shape
-        h = self.action_in(x_k.reshape(b, a, n * c)) + self.step(step_embedding(k, self.dim))[:, None, :]
-        h = h + scene.agent_tokens + self.condition_in(language)
+        step = self.step(step_embedding(k, self.dim))[:, None, :]
+        condition = step + self.condition_in(language)  # [B, A, D]: each agent's step and own text
+        h = self.action_in(x_k.reshape(b, a, n * c)) + scene.agent_tokens + condition
+        film = nn.functional.silu(condition)
         pose, mask = scene.agent_pose, scene.agent_mask
         pair = mask[:, :, None] & mask[:, None, :]
         scene_attn = mask[:, :, None] & scene.mask[:, None, :]
@@ -55,6 +63,8 @@ class Denoiser(nn.Module):
                 if (i, j) not in cache:
                     cache[(i, j)] = block.attn.relative(pose, key_pose)
             rel = [cache[(i, j)] for j in range(3)]
+            scale, shift = self.modulation[i](film).chunk(2, dim=-1)
+            h = h * (1.0 + scale) + shift
             h = agents(h, pose, h, pose, pair, rel[0])
             h = context(h, pose, tokens, token_pose, scene_attn, rel[1])
             h = text(h, pose, language, pose, pair, rel[2])

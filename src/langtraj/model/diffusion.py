@@ -148,6 +148,7 @@ def sample(
     sampler: Literal["ddim", "ddpm"] = "ddim",
     guidance: Guidance | None = None,
     generator: torch.Generator | None = None,
+    noise: Callable[[tuple[int, ...]], Tensor] | None = None,
     device: torch.device | str | None = None,
     dtype: torch.dtype = torch.float32,
 ) -> Tensor:
@@ -156,7 +157,9 @@ def sample(
     At each timestep of `timestep_sequence` (default stride 1): x0 = denoise(x_k, k); if `guidance` is
     given, x0 = guidance(x0, k, x_k) (the hook for cost-gradient guidance: it must return a modified x0
     of the same shape); then x_k steps to the next timestep of the sequence by DDIM (`eta`) or by the
-    DDPM posterior q(x_prev | x_k, x0) (its generalisation to strides). Noise comes from `generator`.
+    DDPM posterior q(x_prev | x_k, x0) (its generalisation to strides). Noise comes from `generator`,
+    or from `noise(shape)` when given (e.g. one generator per batch row, so that a row's draws do not
+    depend on the rows beside it).
     """
     if sampler not in ("ddim", "ddpm"):
         raise InputError(f"unknown sampler {sampler!r}; known: ddim, ddpm")
@@ -166,6 +169,8 @@ def sample(
     shape = tuple(shape)
 
     def randn() -> Tensor:
+        if noise is not None:
+            return noise(shape).to(device=device, dtype=dtype)
         return torch.randn(shape, generator=generator, device=device, dtype=dtype)
 
     x = randn()

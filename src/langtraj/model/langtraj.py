@@ -71,9 +71,13 @@ class LangTraj(nn.Module):
         return self.dynamics(batch.current_state, self.from_units(x0))
 
     # ------------------------------------------------------------------ training
-    def loss(self, batch: SceneBatch, *, generator: torch.Generator | None = None) -> dict[str, Tensor]:
+    def loss(
+        self, batch: SceneBatch, *, text_weight: float = 1.0, generator: torch.Generator | None = None
+    ) -> dict[str, Tensor]:
         """Diffusion loss at a random step per scene: position (and heading) error of the states that
-        the predicted clean actions produce, against the log, masked by validity."""
+        the predicted clean actions produce, against the log, masked by validity. Agents that carry a
+        sentence count `text_weight` times (their share of the batch is small, and they alone teach
+        the model to follow text)."""
         x0, _ = self.target_actions(batch)
         b = x0.shape[0]
         k = torch.randint(0, self.schedule.num_steps, (b,), device=x0.device, generator=generator)
@@ -84,6 +88,8 @@ class LangTraj(nn.Module):
         states = self.rollout(batch, pred)
         mask = batch.future_valid & batch.agent_valid[..., None]
         weight = mask.float()
+        if text_weight != 1.0 and self.text_encoder is not None:
+            weight = weight * torch.where(batch.has_text & batch.agent_valid, text_weight, 1.0)[..., None]
         count = weight.sum().clamp(min=1.0)
         position = ((states[..., :2] - batch.future[..., :2]) ** 2).sum(-1)
         dh = torch.remainder(states[..., 2] - batch.future[..., 2] + torch.pi, 2 * torch.pi) - torch.pi
@@ -104,16 +110,23 @@ class LangTraj(nn.Module):
         guidance_weight: float = 0.0,
         guidance: Guidance | None = None,
         generator: torch.Generator | None = None,
+        noise: Callable[[tuple[int, ...]], Tensor] | None = None,
     ) -> tuple[Tensor, Tensor]:
         """`num_samples` joint futures per scene: states [S, B, A, T, 4] and actions [S, B, A, N, 2].
 
         `steps` DDIM steps (default K); `guidance_weight` w is classifier-free guidance (w = -1: no text,
-        0: text as given, > 0: stronger); `guidance` modifies x0 at every step (cost guidance).
+        0: text as given, > 0: stronger); `guidance` modifies x0 at every step (cost guidance). Its x0 rows
+        are sample-major (all scenes of sample 0, then sample 1, ...), as are the rows `noise(shape)`
+        must draw when given (instead of `generator`).
         """
+        # The scene and its sentences are encoded once; the samples share them (sample-major repeats).
+        base = self.encoder(batch)
+        conditional = _repeat(self.language(batch, base), num_samples)
+        unconditional = (
+            _repeat(self.language(batch, base, drop_text=True), num_samples) if guidance_weight != 0.0 else None
+        )
+        scene = SceneContext(**{name: _repeat(t, num_samples) for name, t in vars(base).items()})
         expanded = _repeat_batch(batch, num_samples)
-        scene = self.encoder(expanded)
-        conditional = self.language(expanded, scene)
-        unconditional = self.language(expanded, scene, drop_text=True) if guidance_weight != 0.0 else None
 
         cache: dict = {}  # relative-pose embeddings: the same at every denoising step
 
@@ -134,11 +147,17 @@ class LangTraj(nn.Module):
             eta=eta,
             guidance=guidance,
             generator=generator,
+            noise=noise,
             device=expanded.agent_valid.device,
         )
         states = self.rollout(expanded, x0)
         n = batch.batch_size
         return states.reshape(num_samples, n, *states.shape[1:]), self.from_units(x0).reshape(num_samples, n, a, -1, 2)
+
+
+def _repeat(value: Tensor, times: int) -> Tensor:
+    """`value` [B, ...] repeated sample-major to [times * B, ...]."""
+    return value if times == 1 else value.repeat(times, *([1] * (value.dim() - 1)))
 
 
 def _repeat_batch(batch: SceneBatch, times: int) -> SceneBatch:
@@ -148,7 +167,7 @@ def _repeat_batch(batch: SceneBatch, times: int) -> SceneBatch:
     fields = {}
     for name, value in vars(batch).items():
         if isinstance(value, Tensor):
-            fields[name] = value.repeat(times, *([1] * (value.dim() - 1)))
+            fields[name] = _repeat(value, times)
         else:
             fields[name] = list(value) * times
     return replace(batch, **fields)

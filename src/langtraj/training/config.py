@@ -57,6 +57,7 @@ class TrainConfig:
     max_steps: int = 2000
     val_every_steps: int = 500
     checkpoint_every_steps: int = 100
+    text_loss_weight: float = 1.0  # stage 2: loss weight of the agents that carry a sentence
     num_workers: int = 0
     seed: int = 0
     init_from: str | None = None

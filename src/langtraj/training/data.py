@@ -169,7 +169,7 @@ def _bbox_distance(xy: np.ndarray) -> float:
 def _pieces(xy: np.ndarray, points: int) -> np.ndarray:
     """A polyline [N, 2] cut into equal pieces of at most (points - 1) * MAP_POINT_SPACING m, each
     resampled uniformly by arc length to `points` points: [K, points, 2]. A polyline of no length gives
-    one piece holding only its first point (then padded, see `_map_polylines`)."""
+    one piece holding only its first point (then padded, see `map_polylines`)."""
     seg = np.linalg.norm(np.diff(xy, axis=0), axis=-1)
     keep = np.concatenate([[True], seg > 1e-9])
     xy, seg = xy[keep], seg[seg > 1e-9]
@@ -182,7 +182,7 @@ def _pieces(xy: np.ndarray, points: int) -> np.ndarray:
     return np.stack([np.interp(s, cum, xy[:, 0]), np.interp(s, cum, xy[:, 1])], axis=-1)
 
 
-def _map_polylines(
+def map_polylines(
     road_map: RoadMap, origin: tuple[float, float, float], config: SampleConfig
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Map points [M, P, 2] (scene frame), validity [M, P] and types [M] of the polylines nearest the
@@ -272,8 +272,14 @@ def build_sample(
     *,
     prompt: PromptEntry | None = None,
     augment: bool = True,
+    agents: np.ndarray | None = None,
+    origin: tuple[float, float, float] | None = None,
+    map_arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> dict[str, Any]:
     """One scene row of a `SceneBatch` as numpy arrays (no batch axis), keyed by `SceneBatch` field names.
+
+    `agents` (scenario rows, at most `max_agents`), `origin` and `map_arrays` (from `map_polylines` for
+    that origin) override the choices below: closed-loop simulation keeps them fixed across replans.
 
     Agents: `prioritized_agents(scenario, max_agents)` (all valid at the current step), padded to
     `max_agents` (padding: invalid, type 0, id -1, zeros). History is the `history_steps` steps ending
@@ -297,9 +303,11 @@ def build_sample(
     """
     a_max, h, f = config.max_agents, config.history_steps, config.future_steps
     t0 = scenario.current_index
-    origin = scene_frame(scenario)
+    origin = scene_frame(scenario) if origin is None else origin
     heading0 = origin[2]
-    chosen = prioritized_agents(scenario, a_max)
+    chosen = prioritized_agents(scenario, a_max) if agents is None else np.asarray(agents, np.int64)
+    if len(chosen) > a_max:
+        raise ValueError(f"{len(chosen)} agents given, the sample holds at most {a_max}")
     n = len(chosen)
     agents = scenario.agents
     states = agents.states[chosen]
@@ -351,7 +359,7 @@ def build_sample(
         for slot, sentence in _choose_text(record, slots, config, rng, prompt).items():
             text[slot] = sentence
 
-    map_points, map_valid, map_type = _map_polylines(scenario.road_map, origin, config)
+    map_points, map_valid, map_type = map_arrays or map_polylines(scenario.road_map, origin, config)
     labelled = has_interaction_prompt(record) or (prompt is not None and prompt.subtype is not None)
     return {
         "agent_history": history,

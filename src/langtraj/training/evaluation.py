@@ -46,12 +46,14 @@ def open_loop_table(
     batch_size: int = 16,
     max_windows: int | None = None,
     seed: int = 0,
+    guidance_weight: float = 0.0,
 ) -> dict[str, float]:
     """Open-loop minADE over `num_samples` samples on held-out windows, against constant velocity.
 
     Every window gets its ground-truth prompt (drawn from its labels' prompt pool, no dropout), so the
     same agents are scored with and without text: `prompted_text` conditions on the sentences,
-    `prompted_no_text` samples with the text removed (classifier-free weight -1). `all_*` cover every
+    `prompted_no_text` samples with the text removed (classifier-free weight -1; with text the weight is
+    `guidance_weight`, 0 = the plain conditional model). `all_*` cover every
     agent with a logged future; constant velocity is one deterministic sample.
     """
     from dataclasses import replace
@@ -85,7 +87,7 @@ def open_loop_table(
         add("model_no_text_prompted", *min_ade(plain, batch, prompted))
         if has_text_branch:
             gen.manual_seed(seed + index)
-            text, _ = model.sample(batch, num_samples, steps=steps, generator=gen)
+            text, _ = model.sample(batch, num_samples, steps=steps, guidance_weight=guidance_weight, generator=gen)
             add("model_text_all", *min_ade(text, batch))
             add("model_text_prompted", *min_ade(text, batch, prompted))
     out = {name: total / n for name, (total, n) in sums.items() if n}

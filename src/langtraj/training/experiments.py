@@ -21,6 +21,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--windows", type=int, default=None, help="score at most this many held-out windows")
     parser.add_argument("--samples", type=int, default=6)
     parser.add_argument("--steps", type=int, default=10, help="DDIM steps")
+    parser.add_argument("--cfg", type=float, default=0.0, help="classifier-free guidance weight with text (0: plain)")
     parser.add_argument("--json", help="also write the figures here")
     args = parser.parse_args(argv)
     results = {}
@@ -29,7 +30,12 @@ def main(argv: list[str] | None = None) -> None:
         start = time.perf_counter()
         module = module_from_checkpoint(path)
         results[name] = open_loop_table(
-            module, args.data, num_samples=args.samples, steps=args.steps, max_windows=args.windows
+            module,
+            args.data,
+            num_samples=args.samples,
+            steps=args.steps,
+            max_windows=args.windows,
+            guidance_weight=args.cfg,
         )
         results[name]["seconds"] = time.perf_counter() - start
     first = next(iter(results.values()))

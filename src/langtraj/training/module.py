@@ -50,7 +50,7 @@ class LangTrajModule(pl.LightningModule):
         torch.manual_seed(self.train_config.seed * 1_000_003 + self.global_step)
 
     def training_step(self, batch, batch_idx: int) -> torch.Tensor:
-        out = self.model.loss(batch)
+        out = self.model.loss(batch, text_weight=self.train_config.text_loss_weight)
         size = batch.batch_size
         for name, value in out.items():
             self.log(f"train/{name}", value, batch_size=size, prog_bar=name in ("loss", "ade"))
