@@ -7,10 +7,22 @@ import sys
 from collections.abc import Sequence
 
 from langtraj import __version__
-from langtraj.cli import baseline, convert, evaluate, inspect, interdrive, render, sample, submit, synth, train
+from langtraj.cli import (
+    baseline,
+    convert,
+    evaluate,
+    inspect,
+    interdrive,
+    render,
+    sample,
+    simulate,
+    submit,
+    synth,
+    train,
+)
 from langtraj.errors import LangTrajError
 
-VERBS = (inspect, render, convert, synth, interdrive, baseline, evaluate, submit, train, sample)
+VERBS = (inspect, render, convert, synth, interdrive, baseline, evaluate, submit, train, sample, simulate)
 """Each verb module has `add_parser(subparsers)` (setting `func`) and a `run(args) -> int`."""
 
 

@@ -1,0 +1,27 @@
+"""Closed-loop simulation: the rollout engine, policies, candidate selection and simulation summaries."""
+
+from langtraj.sim.engine import SimConfig, SimResult, replan_schedule, simulate
+from langtraj.sim.policies import (
+    POLICIES,
+    ConstantVelocityPolicy,
+    GuidanceBaselinePolicy,
+    LangTrajPolicy,
+    LogReplayPolicy,
+    Policy,
+)
+from langtraj.sim.selection import SELECTORS, CandidateSelector
+
+__all__ = [
+    "POLICIES",
+    "SELECTORS",
+    "CandidateSelector",
+    "ConstantVelocityPolicy",
+    "GuidanceBaselinePolicy",
+    "LangTrajPolicy",
+    "LogReplayPolicy",
+    "Policy",
+    "SimConfig",
+    "SimResult",
+    "replan_schedule",
+    "simulate",
+]

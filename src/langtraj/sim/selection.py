@@ -1,0 +1,73 @@
+"""Candidate selection: which of the M joint candidates sampled at a replan each rollout executes.
+
+The paper executes the candidate with the lowest collision cost (appendix 'Implementation Details');
+with cost guidance the candidate that best meets the guidance objective is the natural choice, since
+the lowest-collision one would undo collision guidance. Selectors are registered by name.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Sequence
+from typing import ClassVar
+
+import torch
+from torch import Tensor
+
+from langtraj.guidance import GuidanceScene, GuidanceTerm, NoCollisionCost
+from langtraj.registry import Registry
+
+
+class CandidateSelector(ABC):
+    """Picks one candidate per rollout from states [M, R, A, T, 4] (scene frame, the planning horizon)."""
+
+    name: ClassVar[str]
+
+    @abstractmethod
+    def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
+        """Index of the chosen candidate of each rollout: long [R]."""
+
+
+SELECTORS: Registry[CandidateSelector] = Registry("candidate selector")
+
+
+def _per_candidate(cost, states: Tensor, scene: GuidanceScene) -> Tensor:
+    """A cost [M * R] of candidates flattened sample-major, reshaped to [M, R]."""
+    m, r = states.shape[:2]
+    return cost(states.reshape(m * r, *states.shape[2:]), scene).reshape(m, r)
+
+
+@SELECTORS.register
+class MinCollision(CandidateSelector):
+    """The candidate with the least disk overlap between the driven agents (the paper's default)."""
+
+    name = "min_collision"
+
+    def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
+        with torch.no_grad():
+            return _per_candidate(NoCollisionCost(), states, scene).argmin(dim=0)
+
+
+@SELECTORS.register
+class MinGuidance(CandidateSelector):
+    """The candidate with the lowest weighted sum of the guidance costs (falls back to min_collision
+    when there is no guidance term)."""
+
+    name = "min_guidance"
+
+    def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
+        if not terms:
+            return MinCollision().select(states, scene, terms)
+        with torch.no_grad():
+            total = sum(term.weight * _per_candidate(term.cost, states, scene) for term in terms)
+            return total.argmin(dim=0)
+
+
+@SELECTORS.register
+class FirstCandidate(CandidateSelector):
+    """Candidate 0: plain sampling, no selection."""
+
+    name = "first"
+
+    def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
+        return torch.zeros(states.shape[1], dtype=torch.long, device=states.device)

@@ -1,0 +1,51 @@
+"""The JSON summary of a simulation: per agent, how often it collided or left the road and how far it went."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from langtraj.metrics.controllability import collision_flags, offroad_flags
+from langtraj.metrics.features import SceneMap
+from langtraj.scenario.types import AgentType
+from langtraj.sim.engine import SimResult
+
+
+def simulation_summary(result: SimResult, **settings: Any) -> dict[str, Any]:
+    """Per-agent collision and offroad rates over the rollouts (offroad: vehicles only, null without road
+    edges), mean distance travelled, which agents the policy drove, and the timing; `settings` are echoed."""
+    scenario, rollouts = result.world.scenario, result.rollouts
+    collided = collision_flags(scenario, rollouts).mean(axis=0)  # [A]
+    offroad: dict[int, float] = {}
+    scene_map = SceneMap.from_scenario(scenario)
+    is_vehicle = (
+        scenario.agents.types[[scenario.agents.index_of(int(i)) for i in rollouts.object_id]] == AgentType.VEHICLE
+    )
+    if scene_map.road_edges is not None and is_vehicle.any():
+        ids, flags = offroad_flags(scenario, rollouts, scene_map=scene_map)
+        offroad = {int(i): float(f) for i, f in zip(ids, flags.mean(axis=0), strict=True)}
+    steps = np.hypot(np.diff(rollouts.x, axis=-1), np.diff(rollouts.y, axis=-1)).sum(-1).mean(0)  # [A]
+    driven = set(result.driven_ids.tolist())
+    agents = [
+        {
+            "id": int(track),
+            "driven": int(track) in driven,
+            "collision_rate": float(collided[col]),
+            "offroad_rate": offroad.get(int(track)),
+            "distance_m": float(steps[col]),
+        }
+        for col, track in enumerate(rollouts.object_id)
+    ]
+    return {
+        "scenario_id": scenario.scenario_id,
+        "rollouts": rollouts.num_rollouts,
+        "driven_ids": [int(i) for i in result.driven_ids],
+        "replans": [step for step, _ in result.schedule],
+        "seconds": result.seconds,
+        "seconds_per_replan": result.plan_seconds,
+        "collision_rate": float(collided.mean()),
+        "offroad_rate": float(np.mean(list(offroad.values()))) if offroad else None,
+        "agents": agents,
+        **settings,
+    }

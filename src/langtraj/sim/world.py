@@ -1,0 +1,153 @@
+"""The simulated world: every sim agent's track in each of R rollouts, filled in as the simulation runs.
+
+Tracks are kept as a copy of the scenario's agent states per rollout, extended to the full 8 s future,
+so a policy sees each rollout's past exactly as a logged scenario (`scenario_at`) and the training
+features apply unchanged. Agents that no policy drives follow their log; where the log has no valid
+future step they keep their last logged velocity (constant velocity), so every sim agent has a pose at
+every step for the rollout file.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from langtraj.angles import wrap_angle
+from langtraj.rollouts.agents import sim_agent_indices
+from langtraj.rollouts.baselines import generate_baseline
+from langtraj.rollouts.container import FUTURE_STEPS, Rollouts
+from langtraj.scenario.model import STEP_SECONDS, Scenario, TrafficLights
+from langtraj.scenario.types import StateField
+
+POSE_FIELDS = 4
+"""Plan states per step: x, y, heading, speed (world frame)."""
+
+
+def extended_scenario(scenario: Scenario, future_steps: int = FUTURE_STEPS) -> Scenario:
+    """The scenario with at least `future_steps` steps after the current one (added steps: invalid
+    agents, unknown traffic lights, timestamps continuing at 10 Hz)."""
+    need = scenario.current_index + 1 + future_steps
+    extra = need - scenario.num_steps
+    if extra <= 0:
+        return scenario
+    agents = scenario.agents
+    states = np.concatenate(
+        [agents.states, np.zeros((agents.num_agents, extra, agents.states.shape[2]), np.float32)], 1
+    )
+    valid = np.concatenate([agents.valid, np.zeros((agents.num_agents, extra), bool)], 1)
+    last = scenario.timestamps[-1] if scenario.num_steps else 0.0
+    timestamps = np.concatenate([scenario.timestamps, last + STEP_SECONDS * np.arange(1, extra + 1)])
+    lights = scenario.traffic_lights
+    if lights is not None:
+        lanes = len(lights.lane_ids)
+        lights = TrafficLights(
+            lane_ids=lights.lane_ids,
+            states=np.concatenate([lights.states, np.zeros((extra, lanes), np.int8)]),
+            valid=np.concatenate([lights.valid, np.zeros((extra, lanes), bool)]),
+            stop_points=lights.stop_points,
+        )
+    return replace(
+        scenario,
+        timestamps=timestamps,
+        agents=replace(agents, states=states, valid=valid),
+        traffic_lights=lights,
+    )
+
+
+class SimWorld:
+    """R rollouts of one scene. `driven` (scenario rows, a subset of the sim agents) are written by a
+    policy with `execute`; every other sim agent follows its log (constant velocity past its end)."""
+
+    def __init__(self, scenario: Scenario, driven: np.ndarray, num_rollouts: int):
+        if num_rollouts < 1:
+            raise ValueError(f"num_rollouts must be at least 1, got {num_rollouts}")
+        self.scenario = extended_scenario(scenario)
+        self.start = scenario.current_index
+        self.end = self.start + FUTURE_STEPS
+        self.num_rollouts = num_rollouts
+        self.sim_agents = sim_agent_indices(scenario)
+        sim = set(self.sim_agents.tolist())
+        self.driven = np.asarray(driven, np.int64)
+        if not set(self.driven.tolist()) <= sim:
+            raise ValueError("every driven agent must be a sim agent (valid at the current step)")
+        # Non-driven agents: the log, and constant velocity where it ends (the rollout baseline's rule).
+        states = self.scenario.agents.states.copy()
+        valid = self.scenario.agents.valid.copy()
+        cv = generate_baseline("constant_velocity", scenario, 1)
+        future = slice(self.start + 1, self.end + 1)
+        for col, row in enumerate(self.sim_agents):
+            gap = ~valid[row, future]
+            if not gap.any():
+                continue
+            steps = np.arange(self.start + 1, self.end + 1)[gap]
+            states[row, steps, StateField.X] = cv.x[0, col, gap]
+            states[row, steps, StateField.Y] = cv.y[0, col, gap]
+            states[row, steps, StateField.Z] = cv.z[0, col, gap]
+            states[row, steps, StateField.HEADING] = cv.heading[0, col, gap]
+            states[row, steps, StateField.VX : StateField.VY + 1] = states[
+                row, self.start, StateField.VX : StateField.VY + 1
+            ]
+            keep = [StateField.LENGTH, StateField.WIDTH, StateField.HEIGHT]
+            states[np.ix_([row], steps, keep)] = states[row, self.start, keep]
+            valid[row, steps] = True
+        self.states = np.repeat(states[None], num_rollouts, axis=0)  # float32 [R, A_all, T, 9]
+        self.valid = np.repeat(valid[None], num_rollouts, axis=0)  # bool [R, A_all, T]
+
+    def scenario_at(self, rollout: int, step: int) -> Scenario:
+        """What rollout `rollout` looks like at `step`: its simulated past, `step` as the current index.
+        Driven agents' steps after `step` are not yet simulated and are marked invalid."""
+        states, valid = self.states[rollout], self.valid[rollout].copy()
+        valid[self.driven, step + 1 :] = False
+        agents = replace(self.scenario.agents, states=states, valid=valid)
+        return replace(self.scenario, agents=agents, current_index=step)
+
+    def played(self, rollout: int) -> Scenario:
+        """Rollout `rollout` as a scenario: the log up to the start, then the simulated 8 s (tracks that
+        are not sim agents, i.e. appear only later in the log, are hidden after the start)."""
+        valid = self.valid[rollout].copy()
+        others = np.setdiff1d(np.arange(valid.shape[0]), self.sim_agents)
+        valid[others, self.start + 1 :] = False
+        agents = replace(self.scenario.agents, states=self.states[rollout], valid=valid)
+        return replace(self.scenario, agents=agents)
+
+    def current(self, step: int) -> np.ndarray:
+        """Driven agents' world (x, y, heading, speed) at `step` in every rollout: float64 [R, A_d, 4]."""
+        s = self.states[:, self.driven, step].astype(np.float64)
+        speed = np.hypot(s[..., StateField.VX], s[..., StateField.VY])
+        return np.stack([s[..., StateField.X], s[..., StateField.Y], s[..., StateField.HEADING], speed], -1)
+
+    def execute(self, step: int, plan: np.ndarray) -> None:
+        """Write the driven agents' states for steps step+1 .. step+n: `plan` [R, A_d, n, 4] (x, y, heading,
+        speed in the world frame). Height and box size stay at the current step's."""
+        r, a, n, _ = plan.shape
+        if (r, a) != (self.num_rollouts, len(self.driven)) or step + n > self.end:
+            raise ValueError(
+                f"plan of shape {plan.shape} does not fit {self.num_rollouts} rollouts, "
+                f"{len(self.driven)} driven agents and steps up to {self.end}"
+            )
+        if not np.isfinite(plan).all():
+            raise ValueError(f"the policy produced non-finite states at step {step}")
+        cols = np.arange(step + 1, step + 1 + n)
+        block = self.states[:, self.driven][:, :, cols]  # copy [R, A_d, n, 9]
+        block[..., StateField.X] = plan[..., 0]
+        block[..., StateField.Y] = plan[..., 1]
+        block[..., StateField.HEADING] = wrap_angle(plan[..., 2])
+        block[..., StateField.VX] = plan[..., 3] * np.cos(plan[..., 2])
+        block[..., StateField.VY] = plan[..., 3] * np.sin(plan[..., 2])
+        keep = [StateField.Z, StateField.LENGTH, StateField.WIDTH, StateField.HEIGHT]
+        block[..., keep] = self.states[:, self.driven, step][:, :, None, keep]
+        self.states[:, self.driven[:, None], cols[None, :]] = block
+        self.valid[:, self.driven[:, None], cols[None, :]] = True
+
+    def rollouts(self) -> Rollouts:
+        """The simulated future of every sim agent (track order) as the metrics' rollout container."""
+        future = self.states[:, self.sim_agents, self.start + 1 : self.end + 1]
+        return Rollouts(
+            object_id=self.scenario.agents.ids[self.sim_agents],
+            x=future[..., StateField.X].astype(np.float32),
+            y=future[..., StateField.Y].astype(np.float32),
+            z=future[..., StateField.Z].astype(np.float32),
+            heading=wrap_angle(future[..., StateField.HEADING]).astype(np.float32),
+            scenario_id=self.scenario.scenario_id,
+        )
