@@ -1,0 +1,103 @@
+"""`langtraj simulate` end to end: the three outputs, the driven-agent report, and bad inputs refused
+before anything is written."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from langtraj.cli.main import main
+from langtraj.rollouts.container import Rollouts
+from langtraj.rollouts.validation import check_rollouts
+from langtraj.scenario.io import read_scenario
+
+
+def test_simulate_writes_rollouts_video_and_summary(tiny_run, tmp_path, capsys):
+    checkpoint, scenes = tiny_run
+    out = tmp_path / "sim"
+    code = main(["simulate", str(scenes), "--checkpoint", str(checkpoint), "--prompt", "@7 yields to @17",
+                 "--adversary", "37", "--target", "7", "--rollouts", "2", "--candidates", "2", "--steps", "2",
+                 "--replan-s", "4", "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert "agents driven by langtraj" in capsys.readouterr().out
+    rollouts = Rollouts.load(out / "rollouts.npz")
+    check_rollouts(read_scenario(scenes), rollouts, num_rollouts=2)
+    assert (out / "rollout0.mp4").stat().st_size > 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["prompted_ids"] == [7, 17] and summary["guidance"] == ["collision=1"]
+    assert summary["replans"] == [10, 50] and len(summary["seconds_per_replan"]) == 2
+    agents = {a["id"]: a for a in summary["agents"]}
+    assert set(agents) == {7, 17, 37, 47} and all(a["driven"] for a in agents.values())
+    assert all(0.0 <= a["collision_rate"] <= 1.0 and a["distance_m"] >= 0.0 for a in agents.values())
+    # the rollouts score with `langtraj evaluate`
+    assert main(["evaluate", str(scenes), str(out / "rollouts.npz"), "--json"]) == 0
+
+
+def test_baseline_policies_need_no_checkpoint(tiny_run, tmp_path):
+    _, scenes = tiny_run
+    for policy in ("constant_velocity", "log_replay"):
+        out = tmp_path / policy
+        assert (
+            main(["simulate", str(scenes), "--policy", policy, "--rollouts", "2", "--no-video", "--out", str(out)]) == 0
+        )
+        assert Rollouts.load(out / "rollouts.npz").x.shape == (2, 4, 80)
+        assert not (out / "rollout0.mp4").exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--prompt", "@999 turns left"], "unknown agent @999"),
+        (["--prompt", "@7 turns left", "--prompt", "@7 stops"], "named by two prompts"),
+        (["--adversary", "7", "--target", "7"], "same agent"),
+        (["--adversary", "27", "--target", "7"], "@27 is not an agent of this scene at its current step"),
+        (["--adversary", "7"], "go together"),
+        (["--guidance", "goal=1"], "'goal' cannot be given here"),
+        (["--guidance", "on_road=-1"], "must be finite and >= 0"),
+        (["--guidance", "on_road"], "expected NAME=WEIGHT"),
+        (["--policy", "constant_velocity", "--prompt", "@7 stops"], "need the langtraj policy"),
+        (["--policy", "teleport"], "unknown policy"),
+        (["--replan-s", "0.25"], "replan_s"),
+    ],
+)
+def test_bad_input_is_refused_and_nothing_is_written(tiny_run, tmp_path, capsys, extra, message):
+    checkpoint, scenes = tiny_run
+    out = tmp_path / "sim"
+    code = main(["simulate", str(scenes), "--checkpoint", str(checkpoint), "--out", str(out), *extra])
+    assert code == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_checkpoint_of_another_model_version_is_refused(tiny_run, tmp_path, capsys):
+    import torch
+
+    checkpoint, scenes = tiny_run
+    state = torch.load(checkpoint, weights_only=True)
+    state["langtraj_format"] = 999
+    foreign = tmp_path / "foreign.ckpt"
+    torch.save(state, foreign)
+    out = tmp_path / "sim"
+    assert main(["simulate", str(scenes), "--checkpoint", str(foreign), "--out", str(out)]) == 2
+    assert "checkpoint" in capsys.readouterr().err and not out.exists()
+
+
+def test_collision_guidance_pulls_the_adversary_to_its_target(tiny_run):
+    from langtraj.guidance import CollisionCost, GuidanceTerm
+    from langtraj.sim import LangTrajPolicy, SimConfig, simulate
+    from langtraj.training.run import module_from_checkpoint
+
+    checkpoint, scenes = tiny_run
+    module = module_from_checkpoint(checkpoint)
+    scenario = read_scenario(scenes)
+    distances = []
+    for terms in ((), (GuidanceTerm(CollisionCost(2, 0), 1.0),)):  # slots: 7 -> 0, 37 -> 2 (see summary test)
+        policy = LangTrajPolicy(module.model, module.train_config.data, terms=terms, candidates=2, steps=3,
+                                guidance_scale=5.0)  # fmt: skip
+        r = simulate(scenario, policy, SimConfig(rollouts=2, replan_s=2.0)).rollouts
+        ids = list(r.object_id)
+        a, t = ids.index(37), ids.index(7)
+        distances.append(np.hypot(r.x[:, a] - r.x[:, t], r.y[:, a] - r.y[:, t]).mean())
+    assert distances[1] < distances[0] - 1.0
