@@ -42,12 +42,23 @@ class Denoiser(nn.Module):
             nn.init.zeros_(layer.weight)
             nn.init.zeros_(layer.bias)
 
+    def pose_cache(self, scene: SceneContext) -> dict:
+        """Relative-pose embeddings of every attention block, keyed (block, sub-block). They depend on the
+        current poses only, so one computation serves every denoising step, and, computed on the scenes
+        before they are repeated per sample, every sample (see `RelPoseAttention.forward`)."""
+        pose, token_pose = scene.agent_pose, scene.pose
+        return {
+            (i, j): block.attn.relative(pose, key_pose)
+            for i, blocks in enumerate(self.blocks)
+            for j, (block, key_pose) in enumerate(zip(blocks, (pose, token_pose, pose), strict=True))
+        }
+
     def forward(
         self, x_k: Tensor, k: Tensor, scene: SceneContext, language: Tensor, cache: dict | None = None
     ) -> Tensor:
         """`language` [B, A, D] is E_L for every agent (null condition where it has no text). `cache`, a dict
-        kept across the denoising steps of one scene, holds the relative-pose embeddings, which do not
-        change between steps (poses are the current ones)."""
+        kept across the denoising steps of one scene, holds the relative-pose embeddings (`pose_cache`),
+        filled on first use when empty."""
         b, a, n, c = x_k.shape
         step = self.step(step_embedding(k, self.dim))[:, None, :]
         condition = step + self.condition_in(language)  # [B, A, D]: each agent's step and own text
@@ -57,11 +68,11 @@ class Denoiser(nn.Module):
         pair = mask[:, :, None] & mask[:, None, :]
         scene_attn = mask[:, :, None] & scene.mask[:, None, :]
         tokens, token_pose = scene.tokens, scene.pose
-        cache = {} if cache is None else cache
+        if cache is None:
+            cache = self.pose_cache(scene)
+        elif not cache:
+            cache.update(self.pose_cache(scene))
         for i, (agents, context, text) in enumerate(self.blocks):
-            for j, (block, key_pose) in enumerate(((agents, pose), (context, token_pose), (text, pose))):
-                if (i, j) not in cache:
-                    cache[(i, j)] = block.attn.relative(pose, key_pose)
             rel = [cache[(i, j)] for j in range(3)]
             scale, shift = self.modulation[i](film).chunk(2, dim=-1)
             h = h * (1.0 + scale) + shift

@@ -128,7 +128,7 @@ class LangTraj(nn.Module):
         scene = SceneContext(**{name: _repeat(t, num_samples) for name, t in vars(base).items()})
         expanded = _repeat_batch(batch, num_samples)
 
-        cache: dict = {}  # relative-pose embeddings: the same at every denoising step
+        cache = self.denoiser.pose_cache(base)  # per scene, shared by every step and sample
 
         def denoise(x_k: Tensor, k: Tensor) -> Tensor:
             x0 = self.denoiser(x_k, k, scene, conditional, cache)

@@ -64,19 +64,32 @@ class RelPoseAttention(nn.Module):
         self, query: Tensor, query_pose: Tensor, key: Tensor, key_pose: Tensor, mask: Tensor, rel: Tensor | None = None
     ) -> Tensor:
         """query [B, Nq, D], key [B, Nk, D], poses [B, N, 3], mask bool [B, Nq, Nk] (True: attend); `rel`
-        from `relative` when already computed. Rows with nothing to attend to return zeros."""
+        from `relative` when already computed. Rows with nothing to attend to return zeros.
+
+        `rel` may hold B0 rows where B is a multiple of B0 and row r of the batch has the poses of row
+        r % B0 (samples of the same scenes, sample-major): the pose terms are then computed once per scene
+        instead of once per sample. q . (k_j + r_ij) and sum_j w_ij (v_j + r_ij) are split into their
+        plain-attention and pose parts so that the pose embeddings are never copied per sample.
+        """
         b, nq, d = query.shape
         nk = key.shape[1]
-        rel = self.relative(query_pose, key_pose) if rel is None else rel  # [B, Nq, Nk, D]
-        q = self.q(query).view(b, nq, self.heads, self.head_dim)
-        k = (self.k(key)[:, None] + rel).view(b, nq, nk, self.heads, self.head_dim)
-        v = (self.v(key)[:, None] + rel).view(b, nq, nk, self.heads, self.head_dim)
-        logits = torch.einsum("bqhd,bqkhd->bhqk", q, k) / math.sqrt(self.head_dim)
-        logits = logits.masked_fill(~mask[:, None], float("-inf"))
+        rel = self.relative(query_pose, key_pose) if rel is None else rel  # [B0, Nq, Nk, D]
+        b0 = rel.shape[0]
+        if b % b0:
+            raise ValueError(f"{b} query rows are not a multiple of the {b0} rows of the pose embeddings")
+        g, h, hd = b // b0, self.heads, self.head_dim
+        rel = rel.view(b0, nq, nk, h, hd)
+        q = self.q(query).view(b, nq, h, hd)
+        k = self.k(key).view(b, nk, h, hd)
+        v = self.v(key).view(b, nk, h, hd)
+        logits = torch.einsum("bqhd,bkhd->bhqk", q, k)
+        logits = logits + torch.einsum("gbqhd,bqkhd->gbhqk", q.view(g, b0, nq, h, hd), rel).reshape(b, h, nq, nk)
+        logits = logits.masked_fill(~mask[:, None], float("-inf")) / math.sqrt(hd)
         any_key = mask.any(-1)[:, None, :, None]  # [B, 1, Nq, 1]
-        weights = torch.softmax(logits.masked_fill(~any_key, 0.0), dim=-1) * any_key
-        out = torch.einsum("bhqk,bqkhd->bqhd", self.drop(weights), v).reshape(b, nq, d)
-        return self.out(out)
+        weights = self.drop(torch.softmax(logits.masked_fill(~any_key, 0.0), dim=-1) * any_key)
+        out = torch.einsum("bhqk,bkhd->bqhd", weights, v)
+        out = out + torch.einsum("gbhqk,bqkhd->gbqhd", weights.view(g, b0, h, nq, nk), rel).reshape(b, nq, h, hd)
+        return self.out(out.reshape(b, nq, d))
 
 
 class AttentionBlock(nn.Module):

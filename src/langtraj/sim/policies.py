@@ -184,13 +184,14 @@ class LangTrajPolicy(Policy):
             )
             for r in rollouts
         ]
-        batch = collate_scenes(rows)
+        device = next(self.model.parameters()).device
+        batch = collate_scenes(rows).to(device)
         m = self.candidates
         generators = [self.generators[r] for r in rollouts]
 
         def noise(shape: tuple[int, ...]) -> Tensor:  # sample-major rows: [M * R, ...]
             per_rollout = [torch.randn((m, *shape[1:]), generator=g) for g in generators]
-            return torch.stack(per_rollout, dim=1).reshape(shape)
+            return torch.stack(per_rollout, dim=1).reshape(shape).to(device)
 
         hook = None
         if self.terms:
@@ -207,8 +208,8 @@ class LangTrajPolicy(Policy):
         states, _ = self.model.sample(
             batch, m, steps=self.steps, guidance_weight=self.guidance_weight, guidance=hook, noise=noise
         )
-        choice = self.selector.select(states, self.scene, self.terms)  # states [M, R, A, T, 4], scene frame
-        chosen = states[choice, torch.arange(len(rollouts)), : len(world.driven)].double().numpy()
+        choice = self.selector.select(states, self.scene.to(device), self.terms)  # states [M, R, A, T, 4], scene frame
+        chosen = states[choice, torch.arange(len(rollouts), device=device), : len(world.driven)].double().cpu().numpy()
         return _to_world(chosen, self.origin)
 
 

@@ -1,0 +1,93 @@
+"""Seconds for 32 closed-loop rollouts of 8 s (K = 5 DDIM steps, replanning at 1 Hz) of a 64-agent and a
+128-agent scene, on this machine's CPU (or a GPU when one is present).
+
+The scenes are the real WOMD scene 2a1e44d405a6833f (ScenarioNet pickle in ../shared/data/real, 211
+tracks) cut to its 64 and 128 most important sim agents. The model drives at most its `max_agents` of
+them (the shipped tiny model: 24); the rest follow their log. Medians over --repeats runs.
+
+    python benchmarks/simulate_speed.py [--checkpoint CKPT] [--candidates 4] [--repeats 3] [--rollouts 32]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT.parent / "shared" / "data" / "real" / "sd_training.tfrecord-00000-of-01000_2a1e44d405a6833f.pkl"
+
+
+def cut_scene(scenario, num_agents: int):
+    """The scenario with only its `num_agents` most important sim agents (every other track dropped)."""
+    from langtraj.scenario.selection import prioritized_agents
+
+    keep = np.sort(prioritized_agents(scenario, num_agents))
+    if len(keep) < num_agents:
+        raise SystemExit(f"{SCENE.name} has only {len(keep)} sim agents, fewer than {num_agents}")
+    agents = scenario.agents
+    rows = {int(r): i for i, r in enumerate(keep)}
+    sdc = rows.get(int(scenario.sdc_index), -1)
+    cut = replace(
+        agents,
+        ids=agents.ids[keep],
+        types=agents.types[keep],
+        states=agents.states[keep],
+        valid=agents.valid[keep],
+        tracks_to_predict=np.array([rows[int(t)] for t in agents.tracks_to_predict if int(t) in rows], np.int64),
+        prediction_difficulty=None,
+        objects_of_interest=np.array([rows[int(t)] for t in agents.objects_of_interest if int(t) in rows], np.int64),
+    )
+    return replace(scenario, agents=cut, sdc_index=sdc)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--checkpoint", help="default: the shipped checkpoint")
+    parser.add_argument("--candidates", type=int, default=4, help="candidates per replan (paper: 64 on a GPU)")
+    parser.add_argument("--rollouts", type=int, default=32)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--agents", type=int, nargs="+", default=[64, 128])
+    args = parser.parse_args()
+    if not SCENE.is_file():
+        sys.exit(f"benchmark scene not found: {SCENE}")
+
+    from langtraj.scenario.io import read_scenario
+    from langtraj.sim.checkpoints import shipped_checkpoint
+    from langtraj.sim.engine import SimConfig, simulate
+    from langtraj.sim.policies import LangTrajPolicy
+    from langtraj.training.run import module_from_checkpoint
+
+    device = "cuda" if torch.cuda.is_available() else "cpu"
+    checkpoint = args.checkpoint or shipped_checkpoint()
+    module = module_from_checkpoint(checkpoint)
+    module.model.to(device)
+    print(
+        f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, torch threads "
+        f"{torch.get_num_threads()}, device {device}; checkpoint {Path(checkpoint).name} "
+        f"(drives up to {module.train_config.data.max_agents} agents)"
+    )
+    print(f"{args.rollouts} rollouts x 8 s, K = 5, replanning at 1 Hz, {args.candidates} candidates per replan")
+    full = read_scenario(SCENE)
+    for count in args.agents:
+        scene = cut_scene(full, count)
+        times = []
+        for repeat in range(args.repeats):
+            policy = LangTrajPolicy(module.model, module.train_config.data, candidates=args.candidates, steps=5)
+            result = simulate(scene, policy, SimConfig(rollouts=args.rollouts, replan_s=1.0, seed=repeat))
+            times.append(result.seconds)
+        print(
+            f"{count:4d} agents ({len(result.driven_ids)} driven): median {statistics.median(times):.2f} s "
+            f"(runs: {', '.join(f'{t:.2f}' for t in times)})"
+        )
+
+
+if __name__ == "__main__":
+    main()
