@@ -10,6 +10,7 @@ from langtraj import __version__
 from langtraj.cli import (
     baseline,
     convert,
+    demo,
     evaluate,
     inspect,
     interdrive,
@@ -22,7 +23,7 @@ from langtraj.cli import (
 )
 from langtraj.errors import LangTrajError
 
-VERBS = (inspect, render, convert, synth, interdrive, baseline, evaluate, submit, train, sample, simulate)
+VERBS = (inspect, render, convert, synth, interdrive, baseline, evaluate, submit, train, sample, simulate, demo)
 """Each verb module has `add_parser(subparsers)` (setting `func`) and a `run(args) -> int`."""
 
 
