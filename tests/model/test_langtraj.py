@@ -117,3 +117,52 @@ def test_guidance_weight_minus_one_is_the_unconditional_model():
     cond, _ = model.sample(batch, 1, steps=3, generator=gen.manual_seed(2))
     torch.testing.assert_close(uncond, plain)
     assert not torch.allclose(cond, plain)
+
+
+def _text_model_and_batch():
+    torch.manual_seed(0)
+    model = LangTraj(replace(SMALL_MODEL, use_text=True)).eval()
+    rng = np.random.default_rng(0)
+    batch = collate_scenes([build_sample(make_scenario(5), None, replace(SMALL_DATA, text=True), rng, augment=False)])
+    return model, replace(batch, text=[["the target agent turns left"] + [None] * 7])
+
+
+def test_text_weight_counts_the_agents_with_a_sentence_more():
+    model, batch = _text_model_and_batch()
+    off = batch.future.clone()
+    off[0, 0, :, :2] += 5.0  # only the agent with a sentence is off its log
+    broken = replace(batch, future=off)
+    increase = {}
+    for weight in (1.0, 5.0):
+        losses = []
+        for b in (batch, broken):
+            torch.manual_seed(4)
+            losses.append(float(model.loss(b, text_weight=weight)["position"]))
+        increase[weight] = losses[1] - losses[0]
+    assert increase[5.0] > 2.0 * increase[1.0] > 0.0
+    no_text = replace(batch, text=[[None] * 8])
+    torch.manual_seed(4)
+    plain = float(model.loss(no_text)["loss"])
+    torch.manual_seed(4)
+    assert float(model.loss(no_text, text_weight=5.0)["loss"]) == pytest.approx(plain)
+
+
+def test_samples_share_the_scene_without_changing_the_result(model):
+    """Pose terms computed once per scene (sample-major sharing) give what per-row terms give."""
+    from langtraj.model.diffusion import sample
+    from langtraj.model.langtraj import _repeat_batch
+
+    batch = _batch(n=2)
+    shared, _ = model.sample(batch, 3, steps=4, generator=torch.Generator().manual_seed(5))
+    repeated = _repeat_batch(batch, 3)
+    scene = model.encoder(repeated)
+    language = model.language(repeated, scene)
+    x0 = sample(
+        lambda x, k: model.denoiser(x, k, scene, language),  # no cache: pose terms per row
+        (6, 8, 16, 2),
+        model.schedule,
+        num_inference_steps=4,
+        generator=torch.Generator().manual_seed(5),
+    )
+    per_row = model.rollout(repeated, x0).reshape(3, 2, 8, 80, 4)
+    torch.testing.assert_close(shared, per_row, atol=1e-3, rtol=1e-4)
