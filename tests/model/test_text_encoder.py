@@ -191,3 +191,18 @@ def test_unknown_architecture_asks_for_target_modules(tiny_distilbert_dir: Path,
     assert str(tiny_distilbert_dir) in str(info.value)
     frozen = TextEncoder(TextEncoderConfig(encoder=str(tiny_distilbert_dir), lora=False), MODEL_DIM)
     assert frozen.lora_targets == ()  # a frozen encoder needs no targets
+
+
+def test_eval_embeddings_are_cached_until_the_weights_change() -> None:
+    torch.manual_seed(0)
+    encoder = TextEncoder(TextEncoderConfig(), MODEL_DIM).eval()
+    with torch.no_grad():
+        first = encoder.encode([SENTENCES[0], SENTENCES[1]])
+        assert SENTENCES[0] in encoder._embedding_cache
+        torch.testing.assert_close(encoder.encode([SENTENCES[1], SENTENCES[0]]), first.flip(0))
+        lora_b = next(p for n, p in encoder.named_parameters() if "lora_B" in n)
+        lora_b.add_(0.5)  # an in-place weight change, as an optimiser step makes
+        changed = encoder.encode([SENTENCES[0]])
+    assert not torch.allclose(changed[0], first[0])
+    encoder.train()
+    assert torch.allclose(encoder.encode([SENTENCES[0]])[0], changed[0], atol=1e-5)  # training: no cache

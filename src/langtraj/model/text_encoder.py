@@ -172,6 +172,8 @@ class TextEncoder(nn.Module):
         # Small random init so the null embedding is distinct from any sentence's from the first step.
         self.null_embedding = nn.Parameter(torch.randn(model_dim) * 0.02)
         self._token_cache: OrderedDict[str, list[int]] = OrderedDict()
+        self._embedding_cache: dict[str, Tensor] = {}  # eval-mode embeddings, see `encode`
+        self._embedding_version = -1
         self.train(self.training)
 
     @property
@@ -180,11 +182,16 @@ class TextEncoder(nn.Module):
         return self.model_dim
 
     def train(self, mode: bool = True) -> TextEncoder:
-        """Set the training mode, keeping the pretrained encoder's own dropout off (LoRA dropout follows mode)."""
+        """Set the training mode, keeping the pretrained encoder in eval mode (LoRA dropout follows `mode`).
+
+        The whole encoder, not only its Dropout modules, stays in eval mode: BERT's attention passes its
+        dropout probability to scaled_dot_product_attention whenever the attention module is training.
+        """
         super().train(mode)
+        self.encoder.eval()
         for name, module in self.encoder.named_modules():
-            if isinstance(module, nn.Dropout) and "lora_dropout" not in name:
-                module.eval()
+            if "lora_dropout" in name:
+                module.train(mode)
         return self
 
     def lora_parameter_names(self) -> list[str]:
@@ -205,10 +212,28 @@ class TextEncoder(nn.Module):
         return ids
 
     def encode(self, sentences: list[str]) -> Tensor:
-        """Embed each sentence: float [N, model_dim] on this module's device."""
-        device = self.null_embedding.device
+        """Embed each sentence: float [N, model_dim] on this module's device.
+
+        Outside training (eval mode, no autograd) embeddings are kept per sentence, so a simulation that
+        replans with the same prompt encodes it once; any change to the weights (an optimiser step, a
+        loaded state) starts a new cache.
+        """
         if not sentences:
             return self.null_embedding.new_zeros((0, self.model_dim))
+        if self.training or torch.is_grad_enabled():
+            return self._encode(sentences)
+        version = sum(p._version for p in self.parameters() if p.requires_grad)
+        if version != self._embedding_version or len(self._embedding_cache) > 65536:
+            self._embedding_cache.clear()
+            self._embedding_version = version
+        missing = [s for s in dict.fromkeys(sentences) if s not in self._embedding_cache]
+        if missing:
+            for sentence, row in zip(missing, self._encode(missing), strict=True):
+                self._embedding_cache[sentence] = row
+        return torch.stack([self._embedding_cache[s] for s in sentences])
+
+    def _encode(self, sentences: list[str]) -> Tensor:
+        device = self.null_embedding.device
         token_ids = [self._token_ids(sentence) for sentence in sentences]
         length = max(len(ids) for ids in token_ids)
         input_ids = torch.full((len(token_ids), length), self.tokenizer.pad_token_id, dtype=torch.long)
