@@ -52,3 +52,29 @@ def write_dataset(folder: Path, num_scenes: int = 24) -> Path:
     write_shard(labels / "labels" / "0000-scenes.jsonl", records)
     write_manifest(labels, {"format_version": 1, "shards": [{"file": "labels/0000-scenes.jsonl"}]})
     return labels
+
+
+TINY_TRAINING = {
+    "name": "test-tiny",
+    "stage": 2,
+    "model": {"hidden_dim": 32, "num_heads": 4, "encoder_layers": 1, "denoiser_blocks": 1, "dropout": 0.0},
+    "data": {"max_agents": 8, "max_polylines": 12, "points_per_polyline": 10},
+    "batch_size": 4,
+    "max_steps": 2,
+    "val_every_steps": 1000,
+    "checkpoint_every_steps": 1,
+}
+"""A stage-2 model small enough to train for two steps in seconds (CLI, simulation and demo tests)."""
+
+
+def train_tiny(root: Path, num_scenes: int = 12) -> tuple[Path, Path]:
+    """Train `TINY_TRAINING` with `langtraj train` on toy scenes in `root`: (last checkpoint, scenes file)."""
+    import yaml
+
+    from langtraj.cli.main import main
+
+    labels = write_dataset(root, num_scenes)
+    config = root / "tiny.yaml"
+    config.write_text(yaml.safe_dump(TINY_TRAINING))
+    assert main(["train", "--config", str(config), "--data", str(labels), "--out", str(root / "run")]) == 0
+    return root / "run" / "checkpoints" / "last.ckpt", root / "scenes.tfrecord"

@@ -7,33 +7,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from dataset_builders import write_dataset
+from dataset_builders import TINY_TRAINING as TINY
+from dataset_builders import train_tiny, write_dataset
 
 from langtraj.cli.main import main
 from langtraj.model.open_loop import sample_open_loop
 from langtraj.scenario.io import read_scenario
 from langtraj.training.run import module_from_checkpoint
 
-TINY = {
-    "name": "cli-test",
-    "stage": 2,
-    "model": {"hidden_dim": 32, "num_heads": 4, "encoder_layers": 1, "denoiser_blocks": 1, "dropout": 0.0},
-    "data": {"max_agents": 8, "max_polylines": 12, "points_per_polyline": 10},
-    "batch_size": 4,
-    "max_steps": 2,
-    "val_every_steps": 1000,
-    "checkpoint_every_steps": 1,
-}
-
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory) -> tuple[Path, Path]:
-    root = tmp_path_factory.mktemp("cli")
-    labels = write_dataset(root, 12)
-    config = root / "tiny.yaml"
-    config.write_text(yaml.safe_dump(TINY))
-    assert main(["train", "--config", str(config), "--data", str(labels), "--out", str(root / "run")]) == 0
-    return root / "run" / "checkpoints" / "last.ckpt", root / "scenes.tfrecord"
+    return train_tiny(tmp_path_factory.mktemp("cli"))
 
 
 def test_train_writes_checkpoints_and_logs(trained):
