@@ -39,7 +39,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--guidance-scale", type=float, default=1.0, help="step size alpha of reconstruction guidance")
     p.add_argument("--cfg", type=float, default=0.0, help="classifier-free guidance weight w (-1: ignore text)")
     p.add_argument("--rollouts", type=int, default=32, help="joint rollouts (default 32, as WOSAC)")
-    p.add_argument("--candidates", type=int, default=8, help="candidates sampled per replan (paper: 64)")
+    p.add_argument(
+        "--candidates", type=int, default=4, help="candidates sampled per replan (default 4; paper: 64 on a GPU)"
+    )
     p.add_argument("--steps", type=int, default=5, help="DDIM steps per sample (default 5)")
     p.add_argument("--replan-s", type=float, default=1.0, help="seconds between replans (default 1)")
     p.add_argument("--seed", type=int, default=0)

@@ -103,7 +103,7 @@ class LangTrajPolicy(Policy):
         *,
         prompt: PromptEntry | None = None,
         terms: Sequence[GuidanceTerm] = (),
-        candidates: int = 8,
+        candidates: int = 4,
         steps: int = 5,
         guidance_weight: float = 0.0,
         guidance_scale: float = 1.0,

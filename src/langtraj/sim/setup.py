@@ -35,7 +35,7 @@ class SimRequest:
     guidance: tuple[str, ...] = ()  # "NAME=WEIGHT"
     guidance_scale: float = 1.0
     cfg: float = 0.0
-    candidates: int = 8
+    candidates: int = 4
     steps: int = 5
 
 
