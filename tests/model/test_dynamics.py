@@ -213,3 +213,26 @@ def test_real_logs_reconstruct(real_data_dir: Path, name: str) -> None:
     assert error.median() < 0.1
     assert torch.quantile(error, 0.95) < 0.5
     assert error.max() < 3.0
+
+
+def test_a_curvature_bound_stops_turning_on_the_spot() -> None:
+    model = Unicycle()
+    initial = torch.tensor([[0.0, 0.0, 0.3, 0.0], [0.0, 0.0, 0.3, 5.0], [0.0, 0.0, 0.3, 0.0]])
+    actions = torch.zeros(3, 4, 2)
+    actions[..., 1] = 1.0  # 1 rad/s of yaw rate asked for throughout
+    bound = torch.tensor([0.25, 0.25, torch.inf])
+    states = model(initial, actions, bound)
+    assert torch.isfinite(states).all()  # an unbounded agent at 0 m/s must not give inf x 0 = NaN
+    assert torch.allclose(states[0, :, 2], torch.tensor(0.3))  # stopped car: heading stays
+    assert torch.allclose(states[1, :, 2], 0.3 + torch.arange(1, 21) * 0.1)  # 5 m/s x 0.25 > 1 rad/s: free
+    assert torch.allclose(states[2, :, 2], 0.3 + torch.arange(1, 21) * 0.1)  # no bound: turns on the spot
+    slow = model(torch.tensor([[0.0, 0.0, 0.0, 2.0]]), actions[:1], torch.tensor([0.25]))
+    assert torch.allclose(slow[0, :, 2], torch.arange(1, 21) * 0.1 * 0.5)  # 2 m/s x 0.25 = 0.5 rad/s at most
+
+
+def test_the_curvature_bound_keeps_gradients_finite() -> None:
+    actions = torch.zeros(2, 4, 2, requires_grad=True)
+    initial = torch.tensor([[0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 3.0]], requires_grad=True)
+    states = Unicycle()(initial, actions, torch.tensor([torch.inf, 0.25]))
+    states.sum().backward()
+    assert torch.isfinite(actions.grad).all() and torch.isfinite(initial.grad).all()

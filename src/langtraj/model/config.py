@@ -23,6 +23,7 @@ class ModelConfig:
     history_steps: int = 11  # history length the encoder reads (10 Hz, ending at the current step)
     num_actions: int = 16  # 0.5 s actions: 16 cover 8 s
     dynamics: str = "unicycle"
+    vehicle_max_curvature: float = 0.25  # 1/m (a 4 m turn radius): vehicles cannot turn on the spot
     action_scale: tuple[float, float] = (4.0, 0.5)  # m/s^2 and rad/s that map to 1 in the network's units
     diffusion_steps: int = 100  # K (paper: 100 for pretraining)
     map_attention_radius: float = 50.0  # map polylines attend to polylines within this distance (m)

@@ -36,9 +36,10 @@ class Dynamics(nn.Module, ABC):
         self.dt = float(dt)
 
     @abstractmethod
-    def forward(self, initial: Tensor, actions: Tensor) -> Tensor:
+    def forward(self, initial: Tensor, actions: Tensor, max_curvature: Tensor | None = None) -> Tensor:
         """initial [..., 4] (x, y, heading, speed) at the current step; actions [..., N, action_dim]
-        -> states [..., N*steps_per_action, 4] at the 10 Hz steps after the current one."""
+        -> states [..., N*steps_per_action, 4] at the 10 Hz steps after the current one. `max_curvature`
+        [...] (1/m), where given, is each agent's tightest turn (a model may ignore it)."""
 
     @abstractmethod
     def inverse(self, initial: Tensor, states: Tensor, valid: Tensor) -> tuple[Tensor, Tensor]:
@@ -92,16 +93,25 @@ class Unicycle(Dynamics):
         yaw_rate = actions[..., 1].clamp(-self.max_yaw_rate, self.max_yaw_rate)
         return torch.stack([accel, yaw_rate], dim=-1)
 
-    def forward(self, initial: Tensor, actions: Tensor) -> Tensor:
+    def forward(self, initial: Tensor, actions: Tensor, max_curvature: Tensor | None = None) -> Tensor:
+        """`max_curvature` [...] (1/m, per agent; inf for none) bounds the yaw rate by curvature x speed, so
+        an agent with that bound cannot turn on the spot (a car's heading only changes while it moves)."""
         if initial.shape[-1] != 4 or actions.shape[-1] != 2 or actions.shape[:-2] != initial.shape[:-1]:
             raise InputError(f"expected initial [..., 4] and actions [..., N, 2], got {initial.shape}, {actions.shape}")
         dt = self.dt
         sub = actions.repeat_interleave(self.steps_per_action, dim=-2)  # [..., T, 2]
         x0, y0, h0, v0 = initial.unbind(-1)
-        heading = h0[..., None] + torch.cumsum(sub[..., 1] * dt, dim=-1)
         # v_t = max(v_{t-1} + a_t dt, 0) in closed form (Lindley recursion): S_t - min(0, min_{s<=t} S_s).
         unclamped = v0.clamp(min=0)[..., None] + torch.cumsum(sub[..., 0] * dt, dim=-1)
         speed = unclamped - torch.cummin(unclamped, dim=-1).values.clamp(max=0)
+        yaw_rate = sub[..., 1]
+        if max_curvature is not None:
+            # No inf inside the product: inf x 0 m/s is NaN, and so is its gradient even where unselected.
+            unbounded = torch.isinf(max_curvature)[..., None]
+            finite = torch.where(unbounded, 0.0, max_curvature[..., None])
+            bound = torch.where(unbounded, torch.inf, finite * speed)
+            yaw_rate = torch.minimum(torch.maximum(yaw_rate, -bound), bound)
+        heading = h0[..., None] + torch.cumsum(yaw_rate * dt, dim=-1)
         x = x0[..., None] + torch.cumsum(speed * torch.cos(heading) * dt, dim=-1)
         y = y0[..., None] + torch.cumsum(speed * torch.sin(heading) * dt, dim=-1)
         return torch.stack([x, y, heading, speed], dim=-1)

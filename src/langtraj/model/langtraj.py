@@ -21,6 +21,7 @@ from langtraj.model.dynamics import DYNAMICS
 from langtraj.model.layers import mlp
 from langtraj.model.scene_encoder import SceneContext, SceneEncoder
 from langtraj.model.text_encoder import TextEncoder
+from langtraj.scenario.types import AgentType
 
 Guidance = Callable[[Tensor, Tensor, Tensor], Tensor]
 """(x0 [B, A, N, 2], k [B], x_k) -> modified x0: the hook for cost guidance (issue 7)."""
@@ -68,7 +69,14 @@ class LangTraj(nn.Module):
 
     def rollout(self, batch: SceneBatch, x0: Tensor) -> Tensor:
         """States [B, A, T, 4] (x, y, heading, speed) from network-unit actions [B, A, N, 2]."""
-        return self.dynamics(batch.current_state, self.from_units(x0))
+        return self.integrate(batch.current_state, batch.agent_type, x0)
+
+    def integrate(self, current_state: Tensor, agent_type: Tensor, x0: Tensor) -> Tensor:
+        """States from the current states [B, A, 4], agent types [B, A] and network-unit actions [B, A, N, 2];
+        vehicles turn no tighter than `vehicle_max_curvature` (without it, an undertrained model's small
+        yaw rates turn a stopped car on the spot, and in closed loop such errors add up)."""
+        limit = torch.where(agent_type == AgentType.VEHICLE, self.config.vehicle_max_curvature, torch.inf)
+        return self.dynamics(current_state, self.from_units(x0), limit.to(x0.dtype))
 
     # ------------------------------------------------------------------ training
     def loss(

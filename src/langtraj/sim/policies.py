@@ -196,11 +196,12 @@ class LangTrajPolicy(Policy):
         hook = None
         if self.terms:
             initial = batch.current_state.repeat(m, 1, 1)
+            types = batch.agent_type.repeat(m, 1)
             model = self.model
             hook = reconstruction_guidance(
                 self.terms,
                 self.scene,
-                lambda x: model.dynamics(initial, model.from_units(x)),
+                lambda x: model.integrate(initial, types, x),
                 scale=self.guidance_scale,
                 num_steps=self.model.schedule.num_steps,
                 max_grad_norm=self.max_grad_norm,
