@@ -7,7 +7,6 @@ one row of a SceneBatch (`from_batch`, the polylines the model sees).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, fields, replace
 
@@ -16,6 +15,7 @@ import torch
 from torch import Tensor
 
 from langtraj.errors import InputError
+from langtraj.frames import points_to_frame
 from langtraj.model.batch import SceneBatch
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import MapFeatureType, StateField
@@ -93,13 +93,13 @@ class GuidanceScene:
             raise InputError(f"agent indices must be in [0, {scenario.num_agents}), got {rows.tolist()}")
 
         near = [f for f in scenario.road_map if len(f.points) >= 2 and _near(f.points, frame, radius)]
-        edges = [_to_frame(f.points[:, :2], frame) for f in near if f.type.is_road_edge]
+        edges = [points_to_frame(f.points[:, :2], frame) for f in near if f.type.is_road_edge]
         segments = [np.stack([p[:-1], p[1:]], axis=1) for p in edges]
         road_edges = np.concatenate(segments) if segments else np.zeros((0, 2, 2))
         step = max_lane_points - 1
         pieces = [
             p[i : i + max_lane_points]
-            for p in (_to_frame(f.points[:, :2], frame) for f in near if f.type.is_lane)
+            for p in (points_to_frame(f.points[:, :2], frame) for f in near if f.type.is_lane)
             for i in range(0, len(p) - 1, step)
         ]
         lanes = np.zeros((len(pieces), max_lane_points, 2))
@@ -143,14 +143,6 @@ class GuidanceScene:
             agent_size=batch.agent_size[row].float(),
             agent_valid=batch.agent_valid[row],
         )
-
-
-def _to_frame(xy: np.ndarray, origin: tuple[float, ...]) -> np.ndarray:
-    """World points [..., 2] in the frame whose origin and x axis are `origin` = (x, y, heading)."""
-    ox, oy, oh = origin
-    c, s = math.cos(oh), math.sin(oh)
-    dx, dy = xy[..., 0] - ox, xy[..., 1] - oy
-    return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
 
 
 def _near(points: np.ndarray, origin: tuple[float, ...], radius: float | None) -> bool:

@@ -3,6 +3,7 @@ in world coordinates, optionally conditioned on a typed `@id` prompt."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -10,6 +11,7 @@ import torch
 
 from langtraj.angles import wrap_angle
 from langtraj.errors import InputError
+from langtraj.frames import poses_to_world
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
 from langtraj.model.langtraj import LangTraj
@@ -54,6 +56,17 @@ def user_prompt_entry(scenario: Scenario, text: str) -> PromptEntry:
     return PromptEntry.of(prompt)
 
 
+def check_prompt_driven(prompt: PromptEntry, driven_ids: Sequence[int], max_agents: int) -> None:
+    """InputError naming the prompt's agents that are not among `driven_ids` (the model's agents)."""
+    outside = [m for m in prompt.mentions if m not in set(driven_ids)]
+    if outside:
+        raise InputError(
+            f"agents {', '.join(f'@{m}' for m in outside)} are not among the {len(driven_ids)} agents the model "
+            f"drives in this scene (it takes the {max_agents} most important)",
+            where="prompt",
+        )
+
+
 def sample_open_loop(
     model: LangTraj,
     scenario: Scenario,
@@ -73,24 +86,13 @@ def sample_open_loop(
     batch = collate_scenes([row])
     ids = batch.agent_id[0].numpy()
     if entry is not None:
-        outside = [m for m in entry.mentions if m not in set(ids.tolist())]
-        if outside:
-            raise InputError(
-                f"agents {', '.join(f'@{m}' for m in outside)} are not among the {int((ids >= 0).sum())} agents the"
-                f" model drives in this scene (it takes the {data.max_agents} most important)",
-                where="prompt",
-            )
+        check_prompt_driven(entry, ids[ids >= 0].tolist(), data.max_agents)
     model.eval()
     generator = torch.Generator().manual_seed(seed)
     states, _ = model.sample(batch, num_samples, steps=steps, guidance_weight=guidance_weight, generator=generator)
     real = ids >= 0
     scene = states[:, 0, real].double().numpy()  # [S, A, T, 4] in the scene frame
-    ox, oy, oh = batch.origin[0].double().numpy()
-    c, s = np.cos(oh), np.sin(oh)
-    world = scene.copy()
-    world[..., 0] = ox + c * scene[..., 0] - s * scene[..., 1]
-    world[..., 1] = oy + s * scene[..., 0] + c * scene[..., 1]
-    world[..., 2] = scene[..., 2] + oh
+    world = poses_to_world(scene, tuple(batch.origin[0].double().tolist()))
     agents = np.array([scenario.agents.index_of(int(i)) for i in ids[real]], np.int64)
     conditioned = tuple(int(i) for i, t in zip(ids.tolist(), batch.text[0], strict=False) if t is not None and i >= 0)
     return OpenLoopSamples(agents, world, conditioned)

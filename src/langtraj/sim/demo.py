@@ -88,7 +88,7 @@ def _panel(result: SimResult, caption: str, highlight: tuple[int, ...], follow: 
         size_px=PANEL_PX, follow_track_id=follow, view_extent_m=90.0, highlight_ids=highlight, caption=caption
     )
     scene = result.scenario(0)
-    start = scene.current_index - 10 if scene.current_index >= 10 else 0
+    start = max(scene.current_index - 10, 0)
     return TopDownRenderer(scene, config, steps=range(start, start + 91)), range(start, start + 91)
 
 
@@ -121,7 +121,8 @@ def run_demo(
 
     begin = time.perf_counter()
     checkpoint = checkpoint or shipped_checkpoint()
-    driven = module_from_checkpoint(checkpoint).train_config.data.max_agents
+    module = module_from_checkpoint(checkpoint)  # loaded once for the three runs
+    driven = module.train_config.data.max_agents
     with tempfile.TemporaryDirectory(prefix="langtraj-demo-") as tmp:
         scene = synthesize_scene(Path(tmp), seed, driven) if scene_file is None else find_scene([scene_file], driven)
         target, adversary = scene.prompt.mentions
@@ -134,7 +135,7 @@ def run_demo(
         config = SimConfig(rollouts=rollouts, seed=seed)
         results, summaries = {}, {}
         for name, request in requests.items():
-            policy, described = build_policy(scene.scenario, request)
+            policy, described = build_policy(scene.scenario, request, module)
             results[name] = simulate(scene.scenario, policy, config)
             summaries[name] = simulation_summary(results[name], **described)
         out.mkdir(parents=True, exist_ok=True)

@@ -32,8 +32,8 @@ from langtraj.interdrive.dataset import PromptEntry, WindowRecord
 from langtraj.metrics.controllability import collision_rate, min_ade, offroad_rate, pair_collision_rate
 from langtraj.metrics.features import SceneMap
 from langtraj.metrics.wosac import evaluate_scenario
-from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.scenario.model import Scenario
+from langtraj.scenario.selection import prioritized_agents
 from langtraj.sim.engine import SimConfig, simulate
 from langtraj.sim.policies import (
     ConstantVelocityPolicy,
@@ -74,8 +74,6 @@ def choose_prompt(record: WindowRecord, driven_ids: set[int]) -> PromptEntry | N
 
 def cases(labels_dir: str, split: str, max_windows: int | None, max_agents: int) -> tuple[list[Case], int]:
     """Windows of `split` with a usable prompt (at most `max_windows`) and how many were skipped."""
-    from langtraj.scenario.selection import prioritized_agents
-
     dataset = SceneDataset(labels_dir, split=split, augment=False)
     found, skipped = [], 0
     for index, record in enumerate(dataset.records):
@@ -107,8 +105,7 @@ def _policies(module, case: Case, candidates: int, steps: int) -> dict[str, Call
         ),
     }
     if len(prompt.mentions) >= 2:
-        probe = LangTrajPolicy(model, data)
-        slots = probe.slots(case.scenario, probe.drives(case.scenario, sim_agent_indices(case.scenario)))
+        slots = LangTrajPolicy.slots(case.scenario, prioritized_agents(case.scenario, data.max_agents))
         target, adversary = slots[prompt.mentions[0]], slots[prompt.mentions[1]]
         collide = [GuidanceTerm(CollisionCost(adversary, target), 1.0)]
         makers["LangTraj, collision guidance"] = lambda: LangTrajPolicy(model, data, terms=collide, **common)

@@ -18,10 +18,12 @@ import torch
 from torch import Tensor
 
 from langtraj.errors import InputError
+from langtraj.frames import poses_to_frame, poses_to_world
 from langtraj.guidance import GuidanceScene, GuidanceTerm, reconstruction_guidance
 from langtraj.guidance.library import terms_for_prompt
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.model.langtraj import LangTraj
+from langtraj.model.open_loop import check_prompt_driven
 from langtraj.registry import Registry
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.selection import prioritized_agents
@@ -122,7 +124,7 @@ class LangTrajPolicy(Policy):
         self.model = model.eval()
         self.data = replace(data, text=prompt is not None, text_dropout=0.0, history_dropout=0.0)
         self.prompt = prompt
-        self.terms = tuple(terms)
+        self.base_terms = self.terms = tuple(terms)
         self.candidates, self.steps = candidates, steps
         self.guidance_weight, self.guidance_scale = guidance_weight, guidance_scale
         self.selector_name = selector
@@ -133,8 +135,7 @@ class LangTrajPolicy(Policy):
 
     # ------------------------------------------------------------------ which agents
     def drives(self, scenario: Scenario, sim_agents: np.ndarray) -> np.ndarray:
-        chosen = prioritized_agents(scenario, self.data.max_agents)
-        return chosen[np.isin(chosen, sim_agents)]
+        return prioritized_agents(scenario, self.data.max_agents)  # valid at the current step: sim agents
 
     @staticmethod
     def slots(scenario: Scenario, driven: np.ndarray) -> dict[int, int]:
@@ -144,21 +145,22 @@ class LangTrajPolicy(Policy):
     # ------------------------------------------------------------------ simulation
     def reset(self, world: SimWorld, seed: int) -> None:
         start = world.scenario_at(0, world.start)
+        slots = self.slots(start, world.driven)
         if self.prompt is not None:
-            ids = set(self.slots(start, world.driven))
-            outside = [m for m in self.prompt.mentions if m not in ids]
-            if outside:
-                raise InputError(
-                    f"agents {', '.join(f'@{m}' for m in outside)} are not among the {len(ids)} agents the model "
-                    f"drives in this scene (it takes the {self.data.max_agents} most important)",
-                    where="prompt",
-                )
+            check_prompt_driven(self.prompt, list(slots), self.data.max_agents)
         self.origin = scene_frame(start)
         self.map_arrays = map_polylines(start.road_map, self.origin, self.data)
-        self.scene = GuidanceScene.from_scenario(start, self.origin, world.driven, num_agents=self.data.max_agents)
+        device = next(self.model.parameters()).device
+        scene = GuidanceScene.from_scenario(start, self.origin, world.driven, num_agents=self.data.max_agents)
+        self.scene = scene.to(device)
         self.generators = [torch.Generator().manual_seed(seed * 1_000_003 + r) for r in range(world.num_rollouts)]
+        self.terms = self.base_terms + self.prompt_terms(world, slots)
         default = "min_guidance" if self.terms else "min_collision"
         self.selector = SELECTORS.create(self.selector_name or default, where="selector")
+
+    def prompt_terms(self, world: SimWorld, slots: dict[int, int]) -> tuple[GuidanceTerm, ...]:
+        """Guidance terms derived from the scene at the start (none here; the baseline's come from labels)."""
+        return ()
 
     def plan(self, world: SimWorld, step: int, horizon: int) -> np.ndarray:
         chunk = self.rollout_batch or world.num_rollouts
@@ -209,9 +211,9 @@ class LangTrajPolicy(Policy):
         states, _ = self.model.sample(
             batch, m, steps=self.steps, guidance_weight=self.guidance_weight, guidance=hook, noise=noise
         )
-        choice = self.selector.select(states, self.scene.to(device), self.terms)  # states [M, R, A, T, 4], scene frame
+        choice = self.selector.select(states, self.scene, self.terms)  # states [M, R, A, T, 4], scene frame
         chosen = states[choice, torch.arange(len(rollouts), device=device), : len(world.driven)].double().cpu().numpy()
-        return _to_world(chosen, self.origin)
+        return poses_to_world(chosen, self.origin)
 
 
 @POLICIES.register
@@ -227,51 +229,18 @@ class GuidanceBaselinePolicy(LangTrajPolicy):
             raise InputError(
                 "the guidance baseline needs a labelled prompt (an InterDrive subtype or labels)", where="prompt"
             )
-        extra = tuple(kwargs.pop("terms", ()))
-        super().__init__(model, data, terms=extra, **kwargs)
+        super().__init__(model, data, **kwargs)
         self.labelled = prompt
-        self.extra_terms = extra
 
-    def reset(self, world: SimWorld, seed: int) -> None:
-        start = world.scenario_at(0, world.start)
-        slots = self.slots(start, world.driven)
+    def prompt_terms(self, world: SimWorld, slots: dict[int, int]) -> tuple[GuidanceTerm, ...]:
         mentions = {i: slots[t] for i, t in enumerate(self.labelled.mentions[:2]) if t in slots}
         if 0 not in mentions:
             raise InputError(
                 f"the prompt's target agent @{self.labelled.mentions[0]} is not driven by the model", where="prompt"
             )
-        origin = scene_frame(start)
         current = np.zeros((self.data.max_agents, 4))
-        current[: len(world.driven)] = _to_scene(world.current(world.start)[0], origin)
-        self.terms = self.extra_terms + tuple(
-            terms_for_prompt(
-                mentions,
-                torch.as_tensor(current, dtype=torch.float32),
-                subtype_id=self.labelled.subtype,
-                label_keys=self.labelled.labels,
-            )
+        current[: len(world.driven)] = poses_to_frame(world.current(world.start)[0], self.origin)
+        state = torch.as_tensor(current, dtype=torch.float32)
+        return tuple(
+            terms_for_prompt(mentions, state, subtype_id=self.labelled.subtype, label_keys=self.labelled.labels)
         )
-        super().reset(world, seed)
-
-
-def _to_scene(states: np.ndarray, origin: tuple[float, float, float]) -> np.ndarray:
-    """World (x, y, heading, speed) [..., 4] to the scene frame."""
-    ox, oy, oh = origin
-    c, s = np.cos(oh), np.sin(oh)
-    dx, dy = states[..., 0] - ox, states[..., 1] - oy
-    out = states.copy()
-    out[..., 0] = c * dx + s * dy
-    out[..., 1] = -s * dx + c * dy
-    out[..., 2] = states[..., 2] - oh
-    return out
-
-
-def _to_world(states: np.ndarray, origin: tuple[float, float, float]) -> np.ndarray:
-    """Scene-frame (x, y, heading, speed) [..., 4] to the world frame."""
-    ox, oy, oh = origin
-    c, s = np.cos(oh), np.sin(oh)
-    out = states.copy()
-    out[..., 0] = ox + c * states[..., 0] - s * states[..., 1]
-    out[..., 1] = oy + s * states[..., 0] + c * states[..., 1]
-    out[..., 2] = states[..., 2] + oh
-    return out

@@ -1,12 +1,13 @@
 """From what a user asks for (policy, checkpoint, prompts, adversary and target, guidance) to a checked
-policy: every bad input is found here, before a simulation runs or a file is written."""
+policy: bad input is found here, or (a prompt naming an agent the model does not drive) when the
+policy is reset at the start of the simulation; either way before any file is written."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from langtraj.errors import InputError
 from langtraj.guidance import CollisionCost, GuidanceTerm, KeepLaneCost, NoCollisionCost, OnRoadCost
@@ -14,8 +15,12 @@ from langtraj.interdrive.dataset import PromptEntry
 from langtraj.model.open_loop import user_prompt_entry
 from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.scenario.model import Scenario
+from langtraj.scenario.selection import prioritized_agents
 from langtraj.sim.checkpoints import shipped_checkpoint
 from langtraj.sim.policies import POLICIES, LangTrajPolicy, Policy
+
+if TYPE_CHECKING:
+    from langtraj.training.module import LangTrajModule
 
 SCENE_WIDE_COSTS = {"no_collision": NoCollisionCost, "on_road": OnRoadCost, "keep_lane": KeepLaneCost}
 """Guidance costs `--guidance NAME=WEIGHT` applies to every driven agent (the others need parameters:
@@ -99,9 +104,12 @@ def _collision_term(scenario: Scenario, slots: dict[int, int], request: SimReque
     return [GuidanceTerm(CollisionCost(slots[adversary], slots[target]), request.collision_weight)]
 
 
-def build_policy(scenario: Scenario, request: SimRequest) -> tuple[Policy, dict[str, Any]]:
+def build_policy(
+    scenario: Scenario, request: SimRequest, module: LangTrajModule | None = None
+) -> tuple[Policy, dict[str, Any]]:
     """The policy `request` describes for `scenario`, and a JSON-ready description of it (driven and
-    prompted track ids, checkpoint, guidance). Raises InputError on any bad input."""
+    prompted track ids, checkpoint, guidance). `module`, when given, is the already loaded checkpoint
+    (it must be `request.checkpoint`, or the shipped one). Raises InputError on bad input."""
     if request.policy not in POLICIES.names():
         raise InputError(f"unknown policy {request.policy!r}; known: {', '.join(POLICIES.names())}", where="--policy")
     sim_agents = sim_agent_indices(scenario)
@@ -118,19 +126,10 @@ def build_policy(scenario: Scenario, request: SimRequest) -> tuple[Policy, dict[
     from langtraj.training.run import module_from_checkpoint
 
     checkpoint = request.checkpoint or shipped_checkpoint()
-    module = module_from_checkpoint(checkpoint)
+    module = module or module_from_checkpoint(checkpoint)
     prompt = merged_prompt(scenario, request.prompts)
-    probe = LangTrajPolicy(module.model, module.train_config.data)
-    driven = probe.drives(scenario, sim_agents)
+    driven = prioritized_agents(scenario, module.train_config.data.max_agents)  # what LangTrajPolicy drives
     slots = LangTrajPolicy.slots(scenario, driven)
-    if prompt is not None:
-        outside = [m for m in prompt.mentions if m not in slots]
-        if outside:
-            raise InputError(
-                f"agents {', '.join(f'@{m}' for m in outside)} are not among the {len(slots)} agents the model "
-                f"drives in this scene (it takes the {module.train_config.data.max_agents} most important)",
-                where="prompt",
-            )
     terms = _collision_term(scenario, slots, request) + _guidance_terms(request.guidance)
     policy = LangTrajPolicy(
         module.model,

@@ -34,6 +34,7 @@ from torch.utils.data import Dataset, Sampler
 
 from langtraj.angles import wrap_angle
 from langtraj.errors import InputError
+from langtraj.frames import points_to_frame
 from langtraj.interdrive.dataset import PromptEntry, WindowRecord, iter_records, load_window
 from langtraj.model.batch import AGENT_HISTORY_FEATURES, SceneBatch
 from langtraj.scenario.model import STEP_SECONDS, RoadMap, Scenario
@@ -107,15 +108,6 @@ def scene_frame(scenario: Scenario) -> tuple[float, float, float]:
         focal = int(order[0])
     state = agents.states[focal, t]
     return float(state[StateField.X]), float(state[StateField.Y]), float(wrap_angle(state[StateField.HEADING]))
-
-
-def _to_frame(xy: np.ndarray, origin: tuple[float, float, float]) -> np.ndarray:
-    """World points [..., 2] in the scene frame (float64)."""
-    ox, oy, oh = origin
-    c, s = math.cos(oh), math.sin(oh)
-    dx = np.asarray(xy, np.float64)[..., 0] - ox
-    dy = np.asarray(xy, np.float64)[..., 1] - oy
-    return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
 
 
 def _rotate(vec: np.ndarray, heading: float) -> np.ndarray:
@@ -209,7 +201,7 @@ def map_polylines(
     valid = np.zeros((m, p), bool)
     types = np.zeros(m, np.int64)
     for row, (_, _, kind, piece) in enumerate(found[:m]):
-        local = _to_frame(piece + (ox, oy), origin)
+        local = points_to_frame(piece + (ox, oy), origin)
         points[row, : len(local)] = local
         valid[row, : len(local)] = True
         types[row] = kind
@@ -313,7 +305,7 @@ def build_sample(
     states = agents.states[chosen]
     valid = agents.valid[chosen]
     vel = _velocities(states, valid, scenario.timestamps)
-    xy = _to_frame(states[..., StateField.X : StateField.Y + 1], origin)
+    xy = points_to_frame(states[..., StateField.X : StateField.Y + 1], origin)
     heading = wrap_angle(states[..., StateField.HEADING].astype(np.float64) - heading0)
     vel_local = _rotate(vel, heading0)
 
