@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> None:
                 guidance_weight=args.cfg,
                 max_windows=args.windows,
             )
-            results[name]["text_gain"] = text_gain_table(module, args.data, gain_config)
+            results[name]["text_gain"] = text_gain_table(module, args.data, gain_config, progress=True)
         results[name]["seconds"] = time.perf_counter() - start
     first = next(iter(results.values()))
     print(
