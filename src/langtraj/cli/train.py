@@ -24,6 +24,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from lightning_fabric.utilities.rank_zero import rank_zero_only
+
     from langtraj.training.config import load_config
     from langtraj.training.run import train
 
@@ -31,5 +33,6 @@ def run(args: argparse.Namespace) -> int:
     if args.init_from is not None:
         config = replace(config, init_from=args.init_from)
     last = train(config, args.data, args.out, resume=args.resume, max_steps=args.max_steps)
-    print(f"{config.name} stage {config.stage}: last checkpoint {last}")
+    if rank_zero_only.rank == 0:  # under DDP every process returns here; one line is enough
+        print(f"{config.name} stage {config.stage}: last checkpoint {last}")
     return 0

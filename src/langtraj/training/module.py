@@ -45,9 +45,11 @@ class LangTrajModule(pl.LightningModule):
 
     # ------------------------------------------------------------------ steps
     def on_train_batch_start(self, batch, batch_idx: int) -> None:
-        """Every step's randomness (diffusion step, noise, dropout) derives from (seed, step) alone, so
-        a run resumed from a checkpoint draws exactly what the uninterrupted run would have."""
-        torch.manual_seed(self.train_config.seed * 1_000_003 + self.global_step)
+        """Every step's randomness (diffusion step, noise, dropout) derives from (seed, step, process rank)
+        alone, so a run resumed from a checkpoint draws exactly what the uninterrupted run would have,
+        and DDP processes draw differently from each other."""
+        rank, world = (self.trainer.global_rank, self.trainer.world_size) if self._trainer is not None else (0, 1)
+        torch.manual_seed(self.train_config.seed * 1_000_003 + self.global_step * world + rank)
 
     def training_step(self, batch, batch_idx: int) -> torch.Tensor:
         out = self.model.loss(batch, text_weight=self.train_config.text_loss_weight)
@@ -148,14 +150,23 @@ class LangTrajModule(pl.LightningModule):
                 state[key] = value
 
 
-class _Skip(Sampler[int]):
-    """The first `skip` indices of an infinite sampler dropped: where training stopped."""
+class RankShare(Sampler[int]):
+    """One process's share of an infinite index stream cut into batches of `batch_size`: of every
+    `world` consecutive batches it takes the `rank`-th, after dropping the first `skip_steps` * `world`
+    batches (the steps already trained). With one process this is the stream itself, resumed; under
+    DDP the processes see disjoint batches whose union is the single-process stream, so a run resumes
+    exactly on the same number of processes."""
 
-    def __init__(self, sampler: Sampler[int], skip: int):
-        self.sampler, self.skip = sampler, skip
+    def __init__(self, sampler: Sampler[int], batch_size: int, *, rank: int = 0, world: int = 1, skip_steps: int = 0):
+        if batch_size < 1 or world < 1 or not 0 <= rank < world or skip_steps < 0:
+            raise ValueError(f"bad share: batch_size {batch_size}, rank {rank} of {world}, skip_steps {skip_steps}")
+        self.sampler, self.batch_size, self.rank, self.world, self.skip = sampler, batch_size, rank, world, skip_steps
 
     def __iter__(self) -> Iterator[int]:
-        return itertools.islice(iter(self.sampler), self.skip, None)
+        start = self.skip * self.world * self.batch_size
+        for position, index in enumerate(itertools.islice(iter(self.sampler), start, None)):
+            if (position // self.batch_size) % self.world == self.rank:
+                yield index
 
 
 class CorpusData(pl.LightningDataModule):
@@ -172,17 +183,25 @@ class CorpusData(pl.LightningDataModule):
 
     def train_dataloader(self) -> DataLoader:
         sampler = MixingSampler(self.train_set, self.config.batch_size, infinite=True, seed=self.config.seed)
-        step = self.trainer.global_step if self.trainer is not None else 0
+        step, rank, world = _position(self.trainer)
         return DataLoader(
             self.train_set,
             batch_size=self.config.batch_size,
-            sampler=_Skip(sampler, step * self.config.batch_size),
+            sampler=RankShare(sampler, self.config.batch_size, rank=rank, world=world, skip_steps=step),
             collate_fn=collate_scenes,
             num_workers=self.config.num_workers,
             persistent_workers=self.config.num_workers > 0,
         )
 
     def val_dataloader(self) -> DataLoader:
-        count = min(len(self.val_set), self.config.val.max_batches * self.config.batch_size)
-        subset = torch.utils.data.Subset(self.val_set, list(range(count)))
+        _, rank, world = _position(self.trainer)
+        count = min(len(self.val_set), self.config.val.max_batches * self.config.batch_size * world)
+        subset = torch.utils.data.Subset(self.val_set, list(range(rank, count, world)))  # each process its share
         return DataLoader(subset, batch_size=self.config.batch_size, collate_fn=collate_scenes)
+
+
+def _position(trainer: pl.Trainer | None) -> tuple[int, int, int]:
+    """(global step, process rank, number of processes) of a run; (0, 0, 1) outside a trainer."""
+    if trainer is None:
+        return 0, 0, 1
+    return trainer.global_step, trainer.global_rank, trainer.world_size

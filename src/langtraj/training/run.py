@@ -136,6 +136,7 @@ def train(
         devices=config.devices,
         num_nodes=config.num_nodes,
         strategy=config.strategy,
+        use_distributed_sampler=False,  # CorpusData shares its own stream out among the processes
         precision=config.precision,
         enable_progress_bar=progress,
         log_every_n_steps=max(1, min(10, config.max_steps)),
@@ -143,5 +144,6 @@ def train(
     )
     trainer.fit(module, datamodule=data, ckpt_path=ckpt_path)
     last = out / "checkpoints" / "last.ckpt"
-    trainer.save_checkpoint(last)  # the end state, also when max_steps is not a multiple of the interval
+    # The end state, also when max_steps is not a multiple of the interval (a full checkpoint: it resumes).
+    trainer.save_checkpoint(last, weights_only=False)
     return last
