@@ -79,3 +79,19 @@ def test_more_draws_let_more_agents_reach_following_samples(module):
 def test_prior_samples_must_cover_the_scored_samples():
     with pytest.raises(ValueError, match="prior_samples"):
         TextGainConfig(num_samples=6, prior_samples=4)
+
+
+def test_the_label_fraction_sets_how_many_agents_are_prompted(module):
+    from langtraj.training.evaluation import open_loop_table
+
+    model, labels = module  # trained with heuristic_label_fraction 1.0
+    kwargs = {"num_samples": 1, "steps": 2, "max_windows": 8}
+    default = open_loop_table(model, labels, **kwargs)
+    every = open_loop_table(model, labels, label_fraction=1.0, **kwargs)
+    few = open_loop_table(model, labels, label_fraction=0.3, **kwargs)
+    assert default["prompted_agents"] == every["prompted_agents"] > few["prompted_agents"] > 0
+    gain = text_gain_table(model, labels, TextGainConfig(num_samples=1, prior_samples=1, steps=2, max_windows=8))
+    gain_few = text_gain_table(
+        model, labels, TextGainConfig(num_samples=1, prior_samples=1, steps=2, max_windows=8, label_fraction=0.3)
+    )
+    assert gain["prompted_agents"] > gain_few["prompted_agents"] > 0

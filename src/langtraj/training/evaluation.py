@@ -47,11 +47,15 @@ def open_loop_table(
     max_windows: int | None = None,
     seed: int = 0,
     guidance_weight: float = 0.0,
+    label_fraction: float | None = None,
 ) -> dict[str, float]:
     """Open-loop minADE over `num_samples` samples on held-out windows, against constant velocity.
 
     Every window gets its ground-truth prompt (drawn from its labels' prompt pool, no dropout), so the
-    same agents are scored with and without text: `prompted_text` conditions on the sentences,
+    same agents are scored with and without text. Besides an interaction prompt's agents, a share
+    `label_fraction` of the other labelled agents get a single-agent sentence (default: the module's
+    training setting; give one value to compare models trained with different shares on the same
+    agents). `prompted_text` conditions on the sentences,
     `prompted_no_text` samples with the text removed (classifier-free weight -1; with text the weight is
     `guidance_weight`, 0 = the plain conditional model). `all_*` cover every
     agent with a logged future; constant velocity is one deterministic sample.
@@ -64,6 +68,8 @@ def open_loop_table(
 
     config = module.train_config
     data = replace(config.data, text=True, text_dropout=0.0, history_dropout=0.0)
+    if label_fraction is not None:
+        data = replace(data, heuristic_label_fraction=label_fraction)
     dataset = SceneDataset(labels_dir, data, split=split, seed=seed, augment=False)
     count = len(dataset) if max_windows is None else min(max_windows, len(dataset))
     loader = DataLoader(Subset(dataset, list(range(count))), batch_size=batch_size, collate_fn=collate_scenes)

@@ -3,7 +3,7 @@ windows for constant velocity and each given checkpoint, with and without the gr
 `--text-gain` adds prompt adherence and the ceiling of the text gain (`langtraj.training.text_gain`).
 
     python -m langtraj.training.experiments --data LABELS_DIR --checkpoint NAME=CKPT [...] [--windows N]
-        [--text-gain [--prior-samples 48]]
+        [--label-fraction 0.3] [--text-gain [--prior-samples 48]]
 """
 
 from __future__ import annotations
@@ -25,6 +25,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--samples", type=int, default=6)
     parser.add_argument("--steps", type=int, default=10, help="DDIM steps")
     parser.add_argument("--cfg", type=float, default=0.0, help="classifier-free guidance weight with text (0: plain)")
+    parser.add_argument(
+        "--label-fraction",
+        type=float,
+        default=0.3,
+        help="share of the other labelled agents given a single-agent sentence (the paper's 0.3; the same for "
+        "every checkpoint, so all are scored on the same agents)",
+    )
     parser.add_argument("--text-gain", action="store_true", help="also measure adherence and the text-gain ceiling")
     parser.add_argument("--prior-samples", type=int, default=48, help="draws without text for the ceiling")
     parser.add_argument("--json", help="also write the figures here")
@@ -41,6 +48,7 @@ def main(argv: list[str] | None = None) -> None:
             steps=args.steps,
             max_windows=args.windows,
             guidance_weight=args.cfg,
+            label_fraction=args.label_fraction,
         )
         if args.text_gain:
             gain_config = TextGainConfig(
@@ -49,6 +57,7 @@ def main(argv: list[str] | None = None) -> None:
                 steps=args.steps,
                 guidance_weight=args.cfg,
                 max_windows=args.windows,
+                label_fraction=args.label_fraction,
             )
             results[name]["text_gain"] = text_gain_table(module, args.data, gain_config, progress=True)
         results[name]["seconds"] = time.perf_counter() - start

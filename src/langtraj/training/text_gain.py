@@ -42,6 +42,7 @@ class TextGainConfig:
     guidance_weight: float = 0.0
     max_windows: int | None = None
     seed: int = 0
+    label_fraction: float | None = None  # share of labelled agents prompted (None: the module's setting)
 
     def __post_init__(self) -> None:
         if self.num_samples < 1 or self.prior_samples < self.num_samples:
@@ -80,6 +81,8 @@ def text_gain_table(
     prompted agents of the held-out windows (the prompts of `open_loop_table`, same seed). Labelling
     every draw dominates the time (about 5 s per window at 48 draws on one core); `progress` shows a bar."""
     data = replace(module.train_config.data, text=True, text_dropout=0.0, history_dropout=0.0)
+    if config.label_fraction is not None:
+        data = replace(data, heuristic_label_fraction=config.label_fraction)
     dataset = SceneDataset(labels_dir, data, split="val", seed=config.seed, augment=False)
     count = len(dataset) if config.max_windows is None else min(config.max_windows, len(dataset))
     model = module.model.eval()
