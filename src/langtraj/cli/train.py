@@ -24,7 +24,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from lightning_fabric.utilities.rank_zero import rank_zero_only
+    from pytorch_lightning.utilities import rank_zero_only
 
     from langtraj.training.config import load_config
     from langtraj.training.run import train

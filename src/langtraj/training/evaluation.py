@@ -36,6 +36,20 @@ def constant_velocity(batch: SceneBatch, steps: int) -> Tensor:
     return torch.stack([px, py, heading[..., None].expand_as(px), speed[..., None].expand_as(px)], -1)[None]
 
 
+def held_out_dataset(module, labels_dir, *, split: str = "val", seed: int = 0, label_fraction: float | None = None):
+    """The windows of `split` as the module's samples with every window's ground-truth prompt: no text
+    or history dropout. `label_fraction` (default: the module's training setting) is the share of the
+    other labelled agents given a single-agent sentence beside an interaction prompt's agents."""
+    from dataclasses import replace
+
+    from langtraj.training.data import SceneDataset
+
+    data = replace(module.train_config.data, text=True, text_dropout=0.0, history_dropout=0.0)
+    if label_fraction is not None:
+        data = replace(data, heuristic_label_fraction=label_fraction)
+    return SceneDataset(labels_dir, data, split=split, seed=seed, augment=False)
+
+
 def open_loop_table(
     module,
     labels_dir,
@@ -60,17 +74,11 @@ def open_loop_table(
     `guidance_weight`, 0 = the plain conditional model). `all_*` cover every
     agent with a logged future; constant velocity is one deterministic sample.
     """
-    from dataclasses import replace
-
     from torch.utils.data import DataLoader, Subset
 
-    from langtraj.training.data import SceneDataset, collate_scenes
+    from langtraj.training.data import collate_scenes
 
-    config = module.train_config
-    data = replace(config.data, text=True, text_dropout=0.0, history_dropout=0.0)
-    if label_fraction is not None:
-        data = replace(data, heuristic_label_fraction=label_fraction)
-    dataset = SceneDataset(labels_dir, data, split=split, seed=seed, augment=False)
+    dataset = held_out_dataset(module, labels_dir, split=split, seed=seed, label_fraction=label_fraction)
     count = len(dataset) if max_windows is None else min(max_windows, len(dataset))
     loader = DataLoader(Subset(dataset, list(range(count))), batch_size=batch_size, collate_fn=collate_scenes)
     sums: dict[str, list[float]] = {}

@@ -52,8 +52,8 @@ class LangTrajModule(pl.LightningModule):
         """Every step's randomness (diffusion step, noise, dropout) derives from (seed, step, process rank)
         alone, so a run resumed from a checkpoint draws exactly what the uninterrupted run would have,
         and DDP processes draw differently from each other."""
-        rank, world = (self.trainer.global_rank, self.trainer.world_size) if self._trainer is not None else (0, 1)
-        torch.manual_seed(self.train_config.seed * 1_000_003 + self.global_step * world + rank)
+        step, rank, world = _position(self.trainer)
+        torch.manual_seed(self.train_config.seed * 1_000_003 + step * world + rank)
 
     def training_step(self, batch, batch_idx: int) -> torch.Tensor:
         out = self.model.loss(batch, text_weight=self.train_config.text_loss_weight)

@@ -15,7 +15,6 @@ The rewritten dataset points at the same scenario files; it keeps labels and dro
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -23,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from langtraj.errors import InputError
+from langtraj.frames import points_to_frame
 from langtraj.interdrive.dataset import (
     PromptEntry,
     WindowRecord,
@@ -62,9 +62,9 @@ def oracle_prompts(scenario: Scenario, bin_m: float = 5.0) -> tuple[PromptEntry,
         if not agents.valid[row, c] or not len(future):
             continue
         start, end = agents.states[row, c], agents.states[row, c + 1 + future[-1]]
-        dx, dy = float(end[StateField.X] - start[StateField.X]), float(end[StateField.Y] - start[StateField.Y])
-        h = float(start[StateField.HEADING])
-        phrase = displacement_phrase(dx * math.cos(h) + dy * math.sin(h), -dx * math.sin(h) + dy * math.cos(h), bin_m)
+        frame = (float(start[StateField.X]), float(start[StateField.Y]), float(start[StateField.HEADING]))
+        forward, left = points_to_frame(end[StateField.X : StateField.Y + 1], frame)
+        phrase = displacement_phrase(float(forward), float(left), bin_m)
         prompts.append(
             PromptEntry(f"@{track} {phrase}", (track,), {track: f"{TARGET} {phrase}"}, None, (ORACLE_KEY,), "oracle")
         )

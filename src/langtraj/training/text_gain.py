@@ -18,7 +18,7 @@ draws (no information) in the `prompted` figures and are left out of the `checke
 from __future__ import annotations
 
 from collections import defaultdict
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +28,8 @@ from tqdm import tqdm
 from langtraj.frames import poses_to_world
 from langtraj.interdrive.adherence import AdherenceChecker, Fact, prompt_for_sentence
 from langtraj.model.open_loop import OpenLoopSamples
-from langtraj.training.data import SceneDataset, collate_scenes
+from langtraj.training.data import collate_scenes
+from langtraj.training.evaluation import held_out_dataset
 
 
 @dataclass(frozen=True)
@@ -80,10 +81,7 @@ def text_gain_table(
     """Adherence with and without text, minADE with and without text, and the ceiling, over the
     prompted agents of the held-out windows (the prompts of `open_loop_table`, same seed). Labelling
     every draw dominates the time (about 5 s per window at 48 draws on one core); `progress` shows a bar."""
-    data = replace(module.train_config.data, text=True, text_dropout=0.0, history_dropout=0.0)
-    if config.label_fraction is not None:
-        data = replace(data, heuristic_label_fraction=config.label_fraction)
-    dataset = SceneDataset(labels_dir, data, split="val", seed=config.seed, augment=False)
+    dataset = held_out_dataset(module, labels_dir, seed=config.seed, label_fraction=config.label_fraction)
     count = len(dataset) if config.max_windows is None else min(config.max_windows, len(dataset))
     model = module.model.eval()
     n, k = config.num_samples, config.prior_samples
