@@ -3,10 +3,12 @@ Waymo- and nuScenes-derived files."""
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import pickle
 import subprocess
+from collections import OrderedDict, defaultdict
 from pathlib import Path
 from typing import Any
 
@@ -379,6 +381,74 @@ def test_os_system_global_is_named(tmp_path: Path) -> None:
     with pytest.raises(InputError, match=r"refused to load global os\.system from pickle"):
         load_pickle(path)
     assert not marker.exists()
+
+
+def _with_containers(d: dict[str, Any]) -> OrderedDict:
+    """`d` with the defaultdicts and OrderedDicts of a real ScenarioNet file (Waymo v1.2 conversion):
+    the scenario, its metadata and summaries, the track and map dicts and each track and feature."""
+    meta = defaultdict(list, d["metadata"])
+    meta["tracks_to_predict"] = OrderedDict(d["metadata"]["tracks_to_predict"])
+    meta["object_summary"] = defaultdict(dict, {k: {"type": "VEHICLE"} for k in d["tracks"]})
+    meta["number_summary"] = defaultdict(int, {"num_objects": 2})
+    tracks = defaultdict(dict)
+    for key, track in d["tracks"].items():
+        tracks[key] = OrderedDict(
+            track, state=OrderedDict(track["state"]), metadata=defaultdict(str, track["metadata"])
+        )
+    features = defaultdict(OrderedDict, {k: OrderedDict(v) for k, v in d["map_features"].items()})
+    lights = defaultdict(dict, d["dynamic_map_states"])
+    return OrderedDict(d, metadata=meta, tracks=tracks, map_features=features, dynamic_map_states=lights)
+
+
+@pytest.mark.parametrize("protocol", [2, 3, 4, 5])
+def test_defaultdicts_and_ordered_dicts_load_as_plain_dicts(tmp_path: Path, protocol: int) -> None:
+    plain = _read(_dump(tmp_path / "plain.pkl", minimal_dict(), protocol))
+    path = _dump(tmp_path / "containers.pkl", _with_containers(minimal_dict()), protocol)
+    for name in (b"defaultdict", b"OrderedDict"):
+        assert name in path.read_bytes()
+    loaded = load_pickle(path)
+    assert type(loaded) is dict
+    assert {type(loaded[k]) for k in ("metadata", "tracks", "map_features", "dynamic_map_states")} == {dict}
+    assert {type(v) for v in [*loaded["tracks"].values(), *loaded["map_features"].values()]} == {dict}
+    assert type(loaded["tracks"]["5"]["state"]) is dict and type(loaded["metadata"]["tracks_to_predict"]) is dict
+    assert list(loaded["map_features"]) == list(minimal_dict()["map_features"])  # file order kept
+    scenario = _read(path)
+    assert scenario_differences(plain, scenario, compare_metadata=False) == []
+    assert scenario.metadata["scenarionet"]["source_metadata"] == plain.metadata["scenarionet"]["source_metadata"]
+
+
+@pytest.mark.parametrize("protocol", [2, 4, 5])
+@pytest.mark.parametrize(
+    ("factory", "refused"),
+    [
+        (os.system, r"refused to load global (os|posix)\.system"),
+        (eval, r"refused to load global builtins\.eval"),
+        (getattr, r"refused to load global builtins\.getattr"),
+        (subprocess.Popen, r"refused to load global subprocess\.Popen"),
+        (functools.partial(os.system, "true"), r"refused to load global functools\.partial"),
+        (np.ndarray, r"refused collections\.defaultdict with default factory numpy\.ndarray"),
+    ],
+)
+def test_defaultdict_with_a_code_running_factory_is_refused(
+    tmp_path: Path, factory: Any, refused: str, protocol: int
+) -> None:
+    d = minimal_dict()
+    d["metadata"] = defaultdict(factory, d["metadata"])
+    path = _dump(tmp_path / "evil.pkl", d, protocol)
+    with pytest.raises(InputError, match=rf"evil\.pkl: {refused}") as info:
+        _read(path)
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("protocol", [2, 4, 5])
+@pytest.mark.parametrize("func", [list, dict, int, str])
+def test_default_factories_cannot_be_called(tmp_path: Path, func: Any, protocol: int) -> None:
+    """builtins.list and the like are admitted as defaultdict factories only, not as calls."""
+    d = minimal_dict()
+    d["metadata"]["payload"] = _Reduce(func, ())
+    path = _dump(tmp_path / "call.pkl", d, protocol)
+    with pytest.raises(InputError, match=rf"call\.pkl: refused to call builtins\.{func.__name__} from pickle"):
+        _read(path)
 
 
 def test_truncated_and_non_scenario_pickles(tmp_path: Path, toy_scenario: Scenario) -> None:

@@ -2,7 +2,9 @@
 
 A ScenarioNet file is a pickled dict of dicts of numpy arrays ('tracks', 'map_features',
 'dynamic_map_states', 'metadata'). Pickle can run code when loaded, so files are read with an
-unpickler that admits numpy arrays and builtin containers and nothing else.
+unpickler that admits numpy arrays and builtin containers and nothing else; the
+`collections.defaultdict` (with a builtin default factory) and `collections.OrderedDict` that real
+ScenarioNet files hold are rebuilt as plain dicts. docs/data.md describes the format and what is kept.
 
 `scenario_from_dict` / `scenario_to_dict` map between that layout and our `Scenario`. Track and map
 keys that are not all decimal integers (nuScenes tokens, UUIDs) are numbered 0..n-1 in file order and
@@ -83,9 +85,32 @@ _ALLOWED_GLOBALS: dict[tuple[str, str], Any] = {
     ("builtins", "set"): set,
     ("builtins", "frozenset"): frozenset,
 }
-"""Every global a ScenarioNet pickle may name: what numpy arrays, numpy scalars and (protocol 2)
-bytes and sets need to be rebuilt. None of them can import anything or run code of the file's
-choosing."""
+"""Every global a ScenarioNet pickle may name as a callable: what numpy arrays, numpy scalars and
+(protocol 2) bytes and sets need to be rebuilt. None of them can import anything or run code of the
+file's choosing. `collections.defaultdict` and `collections.OrderedDict` are admitted too, but rebuilt
+as plain dicts (see `_RestrictedUnpickler`)."""
+
+_DEFAULT_FACTORIES = frozenset(
+    ("builtins", name) for name in ("list", "dict", "int", "float", "str", "tuple", "set", "frozenset")
+) | {("collections", "OrderedDict"), ("collections", "defaultdict")}
+"""The default factories a `collections.defaultdict` in a ScenarioNet file may name (protocol 2 spells
+some the Python 2 way: `__builtin__.long`, `__builtin__.unicode`). Those that are not also in
+`_ALLOWED_GLOBALS` resolve to a `_FactoryName` that cannot be called."""
+
+
+@dataclass(frozen=True)
+class _FactoryName:
+    """A global admitted only as a defaultdict's default factory: calling it (a pickle REDUCE) is
+    refused."""
+
+    name: str
+    path: Path
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        raise InputError(
+            f"refused to call {self.name} from pickle (admitted only as a defaultdict's default factory)",
+            path=self.path,
+        )
 
 
 def _python3_name(module: str, name: str) -> tuple[str, str]:
@@ -97,27 +122,65 @@ def _python3_name(module: str, name: str) -> tuple[str, str]:
 
 
 class _RestrictedUnpickler(pickle.Unpickler):
-    """An unpickler that resolves only `_ALLOWED_GLOBALS`; any other global raises InputError."""
+    """An unpickler that resolves only `_ALLOWED_GLOBALS`, the two container classes and the default
+    factories; any other global raises InputError.
+
+    ScenarioNet writes some metadata, track and map dicts as `collections.defaultdict` or
+    `collections.OrderedDict`. Both are rebuilt as plain dicts (the default factory is checked, then
+    dropped), so the reader sees what a file of plain dicts gives and nothing of the file's choosing
+    is ever called on a missing key.
+    """
 
     def __init__(self, fh: BinaryIO, path: Path):
         super().__init__(fh)
         self._path = path
+        self._resolved: dict[tuple[str, str], Any] = {}
+        """Each global resolved so far: the same object every time the file names it."""
 
     def find_class(self, module: str, name: str) -> Any:
-        module, name = _python3_name(module, name)
-        try:
-            return _ALLOWED_GLOBALS[(module, name)]
-        except KeyError:
-            raise InputError(
-                f"refused to load global {module}.{name} from pickle "
-                "(only numpy arrays and builtin containers are allowed)",
-                path=self._path,
-            ) from None
+        key = _python3_name(module, name)
+        if key not in self._resolved:
+            self._resolved[key] = self._resolve(key)
+        return self._resolved[key]
+
+    def _resolve(self, key: tuple[str, str]) -> Any:
+        if key == ("collections", "OrderedDict"):
+            return self._ordered_dict
+        if key == ("collections", "defaultdict"):
+            return self._defaultdict
+        if key in _ALLOWED_GLOBALS:
+            return _ALLOWED_GLOBALS[key]
+        if key in _DEFAULT_FACTORIES:
+            return _FactoryName(".".join(key), self._path)
+        raise InputError(
+            f"refused to load global {key[0]}.{key[1]} from pickle "
+            "(only numpy arrays and builtin containers are allowed)",
+            path=self._path,
+        )
+
+    @staticmethod
+    def _ordered_dict(*args: Any) -> dict:
+        """`collections.OrderedDict(...)` as a plain dict (dicts keep insertion order)."""
+        return dict(*args)
+
+    def _defaultdict(self, default_factory: Any = None, *args: Any) -> dict:
+        """`collections.defaultdict(factory, ...)` as a plain dict, once the factory is found to be one
+        of `_DEFAULT_FACTORIES` (or None)."""
+        if default_factory is None or any(default_factory is self._resolved.get(k) for k in _DEFAULT_FACTORIES):
+            return dict(*args)
+        named = (".".join(k) for k, v in self._resolved.items() if v is default_factory)
+        what = next(named, f"a {type(default_factory).__name__}")
+        raise InputError(
+            f"refused collections.defaultdict with default factory {what} from pickle "
+            "(only builtin containers and numbers are allowed)",
+            path=self._path,
+        )
 
 
 def load_pickle(path: str | Path) -> Any:
     """The object pickled in `path`, loaded with the restricted unpickler (InputError when the file
-    names a global other than numpy's array machinery, or is truncated or corrupt)."""
+    names a global other than numpy's array machinery and builtin containers, or is truncated or
+    corrupt)."""
     path = Path(path)
     with open_input(path) as fh:
         try:
