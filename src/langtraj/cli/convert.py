@@ -1,4 +1,5 @@
-"""`langtraj convert IN... OUT`: between WOMD TFRecords and ScenarioNet pickles."""
+"""`langtraj convert IN... OUT`: between WOMD TFRecords and ScenarioNet pickles; an IN that is a folder
+stands for every scenario file under it (docs/data.md says what each conversion keeps)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,13 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from langtraj.errors import InputError
-from langtraj.scenario.io import available_formats, format_for_output, get_format, read_scenarios
+from langtraj.scenario.io import (
+    available_formats,
+    expand_scenario_paths,
+    format_for_output,
+    get_format,
+    read_scenarios,
+)
 from langtraj.scenario.model import Scenario
 
 
@@ -18,15 +25,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="convert scenario files between formats",
         description="Convert scenarios between formats. OUT is a file (its suffix names the format: "
         ".tfrecord for WOMD, .pkl for ScenarioNet, which holds one scenario per file) or a directory "
-        "that gets one file per scenario (then --format is required).",
+        "that gets one file per scenario (then --format is required). An IN that is a folder stands for "
+        "every scenario file under it, searched recursively.",
     )
-    p.add_argument("inputs", nargs="+", metavar="IN")
+    p.add_argument("inputs", nargs="+", metavar="IN", help="scenario files, or folders searched recursively")
     p.add_argument("output", metavar="OUT")
     p.add_argument("--format", choices=available_formats(), help="output format (default: from OUT's suffix)")
     p.set_defaults(func=run)
 
 
-def _all_scenarios(paths: list[str]) -> Iterator[Scenario]:
+def _all_scenarios(paths: list[Path]) -> Iterator[Scenario]:
     for path in paths:
         yield from read_scenarios(path)
 
@@ -37,19 +45,20 @@ def _safe_name(scenario_id: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
-    for path in args.inputs:  # fail before writing anything when an input is missing
-        if not Path(path).is_file():
+    inputs = expand_scenario_paths(args.inputs)
+    for path in inputs:  # fail before writing anything when an input is missing
+        if not path.is_file():
             raise InputError("no such file", path=path)
     if out.is_dir() or (not out.suffix and args.format):
         if not args.format:
             raise InputError("OUT is a directory: name the output format with --format", path=out)
         fmt = get_format(args.format)
         written = 0
-        for scenario in _all_scenarios(args.inputs):
+        for scenario in _all_scenarios(inputs):
             target = out / f"{_safe_name(scenario.scenario_id)}{fmt.suffixes[0]}"
             written += fmt.write(target, [scenario])
         print(f"wrote {written} scenario(s) to {out}/")
         return 0
-    written = format_for_output(out, args.format).write(out, _all_scenarios(args.inputs))
+    written = format_for_output(out, args.format).write(out, _all_scenarios(inputs))
     print(f"wrote {written} scenario(s) to {out}")
     return 0

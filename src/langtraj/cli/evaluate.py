@@ -1,11 +1,12 @@
 """`langtraj evaluate SCENARIOS ROLLOUTS [--index I] [--config 2025|2024] [--json] [--out FILE]
 [--adversary ID --target ID] [--unconditioned NPZ --agents ID,...]`.
 
-WOSAC realism metrics of rollouts. ROLLOUTS is one `.npz` (scored against scenario I of the file) or a
-folder of `<scenario_id>.npz` files (every matching scenario in SCENARIOS, a file or a folder of
-files, is scored in parallel and the corpus mean is reported too). For one file, `--adversary` and
-`--target` add the safety-critical figures, `--unconditioned` and `--agents` the minADE of prompted
-agents with and without text (`langtraj.metrics.controllability`).
+WOSAC realism metrics of rollouts (docs/metrics.md). SCENARIOS is a scenario file or a folder of them,
+searched recursively. ROLLOUTS is one `.npz` (scored against scenario I of the file, or with a folder
+the scenario whose id the rollouts name) or a folder of `<scenario_id>.npz` files (every matching
+scenario in SCENARIOS is scored in parallel and the corpus mean is reported too). For one file,
+`--adversary` and `--target` add the safety-critical figures, `--unconditioned` and `--agents` the
+minADE of prompted agents with and without text (`langtraj.metrics.controllability`).
 """
 
 from __future__ import annotations
@@ -20,10 +21,10 @@ from langtraj.errors import InputError
 from langtraj.fileio import atomic_open
 from langtraj.metrics.config import BUCKETS, CONFIGS
 from langtraj.metrics.controllability import controllability, safety
-from langtraj.metrics.corpus import EvalJob, aggregate, evaluate_corpus, pair_jobs, run_job, scenario_files
+from langtraj.metrics.corpus import EvalJob, aggregate, evaluate_corpus, pair_jobs, run_job
 from langtraj.metrics.wosac import ScenarioMetrics
 from langtraj.rollouts.container import Rollouts
-from langtraj.scenario.io import read_scenario
+from langtraj.scenario.io import expand_scenario_paths, read_scenario, read_scenarios
 
 _RATES = (
     "average_displacement_error",
@@ -36,7 +37,7 @@ _RATES = (
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("evaluate", help="WOSAC realism metrics of rollouts (.npz) against their scenarios")
-    p.add_argument("scenarios", metavar="SCENARIOS", help="scenario file, or a folder of scenario files")
+    p.add_argument("scenarios", metavar="SCENARIOS", help="scenario file, or a folder searched recursively")
     p.add_argument("rollouts", metavar="ROLLOUTS", help="rollouts .npz, or a folder of <scenario_id>.npz files")
     p.add_argument("--index", type=int, default=0, help="scenario in the file, for a single .npz (default 0)")
     p.add_argument("--config", choices=sorted(CONFIGS), default="2025", help="challenge configuration")
@@ -80,6 +81,26 @@ def _extras(args: argparse.Namespace, scenario_file: str, index: int, rollouts_f
     return out
 
 
+def _single_scenario(args: argparse.Namespace, rollouts_file: Path) -> tuple[str, int]:
+    """The scenario file and index a single rollouts file is scored against: SCENARIOS and --index, or
+    in a SCENARIOS folder the scenario whose id the rollouts name."""
+    folder = Path(args.scenarios)
+    if not folder.is_dir():
+        return args.scenarios, args.index
+    if args.index != 0:
+        raise InputError(
+            "applies to a scenario file; in a folder the rollouts' scenario_id picks the scene", where="--index"
+        )
+    scenario_id = Rollouts.load(rollouts_file).scenario_id
+    if not scenario_id:
+        raise InputError("the rollouts name no scenario_id: give the scenario file, not a folder", path=rollouts_file)
+    for file in expand_scenario_paths([folder]):
+        for index, scenario in enumerate(read_scenarios(file)):
+            if scenario.scenario_id == scenario_id:
+                return str(file), index
+    raise InputError(f"no scenario {scenario_id!r} in this folder or its subfolders", path=folder)
+
+
 def _table(values: dict, title: str) -> str:
     lines = [title, f"  {'metametric':<42}{values['metametric']:.4f}"]
     for bucket, names in BUCKETS.items():
@@ -115,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
     if rollouts.is_dir():
         if args.adversary is not None or args.unconditioned is not None:
             raise InputError("--adversary / --unconditioned need a single rollouts .npz", where="arguments")
-        jobs = pair_jobs(scenario_files(args.scenarios), rollouts, args.config)
+        jobs = pair_jobs(expand_scenario_paths([args.scenarios]), rollouts, args.config)
         results = evaluate_corpus(jobs, workers=args.workers, executor=args.executor)
         report = {
             "config": args.config,
@@ -125,8 +146,9 @@ def run(args: argparse.Namespace) -> int:
         }
         title = f"WOSAC {args.config}, mean over {len(results)} scenarios"
     else:
-        result: ScenarioMetrics = run_job(EvalJob(args.scenarios, args.index, str(rollouts), args.config))
-        report = {**result.to_dict(), **_extras(args, args.scenarios, args.index, rollouts)}
+        scenario_file, index = _single_scenario(args, rollouts)
+        result: ScenarioMetrics = run_job(EvalJob(scenario_file, index, str(rollouts), args.config))
+        report = {**result.to_dict(), **_extras(args, scenario_file, index, rollouts)}
         title = f"WOSAC {args.config}, scenario {result.scenario_id}"
     text = json.dumps(_finite_or_null(report), indent=2, allow_nan=False)
     if args.out:

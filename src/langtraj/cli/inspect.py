@@ -1,4 +1,5 @@
-"""`langtraj inspect FILE... [--json]`: what is in scenario files."""
+"""`langtraj inspect FILE|DIR... [--json]`: what is in scenario files (folders are searched recursively;
+docs/data.md lists the formats)."""
 
 from __future__ import annotations
 
@@ -6,13 +7,13 @@ import argparse
 import json
 import sys
 
-from langtraj.scenario.io import read_scenarios
+from langtraj.scenario.io import expand_scenario_paths, read_scenarios
 from langtraj.scenario.summary import scenario_summary
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("inspect", help="summarize the scenarios in files (WOMD TFRecord, ScenarioNet)")
-    p.add_argument("files", nargs="+", metavar="FILE")
+    p.add_argument("files", nargs="+", metavar="FILE|DIR", help="scenario files, or folders searched recursively")
     p.add_argument("--json", action="store_true", help="print a JSON list, one object per scenario")
     p.set_defaults(func=run)
 
@@ -30,7 +31,7 @@ def _text(summary: dict, path: str, index: int) -> str:
 
 def run(args: argparse.Namespace) -> int:
     summaries = []
-    for path in args.files:
+    for path in map(str, expand_scenario_paths(args.files)):
         for index, scenario in enumerate(read_scenarios(path)):
             summary = {"file": path, "index": index, **scenario_summary(scenario)}
             if args.json:

@@ -1,4 +1,7 @@
-"""`langtraj interdrive`: build, export, import and summarize InterDrive labels and prompts."""
+"""`langtraj interdrive`: build, export, import and summarize InterDrive labels and prompts (docs/interdrive.md).
+
+`build` takes scenario files or folders of them (searched recursively).
+"""
 
 from __future__ import annotations
 
@@ -19,7 +22,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     sub = p.add_subparsers(dest="action", required=True, metavar="ACTION")
 
     build = sub.add_parser("build", help="label scenario files into a dataset folder (shards + manifest)")
-    build.add_argument("scenarios", nargs="+", help="scenario files (WOMD TFRecord, ScenarioNet .pkl)")
+    build.add_argument(
+        "scenarios",
+        nargs="+",
+        metavar="SCENARIOS",
+        help="scenario files (WOMD TFRecord, ScenarioNet .pkl), or folders searched recursively",
+    )
     build.add_argument("--out", required=True, help="dataset folder (labels/*.jsonl, manifest.json)")
     build.add_argument("--seed", type=int, default=0, help="prompt sampling seed")
     build.add_argument("--prompts-per-agent", type=int, default=3, help="prompts drawn per labelled agent")
@@ -56,6 +64,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run_build(args: argparse.Namespace) -> int:
     from langtraj.interdrive.dataset import BuildConfig, build_dataset
+    from langtraj.scenario.io import expand_scenario_paths
 
     for name, value in (("--workers", args.workers), ("--prompts-per-agent", args.prompts_per_agent)):
         if value < 1:
@@ -67,7 +76,8 @@ def run_build(args: argparse.Namespace) -> int:
         llm_url=args.llm_url,
         llm_model=args.llm_model,
     )
-    manifest = build_dataset([Path(s) for s in args.scenarios], Path(args.out), config, args.workers, args.executor)
+    sources = expand_scenario_paths(args.scenarios)
+    manifest = build_dataset(sources, Path(args.out), config, args.workers, args.executor)
     interactions = sum(sum(s["interactions"].values()) for s in manifest["shards"])
     prompts = sum(s["prompts"] for s in manifest["shards"])
     print(f"{manifest['windows']} windows, {interactions} interaction labels, {prompts} prompts -> {args.out}")

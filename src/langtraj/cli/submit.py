@@ -1,9 +1,11 @@
 """`langtraj submit SCENARIOS ROLLOUTS_DIR --metadata META.json --out DIR`: a WOSAC submission.
 
-Pairs every `<scenario_id>.npz` in ROLLOUTS_DIR with its scenario, checks each against the challenge's
-rules (the sim agents, 32 rollouts, 80 steps, finite values), and writes the sharded
-`SimAgentsChallengeSubmission` protos plus the `.tar.gz` to upload. META.json holds the
-`SubmissionMetadata` fields (account_name, unique_method_name, authors, ...).
+Pairs every `<scenario_id>.npz` in ROLLOUTS_DIR with its scenario (SCENARIOS is a file, or a folder
+searched recursively), checks each against the challenge's rules (the sim agents, 32 rollouts, 80
+steps, finite values), and writes the sharded `SimAgentsChallengeSubmission` protos plus the `.tar.gz`
+to upload. META.json holds the
+`SubmissionMetadata` fields (account_name, unique_method_name, authors, ...). docs/metrics.md
+describes submissions.
 """
 
 from __future__ import annotations
@@ -14,15 +16,15 @@ from dataclasses import fields, replace
 from pathlib import Path
 
 from langtraj.errors import InputError
-from langtraj.metrics.corpus import pair_jobs, scenario_files
+from langtraj.metrics.corpus import pair_jobs
 from langtraj.metrics.submission import SubmissionMetadata, validate_scenario_rollouts, write_submission
 from langtraj.rollouts.container import Rollouts
-from langtraj.scenario.io import read_scenario
+from langtraj.scenario.io import expand_scenario_paths, read_scenario
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("submit", help="write a WOSAC submission (sharded protos + .tar.gz) from rollouts")
-    p.add_argument("scenarios", metavar="SCENARIOS", help="scenario file, or a folder of scenario files")
+    p.add_argument("scenarios", metavar="SCENARIOS", help="scenario file, or a folder searched recursively")
     p.add_argument("rollouts", metavar="ROLLOUTS_DIR", help="folder of <scenario_id>.npz rollouts")
     p.add_argument("--metadata", required=True, type=Path, help="JSON file with the submission metadata")
     p.add_argument("--out", required=True, type=Path, help="folder for the shards and submission.tar.gz")
@@ -57,7 +59,7 @@ def load_metadata(path: Path) -> SubmissionMetadata:
 
 def run(args: argparse.Namespace) -> int:
     metadata = load_metadata(args.metadata)
-    jobs = pair_jobs(scenario_files(args.scenarios), args.rollouts)
+    jobs = pair_jobs(expand_scenario_paths([args.scenarios]), args.rollouts)
     checked = []
     for job in jobs:
         scenario = read_scenario(job.scenario_file, job.index)

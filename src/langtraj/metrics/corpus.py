@@ -18,7 +18,7 @@ from langtraj.errors import InputError
 from langtraj.executors import EXECUTORS
 from langtraj.metrics.wosac import ScenarioMetrics, evaluate_scenario
 from langtraj.rollouts.container import Rollouts
-from langtraj.scenario.io import detect_format, read_scenario, read_scenarios
+from langtraj.scenario.io import read_scenario, read_scenarios
 
 
 @dataclass(frozen=True)
@@ -39,24 +39,6 @@ def run_job(job: EvalJob) -> ScenarioMetrics:
         return evaluate_scenario(scenario, rollouts, job.config)
     except InputError as exc:
         raise exc.located(path=job.rollouts_file, where=f"scenario {scenario.scenario_id}") from None
-
-
-def scenario_files(path: str | Path) -> list[Path]:
-    """`path` itself, or the scenario files directly inside a folder (sorted; other files such as a
-    README are skipped)."""
-    path = Path(path)
-    if not path.is_dir():
-        return [path]
-    found = []
-    for file in sorted(p for p in path.iterdir() if p.is_file() and not p.name.startswith(".")):
-        try:
-            detect_format(file)
-        except InputError:
-            continue
-        found.append(file)
-    if not found:
-        raise InputError("no scenario file (WOMD TFRecord, ScenarioNet .pkl) in this folder", path=path)
-    return found
 
 
 def pair_jobs(scenarios: Iterable[str | Path], rollouts_dir: str | Path, config: str = "2025") -> list[EvalJob]:

@@ -1,11 +1,14 @@
 """Extension point for scenario file formats: a reader/writer interface plus a registry.
 
-A format is one `ScenarioFormat` subclass registered with `@register_format`; `open_scenarios`
-picks the format by sniffing the file's first bytes, so extensions do not matter.
+A format is one `ScenarioFormat` subclass registered with `@register_format`; `detect_format`
+picks the format by sniffing the file's first bytes, so extensions do not matter, and
+`expand_scenario_paths` turns the files and folders named on a command line into scenario files the
+same way. docs/data.md lists the formats.
 """
 
 from __future__ import annotations
 
+import os
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -69,17 +72,62 @@ def get_format(name: str) -> ScenarioFormat:
     return _FORMATS.create(name)
 
 
+def _head(path: Path) -> bytes:
+    """The first SNIFF_BYTES of `path`; a missing or unreadable file raises InputError."""
+    with open_input(path) as fh:
+        return fh.read(SNIFF_BYTES)
+
+
+def _format_of(head: bytes) -> type[ScenarioFormat] | None:
+    """The registered format whose `sniff` accepts `head`; None for an empty head or no known format."""
+    return next((cls for cls in _FORMATS.classes() if cls.sniff(head)), None) if head else None
+
+
 def detect_format(path: str | Path) -> ScenarioFormat:
     """The registered format whose `sniff` accepts the file's first bytes."""
     path = Path(path)
-    with open_input(path) as fh:
-        head = fh.read(SNIFF_BYTES)
+    head = _head(path)
     if not head:
         raise InputError("file is empty", path=path)
-    for cls in _FORMATS.classes():
-        if cls.sniff(head):
-            return cls()
-    raise InputError(f"not a scenario file (known formats: {', '.join(available_formats())})", path=path)
+    cls = _format_of(head)
+    if cls is None:
+        raise InputError(f"not a scenario file (known formats: {', '.join(available_formats())})", path=path)
+    return cls()
+
+
+def _unreadable_folder(exc: OSError) -> None:
+    raise InputError(f"cannot read folder: {exc.strerror}", path=exc.filename)
+
+
+def expand_scenario_paths(paths: Iterable[str | Path]) -> list[Path]:
+    """The scenario files that command-line `paths` name: each file as given, and in its place every
+    scenario file under each folder, searched recursively in sorted order of relative path.
+
+    In a folder, files are recognised by content (`sniff`, as `detect_format` does); other files (a
+    README, a manifest, an empty file) are skipped, and so are hidden files and folders (such as the
+    temporary files of an unfinished write), links to folders, broken links, pipes and sockets. A
+    folder with no scenario file raises InputError naming it. A path that is not a folder is kept as
+    it is, so that reading it reports a missing file or another format as before.
+    """
+    out: list[Path] = []
+    for path in map(Path, paths):
+        if not path.is_dir():
+            out.append(path)
+            continue
+        found = []
+        for folder, subfolders, files in os.walk(path, onerror=_unreadable_folder):
+            subfolders[:] = [d for d in subfolders if not d.startswith(".")]
+            found.extend(Path(folder, f) for f in files if not f.startswith("."))
+        found = [
+            f for f in sorted(found, key=lambda f: f.relative_to(path).parts) if f.is_file() and _format_of(_head(f))
+        ]
+        if not found:
+            raise InputError(
+                f"no scenario file in this folder or its subfolders (known formats: {', '.join(available_formats())})",
+                path=path,
+            )
+        out.extend(found)
+    return out
 
 
 def format_for_output(path: str | Path, name: str | None = None) -> ScenarioFormat:
