@@ -16,6 +16,7 @@ from langtraj.errors import InputError
 from langtraj.scenario.model import Agents, MapFeature, RoadMap, Scenario, TrafficLights
 from langtraj.scenario.types import AgentType, MapFeatureType, TrafficLightState
 from langtraj.viz import RenderConfig, TopDownRenderer, render_frame, save_png, save_video, style
+from langtraj.viz.topdown import wrap_caption
 
 REAL_DIR = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 SMALL = RenderConfig(size_px=160, trail_steps=5)
@@ -87,6 +88,35 @@ def test_frame_shape_dtype_and_content():
     assert image.dtype == np.uint8
     assert len(np.unique(image.reshape(-1, 3), axis=0)) > 50
     assert image.std() > 15
+
+
+LONG_CAPTION = (
+    "@7 slows down and yields to @4, who turns left across its path at the signalized intersection "
+    "+ @4 collides with @7 while the light is green"
+)
+
+
+def test_wrap_caption_breaks_long_lines_at_spaces() -> None:
+    wrapped = wrap_caption(LONG_CAPTION + "\nstep 3/11", 40)
+    lines = wrapped.split("\n")
+    assert len(lines) == 5 and lines[-1] == "step 3/11"
+    assert all(len(line) <= 40 for line in lines)
+    assert " ".join(lines[:-1]) == LONG_CAPTION
+    assert wrap_caption("short\nlines", 40) == "short\nlines"
+    assert wrap_caption("x" * 25, 10).split("\n") == ["x" * 10, "x" * 10, "x" * 5]  # one long word is broken
+
+
+@pytest.mark.parametrize("size_px", [160, 480, 800])
+def test_a_long_caption_is_wrapped_inside_the_image(size_px: int) -> None:
+    """The demo's prompt captions are longer than a panel is wide: they wrap instead of being cut off."""
+    with TopDownRenderer(make_scenario(), RenderConfig(size_px=size_px, caption=LONG_CAPTION)) as renderer:
+        renderer.frame(3)
+        caption = renderer._caption
+        lines = caption.get_text().split("\n")
+        assert len(lines) >= 3 and lines[-1].startswith("step  3/11")
+        assert " ".join(lines[:-1]) == LONG_CAPTION
+        box = caption.get_bbox_patch().get_window_extent(renderer._canvas.get_renderer())
+        assert 0 < box.x0 < box.x1 < size_px and 0 < box.y0 < box.y1 <= size_px
 
 
 def test_agent_colours_appear_at_their_positions():

@@ -2,12 +2,15 @@
 
 The map is added once as grouped collections. Per frame only the agent boxes, heading ticks,
 trails, labels, signal markers and caption change. The rasterised map is cached and blitted while
-the camera holds still; a moving camera redraws it. Overlays (caption, scale bar, legend) go on top.
+the camera holds still; a moving camera redraws it. Overlays (caption, scale bar, legend) go on top;
+the caption is wrapped to the width of the image. docs/benchmarks.md measures the renderer's speed and
+docs/simulation.md describes the demo video made of its frames.
 """
 
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Sequence
 from types import TracebackType
 
@@ -42,6 +45,20 @@ def nice_length(span_m: float) -> float:
     target = max(span_m / 5.0, 1e-6)
     power = 10.0 ** math.floor(math.log10(target))
     return max(m * power for m in (1.0, 2.0, 5.0) if m * power <= target)
+
+
+CAPTION_INSET = 0.012
+"""Gap between the caption's text and the image's top and left edges, as a fraction of the image."""
+
+CAPTION_PAD = 0.35
+"""Padding of the caption's box around its text, as a fraction of the font size."""
+
+
+def wrap_caption(text: str, width: int) -> str:
+    """`text` with each of its lines wrapped at spaces to at most `width` characters (a longer word is
+    broken); lines already short enough are kept as they are."""
+    width = max(int(width), 1)
+    return "\n".join(textwrap.fill(line, width) or line for line in text.split("\n"))
 
 
 def _check_step(scenario: Scenario, step: int) -> int:
@@ -141,15 +158,28 @@ class TopDownRenderer:
             ax.add_collection(coll, autolim=False)
         self._labels: dict[int, Text] = {}
         self._caption = ax.text(
-            0.012, 0.988, "", transform=ax.transAxes, ha="left", va="top", color=style.TEXT,
+            CAPTION_INSET, 1.0 - CAPTION_INSET, "", transform=ax.transAxes, ha="left", va="top", color=style.TEXT,
             fontsize=style.CAPTION_SIZE, family="monospace", zorder=style.CAPTION_ZORDER, animated=True,
-            bbox={"boxstyle": "round,pad=0.35", "facecolor": style.TEXT_BOX, "alpha": 0.55, "edgecolor": "none"},
+            bbox={"boxstyle": f"round,pad={CAPTION_PAD}", "facecolor": style.TEXT_BOX, "alpha": 0.55,
+                  "edgecolor": "none"},
         )  # fmt: skip
+        self.caption_chars = self._caption_chars()
+        """How many characters of the caption fit on one line of the image; longer lines are wrapped."""
         lights = self.scenario.traffic_lights
         assert lights is not None
         self._light_xy = lights.stop_points[:, :2]
         self._light_across = _stop_bar_directions(self.scenario)
         self._light_rgba = to_rgba_array([style.light_color(s) for s in range(9)])
+
+    def _caption_chars(self) -> int:
+        """Characters of the caption's monospace font that fit across the image between its insets,
+        inside the caption's box (measured with the figure's renderer, so any size and dpi fit)."""
+        probe = "0" * 40
+        renderer = self._canvas.get_renderer()
+        probe_px = renderer.get_text_width_height_descent(probe, self._caption.get_fontproperties(), ismath=False)[0]
+        font_px = self._caption.get_fontsize() * self._fig.dpi / 72.0
+        width_px = self._ax.bbox.width * (1.0 - 2.0 * CAPTION_INSET) - 2.0 * CAPTION_PAD * font_px
+        return max(int(width_px / (probe_px / len(probe))), 1)
 
     def _add_scale_bar(self) -> None:
         length = nice_length(self.camera.span)
@@ -266,7 +296,8 @@ class TopDownRenderer:
         title = self.config.caption if self.config.caption is not None else f"scenario {s.scenario_id}"
         t = s.timestamps[step] - s.timestamps[0]
         phase = "history" if step < s.current_index else "current" if step == s.current_index else "future"
-        return f"{title}\nstep {step:>{len(str(s.num_steps - 1))}}/{s.num_steps - 1}  t={t:5.1f} s  {phase}"
+        clock = f"step {step:>{len(str(s.num_steps - 1))}}/{s.num_steps - 1}  t={t:5.1f} s  {phase}"
+        return wrap_caption(f"{title}\n{clock}", self.caption_chars)
 
     def frame(self, step: int) -> np.ndarray:
         """The image of `step`: uint8 [size_px, size_px, 3]."""
