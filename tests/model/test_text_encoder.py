@@ -175,9 +175,9 @@ def test_explicit_target_modules_override_the_architecture(tiny_distilbert_dir: 
 
 
 def test_config_validation() -> None:
-    with pytest.raises(ValueError, match="pooling"):
+    with pytest.raises(InputError, match="pooling"):
         TextEncoderConfig(pooling="max")
-    with pytest.raises(ValueError, match="lora_rank"):
+    with pytest.raises(InputError, match="lora_rank"):
         TextEncoderConfig(lora_rank=0)
 
 

@@ -12,6 +12,7 @@ from langtraj.cli import (
     convert,
     demo,
     evaluate,
+    experiment,
     inspect,
     interdrive,
     render,
@@ -23,7 +24,21 @@ from langtraj.cli import (
 )
 from langtraj.errors import LangTrajError
 
-VERBS = (inspect, render, convert, synth, interdrive, baseline, evaluate, submit, train, sample, simulate, demo)
+VERBS = (
+    inspect,
+    render,
+    convert,
+    synth,
+    interdrive,
+    baseline,
+    evaluate,
+    submit,
+    train,
+    sample,
+    simulate,
+    demo,
+    experiment,
+)
 """Each verb module has `add_parser(subparsers)` (setting `func`) and a `run(args) -> int`."""
 
 

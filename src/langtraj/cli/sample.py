@@ -30,9 +30,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from langtraj.errors import InputError
     from langtraj.fileio import atomic_path
-    from langtraj.model.open_loop import sample_open_loop
+    from langtraj.model.checkpoint import load_model
     from langtraj.scenario.io import read_scenario
-    from langtraj.training.run import module_from_checkpoint
+    from langtraj.sim.open_loop import sample_open_loop
     from langtraj.viz import RenderConfig, save_png, save_video
 
     if args.out.suffix.lower() not in (".mp4", ".gif", ".png"):
@@ -40,11 +40,11 @@ def run(args: argparse.Namespace) -> int:
     if args.samples < 1:
         raise InputError(f"--samples must be >= 1, got {args.samples}", where="arguments")
     scenario = read_scenario(args.scenario, args.index)
-    module = module_from_checkpoint(args.checkpoint)
+    model, data = load_model(args.checkpoint)
     result = sample_open_loop(
-        module.model,
+        model,
         scenario,
-        module.train_config.data,
+        data,
         prompt=args.prompt,
         num_samples=args.samples,
         steps=args.steps,

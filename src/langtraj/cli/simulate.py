@@ -14,14 +14,18 @@ import json
 from pathlib import Path
 
 
+def _policies() -> str:
+    from langtraj.sim.policies import POLICIES
+
+    return ", ".join(n for n in POLICIES.names() if n != "langtraj")
+
+
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("simulate", help="closed-loop simulation of a scene (rollouts, video, summary)")
     p.add_argument("scenario", metavar="SCENARIO", help="scenario file (WOMD TFRecord, ScenarioNet .pkl)")
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.add_argument("--index", type=int, default=0, help="scenario in the file (default 0)")
-    p.add_argument(
-        "--policy", default="langtraj", help="langtraj (default), constant_velocity, log_replay, guidance_baseline"
-    )
+    p.add_argument("--policy", default="langtraj", help="a registered policy: langtraj (default), " + _policies())
     p.add_argument("--checkpoint", type=Path, help="trained checkpoint (default: the shipped one)")
     p.add_argument(
         "--prompt", action="append", default=[], help='text naming agents by track id: "@12 yields to @7" (repeatable)'
@@ -52,8 +56,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from langtraj.fileio import atomic_path
     from langtraj.scenario.io import read_scenario
-    from langtraj.sim.engine import SimConfig, simulate
-    from langtraj.sim.setup import SimRequest, build_policy
+    from langtraj.sim.config import SimConfig, SimRequest
+    from langtraj.sim.engine import simulate
+    from langtraj.sim.setup import build_policy
     from langtraj.sim.summary import simulation_summary
     from langtraj.viz import RenderConfig, save_video
 

@@ -32,6 +32,8 @@ class GuidanceCost(ABC):
     """A differentiable cost over rolled-out states; `slots` are the agents it steers (None: all)."""
 
     name: ClassVar[str]
+    scene_wide: ClassVar[bool] = False
+    """True for costs that take no parameters and steer every agent: `langtraj simulate --guidance` offers them."""
     slots: tuple[int, ...] | None = None
 
     @abstractmethod
@@ -53,11 +55,8 @@ class GuidanceCost(ABC):
         return self.agents(states.shape[1]).to(states.device) & scene.agent_valid.to(states.device)
 
 
-def _load_costs() -> None:
-    import langtraj.guidance.costs  # noqa: F401  (the built-in costs register themselves on import)
-
-
-GUIDANCE: Registry[GuidanceCost] = Registry("guidance cost", loader=_load_costs)
+GUIDANCE: Registry[GuidanceCost] = Registry("guidance cost")
+"""The guidance costs by name; the built-in ones (`langtraj.guidance.costs`) register when the package loads."""
 
 
 @dataclass(frozen=True)

@@ -92,6 +92,7 @@ class NoCollisionCost(GuidanceCost):
     """
 
     name = "no_collision"
+    scene_wide = True
 
     def __init__(
         self,
@@ -234,6 +235,7 @@ class OnRoadCost(GuidanceCost):
     """
 
     name = "on_road"
+    scene_wide = True
 
     def __init__(self, slots: int | Iterable[int] | None = None, *, margin: float = 1.0):
         self.slots = as_slots(self.name, slots)
@@ -260,6 +262,7 @@ class KeepLaneCost(GuidanceCost):
     the steps [start, end) and summed over the agents (None: all valid). No lanes, no cost."""
 
     name = "keep_lane"
+    scene_wide = True
 
     def __init__(self, slots: int | Iterable[int] | None = None, *, start: int = 0, end: int | None = None):
         self.slots = as_slots(self.name, slots)

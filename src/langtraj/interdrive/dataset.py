@@ -14,7 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 from collections import Counter
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -82,6 +82,19 @@ class PromptEntry:
             prompt.text, tuple(prompt.mentions), roles, prompt.subtype_id, tuple(prompt.label_keys), prompt.source
         )
 
+    def fits(self, agent_ids: Collection[int]) -> bool:
+        """Whether every agent the prompt mentions is among `agent_ids`: a role sentence names the other
+        mentioned agents ("other agent1", ...), so a prompt conditions a sample only whole."""
+        ids = set(agent_ids)
+        return bool(self.mentions) and all(m in ids and m in self.roles for m in self.mentions)
+
+    def sentences(self, agent_ids: Sequence[int]) -> dict[int, str]:
+        """Position in `agent_ids` -> role sentence, for every mentioned agent; empty unless the prompt `fits`."""
+        if not self.fits(agent_ids):
+            return {}
+        position = {int(track): slot for slot, track in enumerate(agent_ids)}
+        return {position[m]: self.roles[m] for m in self.mentions}
+
     def to_json(self) -> dict[str, Any]:
         return {
             "text": self.text,
@@ -148,6 +161,17 @@ class WindowRecord:
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"malformed record: {exc!r}", where=where) from None
+
+
+def split_of(record: WindowRecord, val_fraction: float) -> str:
+    """The split ("val" or "train") of a record, fixed by a hash of its scene's id: the window id without the
+    `_w{start}` suffix that windows cut from a longer scene carry, so those windows stay together."""
+    key = record.scenario_id
+    suffix = f"_w{record.window_start}"
+    if key.endswith(suffix):
+        key = key[: -len(suffix)]
+    value = int.from_bytes(hashlib.sha256(key.encode()).digest()[:8], "little") / 2.0**64
+    return "val" if value < val_fraction else "train"
 
 
 # ---------------------------------------------------------------- labeling one window

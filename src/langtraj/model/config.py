@@ -1,11 +1,14 @@
-"""Model configuration: sizes, diffusion, dynamics and text encoder, as one documented dataclass."""
+"""The model's configuration: what shapes the network (`ModelConfig`) and what one scene sample holds
+(`SampleConfig`), as documented dataclasses saved in every checkpoint (docs/model.md)."""
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from langtraj.errors import InputError
 from langtraj.model.text_encoder import TextEncoderConfig
+from langtraj.settings import dataclass_kwargs
 
 
 @dataclass(frozen=True)
@@ -30,13 +33,81 @@ class ModelConfig:
     text: TextEncoderConfig = field(default_factory=TextEncoderConfig)
     use_text: bool = True  # build the language branch (stage 2); stage 1 can skip it
 
+    def __post_init__(self) -> None:
+        for name in ("hidden_dim", "num_heads", "num_actions", "diffusion_steps", "history_steps"):
+            if getattr(self, name) < 1:
+                raise InputError(f"must be >= 1, got {getattr(self, name)}", where=f"model.{name}")
+        for name in ("encoder_layers", "denoiser_blocks"):
+            if getattr(self, name) < 0:
+                raise InputError(f"must be >= 0, got {getattr(self, name)}", where=f"model.{name}")
+        if self.hidden_dim % self.num_heads:
+            raise InputError(
+                f"hidden_dim {self.hidden_dim} is not a multiple of num_heads {self.num_heads}", where="model"
+            )
+        if not 0.0 <= self.dropout < 1.0:
+            raise InputError(f"must be in [0, 1), got {self.dropout}", where="model.dropout")
+        if len(self.action_scale) != 2:
+            raise InputError(f"expected two values, got {list(self.action_scale)}", where="model.action_scale")
+
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> ModelConfig:
-        data = dict(data)
-        text = TextEncoderConfig(**data.pop("text", {}))
+    def from_dict(cls, data: dict[str, Any] | None, where: str = "model") -> ModelConfig:
+        data = dataclass_kwargs(cls, data, where)
+        try:
+            text = TextEncoderConfig(**dataclass_kwargs(TextEncoderConfig, data.pop("text", {}), f"{where}.text"))
+        except TypeError as exc:
+            raise InputError(str(exc), where=f"{where}.text") from None
         if "action_scale" in data:
             data["action_scale"] = tuple(data["action_scale"])
         return cls(text=text, **data)
+
+
+@dataclass(frozen=True)
+class SampleConfig:
+    """What a scene sample holds (docs/model.md, 'Inputs') and how training augments it.
+
+    Sizes: `max_agents` agents, `max_polylines` map polylines of `points_per_polyline` points within
+    `map_radius` m of the origin, `history_steps` steps ending at the current one, `future_steps` after it.
+    `text` False is stage 1 (no text at all). The remaining fields are training-time choices that the
+    features themselves never read: probabilities per sample (dropouts), a share of a scene's labelled
+    agents (`heuristic_label_fraction`) and a share of each batch (`interaction_fraction`); they live here
+    so that one checkpoint records everything its samples were built with.
+    """
+
+    max_agents: int = 32
+    max_polylines: int = 96
+    points_per_polyline: int = 20
+    history_steps: int = 11
+    future_steps: int = 80
+    map_radius: float = 80.0
+    text: bool = True
+    text_dropout: float = 0.5
+    history_dropout: float = 0.5
+    heuristic_label_fraction: float = 0.3
+    interaction_fraction: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("max_agents", "max_polylines", "history_steps"):
+            if getattr(self, name) < 1:
+                raise InputError(f"must be >= 1, got {getattr(self, name)}", where=f"data.{name}")
+        if self.points_per_polyline < 2:
+            raise InputError(f"must be >= 2, got {self.points_per_polyline}", where="data.points_per_polyline")
+        if self.future_steps < 0:
+            raise InputError(f"must be >= 0, got {self.future_steps}", where="data.future_steps")
+        if not self.map_radius > 0:
+            raise InputError(f"must be > 0, got {self.map_radius}", where="data.map_radius")
+        for name in ("text_dropout", "history_dropout", "heuristic_label_fraction", "interaction_fraction"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise InputError(f"must be in [0, 1], got {getattr(self, name)}", where=f"data.{name}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any] | None, where: str = "data") -> SampleConfig:
+        try:
+            return cls(**dataclass_kwargs(cls, data, where))
+        except TypeError as exc:
+            raise InputError(str(exc), where=where) from None

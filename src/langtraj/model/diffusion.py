@@ -20,7 +20,8 @@ from langtraj.errors import InputError
 Denoiser = Callable[[Tensor, Tensor], Tensor]
 """(x_k [B, ...], k long [B]) -> predicted x0 [B, ...]."""
 Guidance = Callable[[Tensor, Tensor, Tensor], Tensor]
-"""(x0_pred, k long [B], x_k) -> a modified x0 of the same shape (e.g. x0 minus a scaled cost gradient)."""
+"""(x0_pred, k long [B], x_k) -> a modified x0 of the same shape (e.g. x0 minus a scaled cost gradient):
+the hook for cost guidance (`langtraj.guidance.step`)."""
 
 
 def _index(values: Tensor, k: Tensor | int, like: Tensor) -> Tensor:

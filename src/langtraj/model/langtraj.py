@@ -16,15 +16,12 @@ from torch import Tensor, nn
 from langtraj.model.batch import SceneBatch
 from langtraj.model.config import ModelConfig
 from langtraj.model.denoiser import Denoiser
-from langtraj.model.diffusion import classifier_free_guidance, cosine_schedule, sample
+from langtraj.model.diffusion import Guidance, classifier_free_guidance, cosine_schedule, sample
 from langtraj.model.dynamics import DYNAMICS
 from langtraj.model.layers import mlp
 from langtraj.model.scene_encoder import SceneContext, SceneEncoder
 from langtraj.model.text_encoder import TextEncoder
 from langtraj.scenario.types import AgentType
-
-Guidance = Callable[[Tensor, Tensor, Tensor], Tensor]
-"""(x0 [B, A, N, 2], k [B], x_k) -> modified x0: the hook for cost guidance (issue 7)."""
 
 
 class LangTraj(nn.Module):

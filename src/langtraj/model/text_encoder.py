@@ -63,15 +63,17 @@ class TextEncoderConfig:
 
     def __post_init__(self) -> None:
         if self.pooling not in POOLINGS:
-            raise ValueError(f"pooling must be one of {POOLINGS}, got {self.pooling!r}")
+            raise InputError(f"must be one of {', '.join(POOLINGS)}, got {self.pooling!r}", where="model.text.pooling")
         if self.lora_rank <= 0:
-            raise ValueError(f"lora_rank must be positive, got {self.lora_rank}")
+            raise InputError(f"must be positive, got {self.lora_rank}", where="model.text.lora_rank")
         if not 0.0 <= self.lora_dropout < 1.0:
-            raise ValueError(f"lora_dropout must be in [0, 1), got {self.lora_dropout}")
+            raise InputError(f"must be in [0, 1), got {self.lora_dropout}", where="model.text.lora_dropout")
         if self.max_length < 2:
-            raise ValueError(f"max_length must be at least 2 (room for [CLS] and [SEP]), got {self.max_length}")
+            raise InputError(
+                f"must be at least 2 (room for [CLS] and [SEP]), got {self.max_length}", where="model.text.max_length"
+            )
         if self.token_cache_size < 0:
-            raise ValueError(f"token_cache_size must be non-negative, got {self.token_cache_size}")
+            raise InputError(f"must be non-negative, got {self.token_cache_size}", where="model.text.token_cache_size")
 
 
 def resolve_encoder_path(encoder: str) -> Path:

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from langtraj.angles import wrap_angle
 from langtraj.errors import ScenarioValidationError
 from langtraj.scenario.types import NUM_STATE_FIELDS, AgentType, MapFeatureType, StateField
 
@@ -123,6 +124,19 @@ class Agents:
     @property
     def num_agents(self) -> int:
         return len(self.ids)
+
+    @staticmethod
+    def write_poses(states: np.ndarray, poses: np.ndarray, *, wrap: bool = True) -> None:
+        """Write poses [..., 4] (x, y, heading, speed) into the x, y, heading, vx, vy columns of a `states`
+        block [..., NUM_STATE_FIELDS] of the same leading shape, in place: the velocity points along the
+        heading, and the stored heading is wrapped to (-pi, pi] unless `wrap` is False (headings already
+        wrapped by their source). The one place poses become state columns."""
+        heading = poses[..., 2]
+        states[..., StateField.X] = poses[..., 0]
+        states[..., StateField.Y] = poses[..., 1]
+        states[..., StateField.HEADING] = wrap_angle(heading) if wrap else heading
+        states[..., StateField.VX] = poses[..., 3] * np.cos(heading)
+        states[..., StateField.VY] = poses[..., 3] * np.sin(heading)
 
     @property
     def num_steps(self) -> int:

@@ -1,6 +1,7 @@
 """Closed-loop simulation: the rollout engine, policies, candidate selection and simulation summaries."""
 
-from langtraj.sim.engine import SimConfig, SimResult, replan_schedule, simulate
+from langtraj.sim.config import SimConfig, SimRequest
+from langtraj.sim.engine import SimResult, replan_schedule, simulate
 from langtraj.sim.policies import (
     POLICIES,
     ConstantVelocityPolicy,
@@ -21,6 +22,7 @@ __all__ = [
     "LogReplayPolicy",
     "Policy",
     "SimConfig",
+    "SimRequest",
     "SimResult",
     "replan_schedule",
     "simulate",

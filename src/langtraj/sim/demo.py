@@ -23,8 +23,9 @@ from langtraj.fileio import atomic_path
 from langtraj.interdrive.dataset import BuildConfig, PromptEntry, label_file, load_window
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
-from langtraj.sim.engine import SimConfig, SimResult, simulate
-from langtraj.sim.setup import SimRequest, build_policy
+from langtraj.sim.config import SimConfig, SimRequest
+from langtraj.sim.engine import SimResult, simulate
+from langtraj.sim.setup import build_policy
 from langtraj.sim.summary import simulation_summary
 
 PANEL_PX = 480
@@ -116,13 +117,13 @@ def run_demo(
 ) -> dict[str, Any]:
     """Simulate the demo scene unconditioned, with its prompt, and safety-critical; write demo.mp4 and
     summary.json into `out`. Returns the summary."""
+    from langtraj.model.checkpoint import load_model
     from langtraj.sim.checkpoints import shipped_checkpoint
-    from langtraj.training.run import module_from_checkpoint
 
     begin = time.perf_counter()
     checkpoint = checkpoint or shipped_checkpoint()
-    module = module_from_checkpoint(checkpoint)  # loaded once for the three runs
-    driven = module.train_config.data.max_agents
+    loaded = load_model(checkpoint)  # once for the three runs
+    driven = loaded[1].max_agents
     with tempfile.TemporaryDirectory(prefix="langtraj-demo-") as tmp:
         scene = synthesize_scene(Path(tmp), seed, driven) if scene_file is None else find_scene([scene_file], driven)
         target, adversary = scene.prompt.mentions
@@ -135,7 +136,7 @@ def run_demo(
         config = SimConfig(rollouts=rollouts, seed=seed)
         results, summaries = {}, {}
         for name, request in requests.items():
-            policy, described = build_policy(scene.scenario, request, module)
+            policy, described = build_policy(scene.scenario, request, loaded)
             results[name] = simulate(scene.scenario, policy, config)
             summaries[name] = simulation_summary(results[name], **described)
         out.mkdir(parents=True, exist_ok=True)

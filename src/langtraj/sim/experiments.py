@@ -1,7 +1,7 @@
 """The closed-loop experiment of docs/experiments.md: realism, controllability and safety of each method
 on held-out synthesized windows and on real scenes, one table per dataset.
 
-    python -m langtraj.sim.experiments --checkpoint CKPT --data NAME=LABELS_DIR[:SPLIT] [...] \
+    langtraj experiment closed-loop --checkpoint CKPT --data NAME=LABELS_DIR[:SPLIT] [...] \
         [--windows N] [--rollouts R] [--candidates M] [--json OUT]
 
 Each window gets one ground-truth prompt from its InterDrive labels: an interaction prompt whose agents
@@ -15,34 +15,37 @@ edges) and, for collision guidance, the adversary-target collision rate.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import json
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_path
 from langtraj.guidance import CollisionCost, GuidanceTerm
-from langtraj.interdrive.dataset import PromptEntry, WindowRecord
+from langtraj.interdrive.dataset import PromptEntry, WindowRecord, iter_records, load_window, split_of
 from langtraj.metrics.controllability import collision_rate, min_ade, offroad_rate, pair_collision_rate
 from langtraj.metrics.features import SceneMap
 from langtraj.metrics.wosac import evaluate_scenario
+from langtraj.model.checkpoint import load_model
 from langtraj.scenario.model import Scenario
-from langtraj.scenario.selection import prioritized_agents
-from langtraj.sim.engine import SimConfig, simulate
+from langtraj.sim.config import SimConfig
+from langtraj.sim.engine import simulate
 from langtraj.sim.policies import (
     ConstantVelocityPolicy,
     GuidanceBaselinePolicy,
     LangTrajPolicy,
+    LoadedModel,
     LogReplayPolicy,
     Policy,
+    model_agents,
+    slots_of,
 )
-from langtraj.training.data import SceneDataset
 
 METHODS = (
     "constant velocity",
@@ -72,15 +75,29 @@ def choose_prompt(record: WindowRecord, driven_ids: set[int]) -> PromptEntry | N
     return (interaction or fits or [None])[0]
 
 
+def held_out_records(labels_dir: str, split: str, val_fraction: float = 0.1) -> list[WindowRecord]:
+    """The records of a dataset's `split` ("train", "val" by `split_of`, or "all"), in dataset order."""
+    if split not in ("train", "val", "all"):
+        raise InputError(f"split must be train, val or all, got {split!r}", where="--data")
+    return [
+        record
+        for _, records in iter_records(Path(labels_dir))
+        for record in records
+        if split == "all" or split_of(record, val_fraction) == split
+    ]
+
+
 def cases(labels_dir: str, split: str, max_windows: int | None, max_agents: int) -> tuple[list[Case], int]:
     """Windows of `split` with a usable prompt (at most `max_windows`) and how many were skipped."""
-    dataset = SceneDataset(labels_dir, split=split, augment=False)
     found, skipped = [], 0
-    for index, record in enumerate(dataset.records):
+    for record in held_out_records(labels_dir, split):
         if max_windows is not None and len(found) >= max_windows:
             break
-        scenario = dataset.window(index)
-        driven = prioritized_agents(scenario, max_agents)
+        try:
+            scenario = load_window(record)
+        except FileNotFoundError:
+            raise InputError("scenario file not found", path=record.source) from None
+        driven = model_agents(scenario, max_agents)
         ids = {int(i) for i in scenario.agents.ids[driven]}
         future_ok = scenario.num_steps - scenario.current_index - 1 >= 80
         prompt = choose_prompt(record, ids) if future_ok else None
@@ -91,8 +108,8 @@ def cases(labels_dir: str, split: str, max_windows: int | None, max_agents: int)
     return found, skipped
 
 
-def _policies(module, case: Case, candidates: int, steps: int) -> dict[str, Callable[[], Policy]]:
-    model, data = module.model, module.train_config.data
+def _policies(loaded: LoadedModel, case: Case, candidates: int, steps: int) -> dict[str, Callable[[], Policy]]:
+    model, data = loaded
     prompt = case.prompt
     common = {"candidates": candidates, "steps": steps}
     makers: dict[str, Callable[[], Policy]] = {
@@ -105,7 +122,7 @@ def _policies(module, case: Case, candidates: int, steps: int) -> dict[str, Call
         ),
     }
     if len(prompt.mentions) >= 2:
-        slots = LangTrajPolicy.slots(case.scenario, prioritized_agents(case.scenario, data.max_agents))
+        slots = slots_of(case.scenario, model_agents(case.scenario, data.max_agents))
         target, adversary = slots[prompt.mentions[0]], slots[prompt.mentions[1]]
         collide = [GuidanceTerm(CollisionCost(adversary, target), 1.0)]
         makers["LangTraj, collision guidance"] = lambda: LangTrajPolicy(model, data, terms=collide, **common)
@@ -138,13 +155,13 @@ def score(case: Case, rollouts, scene_map: SceneMap, pair: bool) -> dict[str, fl
     return out
 
 
-def run_experiment(module, all_cases: list[Case], config: SimConfig, candidates: int, steps: int) -> dict:
+def run_experiment(loaded: LoadedModel, all_cases: list[Case], config: SimConfig, candidates: int, steps: int) -> dict:
     """Mean figures per method over the cases (NaN-aware), with per-window figures and timings."""
     rows: dict[str, list[dict[str, float]]] = {m: [] for m in METHODS}
     seconds: dict[str, float] = dict.fromkeys(METHODS, 0.0)
     for case in all_cases:
         scene_map = SceneMap.from_scenario(case.scenario)
-        for name, make in _policies(module, case, candidates, steps).items():
+        for name, make in _policies(loaded, case, candidates, steps).items():
             start = time.perf_counter()
             result = simulate(case.scenario, make(), config)
             seconds[name] += time.perf_counter() - start
@@ -183,38 +200,37 @@ def markdown(table: dict[str, dict[str, float]]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> None:
-    from langtraj.training.run import module_from_checkpoint
-
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--checkpoint", required=True)
-    parser.add_argument("--data", action="append", required=True, help="NAME=LABELS_DIR[:SPLIT] (default split val)")
-    parser.add_argument("--windows", type=int, default=None, help="at most this many windows per dataset")
-    parser.add_argument("--rollouts", type=int, default=8)
-    parser.add_argument("--candidates", type=int, default=4)
-    parser.add_argument("--steps", type=int, default=5, help="DDIM steps")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--json", help="also write every figure here")
-    args = parser.parse_args(argv)
-    module = module_from_checkpoint(args.checkpoint)
-    config = SimConfig(rollouts=args.rollouts, seed=args.seed)
+def closed_loop_experiment(
+    checkpoint: str | Path,
+    datasets: Sequence[str],
+    *,
+    windows: int | None = None,
+    rollouts: int = 8,
+    candidates: int = 4,
+    steps: int = 5,
+    seed: int = 0,
+    json_out: str | Path | None = None,
+) -> dict[str, dict]:
+    """The closed-loop table of every dataset (`NAME=LABELS_DIR[:SPLIT]`, default split val), printed as
+    Markdown; every figure is also written to `json_out` when given."""
+    loaded = load_model(checkpoint)
+    config = SimConfig(rollouts=rollouts, seed=seed)
     results = {}
-    for item in args.data:
-        name, _, rest = item.partition("=")
+    for item in datasets:
+        name, sep, rest = item.partition("=")
+        if not sep or not rest:
+            raise InputError(f"expected NAME=LABELS_DIR[:SPLIT], got {item!r}", where="--data")
         folder, _, split = rest.partition(":")
-        found, skipped = cases(folder, split or "val", args.windows, module.train_config.data.max_agents)
-        result = run_experiment(module, found, config, args.candidates, args.steps)
+        found, skipped = cases(folder, split or "val", windows, loaded[1].max_agents)
+        result = run_experiment(loaded, found, config, candidates, steps)
         result["skipped_windows"] = skipped
         results[name] = result
         print(
             f"\n{name}: {len(found)} windows ({skipped} skipped: no prompt whose agents the model drives), "
-            f"{args.rollouts} rollouts, {args.candidates} candidates per replan, K = {args.steps}"
+            f"{rollouts} rollouts, {candidates} candidates per replan, K = {steps}"
         )
         print(markdown(result["table"]))
-    if args.json:
-        with atomic_path(args.json) as tmp:
+    if json_out:
+        with atomic_path(json_out) as tmp:
             tmp.write_text(json.dumps(results, indent=1, default=float))
-
-
-if __name__ == "__main__":
-    main()
+    return results

@@ -1,35 +1,49 @@
-"""Policies: what decides the driven agents' next states at each replan of a closed-loop simulation.
+"""Policies: what decides the driven agents' next states at each replan of a closed-loop simulation
+(docs/simulation.md, 'Policies').
 
-One interface, registered by name: LangTraj (a checkpoint, optionally with text, classifier-free and
-cost guidance), constant velocity, log replay, and the CTG++-style baseline (LangTraj without text,
-steered by a fixed library of guidance costs per prompt label, the role LLM-written costs play in the
-paper's comparison). A policy `drives` some sim agents; the world moves every other agent along its log.
+One interface, registered by name and built from a simulation request (`Policy.from_request`): LangTraj
+(a checkpoint, optionally with text, classifier-free and cost guidance), constant velocity, log replay,
+and the CTG++-style baseline (LangTraj without text, steered by a fixed library of guidance costs per
+prompt label, the role LLM-written costs play in the paper's comparison). A policy `drives` some sim
+agents; the world moves every other agent along its log. What a policy keeps for one simulation
+(random streams, the scene frame, the map) is the state `reset` returns, so one policy object can run
+several simulations.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
-from dataclasses import replace
-from typing import ClassVar
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, ClassVar
 
 import numpy as np
 import torch
 from torch import Tensor
 
 from langtraj.errors import InputError
-from langtraj.frames import poses_to_frame, poses_to_world
+from langtraj.frames import Origin, poses_to_frame, poses_to_world
 from langtraj.guidance import GuidanceScene, GuidanceTerm, reconstruction_guidance
 from langtraj.guidance.library import terms_for_prompt
 from langtraj.interdrive.dataset import PromptEntry
+from langtraj.model.checkpoint import load_model
+from langtraj.model.config import SampleConfig
+from langtraj.model.features import MapArrays, collate_scenes, map_polylines, scene_frame, scene_sample
 from langtraj.model.langtraj import LangTraj
-from langtraj.model.open_loop import check_prompt_driven
 from langtraj.registry import Registry
+from langtraj.rollouts.baselines import BASELINES
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.selection import prioritized_agents
-from langtraj.sim.selection import SELECTORS
+from langtraj.sim.checkpoints import shipped_checkpoint
+from langtraj.sim.config import SimRequest
+from langtraj.sim.prompts import check_prompt_driven, merged_prompt
+from langtraj.sim.selection import SELECTORS, CandidateSelector
+from langtraj.sim.terms import collision_terms, scene_wide_terms
 from langtraj.sim.world import SimWorld
-from langtraj.training.data import SampleConfig, build_sample, collate_scenes, map_polylines, scene_frame
+
+LoadedModel = tuple[LangTraj, SampleConfig]
+"""A trained model and the sample configuration it was trained with (`langtraj.model.load_model`)."""
 
 
 class Policy(ABC):
@@ -37,15 +51,33 @@ class Policy(ABC):
 
     name: ClassVar[str]
 
+    @classmethod
+    def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> Policy:
+        """The policy `request` asks for on `scenario` (`loaded`: a model already in memory, for policies
+        that use one). Raises InputError for what this policy cannot do. Model-free policies take no
+        prompts and no guidance."""
+        if request.needs_model:
+            model_policies = ", ".join(c.name for c in POLICIES.classes() if c.uses_model)
+            raise InputError(f"prompts and guidance need a model policy ({model_policies}), not {cls.name}")
+        return cls()
+
+    uses_model: ClassVar[bool] = False
+
     def drives(self, scenario: Scenario, sim_agents: np.ndarray) -> np.ndarray:
         """Scenario rows this policy drives, a subset of `sim_agents` (default: all of them)."""
         return sim_agents
 
-    def reset(self, world: SimWorld, seed: int) -> None:  # noqa: B027 (optional hook)
-        """Prepare for a new simulation of `world` (per-rollout random streams, cached map, ...)."""
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready settings of this policy for a simulation summary (none by default)."""
+        return {}
+
+    def reset(self, world: SimWorld, seed: int) -> Any:
+        """The state of a new simulation of `world` (random streams, scene frame, map, ...), passed back to
+        every `plan` of that simulation. None by default."""
+        return None
 
     @abstractmethod
-    def plan(self, world: SimWorld, step: int, horizon: int) -> np.ndarray:
+    def plan(self, world: SimWorld, state: Any, step: int, horizon: int) -> np.ndarray:
         """States [R, A_driven, >= horizon, 4] for steps step+1 ... of every rollout."""
 
 
@@ -54,19 +86,22 @@ POLICIES: Registry[Policy] = Registry("policy")
 
 @POLICIES.register
 class ConstantVelocityPolicy(Policy):
-    """Every sim agent keeps its current heading and speed (replanned from the simulated state)."""
+    """Every driven agent keeps its velocity by the WOSAC constant-velocity rule (`rollouts.baselines`:
+    the displacement of its last step, or its reported velocity where the step before is unknown),
+    replanned from the simulated state; so its rollouts are that baseline's."""
 
     name = "constant_velocity"
 
-    def plan(self, world: SimWorld, step: int, horizon: int) -> np.ndarray:
-        now = world.current(step)  # [R, A, 4]
-        t = np.arange(1, horizon + 1) * STEP_SECONDS
-        x = now[..., None, 0] + now[..., None, 3] * np.cos(now[..., None, 2]) * t
-        y = now[..., None, 1] + now[..., None, 3] * np.sin(now[..., None, 2]) * t
-        shape = x.shape
-        return np.stack(
-            [x, y, np.broadcast_to(now[..., None, 2], shape), np.broadcast_to(now[..., None, 3], shape)], -1
-        )
+    def plan(self, world: SimWorld, state: Any, step: int, horizon: int) -> np.ndarray:
+        rule = BASELINES.get("constant_velocity")()
+        plans = []
+        for r in range(world.num_rollouts):
+            tracks = world.states[r, world.driven].astype(np.float64)
+            poses = rule.poses(tracks, world.valid[r, world.driven], step, horizon)  # [A, H, 4]: x, y, z, heading
+            speed = np.linalg.norm(poses[:, :1, :2] - tracks[:, step, None, :2], axis=-1, keepdims=True) / STEP_SECONDS
+            speed = np.broadcast_to(speed, poses[..., :1].shape)
+            plans.append(np.concatenate([poses[..., :2], poses[..., 3:], speed], -1))
+        return np.stack(plans)
 
 
 @POLICIES.register
@@ -78,8 +113,33 @@ class LogReplayPolicy(Policy):
     def drives(self, scenario: Scenario, sim_agents: np.ndarray) -> np.ndarray:
         return sim_agents[:0]
 
-    def plan(self, world: SimWorld, step: int, horizon: int) -> np.ndarray:
+    def plan(self, world: SimWorld, state: Any, step: int, horizon: int) -> np.ndarray:
         return np.zeros((world.num_rollouts, 0, horizon, 4))
+
+
+def model_agents(scenario: Scenario, max_agents: int) -> np.ndarray:
+    """The scenario rows a model drives: its `max_agents` most important agents (`prioritized_agents`:
+    all valid at the current step, objects of interest, the SDC and tracks to predict first)."""
+    return prioritized_agents(scenario, max_agents)
+
+
+def slots_of(scenario: Scenario, driven: np.ndarray) -> dict[int, int]:
+    """Track id -> model slot of every driven agent (what guidance terms and prompts refer to)."""
+    return {int(scenario.agents.ids[row]): slot for slot, row in enumerate(driven)}
+
+
+@dataclass
+class LangTrajRun:
+    """What one simulation of a `LangTrajPolicy` keeps: the start's scene frame, map and guidance scene
+    (fixed across replans, so costs and the map stay put), the terms, the selector, and one noise
+    generator per rollout."""
+
+    origin: Origin
+    map_arrays: MapArrays
+    scene: GuidanceScene
+    terms: tuple[GuidanceTerm, ...]
+    selector: CandidateSelector
+    generators: list[torch.Generator]
 
 
 @POLICIES.register
@@ -87,16 +147,16 @@ class LangTrajPolicy(Policy):
     """Samples `candidates` joint futures per rollout from a LangTraj model at each replan and executes
     the one `selector` picks.
 
-    The model drives the `data.max_agents` most important sim agents (`prioritized_agents` at the start:
-    objects of interest, the SDC, tracks to predict, then by distance to the SDC), and every replan uses
-    the scene frame of the start, so guidance costs and the map stay put. `prompt` conditions the agents it
-    mentions; `terms` (agent slots = positions in `driven_ids`) add reconstruction guidance, scaled by
+    The model drives the `data.max_agents` most important sim agents (`model_agents` at the start), and
+    every replan uses the scene frame of the start. `prompt` conditions the agents it mentions; `terms`
+    (agent slots = positions among the driven agents) add reconstruction guidance, scaled by
     `guidance_scale`; `guidance_weight` is classifier-free guidance (-1: ignore text). Each rollout draws
     its noise from its own generator seeded by (seed, rollout), so rollouts batched `rollout_batch` at a
     time give what they give one by one.
     """
 
     name = "langtraj"
+    uses_model = True
 
     def __init__(
         self,
@@ -112,6 +172,7 @@ class LangTrajPolicy(Policy):
         selector: str | None = None,
         rollout_batch: int = 0,
         max_grad_norm: float | None = 0.5,
+        checkpoint: Path | None = None,
     ):
         if candidates < 1 or steps < 1 or rollout_batch < 0:
             raise InputError(
@@ -124,7 +185,7 @@ class LangTrajPolicy(Policy):
         self.model = model.eval()
         self.data = replace(data, text=prompt is not None, text_dropout=0.0, history_dropout=0.0)
         self.prompt = prompt
-        self.base_terms = self.terms = tuple(terms)
+        self.terms = tuple(terms)
         self.candidates, self.steps = candidates, steps
         self.guidance_weight, self.guidance_scale = guidance_weight, guidance_scale
         self.selector_name = selector
@@ -132,77 +193,106 @@ class LangTrajPolicy(Policy):
             SELECTORS.get(selector, where="selector")
         self.rollout_batch = rollout_batch
         self.max_grad_norm = max_grad_norm
+        self.checkpoint = checkpoint
+
+    @classmethod
+    def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> LangTrajPolicy:
+        checkpoint = request.checkpoint or shipped_checkpoint()
+        model, data = loaded or load_model(checkpoint)
+        slots = slots_of(scenario, model_agents(scenario, data.max_agents))
+        terms = collision_terms(scenario, slots, request) + scene_wide_terms(request.guidance)
+        return cls(model, data, terms=terms, checkpoint=checkpoint, **cls._request_options(scenario, request))
+
+    @staticmethod
+    def _request_options(scenario: Scenario, request: SimRequest) -> dict[str, Any]:
+        """Constructor options `request` sets besides the model and the terms."""
+        return {
+            "prompt": merged_prompt(scenario, request.prompts),
+            "candidates": request.candidates,
+            "steps": request.steps,
+            "guidance_weight": request.cfg,
+            "guidance_scale": request.guidance_scale,
+        }
 
     # ------------------------------------------------------------------ which agents
     def drives(self, scenario: Scenario, sim_agents: np.ndarray) -> np.ndarray:
-        return prioritized_agents(scenario, self.data.max_agents)  # valid at the current step: sim agents
+        return model_agents(scenario, self.data.max_agents)  # valid at the current step: sim agents
 
-    @staticmethod
-    def slots(scenario: Scenario, driven: np.ndarray) -> dict[int, int]:
-        """Track id -> model slot of every driven agent (what guidance terms and prompts refer to)."""
-        return {int(scenario.agents.ids[row]): slot for slot, row in enumerate(driven)}
+    def describe(self) -> dict[str, Any]:
+        return {
+            "checkpoint": None if self.checkpoint is None else str(self.checkpoint),
+            "prompted_ids": list(self.prompt.mentions) if self.prompt else [],
+            "guidance": [f"{t.cost.name}={t.weight:g}" for t in self.terms],
+            "candidates": self.candidates,
+            "ddim_steps": self.steps,
+            "cfg": self.guidance_weight,
+        }
 
     # ------------------------------------------------------------------ simulation
-    def reset(self, world: SimWorld, seed: int) -> None:
+    def reset(self, world: SimWorld, seed: int) -> LangTrajRun:
         start = world.scenario_at(0, world.start)
-        slots = self.slots(start, world.driven)
+        slots = slots_of(start, world.driven)
         if self.prompt is not None:
             check_prompt_driven(self.prompt, list(slots), self.data.max_agents)
-        self.origin = scene_frame(start)
-        self.map_arrays = map_polylines(start.road_map, self.origin, self.data)
+        origin = scene_frame(start)
         device = next(self.model.parameters()).device
-        scene = GuidanceScene.from_scenario(start, self.origin, world.driven, num_agents=self.data.max_agents)
-        self.scene = scene.to(device)
-        self.generators = [torch.Generator().manual_seed(seed * 1_000_003 + r) for r in range(world.num_rollouts)]
-        self.terms = self.base_terms + self.prompt_terms(world, slots)
-        default = "min_guidance" if self.terms else "min_collision"
-        self.selector = SELECTORS.create(self.selector_name or default, where="selector")
+        scene = GuidanceScene.from_scenario(start, origin, world.driven, num_agents=self.data.max_agents)
+        terms = self.terms + self.prompt_terms(world, slots, origin)
+        default = "min_guidance" if terms else "min_collision"
+        return LangTrajRun(
+            origin=origin,
+            map_arrays=map_polylines(start.road_map, origin, self.data),
+            scene=scene.to(device),
+            terms=terms,
+            selector=SELECTORS.create(self.selector_name or default, where="selector"),
+            generators=[torch.Generator().manual_seed(seed * 1_000_003 + r) for r in range(world.num_rollouts)],
+        )
 
-    def prompt_terms(self, world: SimWorld, slots: dict[int, int]) -> tuple[GuidanceTerm, ...]:
+    def prompt_terms(self, world: SimWorld, slots: dict[int, int], origin: Origin) -> tuple[GuidanceTerm, ...]:
         """Guidance terms derived from the scene at the start (none here; the baseline's come from labels)."""
         return ()
 
-    def plan(self, world: SimWorld, step: int, horizon: int) -> np.ndarray:
+    def plan(self, world: SimWorld, state: LangTrajRun, step: int, horizon: int) -> np.ndarray:
         chunk = self.rollout_batch or world.num_rollouts
         plans = [
-            self._plan_rollouts(world, step, list(range(lo, min(lo + chunk, world.num_rollouts))))
+            self._plan_rollouts(world, state, step, list(range(lo, min(lo + chunk, world.num_rollouts))))
             for lo in range(0, world.num_rollouts, chunk)
         ]
         return np.concatenate(plans, axis=0)[:, :, : max(horizon, 1)]
 
-    def _plan_rollouts(self, world: SimWorld, step: int, rollouts: list[int]) -> np.ndarray:
-        rng = np.random.default_rng(0)  # unused: no augmentation, and the prompt (if any) is fixed
-        rows = [
-            build_sample(
-                world.scenario_at(r, step),
-                None,
-                self.data,
-                rng,
-                prompt=self.prompt,
-                augment=False,
-                agents=world.driven,
-                origin=self.origin,
-                map_arrays=self.map_arrays,
-            )
-            for r in rollouts
-        ]
+    def _sample(self, world: SimWorld, state: LangTrajRun, step: int, rollout: int) -> dict[str, Any]:
+        """The model's input for one rollout at `step`: its simulated past in the start's frame and map."""
+        sample = scene_sample(
+            world.scenario_at(rollout, step),
+            self.data,
+            agents=world.driven,
+            origin=state.origin,
+            map_arrays=state.map_arrays,
+        )
+        if self.prompt is not None:
+            for slot, sentence in self.prompt.sentences(sample["agent_id"][: len(world.driven)].tolist()).items():
+                sample["text"][slot] = sentence
+            sample["interaction_labelled"] = np.bool_(self.prompt.subtype is not None)
+        return sample
+
+    def _plan_rollouts(self, world: SimWorld, state: LangTrajRun, step: int, rollouts: list[int]) -> np.ndarray:
         device = next(self.model.parameters()).device
-        batch = collate_scenes(rows).to(device)
+        batch = collate_scenes([self._sample(world, state, step, r) for r in rollouts]).to(device)
         m = self.candidates
-        generators = [self.generators[r] for r in rollouts]
+        generators = [state.generators[r] for r in rollouts]
 
         def noise(shape: tuple[int, ...]) -> Tensor:  # sample-major rows: [M * R, ...]
             per_rollout = [torch.randn((m, *shape[1:]), generator=g) for g in generators]
             return torch.stack(per_rollout, dim=1).reshape(shape).to(device)
 
         hook = None
-        if self.terms:
+        if state.terms:
             initial = batch.current_state.repeat(m, 1, 1)
             types = batch.agent_type.repeat(m, 1)
             model = self.model
             hook = reconstruction_guidance(
-                self.terms,
-                self.scene,
+                state.terms,
+                state.scene,
                 lambda x: model.integrate(initial, types, x),
                 scale=self.guidance_scale,
                 num_steps=self.model.schedule.num_steps,
@@ -211,9 +301,9 @@ class LangTrajPolicy(Policy):
         states, _ = self.model.sample(
             batch, m, steps=self.steps, guidance_weight=self.guidance_weight, guidance=hook, noise=noise
         )
-        choice = self.selector.select(states, self.scene, self.terms)  # states [M, R, A, T, 4], scene frame
+        choice = state.selector.select(states, state.scene, state.terms)  # states [M, R, A, T, 4], scene frame
         chosen = states[choice, torch.arange(len(rollouts), device=device), : len(world.driven)].double().cpu().numpy()
-        return poses_to_world(chosen, self.origin)
+        return poses_to_world(chosen, state.origin)
 
 
 @POLICIES.register
@@ -227,19 +317,32 @@ class GuidanceBaselinePolicy(LangTrajPolicy):
     def __init__(self, model: LangTraj, data: SampleConfig, *, prompt: PromptEntry, **kwargs):
         if prompt.subtype is None and not prompt.labels:
             raise InputError(
-                "the guidance baseline needs a labelled prompt (an InterDrive subtype or labels)", where="prompt"
+                "the guidance baseline needs a labelled prompt (an InterDrive subtype or labels); "
+                f"no label was recognised in {prompt.text!r}",
+                where="prompt",
             )
         super().__init__(model, data, **kwargs)
         self.labelled = prompt
 
-    def prompt_terms(self, world: SimWorld, slots: dict[int, int]) -> tuple[GuidanceTerm, ...]:
+    @staticmethod
+    def _request_options(scenario: Scenario, request: SimRequest) -> dict[str, Any]:
+        if len(request.prompts) != 1:
+            raise InputError(
+                f"the guidance baseline takes exactly one prompt, got {len(request.prompts)}", where="--prompt"
+            )
+        return LangTrajPolicy._request_options(scenario, request)
+
+    def describe(self) -> dict[str, Any]:
+        return {**super().describe(), "prompted_ids": list(self.labelled.mentions)}
+
+    def prompt_terms(self, world: SimWorld, slots: dict[int, int], origin: Origin) -> tuple[GuidanceTerm, ...]:
         mentions = {i: slots[t] for i, t in enumerate(self.labelled.mentions[:2]) if t in slots}
         if 0 not in mentions:
             raise InputError(
                 f"the prompt's target agent @{self.labelled.mentions[0]} is not driven by the model", where="prompt"
             )
         current = np.zeros((self.data.max_agents, 4))
-        current[: len(world.driven)] = poses_to_frame(world.current(world.start)[0], self.origin)
+        current[: len(world.driven)] = poses_to_frame(world.current(world.start)[0], origin)
         state = torch.as_tensor(current, dtype=torch.float32)
         return tuple(
             terms_for_prompt(mentions, state, subtype_id=self.labelled.subtype, label_keys=self.labelled.labels)

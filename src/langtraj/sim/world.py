@@ -17,7 +17,7 @@ from langtraj.angles import wrap_angle
 from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.rollouts.baselines import generate_baseline
 from langtraj.rollouts.container import FUTURE_STEPS, Rollouts
-from langtraj.scenario.model import STEP_SECONDS, Scenario, TrafficLights
+from langtraj.scenario.model import STEP_SECONDS, Agents, Scenario, TrafficLights
 from langtraj.scenario.types import StateField
 
 POSE_FIELDS = 4
@@ -130,11 +130,7 @@ class SimWorld:
             raise ValueError(f"the policy produced non-finite states at step {step}")
         cols = np.arange(step + 1, step + 1 + n)
         block = self.states[:, self.driven][:, :, cols]  # copy [R, A_d, n, 9]
-        block[..., StateField.X] = plan[..., 0]
-        block[..., StateField.Y] = plan[..., 1]
-        block[..., StateField.HEADING] = wrap_angle(plan[..., 2])
-        block[..., StateField.VX] = plan[..., 3] * np.cos(plan[..., 2])
-        block[..., StateField.VY] = plan[..., 3] * np.sin(plan[..., 2])
+        Agents.write_poses(block, plan)
         keep = [StateField.Z, StateField.LENGTH, StateField.WIDTH, StateField.HEIGHT]
         block[..., keep] = self.states[:, self.driven, step][:, :, None, keep]
         self.states[:, self.driven[:, None], cols[None, :]] = block

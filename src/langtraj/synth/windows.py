@@ -244,11 +244,8 @@ class WindowCutter:
             lo, hi = max(start, t.start), min(start + length, t.stop)
             src = slice(lo - t.start, hi - t.start)
             dst = slice(lo - start, hi - start)
-            states[a, dst, StateField.X] = t.xy[src, 0]
-            states[a, dst, StateField.Y] = t.xy[src, 1]
-            states[a, dst, StateField.HEADING] = t.heading[src]
-            states[a, dst, StateField.VX] = t.speed[src] * np.cos(t.heading[src])
-            states[a, dst, StateField.VY] = t.speed[src] * np.sin(t.heading[src])
+            poses = np.concatenate([t.xy[src], t.heading[src, None], t.speed[src, None]], axis=-1)
+            Agents.write_poses(states[a, dst], poses, wrap=False)  # headings kept bit for bit as the track holds them
             states[a, dst, StateField.LENGTH] = t.size[0]
             states[a, dst, StateField.WIDTH] = t.size[1]
             states[a, dst, StateField.HEIGHT] = t.size[2]

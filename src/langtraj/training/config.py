@@ -8,15 +8,15 @@ on a laptop CPU, one GPU or several nodes (launched with torchrun or a cluster s
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
 
 from langtraj.errors import InputError
-from langtraj.model.config import ModelConfig
-from langtraj.training.data import SampleConfig
+from langtraj.model.config import ModelConfig, SampleConfig
+from langtraj.settings import dataclass_kwargs, require
 
 
 @dataclass(frozen=True)
@@ -29,6 +29,12 @@ class OptimConfig:
     min_lr_ratio: float = 0.05
     grad_clip: float = 1.0
 
+    def __post_init__(self) -> None:
+        require(self.lr > 0, "optim.lr", f"must be > 0, got {self.lr}")
+        require(self.warmup_steps >= 0, "optim.warmup_steps", f"must be >= 0, got {self.warmup_steps}")
+        require(0 <= self.min_lr_ratio <= 1, "optim.min_lr_ratio", f"must be in [0, 1], got {self.min_lr_ratio}")
+        require(self.grad_clip >= 0, "optim.grad_clip", f"must be >= 0, got {self.grad_clip}")
+
 
 @dataclass(frozen=True)
 class ValConfig:
@@ -40,6 +46,11 @@ class ValConfig:
     max_batches: int = 4
     wosac_scenes: int = 2
     wosac_rollouts: int = 32
+
+    def __post_init__(self) -> None:
+        for name in ("num_samples", "sample_steps", "max_batches", "wosac_rollouts"):
+            require(getattr(self, name) >= 1, f"val.{name}", f"must be >= 1, got {getattr(self, name)}")
+        require(self.wosac_scenes >= 0, "val.wosac_scenes", f"must be >= 0, got {self.wosac_scenes}")
 
 
 @dataclass(frozen=True)
@@ -67,26 +78,30 @@ class TrainConfig:
     strategy: str = "auto"
     precision: str = "32-true"
 
+    def __post_init__(self) -> None:
+        for name in ("batch_size", "max_steps", "val_every_steps", "checkpoint_every_steps", "num_nodes"):
+            require(getattr(self, name) >= 1, name, f"must be >= 1, got {getattr(self, name)}")
+        require(self.num_workers >= 0, "num_workers", f"must be >= 0, got {self.num_workers}")
+        require(self.text_loss_weight >= 0, "text_loss_weight", f"must be >= 0, got {self.text_loss_weight}")
+
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], where: str = "config") -> TrainConfig:
-        data = dict(data)
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise InputError(f"unknown keys {', '.join(unknown)}; known: {', '.join(sorted(known))}", where=where)
+        data = dataclass_kwargs(cls, data, where)
         try:
             sections = {
                 "model": ModelConfig.from_dict(data.pop("model", {})),
-                "data": SampleConfig(**data.pop("data", {})),
-                "optim": OptimConfig(**data.pop("optim", {})),
-                "val": ValConfig(**data.pop("val", {})),
+                "data": SampleConfig.from_dict(data.pop("data", {})),
+                "optim": OptimConfig(**dataclass_kwargs(OptimConfig, data.pop("optim", {}), "optim")),
+                "val": ValConfig(**dataclass_kwargs(ValConfig, data.pop("val", {}), "val")),
             }
             config = cls(**sections, **data)
         except TypeError as exc:
             raise InputError(str(exc), where=where) from None
+        except InputError as exc:
+            raise exc.located(path=where) from None
         if config.stage not in (1, 2):
             raise InputError(f"stage must be 1 or 2, got {config.stage}", where=where)
         if config.stage == 2 and not config.model.use_text:

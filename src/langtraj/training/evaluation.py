@@ -1,11 +1,23 @@
-"""Open-loop measures used in validation and experiments: minADE over samples, constant velocity."""
+"""Open-loop measures used in validation and experiments: minADE over samples, constant velocity, and the
+open-loop table of docs/experiments.md."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
+import numpy as np
 import torch
 from torch import Tensor
+from torch.utils.data import DataLoader, Subset
 
 from langtraj.model.batch import SceneBatch
+from langtraj.model.config import SampleConfig
+from langtraj.model.features import collate_scenes
+from langtraj.model.langtraj import LangTraj
+from langtraj.rollouts.baselines import BASELINES
+from langtraj.scenario.model import STEP_SECONDS
+from langtraj.scenario.types import StateField
+from langtraj.training.data import SceneDataset
 
 
 def ade_per_sample(states: Tensor, batch: SceneBatch) -> tuple[Tensor, Tensor]:
@@ -28,30 +40,39 @@ def min_ade(states: Tensor, batch: SceneBatch, agents: Tensor | None = None) -> 
 
 
 def constant_velocity(batch: SceneBatch, steps: int) -> Tensor:
-    """States [1, B, A, T, 4] keeping each agent's current speed and heading (scene frame)."""
-    x, y, heading, speed = batch.current_state.unbind(-1)
-    t = torch.arange(1, steps + 1, device=x.device, dtype=x.dtype) * 0.1
-    px = x[..., None] + speed[..., None] * torch.cos(heading)[..., None] * t
-    py = y[..., None] + speed[..., None] * torch.sin(heading)[..., None] * t
-    return torch.stack([px, py, heading[..., None].expand_as(px), speed[..., None].expand_as(px)], -1)[None]
+    """States [1, B, A, T, 4] (scene frame) by the WOSAC constant-velocity rule (`rollouts.baselines`),
+    applied to each valid agent's last two history steps; padding agents stay at zeros."""
+    rule = BASELINES.get("constant_velocity")()
+    history = batch.agent_history.detach().cpu().double().numpy()  # [B, A, H, 7]
+    valid = batch.history_valid.cpu().numpy() & batch.agent_valid.cpu().numpy()[..., None]
+    real = batch.agent_valid.cpu().numpy()
+    tracks = np.zeros((*history.shape[:3], len(StateField)))
+    tracks[..., StateField.X : StateField.Y + 1] = history[..., :2]
+    tracks[..., StateField.HEADING] = batch.current_state[..., 2].cpu().double().numpy()[..., None]
+    tracks[..., StateField.VX : StateField.VY + 1] = history[..., 4:6]
+    poses = rule.poses(tracks[real], valid[real], history.shape[2] - 1, steps)  # [N, T, 4]: x, y, z, heading
+    out = np.zeros((*real.shape, steps, 4))
+    last = tracks[real][:, -1, StateField.X : StateField.Y + 1]
+    speed = np.linalg.norm(poses[:, :1, :2] - last[:, None], axis=-1, keepdims=True) / STEP_SECONDS
+    out[real] = np.concatenate([poses[..., :2], poses[..., 3:], np.broadcast_to(speed, poses[..., :1].shape)], -1)
+    return torch.as_tensor(out, dtype=batch.current_state.dtype, device=batch.current_state.device)[None]
 
 
-def held_out_dataset(module, labels_dir, *, split: str = "val", seed: int = 0, label_fraction: float | None = None):
-    """The windows of `split` as the module's samples with every window's ground-truth prompt: no text
-    or history dropout. `label_fraction` (default: the module's training setting) is the share of the
+def held_out_dataset(
+    data: SampleConfig, labels_dir, *, split: str = "val", seed: int = 0, label_fraction: float | None = None
+) -> SceneDataset:
+    """The windows of `split` as samples of a model trained with `data`, each with its ground-truth prompt:
+    no text or history dropout. `label_fraction` (default: the training setting) is the share of the
     other labelled agents given a single-agent sentence beside an interaction prompt's agents."""
-    from dataclasses import replace
-
-    from langtraj.training.data import SceneDataset
-
-    data = replace(module.train_config.data, text=True, text_dropout=0.0, history_dropout=0.0)
+    data = replace(data, text=True, text_dropout=0.0, history_dropout=0.0)
     if label_fraction is not None:
         data = replace(data, heuristic_label_fraction=label_fraction)
     return SceneDataset(labels_dir, data, split=split, seed=seed, augment=False)
 
 
 def open_loop_table(
-    module,
+    model: LangTraj,
+    data: SampleConfig,
     labels_dir,
     *,
     split: str = "val",
@@ -67,18 +88,14 @@ def open_loop_table(
 
     Every window gets its ground-truth prompt (drawn from its labels' prompt pool, no dropout), so the
     same agents are scored with and without text. Besides an interaction prompt's agents, a share
-    `label_fraction` of the other labelled agents get a single-agent sentence (default: the module's
+    `label_fraction` of the other labelled agents get a single-agent sentence (default: the model's
     training setting; give one value to compare models trained with different shares on the same
     agents). `prompted_text` conditions on the sentences,
     `prompted_no_text` samples with the text removed (classifier-free weight -1; with text the weight is
     `guidance_weight`, 0 = the plain conditional model). `all_*` cover every
     agent with a logged future; constant velocity is one deterministic sample.
     """
-    from torch.utils.data import DataLoader, Subset
-
-    from langtraj.training.data import collate_scenes
-
-    dataset = held_out_dataset(module, labels_dir, split=split, seed=seed, label_fraction=label_fraction)
+    dataset = held_out_dataset(data, labels_dir, split=split, seed=seed, label_fraction=label_fraction)
     count = len(dataset) if max_windows is None else min(max_windows, len(dataset))
     loader = DataLoader(Subset(dataset, list(range(count))), batch_size=batch_size, collate_fn=collate_scenes)
     sums: dict[str, list[float]] = {}
@@ -88,7 +105,7 @@ def open_loop_table(
         s[0] += float(total)
         s[1] += float(n)
 
-    model = module.model.eval()
+    model = model.eval()
     has_text_branch = model.text_encoder is not None
     for index, batch in enumerate(loader):
         prompted = batch.has_text & batch.agent_valid

@@ -2,69 +2,73 @@
 windows for constant velocity and each given checkpoint, with and without the ground-truth prompt.
 `--text-gain` adds prompt adherence and the ceiling of the text gain (`langtraj.training.text_gain`).
 
-    python -m langtraj.training.experiments --data LABELS_DIR --checkpoint NAME=CKPT [...] [--windows N]
+    langtraj experiment open-loop --data LABELS_DIR --checkpoint NAME=CKPT [...] [--windows N]
         [--label-fraction 0.3] [--text-gain [--prior-samples 48]]
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
+from collections.abc import Sequence
+from pathlib import Path
 
+from langtraj.errors import InputError
+from langtraj.fileio import atomic_path
+from langtraj.model.checkpoint import load_model
 from langtraj.training.evaluation import open_loop_table
-from langtraj.training.run import module_from_checkpoint
 from langtraj.training.text_gain import TextGainConfig, text_gain_table
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--data", required=True, help="InterDrive dataset folder (its val split is held out)")
-    parser.add_argument("--checkpoint", action="append", required=True, help="NAME=PATH, repeatable")
-    parser.add_argument("--windows", type=int, default=None, help="score at most this many held-out windows")
-    parser.add_argument("--samples", type=int, default=6)
-    parser.add_argument("--steps", type=int, default=10, help="DDIM steps")
-    parser.add_argument("--cfg", type=float, default=0.0, help="classifier-free guidance weight with text (0: plain)")
-    parser.add_argument(
-        "--label-fraction",
-        type=float,
-        default=0.3,
-        help="share of the other labelled agents given a single-agent sentence (the paper's 0.3; the same for "
-        "every checkpoint, so all are scored on the same agents)",
-    )
-    parser.add_argument("--text-gain", action="store_true", help="also measure adherence and the text-gain ceiling")
-    parser.add_argument("--prior-samples", type=int, default=48, help="draws without text for the ceiling")
-    parser.add_argument("--json", help="also write the figures here")
-    args = parser.parse_args(argv)
+def open_loop_experiment(
+    labels_dir: str | Path,
+    checkpoints: Sequence[str],
+    *,
+    windows: int | None = None,
+    samples: int = 6,
+    steps: int = 10,
+    cfg: float = 0.0,
+    label_fraction: float = 0.3,
+    text_gain: bool = False,
+    prior_samples: int = 48,
+    json_out: str | Path | None = None,
+) -> dict[str, dict]:
+    """The open-loop table (and with `text_gain` the adherence table) of each checkpoint
+    (`NAME=PATH`) on the held-out windows of `labels_dir`, printed as Markdown; every figure is also
+    written to `json_out` when given. The same `label_fraction` for every checkpoint scores all of
+    them on the same agents."""
     results = {}
-    for item in args.checkpoint:
-        name, _, path = item.partition("=")
+    for item in checkpoints:
+        name, sep, path = item.partition("=")
+        if not sep or not path:
+            raise InputError(f"expected NAME=PATH, got {item!r}", where="--checkpoint")
         start = time.perf_counter()
-        module = module_from_checkpoint(path)
+        model, data = load_model(path)
         results[name] = open_loop_table(
-            module,
-            args.data,
-            num_samples=args.samples,
-            steps=args.steps,
-            max_windows=args.windows,
-            guidance_weight=args.cfg,
-            label_fraction=args.label_fraction,
+            model,
+            data,
+            labels_dir,
+            num_samples=samples,
+            steps=steps,
+            max_windows=windows,
+            guidance_weight=cfg,
+            label_fraction=label_fraction,
         )
-        if args.text_gain:
+        if text_gain:
             gain_config = TextGainConfig(
-                num_samples=args.samples,
-                prior_samples=args.prior_samples,
-                steps=args.steps,
-                guidance_weight=args.cfg,
-                max_windows=args.windows,
-                label_fraction=args.label_fraction,
+                num_samples=samples,
+                prior_samples=prior_samples,
+                steps=steps,
+                guidance_weight=cfg,
+                max_windows=windows,
+                label_fraction=label_fraction,
             )
-            results[name]["text_gain"] = text_gain_table(module, args.data, gain_config, progress=True)
+            results[name]["text_gain"] = text_gain_table(model, data, labels_dir, gain_config, progress=True)
         results[name]["seconds"] = time.perf_counter() - start
     first = next(iter(results.values()))
     print(
         f"held-out windows {int(first['windows'])}, agents scored {int(first['scored_agents'])}, "
-        f"prompted agents {int(first['prompted_agents'])}, minADE over {args.samples} samples (m)"
+        f"prompted agents {int(first['prompted_agents'])}, minADE over {samples} samples (m)"
     )
     print("| model | all agents | prompted agents |\n| --- | --- | --- |")
     print(f"| constant velocity | {first['cv_all']:.3f} | {first['cv_prompted']:.3f} |")
@@ -72,11 +76,12 @@ def main(argv: list[str] | None = None) -> None:
         print(f"| {name}, no text | {r['model_no_text_all']:.3f} | {r['model_no_text_prompted']:.3f} |")
         if "model_text_all" in r:
             print(f"| {name}, ground-truth prompt | {r['model_text_all']:.3f} | {r['model_text_prompted']:.3f} |")
-    if args.text_gain:
-        _print_text_gain(results, args.samples, args.prior_samples)
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(results, fh, indent=2)
+    if text_gain:
+        _print_text_gain(results, samples, prior_samples)
+    if json_out:
+        with atomic_path(json_out) as tmp:
+            tmp.write_text(json.dumps(results, indent=2))
+    return results
 
 
 def _print_text_gain(results: dict, samples: int, prior_samples: int) -> None:
@@ -105,7 +110,3 @@ def _print_text_gain(results: dict, samples: int, prior_samples: int) -> None:
                 f"{g[f'{group}_min_ade_ceiling']:.3f} | {100 * g[f'{group}_text_gain']:.1f} % | "
                 f"{100 * g[f'{group}_ceiling_gain']:.1f} % |"
             )
-
-
-if __name__ == "__main__":
-    main()

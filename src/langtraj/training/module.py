@@ -19,22 +19,14 @@ from torch.utils.data import DataLoader, Sampler
 from langtraj import __version__
 from langtraj.errors import InputError
 from langtraj.metrics.wosac import evaluate_scenario
+from langtraj.model.checkpoint import CHECKPOINT_FORMAT, restore_frozen, strip_frozen
+from langtraj.model.features import collate_scenes
 from langtraj.model.langtraj import LangTraj
-from langtraj.model.open_loop import open_loop_rollouts, sample_open_loop
 from langtraj.rollouts.container import FUTURE_STEPS
+from langtraj.sim.open_loop import open_loop_rollouts, sample_open_loop
 from langtraj.training.config import TrainConfig
-from langtraj.training.data import MixingSampler, SceneDataset, collate_scenes
+from langtraj.training.data import MixingSampler, SceneDataset
 from langtraj.training.evaluation import constant_velocity, min_ade
-
-CHECKPOINT_FORMAT = 1
-"""Bumped when a checkpoint's layout changes; loading another format is refused."""
-
-OBSOLETE_KEYS = frozenset({"model.text_encoder.null_embedding"})
-"""Weights earlier versions saved that nothing reads any more (the text encoder's null embedding, which
-the model's own null condition always replaced): dropped when a checkpoint loads."""
-
-FROZEN_PREFIX = "model.text_encoder.encoder."
-"""Pretrained text-encoder weights: not stored in checkpoints (they load from the encoder's package)."""
 
 
 class LangTrajModule(pl.LightningModule):
@@ -136,11 +128,9 @@ class LangTrajModule(pl.LightningModule):
     # ------------------------------------------------------------------ checkpoints
     def on_save_checkpoint(self, checkpoint: dict[str, Any]) -> None:
         """Mark the format and drop the frozen pretrained text weights (they reload from the encoder's
-        package), which keeps checkpoints small."""
+        package), which keeps checkpoints small (`langtraj.model.checkpoint`)."""
         checkpoint["langtraj_format"] = CHECKPOINT_FORMAT
-        state = checkpoint["state_dict"]
-        for key in [k for k in state if k.startswith(FROZEN_PREFIX) and "lora_" not in k]:
-            del state[key]
+        strip_frozen(checkpoint["state_dict"])
 
     def on_load_checkpoint(self, checkpoint: dict[str, Any]) -> None:
         if checkpoint.get("langtraj_format") != CHECKPOINT_FORMAT:
@@ -148,12 +138,7 @@ class LangTrajModule(pl.LightningModule):
                 f"checkpoint format {checkpoint.get('langtraj_format')!r}, this LangTraj reads {CHECKPOINT_FORMAT}",
                 where="checkpoint",
             )
-        state = checkpoint["state_dict"]
-        for key in OBSOLETE_KEYS & set(state):
-            del state[key]
-        for key, value in self.state_dict().items():  # the frozen encoder weights come from the package
-            if key.startswith(FROZEN_PREFIX) and key not in state:
-                state[key] = value
+        restore_frozen(checkpoint["state_dict"], self.state_dict())
 
 
 class RankShare(Sampler[int]):

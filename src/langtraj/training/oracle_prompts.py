@@ -7,15 +7,13 @@ a dataset rewritten this way shows whether the model can learn to follow text at
 prompted agents' minADE does not fall well below the no-text figure, the text branch or its training
 is at fault; if it does, a small gain on the real prompts comes from what those prompts say.
 
-    python -m langtraj.training.oracle_prompts LABELS_DIR --out ORACLE_DIR [--bin 5]
+    langtraj experiment oracle-prompts LABELS_DIR --out ORACLE_DIR [--bin 5]
 
 The rewritten dataset points at the same scenario files; it keeps labels and drops the prompt pools.
 """
 
 from __future__ import annotations
 
-import argparse
-import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -91,22 +89,3 @@ def write_oracle_dataset(labels_dir: Path, out: Path, bin_m: float = 5.0) -> int
         count += len(records)
     write_manifest(out, {**manifest, "oracle_prompts": {"bin_m": bin_m}})
     return count
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("labels", type=Path, help="InterDrive dataset folder")
-    parser.add_argument("--out", required=True, type=Path, help="folder for the rewritten dataset")
-    parser.add_argument("--bin", type=float, default=5.0, help="rounding of the displacement (m)")
-    args = parser.parse_args(argv)
-    try:
-        count = write_oracle_dataset(args.labels, args.out, args.bin)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    print(f"{count} windows with oracle prompts -> {args.out}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

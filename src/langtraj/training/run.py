@@ -19,9 +19,9 @@ from pytorch_lightning.callbacks import LearningRateMonitor, ModelCheckpoint
 from pytorch_lightning.loggers import CSVLogger, TensorBoardLogger
 from pytorch_lightning.plugins.io import TorchCheckpointIO
 
-from langtraj.errors import InputError
+from langtraj.model.checkpoint import read_checkpoint
 from langtraj.training.config import TrainConfig
-from langtraj.training.module import CHECKPOINT_FORMAT, CorpusData, LangTrajModule
+from langtraj.training.module import CorpusData, LangTrajModule
 
 
 class AtomicCheckpointIO(TorchCheckpointIO):
@@ -39,44 +39,9 @@ class AtomicCheckpointIO(TorchCheckpointIO):
             partial.unlink(missing_ok=True)
 
 
-def load_checkpoint(path: str | Path) -> dict[str, Any]:
-    """A LangTraj checkpoint, checked for its format; errors name the file."""
-    path = Path(path)
-    try:
-        checkpoint = torch.load(path, map_location="cpu", weights_only=True)  # never runs code from the file
-    except FileNotFoundError:
-        raise InputError("no such checkpoint", path=path) from None
-    except Exception as exc:  # torch raises many kinds for a truncated or foreign file
-        raise InputError(f"not a readable checkpoint ({type(exc).__name__}: {exc})", path=path) from None
-    if not isinstance(checkpoint, dict) or checkpoint.get("langtraj_format") != CHECKPOINT_FORMAT:
-        found = checkpoint.get("langtraj_format") if isinstance(checkpoint, dict) else None
-        raise InputError(f"not a LangTraj checkpoint of format {CHECKPOINT_FORMAT} (found {found!r})", path=path)
-    return checkpoint
-
-
-def module_from_checkpoint(path: str | Path) -> LangTrajModule:
-    """The module a checkpoint was trained as, with its weights (frozen encoder weights from its package)."""
-    checkpoint = load_checkpoint(path)
-    module = LangTrajModule(checkpoint["hyper_parameters"]["config"])
-    module.on_load_checkpoint(checkpoint)
-    own, saved = set(module.state_dict()), set(checkpoint["state_dict"])
-    if own != saved:
-        missing, unexpected = sorted(own - saved), sorted(saved - own)
-        raise InputError(
-            "weights do not match this version of the model"
-            + (f"; missing {', '.join(missing[:4])}{' ...' if len(missing) > 4 else ''}" if missing else "")
-            + (
-                f"; unexpected {', '.join(unexpected[:4])}{' ...' if len(unexpected) > 4 else ''}" if unexpected else ""
-            ),
-            path=path,
-        )
-    module.load_state_dict(checkpoint["state_dict"])
-    return module
-
-
 def _initialise(module: LangTrajModule, path: str) -> None:
     """Stage 2 starts from stage 1's weights; the new text branch keeps its fresh initialisation."""
-    checkpoint = load_checkpoint(path)
+    checkpoint = read_checkpoint(path)
     own = module.state_dict()
     state = {k: v for k, v in checkpoint["state_dict"].items() if k in own and own[k].shape == v.shape}
     module.load_state_dict(state, strict=False)
@@ -89,7 +54,7 @@ def resolve_resume(resume: str | None, out: Path) -> str | None:
     if resume == "auto":
         last = out / "checkpoints" / "last.ckpt"
         return str(last) if last.is_file() else None
-    load_checkpoint(resume)  # fail early with a clear message
+    read_checkpoint(resume)  # fail early with a clear message
     return resume
 
 

@@ -27,8 +27,10 @@ from tqdm import tqdm
 
 from langtraj.frames import poses_to_world
 from langtraj.interdrive.adherence import AdherenceChecker, Fact, prompt_for_sentence
-from langtraj.model.open_loop import OpenLoopSamples
-from langtraj.training.data import collate_scenes
+from langtraj.model.config import SampleConfig
+from langtraj.model.features import collate_scenes
+from langtraj.model.langtraj import LangTraj
+from langtraj.sim.open_loop import OpenLoopSamples
 from langtraj.training.evaluation import held_out_dataset
 
 
@@ -43,7 +45,7 @@ class TextGainConfig:
     guidance_weight: float = 0.0
     max_windows: int | None = None
     seed: int = 0
-    label_fraction: float | None = None  # share of labelled agents prompted (None: the module's setting)
+    label_fraction: float | None = None  # share of labelled agents prompted (None: the training setting)
 
     def __post_init__(self) -> None:
         if self.num_samples < 1 or self.prior_samples < self.num_samples:
@@ -76,14 +78,20 @@ def _follow(checker: AdherenceChecker, scenario, world: np.ndarray, agents: np.n
 
 
 def text_gain_table(
-    module, labels_dir: str | Path, config: TextGainConfig = TextGainConfig(), *, progress: bool = False
+    model: LangTraj,
+    data: SampleConfig,
+    labels_dir: str | Path,
+    config: TextGainConfig | None = None,
+    *,
+    progress: bool = False,
 ) -> dict[str, float]:
     """Adherence with and without text, minADE with and without text, and the ceiling, over the
     prompted agents of the held-out windows (the prompts of `open_loop_table`, same seed). Labelling
     every draw dominates the time (about 5 s per window at 48 draws on one core); `progress` shows a bar."""
-    dataset = held_out_dataset(module, labels_dir, seed=config.seed, label_fraction=config.label_fraction)
+    config = TextGainConfig() if config is None else config
+    dataset = held_out_dataset(data, labels_dir, seed=config.seed, label_fraction=config.label_fraction)
     count = len(dataset) if config.max_windows is None else min(config.max_windows, len(dataset))
-    model = module.model.eval()
+    model = model.eval()
     n, k = config.num_samples, config.prior_samples
     sums: defaultdict[str, float] = defaultdict(float)
     for i in tqdm(range(count), desc="text gain", unit="win", disable=not progress):

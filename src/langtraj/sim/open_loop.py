@@ -1,25 +1,23 @@
 """Open-loop sampling from a trained model on one scenario: futures for the agents the model drives,
-in world coordinates, optionally conditioned on a typed `@id` prompt."""
+in world coordinates, optionally conditioned on a typed `@id` prompt (docs/model.md, 'Sampling')."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
 
 from langtraj.angles import wrap_angle
-from langtraj.errors import InputError
 from langtraj.frames import poses_to_world
-from langtraj.interdrive.dataset import PromptEntry
-from langtraj.interdrive.prompts import parse_user_prompt
+from langtraj.model.config import SampleConfig
+from langtraj.model.features import collate_scenes, scene_sample
 from langtraj.model.langtraj import LangTraj
 from langtraj.rollouts.baselines import generate_baseline
 from langtraj.rollouts.container import Rollouts
-from langtraj.scenario.model import Scenario
+from langtraj.scenario.model import Agents, Scenario
 from langtraj.scenario.types import StateField
-from langtraj.training.data import SampleConfig, build_sample, collate_scenes
+from langtraj.sim.prompts import check_prompt_driven, user_prompt_entry
 
 
 @dataclass(frozen=True)
@@ -39,32 +37,13 @@ class OpenLoopSamples:
         valid = scenario.agents.valid.copy()
         future = self.states[sample, :, :steps]
         cols = slice(c + 1, c + 1 + steps)
-        states[self.agents, cols, StateField.X] = future[..., 0]
-        states[self.agents, cols, StateField.Y] = future[..., 1]
-        states[self.agents, cols, StateField.HEADING] = wrap_angle(future[..., 2])
-        states[self.agents, cols, StateField.VX] = future[..., 3] * np.cos(future[..., 2])
-        states[self.agents, cols, StateField.VY] = future[..., 3] * np.sin(future[..., 2])
+        block = states[self.agents, cols]
+        Agents.write_poses(block, future)
+        states[self.agents, cols] = block
         sizes = [StateField.Z, StateField.LENGTH, StateField.WIDTH, StateField.HEIGHT]
         states[np.ix_(self.agents, np.arange(cols.start, cols.stop), sizes)] = states[self.agents, c][:, None, sizes]
         valid[self.agents, cols] = True
         return replace(scenario, agents=replace(scenario.agents, states=states, valid=valid))
-
-
-def user_prompt_entry(scenario: Scenario, text: str) -> PromptEntry:
-    """A typed `@id` prompt validated against the scene and role-rephrased for each mentioned agent."""
-    prompt = parse_user_prompt(text, scenario.agents.ids.tolist())
-    return PromptEntry.of(prompt)
-
-
-def check_prompt_driven(prompt: PromptEntry, driven_ids: Sequence[int], max_agents: int) -> None:
-    """InputError naming the prompt's agents that are not among `driven_ids` (the model's agents)."""
-    outside = [m for m in prompt.mentions if m not in set(driven_ids)]
-    if outside:
-        raise InputError(
-            f"agents {', '.join(f'@{m}' for m in outside)} are not among the {len(driven_ids)} agents the model "
-            f"drives in this scene (it takes the {max_agents} most important)",
-            where="prompt",
-        )
 
 
 def sample_open_loop(
@@ -81,8 +60,10 @@ def sample_open_loop(
     """`num_samples` joint futures of the scenario's most important agents (up to the model's
     `max_agents`; the rest are not driven). A prompt naming an agent outside that set is an error."""
     entry = user_prompt_entry(scenario, prompt) if prompt is not None else None
-    config = replace(data, text=entry is not None, text_dropout=0.0, history_dropout=0.0)
-    row = build_sample(scenario, None, config, np.random.default_rng(seed), prompt=entry, augment=False)
+    row = scene_sample(scenario, data)
+    if entry is not None:
+        for slot, sentence in entry.sentences(row["agent_id"][row["agent_id"] >= 0].tolist()).items():
+            row["text"][slot] = sentence
     batch = collate_scenes([row])
     ids = batch.agent_id[0].numpy()
     if entry is not None:

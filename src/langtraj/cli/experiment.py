@@ -1,0 +1,107 @@
+"""`langtraj experiment open-loop|closed-loop|oracle-prompts ...`: the experiments of docs/experiments.md.
+
+`open-loop`: minADE with and without the ground-truth prompt on held-out windows (optionally prompt
+adherence and the ceiling of the text gain); `closed-loop`: realism, controllability and safety of each
+method; `oracle-prompts`: a copy of a dataset whose sentences state each agent's displacement, to check
+the text pathway apart from the labels. Training runs of an experiment are `langtraj train` with its
+committed config under `configs/experiments/`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser("experiment", help="run an experiment of docs/experiments.md and print its table")
+    sub = p.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT")
+
+    o = sub.add_parser("open-loop", help="minADE with and without text on held-out windows, per checkpoint")
+    o.add_argument("--data", required=True, type=Path, help="InterDrive dataset folder (its val split is held out)")
+    o.add_argument("--checkpoint", action="append", required=True, help="NAME=PATH, repeatable")
+    o.add_argument("--windows", type=int, default=None, help="score at most this many held-out windows")
+    o.add_argument("--samples", type=int, default=6)
+    o.add_argument("--steps", type=int, default=10, help="DDIM steps")
+    o.add_argument("--cfg", type=float, default=0.0, help="classifier-free guidance weight with text (0: plain)")
+    o.add_argument(
+        "--label-fraction",
+        type=float,
+        default=0.3,
+        help="share of the other labelled agents given a single-agent sentence (the paper's 0.3; the same for "
+        "every checkpoint, so all are scored on the same agents)",
+    )
+    o.add_argument("--text-gain", action="store_true", help="also measure adherence and the text-gain ceiling")
+    o.add_argument("--prior-samples", type=int, default=48, help="draws without text for the ceiling")
+    o.add_argument("--json", type=Path, help="also write the figures here")
+    o.set_defaults(func=run_open_loop)
+
+    c = sub.add_parser("closed-loop", help="realism, controllability and safety per method, per dataset")
+    c.add_argument("--checkpoint", required=True, type=Path)
+    c.add_argument("--data", action="append", required=True, help="NAME=LABELS_DIR[:SPLIT] (default split val)")
+    c.add_argument("--windows", type=int, default=None, help="at most this many windows per dataset")
+    c.add_argument("--rollouts", type=int, default=8)
+    c.add_argument("--candidates", type=int, default=4)
+    c.add_argument("--steps", type=int, default=5, help="DDIM steps")
+    c.add_argument("--seed", type=int, default=0)
+    c.add_argument("--json", type=Path, help="also write every figure here")
+    c.set_defaults(func=run_closed_loop)
+
+    r = sub.add_parser("oracle-prompts", help="a dataset copy whose sentences state each agent's displacement")
+    r.add_argument("labels", type=Path, help="InterDrive dataset folder")
+    r.add_argument("--out", required=True, type=Path, help="folder for the rewritten dataset")
+    r.add_argument("--bin", type=float, default=5.0, help="rounding of the displacement (m)")
+    r.set_defaults(func=run_oracle_prompts)
+
+
+def _positive(value: int | None, flag: str) -> None:
+    from langtraj.errors import InputError
+
+    if value is not None and value < 1:
+        raise InputError(f"must be >= 1, got {value}", where=flag)
+
+
+def run_open_loop(args: argparse.Namespace) -> int:
+    from langtraj.training.experiments import open_loop_experiment
+
+    for value, flag in ((args.windows, "--windows"), (args.samples, "--samples"), (args.steps, "--steps")):
+        _positive(value, flag)
+    open_loop_experiment(
+        args.data,
+        args.checkpoint,
+        windows=args.windows,
+        samples=args.samples,
+        steps=args.steps,
+        cfg=args.cfg,
+        label_fraction=args.label_fraction,
+        text_gain=args.text_gain,
+        prior_samples=args.prior_samples,
+        json_out=args.json,
+    )
+    return 0
+
+
+def run_closed_loop(args: argparse.Namespace) -> int:
+    from langtraj.sim.experiments import closed_loop_experiment
+
+    for value, flag in ((args.windows, "--windows"), (args.rollouts, "--rollouts"), (args.candidates, "--candidates")):
+        _positive(value, flag)
+    closed_loop_experiment(
+        args.checkpoint,
+        args.data,
+        windows=args.windows,
+        rollouts=args.rollouts,
+        candidates=args.candidates,
+        steps=args.steps,
+        seed=args.seed,
+        json_out=args.json,
+    )
+    return 0
+
+
+def run_oracle_prompts(args: argparse.Namespace) -> int:
+    from langtraj.training.oracle_prompts import write_oracle_dataset
+
+    count = write_oracle_dataset(args.labels, args.out, args.bin)
+    print(f"{count} windows with oracle prompts -> {args.out}")
+    return 0

@@ -1,0 +1,56 @@
+"""What a simulation is asked to do: how a scene is simulated (`SimConfig`) and which policy drives it
+with which prompts and guidance (`SimRequest`, as the command line states it) (docs/simulation.md)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from langtraj.errors import InputError
+from langtraj.rollouts.container import WOSAC_ROLLOUTS
+from langtraj.scenario.model import STEP_SECONDS
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """How a scene is simulated: `rollouts` joint rollouts (32 for WOSAC), replanned every `replan_s`
+    seconds (a multiple of the 0.1 s step), from random streams fixed by `seed`."""
+
+    rollouts: int = WOSAC_ROLLOUTS
+    replan_s: float = 1.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.rollouts < 1:
+            raise InputError(f"rollouts must be at least 1, got {self.rollouts}", where="rollouts")
+        steps = self.replan_s / STEP_SECONDS
+        if not (steps >= 1 and math.isclose(steps, round(steps), abs_tol=1e-6)) or self.replan_s > 8.0:
+            raise InputError(f"replan_s must be a multiple of 0.1 s in [0.1, 8], got {self.replan_s}", where="replan_s")
+
+    @property
+    def replan_steps(self) -> int:
+        return round(self.replan_s / STEP_SECONDS)
+
+
+@dataclass(frozen=True)
+class SimRequest:
+    """A simulation as the command line states it (track ids, not model slots). Each policy's
+    `from_request` reads the fields it understands and refuses the others."""
+
+    policy: str = "langtraj"
+    checkpoint: Path | None = None  # None: the shipped checkpoint
+    prompts: tuple[str, ...] = ()
+    adversary: int | None = None
+    target: int | None = None
+    collision_weight: float = 1.0
+    guidance: tuple[str, ...] = ()  # "NAME=WEIGHT"
+    guidance_scale: float = 1.0
+    cfg: float = 0.0
+    candidates: int = 4
+    steps: int = 5
+
+    @property
+    def needs_model(self) -> bool:
+        """Whether the request asks for something only a model policy can do (prompts or guidance)."""
+        return bool(self.prompts or self.adversary is not None or self.target is not None or self.guidance)

@@ -1,0 +1,44 @@
+"""Typed `@id` prompts in a simulation: parsed against the scene, merged into one prompt entry, checked
+against the agents the model drives, and turned into each driven agent's sentence (docs/simulation.md)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from langtraj.errors import InputError
+from langtraj.interdrive.dataset import PromptEntry
+from langtraj.interdrive.prompts import parse_user_prompt
+from langtraj.scenario.model import Scenario
+
+
+def user_prompt_entry(scenario: Scenario, text: str) -> PromptEntry:
+    """A typed `@id` prompt validated against the scene and role-rephrased for each mentioned agent."""
+    prompt = parse_user_prompt(text, scenario.agents.ids.tolist())
+    return PromptEntry.of(prompt)
+
+
+def merged_prompt(scenario: Scenario, prompts: Sequence[str]) -> PromptEntry | None:
+    """One prompt entry from several typed prompts; an agent named by two prompts is an error."""
+    entries = [user_prompt_entry(scenario, text) for text in prompts]
+    if not entries:
+        return None
+    if len(entries) == 1:
+        return entries[0]
+    roles: dict[int, str] = {}
+    for entry in entries:
+        for track in entry.mentions:
+            if track in roles:
+                raise InputError(f"agent @{track} is named by two prompts; describe it in one", where="prompt")
+            roles[track] = entry.roles[track]
+    return PromptEntry("; ".join(e.text for e in entries), tuple(roles), roles, None, (), "user")
+
+
+def check_prompt_driven(prompt: PromptEntry, driven_ids: Sequence[int], max_agents: int) -> None:
+    """InputError naming the prompt's agents that are not among `driven_ids` (the model's agents)."""
+    outside = [m for m in prompt.mentions if m not in set(driven_ids)]
+    if outside:
+        raise InputError(
+            f"agents {', '.join(f'@{m}' for m in outside)} are not among the {len(driven_ids)} agents the model "
+            f"drives in this scene (it takes the {max_agents} most important)",
+            where="prompt",
+        )
