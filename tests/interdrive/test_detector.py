@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from langtraj.interdrive.detector import RULES, DetectorConfig, InteractionRule, SceneGeometry, detect_interactions
+from langtraj.interdrive.detector import (
+    INTERACTION_RULES,
+    DetectorConfig,
+    InteractionRule,
+    SceneGeometry,
+    detect_interactions,
+)
 from langtraj.interdrive.evaluation import TypeCounts, add_counts, macro_f1, match_interactions
 from langtraj.interdrive.labels import InteractionLabel, LabelSource
 from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID, InteractionType
@@ -20,9 +26,9 @@ def pairs(labels, kind: str) -> set[tuple[int, int]]:
 
 
 def test_every_interaction_type_has_a_registered_rule():
-    names = set(RULES.names())
+    names = set(INTERACTION_RULES.names())
     assert names == {"lane_change", "following", "yielding", "passing", "overtaking", "merging"}
-    assert all(issubclass(cls, InteractionRule) for cls in RULES.classes())
+    assert all(issubclass(cls, InteractionRule) for cls in INTERACTION_RULES.classes())
 
 
 def test_follower_behind_leader():
@@ -351,7 +357,7 @@ def test_a_loop_around_a_block_is_no_roundabout():
         corner(303, -15, -5, np.pi, (-20, 5), 300),
     ]
     tracks = {1: (VEH, straight(-8, 0, 0, 0.0))}
-    assert not SceneGeometry(scene(tracks, features=loop), (), DetectorConfig()).has_roundabout
+    assert not SceneGeometry(scene(tracks, features=loop), (), DetectorConfig()).lanes.has_roundabout
 
 
 def test_car_standing_all_window_far_before_the_junction_yields_along_its_lanes():

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from langtraj.interdrive.heuristics import (
-    RULES,
+    LABEL_RULES,
     HeuristicConfig,
     Kinematics,
     absorb_short_runs,
@@ -100,7 +100,7 @@ def test_kinematics_come_from_positions_and_bridge_gaps():
 
 
 def test_every_registered_rule_uses_taxonomy_keys():
-    for cls in RULES.classes():
+    for cls in LABEL_RULES.classes():
         assert set(cls.keys) <= set(LABELS_BY_KEY), cls.name
 
 

@@ -1,11 +1,14 @@
-"""Heuristic single-agent labels (InterDrive 'Heuristic Annotation Process') over a scene's future window.
+"""Heuristic single-agent labels (InterDrive 'Heuristic Annotation Process') over a scene's future window;
+docs/interdrive.md describes them and docs/benchmarks.md ('Label quality') measures them.
 
 Every agent valid at the current step and over at least `HeuristicConfig.min_future_fraction` of the future
 steps [current_index, num_steps) gets the labels whose rule holds, each with the window steps [start, end)
 where it holds, so prompts can order them. Speed and acceleration come from positions (gaps filled
 linearly, then smoothed), not from the velocity fields. Each label (or small family) is one `LabelRule`
-registered in `RULES`; `label_agents` runs them all. Where the map lacks what a rule needs (lanes,
-connectivity, neighbour lists, road edges, crosswalks) the rule returns `Undecided` naming it.
+registered in `LABEL_RULES`; `label_agents` runs them all. Where the map lacks what a rule needs (lanes,
+connectivity, neighbour lists, road edges, crosswalks) the rule returns `Undecided` naming it. Lane primitives
+shared with the interaction detector (`LaneChange`, neighbour lanes, the road-side test of parked vehicles) are in
+`mapindex`.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import numpy as np
 
 from langtraj.angles import wrap_angle
 from langtraj.interdrive.labels import AgentLabel, Undecided
-from langtraj.interdrive.mapindex import LaneMatch, MapIndex
+from langtraj.interdrive.mapindex import LaneChange, LaneMatch, MapIndex
 from langtraj.registry import Registry
 from langtraj.runs import true_runs, value_runs
 from langtraj.scenario.model import Scenario
@@ -238,21 +241,6 @@ def absorb_short_runs(classes: np.ndarray, min_len: int) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------- context
 
 
-@dataclass(frozen=True)
-class LaneChange:
-    """A confirmed switch of a vehicle's matched lane to a neighbour lane, over future steps [start, end)."""
-
-    agent: int
-    side: str  # "left" | "right"
-    from_lane: int
-    to_lane: int
-    start: int
-    end: int
-    lateral: float  # lateral displacement across the lanes (m), left positive
-    from_position: str  # a LANE_POSITIONS value or "unknown"
-    to_position: str
-
-
 @dataclass(frozen=True, eq=False)
 class LabelContext:
     """What the rules share for one scene: config, map index, kinematics, and lane matches computed once."""
@@ -406,30 +394,25 @@ class LabelContext:
 
 
 def _parked_decision(ctx: LabelContext, a: int) -> tuple[bool | None, str]:
-    """Parked: stopped over every valid step (history included) and at the road side (see `ParkedRule`)."""
-    cfg, index = ctx.config, ctx.map_index
+    """Parked: stopped over every valid step (history included) and at the road side at the current step
+    (`MapIndex.parked_decision` on the nearest drivable lane; see `ParkedRule`)."""
+    cfg = ctx.config
     span = ctx.kin.span[a]
     xy = ctx.kin.xy[a, span]
     still = ctx.kin.speed[a, span].max(initial=0.0) <= cfg.static_speed
     if not still or np.linalg.norm(xy - xy[0], axis=1).max(initial=0.0) > cfg.parked_max_displacement:
         return False, "moves"
-    if not index.has_lanes:
-        return None, "the map has no lanes to tell the road side from a traffic lane"
     road = ctx.nearest_road
-    lane = int(road.lane[a, 0])
-    if lane < 0:
-        return True, "off every drivable lane"
-    offset = abs(float(road.lateral[a, 0]))
-    if offset >= cfg.parked_min_lane_offset:
-        return True, "beside the lane centre"
-    if index.is_junction[lane]:
-        return False, "stopped in a junction lane"
-    if index.distance_to_junction(lane, float(road.station[a, 0])) <= cfg.parked_queue_distance:
-        return False, "stopped in a lane before a junction (a queue)"
-    if not index.has_road_edges:
-        return None, "stopped on a lane centre and the map has no road edges to check the kerb"
-    edge = float(index.distance_to_road_edge(ctx.fut(ctx.kin.xy)[a, 0], cfg.parked_max_edge_distance)[0])
-    return (True, "at the kerb") if edge <= cfg.parked_max_edge_distance else (False, "stopped in a traffic lane")
+    now = LaneMatch(*(getattr(road, f.name)[a, :1] for f in fields(LaneMatch)))
+    # Unlike the detector's (any lane nearby at any step), a parked label also needs the kerb: a car stopped on a
+    # lane centre is parked only beside a road edge and away from junction queues.
+    return ctx.map_index.parked_decision(
+        now,
+        ctx.fut(ctx.kin.xy)[a, :1],
+        lane_offset=cfg.parked_min_lane_offset,
+        queue_distance=cfg.parked_queue_distance,
+        kerb_distance=cfg.parked_max_edge_distance,
+    )
 
 
 def _lane_chains(index: MapIndex, spans: list[tuple[int, int, int]]) -> list[tuple[list[int], int, int]]:
@@ -450,7 +433,11 @@ def _lane_changes(ctx: LabelContext, a: int) -> list[LaneChange]:
 
     Lanes are matched over the agent's whole span (history included) so that a change begun before the
     current step is seen whole; a change counts when its switch (the first step on the new lane) lies in the
-    future, and its span is clipped to the future."""
+    future, and its span is clipped to the future.
+
+    The detector finds lane changes its own way (`detector.lane_changes`): it needs the switch step and the
+    leaders around it and is tuned against SUMO's interactions, this one needs the manoeuvre's span and the lane
+    positions left and entered and is tuned against SUMO's lane changes; both report a `LaneChange`."""
     cfg, index = ctx.config, ctx.map_index
     match = ctx.vehicle_lanes_all
     current = ctx.current
@@ -505,11 +492,12 @@ def _lane_changes(ctx: LabelContext, a: int) -> list[LaneChange]:
         out.append(
             LaneChange(
                 a,
+                int(index.lane_ids[lane_a]),
+                int(index.lane_ids[lane_b]),
+                b0,
+                max(start, current),
+                end + 1,
                 side,
-                lane_a,
-                lane_b,
-                max(start - current, 0),
-                end + 1 - current,
                 lateral,
                 index.lane_position(lane_a, s_a, with_ending=merge),
                 index.lane_position(lane_b, s_b, with_ending=merge),
@@ -534,11 +522,11 @@ class LabelRule(ABC):
         """Labels and undecided labels of every eligible agent of the scene in `ctx`."""
 
 
-RULES: Registry[LabelRule] = Registry("heuristic label rule")
+LABEL_RULES: Registry[LabelRule] = Registry("heuristic label rule")
 """Every heuristic rule, by name; `label_agents` runs them in registration order."""
 
 
-@RULES.register
+@LABEL_RULES.register
 class SpeedProfileRule(LabelRule):
     """Vehicles: static / speeding_up / slowing_down / constant_speed spans from the smoothed speed and
     acceleration; spans shorter than `min_duration_s` join the span before, and a speed-up or slow-down
@@ -573,7 +561,7 @@ class SpeedProfileRule(LabelRule):
                     yield ctx.label(a, key, start, end)
 
 
-@RULES.register
+@LABEL_RULES.register
 class MovingSlowlyRule(LabelRule):
     """Vehicles: moving_slowly over spans of at least `slow_min_duration_s` between `static_speed` and
     `slow_speed`."""
@@ -590,7 +578,7 @@ class MovingSlowlyRule(LabelRule):
                 yield ctx.label(a, "moving_slowly", start, end)
 
 
-@RULES.register
+@LABEL_RULES.register
 class ParkedRule(LabelRule):
     """Vehicles: parked when stopped over all valid steps (history included, moving at most
     `parked_max_displacement`) and at the road side: off every drivable lane, or at least
@@ -611,7 +599,7 @@ class ParkedRule(LabelRule):
                 yield ctx.label(a, "parked", int(span[0]), int(span[-1]) + 1)
 
 
-@RULES.register
+@LABEL_RULES.register
 class OffMainRoadRule(LabelRule):
     """Vehicles: off_main_road over spans of at least `min_duration_s` farther than `off_road_distance` from
     every drivable lane centerline; undecided when the map has no lanes."""
@@ -632,7 +620,7 @@ class OffMainRoadRule(LabelRule):
                 yield ctx.label(a, "off_main_road", start, end)
 
 
-@RULES.register
+@LABEL_RULES.register
 class TurnRule(LabelRule):
     """Vehicles that travel at least `min_path_length`: turning_left / turning_right when the net heading
     change between the first and last moving future steps is at least `turn_min_angle` (span: where the
@@ -661,7 +649,7 @@ class TurnRule(LabelRule):
                 yield ctx.label(a, "turning_left" if net > 0 else "turning_right", start, max(end, start + 1))
 
 
-@RULES.register
+@LABEL_RULES.register
 class CrossingIntersectionRule(LabelRule):
     """Vehicles: crossing_intersection over each stay on junction lanes (see `MapIndex`) of at least
     `junction_min_duration_s` during which the vehicle moves; undecided for moving vehicles on a map
@@ -681,7 +669,7 @@ class CrossingIntersectionRule(LabelRule):
                     yield ctx.label(a, "crossing_intersection", start, end)
 
 
-@RULES.register
+@LABEL_RULES.register
 class ApproachingIntersectionRule(LabelRule):
     """Vehicles on a non-junction lane at the current step (and not parked): approaching_intersection when
     their future path enters a junction lane within `approach_lookahead` metres (span: until it enters), or
@@ -720,7 +708,7 @@ class ApproachingIntersectionRule(LabelRule):
                 yield ctx.label(a, "approaching_intersection", 0, int(span[-1]) + 1)
 
 
-@RULES.register
+@LABEL_RULES.register
 class LanePositionRule(LabelRule):
     """Vehicles within `lane_position_max_offset` of their matched lane's centre at the current step (not
     parked): lane_position among same-direction neighbours, from the current step until the vehicle changes
@@ -751,13 +739,13 @@ class LanePositionRule(LabelRule):
                 yield ctx.undecided(a, "lane_position", reason)
                 continue
             stops = [int(np.flatnonzero(ctx.future[a])[-1]) + 1]
-            stops += [c.start for c in ctx.lane_changes.get(int(a), []) if c.start > 0]
+            stops += [c.start - ctx.current for c in ctx.lane_changes.get(int(a), []) if c.start > ctx.current]
             stops += [s for s, _ in ctx.junction_runs[int(a)] if s > 0]
             yield ctx.label(a, "lane_position", 0, min(stops), position=position)
 
 
-@RULES.register
-class LaneChangeRule(LabelRule):
+@LABEL_RULES.register
+class ChangingLanesRule(LabelRule):
     """Vehicles: changing_lanes(from, to) where the matched lane switches (after absorbing flickers shorter
     than `lane_min_run_s`) to a left or right neighbour lane, not to an exit lane nor between junction
     lanes, and the lateral displacement across the lanes is at least `lane_change_min_lateral`; span: from
@@ -782,7 +770,7 @@ class LaneChangeRule(LabelRule):
                         a,
                         "changing_lanes",
                         f"a {change.lateral:+.1f} m lateral move to a parallel lane on the {change.side} at window "
-                        f"steps {ctx.current + change.start}-{ctx.current + change.end}; the map has no lane "
+                        f"steps {change.start}-{change.end}; the map has no lane "
                         "neighbour information",
                     )
                 elif "unknown" in (change.from_position, change.to_position):
@@ -791,13 +779,13 @@ class LaneChangeRule(LabelRule):
                     yield ctx.label(
                         a,
                         "changing_lanes",
-                        change.start,
-                        change.end,
+                        change.start - ctx.current,
+                        change.end - ctx.current,
                         **{"from": change.from_position, "to": change.to_position},
                     )
 
 
-@RULES.register
+@LABEL_RULES.register
 class VruMotionRule(LabelRule):
     """Pedestrians and cyclists: static / moving spans of at least `min_duration_s`, split at
     `vru_static_speed`."""
@@ -814,7 +802,7 @@ class VruMotionRule(LabelRule):
                     yield ctx.label(a, "moving" if value else "static", start, end)
 
 
-@RULES.register
+@LABEL_RULES.register
 class CrossingStreetRule(LabelRule):
     """Pedestrians and cyclists: crossing_street over spans of at least `min_duration_s` where they move
     inside a crosswalk polygon or across a lane centerline within `crossing_lane_radius` at
@@ -835,7 +823,7 @@ class CrossingStreetRule(LabelRule):
                 yield ctx.label(a, "crossing_street", start, end)
 
 
-@RULES.register
+@LABEL_RULES.register
 class WalkingAlongRoadRule(LabelRule):
     """Pedestrians and cyclists: walking_along_road over spans of at least `min_duration_s` where they move,
     are not crossing, and the nearest lane centerline within `along_road_distance` runs within
@@ -878,8 +866,8 @@ def label_agents(
     ctx = LabelContext(scenario, config, map_index, Kinematics.compute(scenario, config))
     labels: list[AgentLabel] = []
     undecided: dict[tuple[int, str], Undecided] = {}
-    for name in RULES.names():
-        for item in RULES.create(name).apply(ctx):
+    for name in LABEL_RULES.names():
+        for item in LABEL_RULES.create(name).apply(ctx):
             if isinstance(item, Undecided):
                 undecided.setdefault((item.track_id, item.key), item)
             else:

@@ -1,4 +1,5 @@
-"""Map queries for the heuristic labeler, built once per scene over a `RoadMap`.
+"""Map queries and the lane primitives of the heuristic labeler and the interaction detector, built once per scene
+over a `RoadMap` (docs/interdrive.md describes both labelers).
 
 Lanes and road edges are resampled to short segments (at most `SEGMENT_SPACING_M` long) and bucketed in a
 uniform grid, so a batch of positions is matched to its nearest segments by vectorised numpy (no scipy).
@@ -9,7 +10,10 @@ What each query relies on, and what it falls back to (each `*_source` attribute 
   (away from both lanes' ends, so lanes that merge or fan out from a shared point do not count), or a short
   lane that turns sharply (at least 60 degrees within 40 m).
 - lane neighbours: `left_neighbors` / `right_neighbors` where the map has any; optionally (`infer_neighbors`)
-  geometry: a same-direction lane whose centerline runs 2.5-4.5 m beside this one; otherwise none.
+  geometry: a same-direction lane whose centerline runs 2.5-4.5 m beside this one; otherwise none. The detector
+  asks per lane pair instead (`neighbor_side` with `per_lane`).
+- parked vehicles: `parked_decision`, whether a vehicle standing all window is at the road side.
+- lane changes: both labelers report them as `LaneChange`.
 - lane connectivity (distance to the next junction): `exit_lanes` / `entry_lanes` only.
 - crosswalks and road edges: the `CROSSWALK` polygons and `ROAD_EDGE_*` polylines, where the map has any.
 """
@@ -41,6 +45,8 @@ JUNCTION_TURN_ANGLE = math.radians(60.0)
 JUNCTION_TURN_MAX_LENGTH_M = 40.0
 NEIGHBOR_MIN_OFFSET_M = 2.5
 NEIGHBOR_MAX_OFFSET_M = 4.5
+NEIGHBOR_BAND_M = (NEIGHBOR_MIN_OFFSET_M, NEIGHBOR_MAX_OFFSET_M)
+"""Offset between a lane and a geometric neighbour lane, measured at a point on both (m)."""
 NEIGHBOR_MAX_HEADING_DIFF = math.radians(20.0)
 NEIGHBOR_STATION_TOLERANCE_M = 3.0
 JUNCTION_DISTANCE_CAP_M = 500.0
@@ -193,6 +199,26 @@ class LaneMatch:
 
 
 @dataclass(frozen=True)
+class LaneChange:
+    """Agent index `agent` switches from lane `from_lane` to neighbour lane `to_lane` (map feature ids, -1 where
+    unknown) at window step `switch`, over window steps [start, end).
+
+    The detector fills only these; the heuristic labeler also the `side` of the new lane, the `lateral`
+    displacement across the lanes (m, left positive) and the lane positions left and entered."""
+
+    agent: int
+    from_lane: int
+    to_lane: int
+    switch: int
+    start: int
+    end: int
+    side: Side | None = None
+    lateral: float | None = None
+    from_position: LanePosition = "unknown"
+    to_position: LanePosition = "unknown"
+
+
+@dataclass(frozen=True)
 class _NeighborSpan:
     """A neighbour lane along stations [start, end] of a lane."""
 
@@ -206,6 +232,7 @@ class MapIndex:
     """Per-scene lane, junction, neighbour, crosswalk and road-edge queries (see the module docstring)."""
 
     lane_ids: np.ndarray  # int64 [L], feature ids of the lanes (drivable and bike lanes), in map order
+    lane_features: tuple[MapFeature, ...]  # [L], the lanes themselves
     lane_types: np.ndarray  # int8 [L], MapFeatureType values
     lane_lengths: np.ndarray  # float64 [L]
     lanes: SegmentSet
@@ -246,6 +273,7 @@ class MapIndex:
         crosswalks = tuple(f.points[:, :2] for f in road_map.of_type(MapFeatureType.CROSSWALK) if len(f.points) >= 3)
         return cls(
             lane_ids=np.array([f.id for f in lane_feats], np.int64),
+            lane_features=tuple(lane_feats),
             lane_types=np.array([f.type for f in lane_feats], np.int8),
             lane_lengths=lengths,
             lanes=lanes,
@@ -279,6 +307,11 @@ class MapIndex:
     @property
     def has_crosswalks(self) -> bool:
         return bool(self.crosswalks)
+
+    @cached_property
+    def lane_row(self) -> dict[int, int]:
+        """Index into `lane_ids` of each lane's feature id."""
+        return {int(lane): i for i, lane in enumerate(self.lane_ids)}
 
     @cached_property
     def is_drivable(self) -> np.ndarray:
@@ -381,15 +414,30 @@ class MapIndex:
         ending = with_ending or self.is_ending[lane] or not self.is_ending[other]
         return bool(drivable[other] == drivable[lane] and ending)
 
-    def neighbor_side(self, lane_from: int, lane_to: int, xy: np.ndarray) -> Side | None:
-        """Whether `lane_to` is a left or right neighbour of `lane_from` near point `xy` (None if neither).
+    def neighbor_side(
+        self,
+        lane_from: int,
+        lane_to: int,
+        xy: np.ndarray | None = None,
+        *,
+        band: tuple[float, float] = NEIGHBOR_BAND_M,
+        per_lane: bool = False,
+    ) -> Side | None:
+        """Whether `lane_to` is a left or right neighbour of `lane_from` near point `xy` (None if neither): the
+        neighbour-lane search of both labelers.
 
-        With map neighbours, the neighbour lists of both lanes and of their predecessors and successors count
-        (neighbour lanes are often split at other points). With inferred neighbours, geometry decides."""
+        By default (the heuristic labeler) the map decides as a whole: with map neighbours, the neighbour lists of
+        both lanes and of their predecessors and successors count (neighbour lanes are often split at other
+        points); with inferred neighbours, geometry at `xy` decides (`geometric_side`, lanes `band` apart).
+        With `per_lane` (the interaction detector) each pair of lanes decides: listed in either's neighbour list,
+        they are neighbours; when either lists others, or one is the other's exit or entry lane, they are not;
+        otherwise when the middle point of `lane_to` lies `band` from the nearest point of `lane_from` (no `xy`)."""
+        if per_lane:
+            return self._pair_side(lane_from, lane_to, band)
         if self.neighbor_source == "none":
             return None
         if self.neighbor_source == "geometry":
-            return self.geometric_side(lane_from, lane_to, xy)
+            return self.geometric_side(lane_from, lane_to, xy, band=band)
         near = {lane_from, *self.entries[lane_from], *self.exits[lane_from]}
         for side, spans in (("left", self.left_spans), ("right", self.right_spans)):
             beside = {s.lane for x in near for s in spans[x]}
@@ -398,8 +446,30 @@ class MapIndex:
                 return side  # type: ignore[return-value]
         return None
 
-    def geometric_side(self, lane_from: int, lane_to: int, xy: np.ndarray) -> Side | None:
-        """Side of `lane_to` from `lane_from` at point `xy` when they run parallel 2.5-4.5 m apart there."""
+    def _pair_side(self, lane_from: int, lane_to: int, band: tuple[float, float]) -> Side | None:
+        """`neighbor_side` with `per_lane`."""
+        for side, spans in (("left", self.left_spans), ("right", self.right_spans)):
+            if any(s.lane == lane_to for s in spans[lane_from]):  # spans hold both lanes' lists
+                return side  # type: ignore[return-value]
+        a, b = self.lane_features[lane_from], self.lane_features[lane_to]
+        if a.left_neighbors or a.right_neighbors or b.left_neighbors or b.right_neighbors:
+            return None
+        if b.id in a.exit_lanes or b.id in a.entry_lanes:
+            return None
+        points = a.points[:, :2]
+        mid = b.points[len(b.points) // 2, :2]
+        gaps = np.linalg.norm(points - mid, axis=1)
+        k = int(np.argmin(gaps))
+        if not band[0] <= float(gaps[k]) <= band[1]:
+            return None
+        along = points[min(k + 1, len(points) - 1)] - points[max(k - 1, 0)]
+        rel = mid - points[k]
+        return "left" if along[0] * rel[1] - along[1] * rel[0] >= 0 else "right"
+
+    def geometric_side(
+        self, lane_from: int, lane_to: int, xy: np.ndarray, band: tuple[float, float] = NEIGHBOR_BAND_M
+    ) -> Side | None:
+        """Side of `lane_to` from `lane_from` at point `xy` when they run parallel `band` (2.5-4.5 m) apart there."""
         point = np.asarray(xy, np.float64).reshape(1, 2)
         s_from, lat_from = self.project_to_lane(lane_from, point)
         s_to, lat_to = self.project_to_lane(lane_to, point)
@@ -407,7 +477,7 @@ class MapIndex:
             return None
         diff = abs(float(wrap_angle(self.heading_at(lane_from, s_from[0]) - self.heading_at(lane_to, s_to[0]))))
         offset = float(lat_from[0] - lat_to[0])
-        if diff > NEIGHBOR_MAX_HEADING_DIFF or not NEIGHBOR_MIN_OFFSET_M <= abs(offset) <= NEIGHBOR_MAX_OFFSET_M:
+        if diff > NEIGHBOR_MAX_HEADING_DIFF or not band[0] <= abs(offset) <= band[1]:
             return None
         return "left" if offset > 0 else "right"
 
@@ -441,6 +511,43 @@ class MapIndex:
         beside = lateral[same & apart]
         # The point lies right of a lane on its left, so that lane's lateral offset of the point is negative.
         return bool((beside < 0).any()), bool((beside > 0).any())
+
+    # ------------------------------------------------------------------ parked vehicles
+    def parked_decision(
+        self,
+        match: LaneMatch,
+        xy: np.ndarray,
+        *,
+        lane_offset: float | None = None,
+        queue_distance: float | None = None,
+        kerb_distance: float | None = None,
+    ) -> tuple[bool | None, str]:
+        """Whether a vehicle standing all window is parked (True / False / None = undecided), and why, from its
+        lane `match` at points `xy` [N, 2] (the caller decides that it stands, and how lanes are matched).
+
+        Undecided on a map without lanes; parked when no point matched a lane; then, at the first matched point,
+        parked when at least `lane_offset` from the lane centre. Without `kerb_distance` (the detector) a vehicle
+        on a lane is not parked; with it (the heuristic labeler) it is not on a junction lane or within
+        `queue_distance` before one along its lane (queued), undecided where the map has no road edges, and parked
+        within `kerb_distance` of a road edge."""
+        if not self.has_lanes:
+            return None, "the map has no lanes to tell the road side from a traffic lane"
+        if not match.matched.any():
+            return True, "off every lane"
+        k = int(np.argmax(match.matched))
+        if lane_offset is not None and abs(float(match.lateral[k])) >= lane_offset:
+            return True, "beside the lane centre"
+        if kerb_distance is None:
+            return False, "on a lane"
+        lane = int(match.lane[k])
+        if self.is_junction[lane]:
+            return False, "stopped in a junction lane"
+        if queue_distance is not None and self.distance_to_junction(lane, float(match.station[k])) <= queue_distance:
+            return False, "stopped in a lane before a junction (a queue)"
+        if not self.has_road_edges:
+            return None, "stopped on a lane centre and the map has no road edges to check the kerb"
+        edge = float(self.distance_to_road_edge(np.asarray(xy).reshape(-1, 2)[k], kerb_distance)[0])
+        return (True, "at the kerb") if edge <= kerb_distance else (False, "stopped in a traffic lane")
 
     # ------------------------------------------------------------------ junctions
     def distance_to_junction(self, lane: int, station: float) -> float:

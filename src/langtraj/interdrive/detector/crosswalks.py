@@ -1,0 +1,113 @@
+"""Pedestrians and crosswalks for the interaction detector (docs/interdrive.md, 'Interaction labels'): held
+vehicles yielding to a pedestrian on a crosswalk ahead, and pedestrians waiting at a crosswalk for vehicles.
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import numpy as np
+from matplotlib.path import Path as MplPath
+
+from langtraj.interdrive.detector.parts import Pair, ScenePart
+from langtraj.runs import true_runs
+from langtraj.scenario.types import AgentType, MapFeatureType
+
+
+class CrosswalkGeometry(ScenePart):
+    """Crosswalk polygons, pedestrians on them, and the yields and waits around them."""
+
+    @cached_property
+    def crosswalks(self) -> list[MplPath]:
+        return [
+            MplPath(f.points[:, :2])
+            for f in self.scenario.road_map.of_type(MapFeatureType.CROSSWALK)
+            if len(f.points) >= 3
+        ]
+
+    @cached_property
+    def _peds(self) -> np.ndarray:
+        return np.flatnonzero(self.types == AgentType.PEDESTRIAN)
+
+    @cached_property
+    def ped_on_crosswalk(self) -> np.ndarray:
+        """[C, A, T]: the pedestrian's centre is inside crosswalk c."""
+        out = np.zeros((len(self.crosswalks), *self.valid.shape), bool)
+        peds = self._peds
+        if not peds.size:
+            return out
+        pts = self.xy[peds].reshape(-1, 2)
+        for c, cw in enumerate(self.crosswalks):
+            out[c, peds] = cw.contains_points(pts).reshape(len(peds), -1) & self.valid[peds]
+        return out
+
+    @cached_property
+    def pedestrian_yields(self) -> list[Pair]:
+        """Held vehicles whose look-ahead runs over a crosswalk with a pedestrian on it, to the nearest one."""
+        cfg = self.config
+        held = self.scene.yields.held
+        hits: dict[tuple[int, int], list[int]] = {}
+        ahead = np.linspace(0.5, cfg.ped_lookahead, 24)
+        for c, cw in enumerate(self.crosswalks):
+            occupied = self.ped_on_crosswalk[c].any(axis=0)
+            if not occupied.any():
+                continue
+            for v in np.flatnonzero(self.movers).tolist():
+                steps = np.flatnonzero(held[v] & occupied)
+                if steps.size == 0:
+                    continue
+                reach = 0.5 * self.length[v, steps][:, None] + ahead[None, :]
+                direction = np.stack([np.cos(self.heading[v, steps]), np.sin(self.heading[v, steps])], axis=-1)
+                probes = self.xy[v, steps][:, None, :] + reach[..., None] * direction[:, None, :]
+                over = cw.contains_points(probes.reshape(-1, 2)).reshape(len(steps), -1).any(axis=1)
+                for t in steps[over].tolist():
+                    peds = np.flatnonzero(self.ped_on_crosswalk[c, :, t])
+                    p = int(peds[np.argmin(np.linalg.norm(self.xy[peds, t] - self.xy[v, t], axis=1))])
+                    hits.setdefault((v, p), []).append(t)
+        out = []
+        for (v, p), steps in sorted(hits.items()):
+            mask = np.zeros(self.num_steps, bool)
+            mask[steps] = True
+            out.extend(Pair(v, p, s, e) for s, e in true_runs(mask, cfg.min_event_steps, cfg.merge_gap))
+        return out
+
+    def _on_crosswalk(self, c: int, v: int, start: int, end: int) -> np.ndarray:
+        xy = self.xy[v, start:end]
+        cw = self.crosswalks[c]
+        m = self.config.crosswalk_margin
+        inside = cw.contains_points(xy, radius=m) | cw.contains_points(xy, radius=-m)
+        return start + np.flatnonzero(inside & self.valid[v, start:end])
+
+    def _crosswalk_near(self, point: np.ndarray) -> np.ndarray:
+        """[C]: the one crosswalk nearest to `point` within `crosswalk_search` (none when none is)."""
+        out = np.zeros(len(self.crosswalks), bool)
+        best, best_d = -1, self.config.crosswalk_search
+        for c, cw in enumerate(self.crosswalks):
+            d = 0.0 if cw.contains_point(point) else float(np.min(np.linalg.norm(cw.vertices - point, axis=1)))
+            if d < best_d:
+                best, best_d = c, d
+        if best >= 0:
+            out[best] = True
+        return out
+
+    @cached_property
+    def pedestrian_waits(self) -> list[tuple[Pair, Pair]]:
+        """(P yields to V over its wait, V passes P over its steps on the crosswalk) for pedestrians standing
+        next to a crosswalk they then step onto, for each vehicle on that crosswalk during the wait."""
+        cfg = self.config
+        out = []
+        on_any = self.ped_on_crosswalk.any(axis=0) if len(self.crosswalks) else np.zeros(self.valid.shape, bool)
+        for p in self._peds.tolist():
+            standing = self.valid[p] & (self.speed[p] <= cfg.stopped_speed) & ~on_any[p]
+            for w0, w1 in true_runs(standing):
+                if w1 - w0 < cfg.min_event_steps:
+                    continue
+                later = self.ped_on_crosswalk[:, p, w1 : w1 + cfg.wait_to_cross_steps].any(axis=1)
+                if w1 >= self.num_steps and not later.any():
+                    later = self._crosswalk_near(self.xy[p, w1 - 1])
+                for c in np.flatnonzero(later).tolist():
+                    for v in np.flatnonzero(self.movers).tolist():
+                        steps = self._on_crosswalk(c, v, w0, w1)
+                        if steps.size:
+                            out.append((Pair(p, v, w0, w1), Pair(v, p, int(steps[0]), int(steps[-1]) + 1)))
+        return out

@@ -1,0 +1,229 @@
+"""The interaction detector's rules, one `InteractionRule` per interaction type, registered in `INTERACTION_RULES`,
+and `detect_interactions`, which runs them all over one `SceneGeometry` (docs/interdrive.md, 'Interaction
+labels').
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from collections.abc import Sequence
+from typing import ClassVar
+
+import numpy as np
+
+from langtraj.angles import wrap_angle
+from langtraj.interdrive.detector.config import DetectorConfig
+from langtraj.interdrive.detector.parts import Pair
+from langtraj.interdrive.detector.scene import SceneGeometry
+from langtraj.interdrive.ground_truth import filter_to_window, label_sort_key
+from langtraj.interdrive.labels import AgentLabel, InteractionLabel, LabelSource
+from langtraj.interdrive.mapindex import LaneChange, MapIndex
+from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID, InteractionType
+from langtraj.registry import Registry
+from langtraj.scenario.model import STEP_SECONDS, Scenario
+from langtraj.scenario.types import AgentType
+
+
+class InteractionRule(abc.ABC):
+    """Detects the labels of one interaction type in a scene."""
+
+    name: ClassVar[str]
+    type: ClassVar[InteractionType]
+
+    @abc.abstractmethod
+    def detect(self, scene: SceneGeometry) -> list[InteractionLabel]:
+        """The labels of this rule's type in `scene` (window filtering happens afterwards)."""
+
+
+INTERACTION_RULES: Registry[InteractionRule] = Registry("interaction rule")
+"""Every interaction rule, by name; `detect_interactions` runs them in registration order."""
+
+
+def _label(scene: SceneGeometry, agent: int, other: int, subtype: str, start: int, end: int) -> InteractionLabel:
+    other_id = int(scene.ids[other]) if other >= 0 else -1
+    return InteractionLabel(
+        int(scene.ids[agent]),
+        other_id,
+        SUBTYPES_BY_ID[subtype],
+        LabelSource.DETECTOR,
+        int(start),
+        int(max(end, start + 1)),
+    )
+
+
+@INTERACTION_RULES.register
+class LaneChangeRule(InteractionRule):
+    """A switch to a neighbour lane, with the leader on the target lane (or the overtaken agent)."""
+
+    name = "lane_change"
+    type = InteractionType.LANE_CHANGE
+
+    def detect(self, scene: SceneGeometry) -> list[InteractionLabel]:
+        changes = scene.changes
+        labels = []
+        for change in changes.lane_changes:
+            if changes.is_merge(change):
+                continue
+            overtake = changes.overtakes.get(change)
+            if overtake is not None:
+                labels.append(
+                    _label(scene, change.agent, overtake.other, "lane_change/for_overtaking", change.start, change.end)
+                )
+                continue
+            other = changes.leader_after(change)
+            labels.append(_label(scene, change.agent, other, self._subtype(scene, change), change.start, change.end))
+        return labels
+
+    @staticmethod
+    def _subtype(scene: SceneGeometry, change: LaneChange) -> str:
+        before = scene.changes.former_leader(change)
+        if before >= 0 and scene.speed[before, change.switch] < scene.speed[change.agent, change.switch]:
+            return "lane_change/avoiding_slower_traffic"
+        heads = scene.heading[change.agent][scene.valid[change.agent]]
+        if heads.size and np.abs(wrap_angle(heads - heads[0])).max() > math.radians(45.0):
+            return "lane_change/for_turn_or_exit"
+        return "lane_change/with_lead_or_trail"
+
+
+@INTERACTION_RULES.register
+class FollowingRule(InteractionRule):
+    """At least 1 s behind the same leader on one's own path."""
+
+    name = "following"
+    type = InteractionType.FOLLOWING
+
+    def detect(self, scene: SceneGeometry) -> list[InteractionLabel]:
+        return [_label(scene, p.agent, p.other, self._subtype(scene, p), p.start, p.end) for p in scene.paths.follows]
+
+    @staticmethod
+    def _subtype(scene: SceneGeometry, pair: Pair) -> str:
+        cfg = scene.config
+        s = slice(pair.start, pair.end)
+        speed = scene.speed[pair.agent, s]
+        both = scene.valid[pair.agent, s] & scene.valid[pair.other, s]
+        if (both & (speed <= cfg.stopped_speed)).any():
+            return "following/stopping_behind_lead"
+        speed = np.where(both, speed, 0.0)
+        gap = np.linalg.norm(scene.xy[pair.agent, s] - scene.xy[pair.other, s], axis=1)
+        gap -= 0.5 * (scene.length[pair.agent, s] + scene.length[pair.other, s])
+        close = both & (speed >= cfg.tailgating_speed) & (gap < cfg.tailgating_headway_s * np.maximum(speed, 1e-3))
+        if close.sum() >= cfg.min_follow_steps:
+            return "following/tailgating"
+        earlier = scene.speed[pair.agent, max(pair.start - 30, 0) : pair.start + 1]
+        lead = scene.speed[pair.other, s][both].mean() if both.any() else 0.0
+        if earlier.size and 0.5 <= lead <= cfg.slow_lead_ratio * earlier.max():
+            return "following/slow_lead"
+        return "following/with_lead"
+
+
+@INTERACTION_RULES.register
+class YieldingRule(InteractionRule):
+    """Held before a crossing path's conflict point, or before a crosswalk in use; pedestrians waiting."""
+
+    name = "yielding"
+    type = InteractionType.YIELDING
+
+    def detect(self, scene: SceneGeometry) -> list[InteractionLabel]:
+        roundabout = scene.lanes.has_roundabout
+        junction = "yielding/roundabout" if roundabout else "yielding/intersection"
+        changing = {c.agent for c in scene.changes.lane_changes}
+        labels = []
+        for p in scene.yields.vehicle_yields:
+            sub = "yielding/to_merging_or_lane_change" if p.other in changing and not roundabout else junction
+            labels.append(_label(scene, p.agent, p.other, sub, p.start, p.end))
+        labels += [
+            _label(scene, p.agent, p.other, "yielding/to_pedestrian", p.start, p.end)
+            for p in scene.crossings.pedestrian_yields
+        ]
+        labels += [
+            _label(scene, w.agent, w.other, "yielding/pedestrian_to_vehicle", w.start, w.end)
+            for w, _ in scene.crossings.pedestrian_waits
+        ]
+        return labels
+
+
+@INTERACTION_RULES.register
+class PassingRule(InteractionRule):
+    """The other side of every yield: going first while another agent waits."""
+
+    name = "passing"
+    type = InteractionType.PASSING
+
+    def detect(self, scene: SceneGeometry) -> list[InteractionLabel]:
+        labels = []
+        for p in scene.yields.vehicle_yields:
+            if scene.lanes.has_roundabout:
+                sub = "passing/roundabout"
+            elif scene.types[p.other] == AgentType.CYCLIST:
+                sub = "passing/vru_crossing"
+            else:
+                sub = "passing/intersection_with_yielding"
+            labels.append(_label(scene, p.other, p.agent, sub, p.start, p.end))
+        labels += [
+            _label(scene, p.other, p.agent, "passing/vru_crossing", p.start, p.end)
+            for p in scene.crossings.pedestrian_yields
+        ]
+        labels += [
+            _label(scene, v.agent, v.other, "passing/pedestrian", v.start, v.end)
+            for _, v in scene.crossings.pedestrian_waits
+        ]
+        return labels
+
+
+@INTERACTION_RULES.register
+class OvertakingRule(InteractionRule):
+    """A lane change around a slower leader that ends with the changer ahead of it."""
+
+    name = "overtaking"
+    type = InteractionType.OVERTAKING
+
+    def detect(self, scene: SceneGeometry) -> list[InteractionLabel]:
+        labels = []
+        for p in scene.changes.overtakes.values():
+            top = scene.speed[p.agent, p.start : p.end][scene.valid[p.agent, p.start : p.end]]
+            fast = top.size and top.max() >= scene.config.high_speed
+            sub = "overtaking/high_speed" if fast else "overtaking/standard"
+            labels.append(_label(scene, p.agent, p.other, sub, p.start, p.end))
+        return labels
+
+
+@INTERACTION_RULES.register
+class MergingRule(InteractionRule):
+    """A lane change out of a lane that ends, with the leader on the target lane."""
+
+    name = "merging"
+    type = InteractionType.MERGING
+
+    def detect(self, scene: SceneGeometry) -> list[InteractionLabel]:
+        changes = scene.changes
+        labels = []
+        for change in changes.lane_changes:
+            if not changes.is_merge(change):
+                continue
+            a, s = change.agent, change.switch
+            onramp = changes.from_other_road(change)
+            before = scene.speed[a, max(s - 30, 0) : s][scene.valid[a, max(s - 30, 0) : s]]
+            during = scene.speed[a, change.start : change.end][scene.valid[a, change.start : change.end]]
+            if before.size and before.min() < scene.config.held_speed:
+                sub = "merging/late"
+            elif onramp and during.size > 1 and during[-1] - during[0] >= 2.0:
+                sub = "merging/on_ramp_accelerating"
+            else:
+                sub = "merging/standard" if onramp else "merging/lane_reduction"
+            labels.append(_label(scene, a, changes.leader_after(change), sub, change.start, change.end))
+        return labels
+
+
+def detect_interactions(
+    scenario: Scenario,
+    agent_labels: Sequence[AgentLabel] = (),
+    config: DetectorConfig | None = None,
+    map_index: MapIndex | None = None,
+) -> tuple[InteractionLabel, ...]:
+    """Interaction labels of `scenario` from its trajectories and map by every registered rule (source DETECTOR);
+    pass the scene's `map_index` to share the one the heuristic labeler used."""
+    scene = SceneGeometry(scenario, agent_labels, config or DetectorConfig(), map_index)
+    labels = [lab for cls in INTERACTION_RULES.classes() for lab in cls().detect(scene)]
+    min_steps = round(scene.config.min_window_s / STEP_SECONDS)
+    return tuple(sorted(filter_to_window(labels, scenario, min_steps), key=label_sort_key))
