@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from metrics.test_submit_cli import METADATA
 from scenario_builders import make_scenario
 
 from langtraj.cli.main import main
@@ -291,21 +292,9 @@ def test_evaluate_and_submit_take_folders(corpus_folder: Path, tmp_path: Path, c
     code, _, err = run_cli(["evaluate", corpus_folder, rollouts / "b1.npz", "--index", "1"], capsys)
     assert_one_line_error(code, err, "--index")
     meta = tmp_path / "meta.json"
-    meta.write_text(json.dumps(SUBMISSION_METADATA))
+    meta.write_text(json.dumps(METADATA))
     code, out, _ = run_cli(["submit", corpus_folder, rollouts, "--metadata", meta, "--out", tmp_path / "sub"], capsys)
     assert code == 0 and out.startswith("2 scenarios")
-
-
-SUBMISSION_METADATA = {
-    "account_name": "someone@example.com",
-    "unique_method_name": "langtraj-test",
-    "authors": ["A. Person"],
-    "affiliation": "Nowhere",
-    "description": "constant velocity",
-    "method_link": "https://example.com",
-    "num_model_parameters": "0",
-    "acknowledge_complies_with_closed_loop_requirement": True,
-}
 
 
 @pytest.mark.parametrize("verb", ["inspect", "convert", "interdrive build", "evaluate", "submit"])
@@ -318,7 +307,7 @@ def test_a_folder_without_scenario_files_is_one_line(tmp_path: Path, capsys, ver
     rollouts = tmp_path / "rollouts"
     generate_baseline("constant_velocity", make_scenario()).save(rollouts / "toy.npz")
     meta = tmp_path / "meta.json"
-    meta.write_text(json.dumps(SUBMISSION_METADATA))
+    meta.write_text(json.dumps(METADATA))
     out = tmp_path / "out"
     args = {
         "inspect": ["inspect", empty],
