@@ -81,20 +81,20 @@ def main() -> None:
     if not SCENE.is_file():
         sys.exit(f"benchmark scene not found: {SCENE}")
 
+    from langtraj.model.checkpoint import load_model
     from langtraj.scenario.io import read_scenario
     from langtraj.sim.checkpoints import shipped_checkpoint
     from langtraj.sim.engine import SimConfig, simulate
     from langtraj.sim.policies import LangTrajPolicy
-    from langtraj.training.run import module_from_checkpoint
 
     device = "cuda" if torch.cuda.is_available() else "cpu"
     checkpoint = args.checkpoint or shipped_checkpoint()
-    module = module_from_checkpoint(checkpoint)
-    module.model.to(device)
+    model, data = load_model(checkpoint)
+    model.to(device)
     print(
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, torch threads "
         f"{torch.get_num_threads()}, device {device}; checkpoint {Path(checkpoint).name} "
-        f"(drives up to {module.train_config.data.max_agents} agents)"
+        f"(drives up to {data.max_agents} agents)"
     )
     print(f"{args.rollouts} rollouts x 8 s, K = 5, replanning at 1 Hz, {args.candidates} candidates per replan")
     full = read_scenario(SCENE)
@@ -102,7 +102,7 @@ def main() -> None:
         scene = cut_scene(full, count) if count <= 64 else doubled(cut_scene(full, count // 2))
         times = []
         for repeat in range(args.repeats):
-            policy = LangTrajPolicy(module.model, module.train_config.data, candidates=args.candidates, steps=5)
+            policy = LangTrajPolicy(model, data, candidates=args.candidates, steps=5)
             result = simulate(scene, policy, SimConfig(rollouts=args.rollouts, replan_s=1.0, seed=repeat))
             times.append(result.seconds)
         print(

@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 import torch
 from scenario_builders import make_scenario
 
 from langtraj.errors import InputError
 from langtraj.guidance import GuidanceScene, KeepLaneCost, OnRoadCost
+from langtraj.model.config import SampleConfig
+from langtraj.model.features import collate_scenes, scene_frame, scene_sample
 from langtraj.scenario.types import MapFeatureType
-from langtraj.training.data import SampleConfig, build_sample, collate_scenes, scene_frame
 
 
 def test_from_scenario_transforms_the_map_and_pads_the_agents():
@@ -67,7 +67,7 @@ def test_from_scenario_refuses_bad_arguments(kwargs, message):
 
 def test_from_batch_takes_the_lanes_and_edges_the_model_sees():
     config = SampleConfig(max_agents=6, max_polylines=16, points_per_polyline=10, text=False)
-    sample = build_sample(make_scenario(3), None, config, np.random.default_rng(0), augment=False)
+    sample = scene_sample(make_scenario(3), config)
     batch = collate_scenes([sample, sample])
     scene = GuidanceScene.from_batch(batch, 1)
     types = [MapFeatureType(t) for t in batch.map_type[1].tolist() if t > 0]

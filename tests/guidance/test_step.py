@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 import torch
 from scenario_builders import make_scenario
@@ -18,8 +17,9 @@ from langtraj.guidance import (
     reconstruction_guidance,
 )
 from langtraj.model import LangTraj, ModelConfig
+from langtraj.model.config import SampleConfig
 from langtraj.model.dynamics import DYNAMICS
-from langtraj.training.data import SampleConfig, build_sample, collate_scenes
+from langtraj.model.features import collate_scenes, scene_sample
 
 from .helpers import displacement_rollout, make_scene
 
@@ -131,7 +131,7 @@ def test_guided_sampling_with_the_model():
     config = ModelConfig(hidden_dim=32, num_heads=4, encoder_layers=1, denoiser_blocks=1, dropout=0.0, use_text=False)
     model = LangTraj(config).eval()
     data = SampleConfig(max_agents=4, max_polylines=8, points_per_polyline=10, text=False)
-    batch = collate_scenes([build_sample(make_scenario(3), None, data, np.random.default_rng(0), augment=False)])
+    batch = collate_scenes([scene_sample(make_scenario(3), data)])
     scene = GuidanceScene.from_batch(batch, 0)
     goal = GoalCost(0, (0.0, 20.0))
     num_samples = 2

@@ -10,15 +10,15 @@ import torch
 from scenario_builders import make_scenario
 
 from langtraj.model import LangTraj, ModelConfig
-from langtraj.training.data import SampleConfig, build_sample, collate_scenes
+from langtraj.model.config import SampleConfig
+from langtraj.model.features import collate_scenes, scene_sample
 
 SMALL_DATA = SampleConfig(max_agents=8, max_polylines=12, points_per_polyline=10, text=False)
 SMALL_MODEL = ModelConfig(hidden_dim=32, num_heads=4, encoder_layers=1, denoiser_blocks=1, dropout=0.0, use_text=False)
 
 
 def _batch(n: int = 2, agents: int = 5):
-    rng = np.random.default_rng(0)
-    samples = [build_sample(make_scenario(agents, seed=i), None, SMALL_DATA, rng, augment=False) for i in range(n)]
+    samples = [scene_sample(make_scenario(agents, seed=i), SMALL_DATA) for i in range(n)]
     return collate_scenes(samples)
 
 
@@ -107,8 +107,7 @@ def test_guidance_weight_minus_one_is_the_unconditional_model():
     config = replace(SMALL_MODEL, use_text=True)
     model = LangTraj(config).eval()
     data = replace(SMALL_DATA, text=True)
-    rng = np.random.default_rng(0)
-    batch = collate_scenes([build_sample(make_scenario(5), None, data, rng, augment=False)])
+    batch = collate_scenes([scene_sample(make_scenario(5), data)])
     batch = replace(batch, text=[["the target agent turns left"] + [None] * 7])
     no_text = replace(batch, text=[[None] * 8])
     gen = torch.Generator()
@@ -122,8 +121,7 @@ def test_guidance_weight_minus_one_is_the_unconditional_model():
 def _text_model_and_batch():
     torch.manual_seed(0)
     model = LangTraj(replace(SMALL_MODEL, use_text=True)).eval()
-    rng = np.random.default_rng(0)
-    batch = collate_scenes([build_sample(make_scenario(5), None, replace(SMALL_DATA, text=True), rng, augment=False)])
+    batch = collate_scenes([scene_sample(make_scenario(5), replace(SMALL_DATA, text=True))])
     return model, replace(batch, text=[["the target agent turns left"] + [None] * 7])
 
 

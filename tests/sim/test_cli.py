@@ -57,7 +57,7 @@ def test_baseline_policies_need_no_checkpoint(tiny_run, tmp_path):
         (["--guidance", "goal=1"], "'goal' cannot be given here"),
         (["--guidance", "on_road=-1"], "must be finite and >= 0"),
         (["--guidance", "on_road"], "expected NAME=WEIGHT"),
-        (["--policy", "constant_velocity", "--prompt", "@7 stops"], "need the langtraj policy"),
+        (["--policy", "constant_velocity", "--prompt", "@7 stops"], "need a model policy"),
         (["--policy", "teleport"], "unknown policy"),
         (["--replan-s", "0.25"], "replan_s"),
     ],
@@ -86,15 +86,15 @@ def test_a_checkpoint_of_another_model_version_is_refused(tiny_run, tmp_path, ca
 
 def test_collision_guidance_pulls_the_adversary_to_its_target(tiny_run):
     from langtraj.guidance import CollisionCost, GuidanceTerm
+    from langtraj.model.checkpoint import load_model
     from langtraj.sim import LangTrajPolicy, SimConfig, simulate
-    from langtraj.training.run import module_from_checkpoint
 
     checkpoint, scenes = tiny_run
-    module = module_from_checkpoint(checkpoint)
+    model, data = load_model(checkpoint)
     scenario = read_scenario(scenes)
     distances = []
     for terms in ((), (GuidanceTerm(CollisionCost(2, 0), 1.0),)):  # slots: 7 -> 0, 37 -> 2 (see summary test)
-        policy = LangTrajPolicy(module.model, module.train_config.data, terms=terms, candidates=2, steps=3,
+        policy = LangTrajPolicy(model, data, terms=terms, candidates=2, steps=3,
                                 guidance_scale=5.0)  # fmt: skip
         r = simulate(scenario, policy, SimConfig(rollouts=2, replan_s=2.0)).rollouts
         ids = list(r.object_id)

@@ -8,12 +8,12 @@ import pytest
 from scenario_builders import make_scenario
 
 from langtraj.errors import InputError
+from langtraj.model.checkpoint import load_model
 from langtraj.rollouts.baselines import generate_baseline
 from langtraj.scenario.types import StateField
 from langtraj.sim import ConstantVelocityPolicy, LangTrajPolicy, LogReplayPolicy, Policy, SimConfig, simulate
 from langtraj.sim.engine import replan_schedule
 from langtraj.sim.world import SimWorld
-from langtraj.training.run import module_from_checkpoint
 
 
 def test_replan_schedule_covers_the_eight_seconds_once():
@@ -92,11 +92,11 @@ def test_a_scene_shorter_than_eight_seconds_still_simulates():
 
 def test_batched_rollouts_equal_sequential_ones(tiny_run):
     checkpoint, _ = tiny_run
-    module = module_from_checkpoint(checkpoint)
+    model, data = load_model(checkpoint)
     scenario = make_scenario(5)
     runs = []
     for batch in (0, 1):
-        policy = LangTrajPolicy(module.model, module.train_config.data, candidates=3, steps=2, rollout_batch=batch)
+        policy = LangTrajPolicy(model, data, candidates=3, steps=2, rollout_batch=batch)
         runs.append(simulate(scenario, policy, SimConfig(rollouts=4, replan_s=2.0, seed=5)).rollouts)
     np.testing.assert_allclose(runs[0].x, runs[1].x, atol=1e-4)
     np.testing.assert_allclose(runs[0].heading, runs[1].heading, atol=1e-4)

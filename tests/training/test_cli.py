@@ -11,9 +11,9 @@ from dataset_builders import TINY_TRAINING as TINY
 from dataset_builders import train_tiny, write_dataset
 
 from langtraj.cli.main import main
-from langtraj.model.open_loop import sample_open_loop
+from langtraj.model.checkpoint import load_model, read_checkpoint
 from langtraj.scenario.io import read_scenario
-from langtraj.training.run import module_from_checkpoint
+from langtraj.sim.open_loop import sample_open_loop
 
 
 @pytest.fixture(scope="module")
@@ -41,9 +41,9 @@ def test_sample_renders_a_video_per_sample_and_saves_states(trained, tmp_path, c
 
 def test_prompted_agents_are_the_conditioned_ones(trained):
     checkpoint, scenes = trained
-    module = module_from_checkpoint(checkpoint)
+    model, data = load_model(checkpoint)
     scenario = read_scenario(scenes)
-    result = sample_open_loop(module.model, scenario, module.train_config.data, prompt="@7 yields to @17", steps=2)
+    result = sample_open_loop(model, scenario, data, prompt="@7 yields to @17", steps=2)
     assert result.conditioned == (7, 17)
     shown = result.scenario_with(scenario)
     assert shown.agents.valid[result.agents, scenario.current_index + 1 :].all()
@@ -75,7 +75,6 @@ def test_a_killed_run_resumes_from_its_last_checkpoint(tmp_path):
     import sys
     import time
 
-    from langtraj.training.run import load_checkpoint
 
     labels = write_dataset(tmp_path, 12)
     config = tmp_path / "tiny.yaml"
@@ -94,8 +93,8 @@ def test_a_killed_run_resumes_from_its_last_checkpoint(tmp_path):
         proc.wait()
     saved = sorted(run.glob("checkpoints/**/*.ckpt"))  # what users glob: partial writes must not match
     assert saved, "no checkpoint was written before the kill"
-    steps = [load_checkpoint(p)["global_step"] for p in saved]  # every file on disk loads
+    steps = [read_checkpoint(p)["global_step"] for p in saved]  # every file on disk loads
     newest = max(steps)
     assert main(["train", "--config", str(config), "--data", str(labels), "--out", str(run), "--resume", "auto",
                  "--max-steps", str(newest + 2)]) == 0  # fmt: skip
-    assert load_checkpoint(run / "checkpoints" / "last.ckpt")["global_step"] == newest + 2
+    assert read_checkpoint(run / "checkpoints" / "last.ckpt")["global_step"] == newest + 2

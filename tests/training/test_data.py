@@ -1,8 +1,7 @@
-"""Training samples and batches: scene frame, padding, text selection, dropouts, dataset split and mixing."""
+"""Training samples: text selection, dropouts, dataset split and mixing (scene features: tests/model)."""
 
 from __future__ import annotations
 
-import math
 import pickle
 from dataclasses import replace
 from pathlib import Path
@@ -15,17 +14,10 @@ from scenario_builders import make_scenario
 from torch.utils.data import DataLoader
 
 from langtraj.errors import InputError
-from langtraj.model.batch import AGENT_HISTORY_FEATURES, SceneBatch
-from langtraj.scenario import MapFeature, MapFeatureType, RoadMap, Scenario
-from langtraj.training.data import (
-    MixingSampler,
-    SampleConfig,
-    SceneDataset,
-    build_sample,
-    collate_scenes,
-    scene_frame,
-    split_of,
-)
+from langtraj.interdrive.dataset import split_of
+from langtraj.model.config import SampleConfig
+from langtraj.model.features import collate_scenes
+from langtraj.training.data import MixingSampler, SceneDataset, build_sample
 
 SMALL = SampleConfig(max_agents=8, max_polylines=12, points_per_polyline=10)
 TEXT_ALWAYS = replace(SMALL, text_dropout=0.0, history_dropout=0.0)
@@ -33,135 +25,6 @@ TEXT_ALWAYS = replace(SMALL, text_dropout=0.0, history_dropout=0.0)
 
 def _rng(seed: int = 0) -> np.random.Generator:
     return np.random.default_rng(seed)
-
-
-def _moved(scenario: Scenario, dx: float, dy: float, angle: float) -> Scenario:
-    """The scene rotated by `angle` about the world origin, then shifted by (dx, dy)."""
-    c, s = math.cos(angle), math.sin(angle)
-    rot = np.array([[c, -s], [s, c]])
-    states = scenario.agents.states.astype(np.float64).copy()
-    states[..., 0:2] = states[..., 0:2] @ rot.T + (dx, dy)
-    states[..., 3] += angle
-    states[..., 4:6] = states[..., 4:6] @ rot.T
-    features = []
-    for f in scenario.road_map.features:
-        pts = f.points.copy()
-        pts[:, :2] = pts[:, :2] @ rot.T + (dx, dy)
-        features.append(replace(f, points=pts))
-    agents = replace(scenario.agents, states=states.astype(np.float32))
-    return replace(scenario, agents=agents, road_map=RoadMap(features))
-
-
-# ---------------------------------------------------------------- the scene frame and tensors
-
-
-def test_the_focal_agent_is_at_the_origin_heading_along_x():
-    scene = _moved(make_scenario(6), 1200.0, -340.0, 2.5)
-    origin = scene_frame(scene)
-    assert origin[:2] == pytest.approx(tuple(scene.agents.xy[0, 10]), abs=1e-3)
-    assert origin[2] == pytest.approx(2.5, abs=1e-6)
-    sample = build_sample(scene, None, SMALL, _rng(), augment=False)
-    assert sample["agent_id"][0] == 7  # the SDC comes first among the agents here
-    np.testing.assert_allclose(sample["current_state"][0, :3], 0.0, atol=1e-3)
-    np.testing.assert_allclose(sample["agent_history"][0, -1, :4], [0, 0, 1, 0], atol=1e-3)
-    np.testing.assert_allclose(sample["origin"], [*origin], rtol=1e-6)
-
-
-def test_without_a_valid_sdc_the_first_prioritized_agent_is_the_focal_agent():
-    scene = replace(make_scenario(6), sdc_index=-1)
-    first = scene.agents.objects_of_interest[0]
-    assert scene_frame(scene)[:2] == pytest.approx(tuple(scene.agents.xy[first, 10]), abs=1e-4)
-
-
-def test_a_sample_is_the_same_wherever_the_scene_lies_in_the_world():
-    scene = make_scenario(6)
-    a = build_sample(scene, None, SMALL, _rng(), augment=False)
-    b = build_sample(_moved(scene, -5000.0, 777.0, -1.9), None, SMALL, _rng(), augment=False)
-    for key in ("agent_history", "current_state", "future", "map_points"):
-        np.testing.assert_allclose(a[key], b[key], atol=2e-3, err_msg=key)
-    for key in ("history_valid", "future_valid", "map_valid", "map_type", "agent_id"):
-        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
-
-
-def test_history_and_future_are_the_world_tracks_moved_rigidly():
-    scene = _moved(make_scenario(6), 300.0, 50.0, 0.7)
-    sample = build_sample(scene, None, SMALL, _rng(), augment=False)
-    ids = sample["agent_id"][sample["agent_valid"]]
-    rows = [scene.agents.index_of(i) for i in ids]
-    world_hist = scene.agents.xy[rows, 0:11].astype(np.float64)
-    world_fut = scene.agents.xy[rows, 11:91].astype(np.float64)
-    local_hist = sample["agent_history"][: len(rows), :, :2]
-    local_fut = sample["future"][: len(rows), :, :2]
-    world = np.concatenate([world_hist, world_fut], axis=1).reshape(-1, 2)
-    valid = np.concatenate([sample["history_valid"][: len(rows)], sample["future_valid"][: len(rows)]], axis=1)
-    local = np.concatenate([local_hist, local_fut], axis=1).reshape(-1, 2)
-    keep = valid.reshape(-1)
-    pick = np.flatnonzero(keep)[::37]
-    d_world = np.linalg.norm(world[pick, None] - world[None, pick], axis=-1)
-    d_local = np.linalg.norm(local[pick, None] - local[None, pick], axis=-1)
-    np.testing.assert_allclose(d_local, d_world, atol=5e-3)
-    heading = sample["future"][: len(rows), :, 2]
-    assert (np.abs(heading) <= math.pi).all()
-    np.testing.assert_allclose(heading[sample["future_valid"][: len(rows)]], 0.0, atol=1e-4)  # all drive along x
-
-
-def test_shapes_padding_and_dtypes():
-    scene = make_scenario(6)  # agent 2 (id 27) appears late: not valid at the current step
-    sample = build_sample(scene, None, SMALL, _rng(), augment=False)
-    a, m, p = SMALL.max_agents, SMALL.max_polylines, SMALL.points_per_polyline
-    assert sample["agent_history"].shape == (a, 11, AGENT_HISTORY_FEATURES)
-    assert sample["future"].shape == (a, 80, 3) and sample["future_valid"].shape == (a, 80)
-    assert sample["map_points"].shape == (m, p, 2) and sample["map_valid"].shape == (m, p)
-    assert sample["agent_valid"].tolist() == [True] * 5 + [False] * 3
-    assert 27 not in sample["agent_id"].tolist()
-    assert sample["agent_id"][5:].tolist() == [-1] * 3 and sample["agent_type"][5:].tolist() == [0] * 3
-    assert not sample["history_valid"][5:].any() and not sample["future_valid"][5:].any()
-    assert (sample["agent_history"][~sample["history_valid"]] == 0).all()
-    assert (sample["agent_history"][sample["history_valid"]][:, -1] == 1).all()
-    np.testing.assert_allclose(sample["agent_size"][:5], [[4.5, 2.0]] * 5)
-    # speeds: agent a drives at 2 + 3a m/s along x
-    speeds = {int(i): s for i, s in zip(sample["agent_id"][:5], sample["current_state"][:5, 3], strict=True)}
-    assert speeds[7] == pytest.approx(2.0) and speeds[17] == pytest.approx(5.0)
-
-
-def test_the_map_holds_nearby_pieces_nearest_first_resampled_evenly():
-    sample = build_sample(make_scenario(6), None, replace(SMALL, max_polylines=64), _rng(), augment=False)
-    valid, pts, types = sample["map_valid"], sample["map_points"], sample["map_type"]
-    rows = valid.any(axis=1)
-    assert (types[~rows] == 0).all() and not valid[~rows].any() and (pts[~rows] == 0).all()
-    assert (types[rows] > 0).all()
-    nearest = [np.linalg.norm(pts[r][valid[r]], axis=-1).min() for r in np.flatnonzero(rows)]
-    assert nearest == sorted(nearest) and nearest[-1] <= SMALL.map_radius
-    full = valid.all(axis=1)
-    gaps = np.linalg.norm(np.diff(pts[full], axis=1), axis=-1)
-    assert gaps.max() <= 2.0 + 1e-4
-    straight = types[full] != int(MapFeatureType.CROSSWALK)  # a polygon's corners shorten the chords
-    np.testing.assert_allclose(gaps[straight], gaps[straight][:, :1].repeat(gaps.shape[1], 1), atol=1e-3)
-    single = valid.sum(axis=1) == 1
-    assert set(types[single].tolist()) == {int(MapFeatureType.STOP_SIGN)}
-    assert int(MapFeatureType.CROSSWALK) in types.tolist()
-
-
-def test_map_radius_and_polyline_budget_are_respected():
-    scene = make_scenario(3)
-    far = MapFeature(999, MapFeatureType.LANE_SURFACE_STREET, [[5000, 0, 0], [5100, 0, 0]])
-    scene = replace(scene, road_map=RoadMap((*scene.road_map.features, far)))
-    few = replace(SMALL, max_polylines=3)
-    sample = build_sample(scene, None, few, _rng(), augment=False)
-    assert sample["map_valid"].any(axis=1).all()  # three nearest kept
-    wide = build_sample(scene, None, replace(SMALL, max_polylines=500), _rng(), augment=False)
-    assert np.abs(wide["map_points"]).max() < 100.0  # the far lane is left out
-
-
-def test_missing_velocities_are_estimated_from_positions():
-    scene = make_scenario(4)
-    states = scene.agents.states.copy()
-    states[..., 4:6] = 0.0
-    still = replace(scene, agents=replace(scene.agents, states=states))
-    sample = build_sample(still, None, SMALL, _rng(), augment=False)
-    speeds = dict(zip(sample["agent_id"][:3].tolist(), sample["current_state"][:3, 3].tolist(), strict=True))
-    assert speeds[7] == pytest.approx(2.0, abs=0.2) and speeds[17] == pytest.approx(5.0, abs=0.2)
-    assert sample["agent_history"][0, -1, 4] == pytest.approx(2.0, abs=0.2)
 
 
 # ---------------------------------------------------------------- text
@@ -259,27 +122,6 @@ def test_history_dropout_keeps_only_the_current_step():
 
 
 # ---------------------------------------------------------------- batches
-
-
-def test_collate_makes_a_scene_batch_with_contract_dtypes():
-    scene = make_scenario(6)
-    record = make_record(scene, [make_prompt((17, 47), "yield/yield_to")])
-    samples = [build_sample(scene, record, TEXT_ALWAYS, _rng(s)) for s in range(3)]
-    batch = collate_scenes(samples)
-    assert isinstance(batch, SceneBatch) and batch.batch_size == 3 and batch.num_agents == SMALL.max_agents
-    for name in ("agent_history", "agent_size", "current_state", "future", "map_points", "origin"):
-        assert getattr(batch, name).dtype == torch.float32, name
-    for name in ("history_valid", "agent_valid", "future_valid", "map_valid", "interaction_labelled"):
-        assert getattr(batch, name).dtype == torch.bool, name
-    for name in ("agent_type", "map_type", "agent_id"):
-        assert getattr(batch, name).dtype == torch.long, name
-    assert batch.interaction_labelled.tolist() == [True] * 3
-    assert batch.has_text.sum(dim=1).tolist() == [2, 2, 2]
-    assert batch.scenario_id == ["toy"] * 3
-    assert batch.map_points.shape == (3, SMALL.max_polylines, SMALL.points_per_polyline, 2)
-
-
-# ---------------------------------------------------------------- the dataset
 
 
 @pytest.fixture(scope="module")

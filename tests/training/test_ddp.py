@@ -14,8 +14,8 @@ import torch
 import yaml
 from dataset_builders import TINY_TRAINING, write_dataset
 
+from langtraj.model.checkpoint import read_checkpoint
 from langtraj.training.module import RankShare
-from langtraj.training.run import load_checkpoint
 
 
 class _Stream(torch.utils.data.Sampler[int]):
@@ -69,10 +69,10 @@ def test_two_processes_train_and_resume_exactly(tmp_path):
     resumed = _train(config, labels, tmp_path / "resumed", "--resume", str(middle))
     assert resumed.returncode == 0, resumed.stderr[-3000:]
 
-    a = load_checkpoint(tmp_path / "whole" / "checkpoints" / "last.ckpt")
-    b = load_checkpoint(tmp_path / "resumed" / "checkpoints" / "last.ckpt")
+    a = read_checkpoint(tmp_path / "whole" / "checkpoints" / "last.ckpt")
+    b = read_checkpoint(tmp_path / "resumed" / "checkpoints" / "last.ckpt")
     assert a["global_step"] == b["global_step"] == 4
-    start = load_checkpoint(middle)["state_dict"]
+    start = read_checkpoint(middle)["state_dict"]
     moved = [k for k, v in a["state_dict"].items() if not torch.equal(v, start[k])]
     assert moved  # steps 3 and 4 trained something
     for key, value in a["state_dict"].items():

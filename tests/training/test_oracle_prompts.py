@@ -8,11 +8,13 @@ import numpy as np
 import pytest
 from dataset_builders import write_dataset
 
+from langtraj.cli.main import main
 from langtraj.errors import InputError
 from langtraj.interdrive.dataset import iter_records, load_window
+from langtraj.model.config import SampleConfig
 from langtraj.scenario.types import StateField
-from langtraj.training.data import SampleConfig, SceneDataset
-from langtraj.training.oracle_prompts import displacement_phrase, main, oracle_prompts, write_oracle_dataset
+from langtraj.training.data import SceneDataset
+from langtraj.training.oracle_prompts import displacement_phrase, oracle_prompts, write_oracle_dataset
 
 
 def test_the_phrase_rounds_to_the_bin_and_names_the_side():
@@ -42,7 +44,7 @@ def test_each_agent_with_a_future_gets_its_own_displacement(tmp_path):
 def test_the_rewritten_dataset_reads_and_conditions_agents(tmp_path):
     labels = write_dataset(tmp_path, 4)
     out = tmp_path / "oracle"
-    assert main([str(labels), "--out", str(out)]) == 0
+    assert main(["experiment", "oracle-prompts", str(labels), "--out", str(out)]) == 0
     dataset = SceneDataset(out, SampleConfig(max_agents=8, max_polylines=12, points_per_polyline=10), split="all")
     texts = [t for i in range(len(dataset)) for t in dataset[i]["text"] if t is not None]
     assert texts and all(t.startswith("the target agent moves about") for t in texts)
@@ -52,7 +54,7 @@ def test_bad_arguments_are_refused(tmp_path, capsys):
     labels = write_dataset(tmp_path, 1)
     with pytest.raises(InputError, match="another folder"):
         write_oracle_dataset(labels, labels)
-    assert main([str(tmp_path / "missing"), "--out", str(tmp_path / "o")]) == 2
+    assert main(["experiment", "oracle-prompts", str(tmp_path / "missing"), "--out", str(tmp_path / "o")]) == 2
     assert "missing" in capsys.readouterr().err
     with pytest.raises(InputError, match="bin must be positive"):
         oracle_prompts(load_window(next(iter_records(labels))[1][0]), 0.0)

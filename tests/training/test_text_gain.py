@@ -12,8 +12,9 @@ from scenario_builders import make_scenario
 
 from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.dataset import PromptEntry, write_manifest, write_shard
+from langtraj.model.checkpoint import load_model
 from langtraj.scenario.io import write_scenarios
-from langtraj.training.run import module_from_checkpoint, train
+from langtraj.training.run import train
 from langtraj.training.text_gain import TextGainConfig, label_consistent_draws, text_gain_table
 
 from .test_training import CONFIG
@@ -48,7 +49,7 @@ def module(tmp_path_factory):
     folder = tmp_path_factory.mktemp("gain")
     labels = _labelled_dataset(folder)
     config = replace(CONFIG, max_steps=2, data=replace(CONFIG.data, heuristic_label_fraction=1.0))
-    return module_from_checkpoint(train(config, labels, folder / "run", progress=False)), labels
+    return load_model(train(config, labels, folder / "run", progress=False)), labels
 
 
 def test_the_ceiling_keeps_the_first_following_draws_then_tops_up_in_order():
@@ -60,7 +61,7 @@ def test_the_ceiling_keeps_the_first_following_draws_then_tops_up_in_order():
 
 def test_without_extra_draws_the_ceiling_is_the_plain_min_ade(module):
     model, labels = module
-    out = text_gain_table(model, labels, TextGainConfig(num_samples=2, prior_samples=2, steps=2, max_windows=4))
+    out = text_gain_table(*model, labels, TextGainConfig(num_samples=2, prior_samples=2, steps=2, max_windows=4))
     assert out["checked_agents"] > 0 and out["prompted_agents"] >= out["checked_agents"]
     assert out["prompted_min_ade_ceiling"] == pytest.approx(out["prompted_min_ade_no_text"])
     assert out["prompted_ceiling_gain"] == pytest.approx(0.0, abs=1e-12)
@@ -70,8 +71,8 @@ def test_without_extra_draws_the_ceiling_is_the_plain_min_ade(module):
 
 def test_more_draws_let_more_agents_reach_following_samples(module):
     model, labels = module
-    few = text_gain_table(model, labels, TextGainConfig(num_samples=2, prior_samples=2, steps=2, max_windows=4))
-    many = text_gain_table(model, labels, TextGainConfig(num_samples=2, prior_samples=8, steps=2, max_windows=4))
+    few = text_gain_table(*model, labels, TextGainConfig(num_samples=2, prior_samples=2, steps=2, max_windows=4))
+    many = text_gain_table(*model, labels, TextGainConfig(num_samples=2, prior_samples=8, steps=2, max_windows=4))
     assert many["checked_agents"] == few["checked_agents"]
     assert many["checked_full_ceiling"] >= few["checked_full_ceiling"]
 
@@ -86,12 +87,12 @@ def test_the_label_fraction_sets_how_many_agents_are_prompted(module):
 
     model, labels = module  # trained with heuristic_label_fraction 1.0
     kwargs = {"num_samples": 1, "steps": 2, "max_windows": 8}
-    default = open_loop_table(model, labels, **kwargs)
-    every = open_loop_table(model, labels, label_fraction=1.0, **kwargs)
-    few = open_loop_table(model, labels, label_fraction=0.3, **kwargs)
+    default = open_loop_table(*model, labels, **kwargs)
+    every = open_loop_table(*model, labels, label_fraction=1.0, **kwargs)
+    few = open_loop_table(*model, labels, label_fraction=0.3, **kwargs)
     assert default["prompted_agents"] == every["prompted_agents"] > few["prompted_agents"] > 0
-    gain = text_gain_table(model, labels, TextGainConfig(num_samples=1, prior_samples=1, steps=2, max_windows=8))
+    gain = text_gain_table(*model, labels, TextGainConfig(num_samples=1, prior_samples=1, steps=2, max_windows=8))
     gain_few = text_gain_table(
-        model, labels, TextGainConfig(num_samples=1, prior_samples=1, steps=2, max_windows=8, label_fraction=0.3)
+        *model, labels, TextGainConfig(num_samples=1, prior_samples=1, steps=2, max_windows=8, label_fraction=0.3)
     )
     assert gain["prompted_agents"] > gain_few["prompted_agents"] > 0

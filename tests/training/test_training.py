@@ -13,9 +13,10 @@ from dataset_builders import write_dataset
 
 from langtraj.errors import InputError
 from langtraj.model import ModelConfig
+from langtraj.model.checkpoint import load_model, read_checkpoint
+from langtraj.model.config import SampleConfig
 from langtraj.training.config import TrainConfig, load_config
-from langtraj.training.data import SampleConfig
-from langtraj.training.run import load_checkpoint, module_from_checkpoint, train
+from langtraj.training.run import train
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = TrainConfig(
@@ -45,7 +46,7 @@ def test_twenty_steps_lower_the_loss(labels, tmp_path):
     losses = _losses(tmp_path / "run")
     assert len(losses) == 2  # logged every 10 steps
     assert losses[-1] < losses[0]
-    assert last.is_file() and load_checkpoint(last)["global_step"] == 20
+    assert last.is_file() and read_checkpoint(last)["global_step"] == 20
 
 
 def test_resuming_from_a_checkpoint_continues_exactly(labels, tmp_path):
@@ -54,8 +55,8 @@ def test_resuming_from_a_checkpoint_continues_exactly(labels, tmp_path):
     middle = tmp_path / "a" / "checkpoints" / "step0000003.ckpt"
     assert middle.is_file()
     train(config, labels, tmp_path / "b", resume=str(middle), progress=False)
-    a = load_checkpoint(tmp_path / "a" / "checkpoints" / "last.ckpt")
-    b = load_checkpoint(tmp_path / "b" / "checkpoints" / "last.ckpt")
+    a = read_checkpoint(tmp_path / "a" / "checkpoints" / "last.ckpt")
+    b = read_checkpoint(tmp_path / "b" / "checkpoints" / "last.ckpt")
     assert a["global_step"] == b["global_step"] == 6
     for key, value in a["state_dict"].items():
         torch.testing.assert_close(b["state_dict"][key], value, atol=1e-6, rtol=1e-5, msg=key)
@@ -65,29 +66,29 @@ def test_resume_auto_picks_up_the_last_checkpoint(labels, tmp_path):
     config = replace(CONFIG, max_steps=3)
     train(config, labels, tmp_path / "run", progress=False)
     train(config, labels, tmp_path / "run", resume="auto", max_steps=5, progress=False)
-    assert load_checkpoint(tmp_path / "run" / "checkpoints" / "last.ckpt")["global_step"] == 5
+    assert read_checkpoint(tmp_path / "run" / "checkpoints" / "last.ckpt")["global_step"] == 5
     assert not list((tmp_path / "run" / "checkpoints").glob(".*.partial"))
 
 
 def test_checkpoints_leave_out_the_pretrained_text_weights_and_reload(labels, tmp_path):
     config = replace(CONFIG, stage=2, model=replace(CONFIG.model, use_text=True), max_steps=2)
     last = train(config, labels, tmp_path / "run", progress=False)
-    state = load_checkpoint(last)["state_dict"]
+    state = read_checkpoint(last)["state_dict"]
     assert not [k for k in state if k.startswith("model.text_encoder.encoder.") and "lora_" not in k]
     assert [k for k in state if "lora_" in k]
-    module = module_from_checkpoint(last)
-    assert module.model.text_encoder is not None
+    model, data = load_model(last)
+    assert model.text_encoder is not None and data == config.data
 
 
 def test_bad_checkpoints_and_configs_are_input_errors(tmp_path):
     junk = tmp_path / "junk.ckpt"
     junk.write_bytes(b"not a checkpoint")
     with pytest.raises(InputError, match=r"junk\.ckpt"):
-        load_checkpoint(junk)
+        read_checkpoint(junk)
     foreign = tmp_path / "foreign.ckpt"
     torch.save({"state_dict": {}}, foreign)
     with pytest.raises(InputError, match="not a LangTraj checkpoint"):
-        load_checkpoint(foreign)
+        read_checkpoint(foreign)
     bad = tmp_path / "bad.yaml"
     bad.write_text("stage: 3\n")
     with pytest.raises(InputError, match="stage must be 1 or 2"):
@@ -123,7 +124,7 @@ def test_a_checkpoint_of_another_model_version_is_refused(labels, tmp_path):
     older = tmp_path / "older.ckpt"
     torch.save(checkpoint, older)
     with pytest.raises(InputError, match=r"do not match this version of the model; missing model\.denoiser"):
-        module_from_checkpoint(older)
+        load_model(older)
 
 
 def test_a_checkpoint_with_the_obsolete_null_embedding_still_loads(labels, tmp_path):
@@ -133,6 +134,6 @@ def test_a_checkpoint_with_the_obsolete_null_embedding_still_loads(labels, tmp_p
     checkpoint["state_dict"]["model.text_encoder.null_embedding"] = torch.zeros(config.model.hidden_dim)
     older = tmp_path / "older.ckpt"
     torch.save(checkpoint, older)
-    module = module_from_checkpoint(older)
-    for key, value in module_from_checkpoint(last).state_dict().items():
-        assert torch.equal(module.state_dict()[key], value), key
+    model, _ = load_model(older)
+    for key, value in load_model(last)[0].state_dict().items():
+        assert torch.equal(model.state_dict()[key], value), key

@@ -27,6 +27,8 @@ from langtraj.frames import Origin, poses_to_frame, poses_to_world
 from langtraj.guidance import GuidanceScene, GuidanceTerm, reconstruction_guidance
 from langtraj.guidance.library import terms_for_prompt
 from langtraj.interdrive.dataset import PromptEntry
+from langtraj.interdrive.prompts import Prompt
+from langtraj.interdrive.prompts.user import recognize_prompt
 from langtraj.model.checkpoint import load_model
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import MapArrays, collate_scenes, map_polylines, scene_frame, scene_sample
@@ -315,6 +317,9 @@ class GuidanceBaselinePolicy(LangTrajPolicy):
     name = "guidance_baseline"
 
     def __init__(self, model: LangTraj, data: SampleConfig, *, prompt: PromptEntry, **kwargs):
+        if prompt.subtype is None and not prompt.labels:  # a typed prompt: read its labels from its words
+            read = recognize_prompt(Prompt(prompt.text, prompt.mentions, source=prompt.source))
+            prompt = replace(prompt, subtype=read.subtype_id, labels=read.label_keys)
         if prompt.subtype is None and not prompt.labels:
             raise InputError(
                 "the guidance baseline needs a labelled prompt (an InterDrive subtype or labels); "
@@ -333,7 +338,8 @@ class GuidanceBaselinePolicy(LangTrajPolicy):
         return LangTrajPolicy._request_options(scenario, request)
 
     def describe(self) -> dict[str, Any]:
-        return {**super().describe(), "prompted_ids": list(self.labelled.mentions)}
+        read = {"subtype": self.labelled.subtype, "labels": list(self.labelled.labels)}
+        return {**super().describe(), "prompted_ids": list(self.labelled.mentions), "prompt_read_as": read}
 
     def prompt_terms(self, world: SimWorld, slots: dict[int, int], origin: Origin) -> tuple[GuidanceTerm, ...]:
         mentions = {i: slots[t] for i, t in enumerate(self.labelled.mentions[:2]) if t in slots}

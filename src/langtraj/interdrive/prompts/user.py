@@ -3,12 +3,15 @@ so that a bad prompt fails with one clear message instead of conditioning the mo
 
 from __future__ import annotations
 
+import functools
 import re
 import unicodedata
 from collections.abc import Iterable
+from dataclasses import replace
 
 from langtraj.errors import InputError
 from langtraj.interdrive.prompts.compose import MENTION, Prompt, mentions_in
+from langtraj.interdrive.prompts.phrases import OTHER_SLOT
 
 _AT_TOKEN = re.compile(r"@\S*")
 _WORD = re.compile(r"[^\W\d_]+")
@@ -67,3 +70,46 @@ def parse_user_prompt(text: str, track_ids: Iterable[int], max_chars: int = 300)
         raise InputError(f"unknown agent{'s' if len(unknown) > 1 else ''} {named}; {_describe_ids(known)}")
     text = MENTION.sub(lambda m: f"@{int(m.group(1))}", text)  # "@007" -> "@7"
     return Prompt(text=text, mentions=mentions, source="user")
+
+
+@functools.cache
+def _phrase_patterns() -> tuple[tuple[str, bool, re.Pattern[str]], ...]:
+    """(label key or subtype id, is a subtype, pattern) for every template phrase, longest phrase first."""
+    from langtraj.interdrive.prompts.phrases import phrase_tables
+    from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID
+
+    found = []
+    for order, (key, phrases) in enumerate(phrase_tables().items()):
+        subtype = key in SUBTYPES_BY_ID
+        forms = set(phrases)
+        if subtype:  # "yields to <other>" also names the subtype of "yields to <other> at the intersection"
+            forms |= {p[: p.index(OTHER_SLOT) + len(OTHER_SLOT)] for p in phrases if OTHER_SLOT in p}
+        for phrase in sorted(forms):
+            words = re.escape(phrase.lower()).replace(re.escape(OTHER_SLOT), r"@\d+")
+            found.append((len(phrase), order, key.split("[")[0], subtype, re.compile(rf"(?<![\w<]){words}(?!\w)")))
+    found.sort(key=lambda item: (-item[0], item[1]))  # longest first; ties in taxonomy order
+    return tuple((key, subtype, pattern) for _, _, key, subtype, pattern in found)
+
+
+def recognize_prompt(prompt: Prompt) -> Prompt:
+    """The prompt with the interaction subtype and single-agent labels its text states, read back from the
+    phrase tables (the inverse of composing a prompt): the longest interaction phrase (or its part up to
+    the other agent) gives the subtype, every other non-overlapping label phrase a label key. Phrases are
+    matched case-insensitively as written in `phrases.py`; a prompt in other words gains nothing."""
+    text = prompt.text.lower()
+    taken = [False] * len(text)
+    subtype: str | None = None
+    labels: list[str] = []
+    for key, is_subtype, pattern in _phrase_patterns():
+        if is_subtype and subtype is not None:
+            continue
+        for match in pattern.finditer(text):
+            if any(taken[match.start() : match.end()]):
+                continue
+            taken[match.start() : match.end()] = [True] * (match.end() - match.start())
+            if is_subtype:
+                subtype = key
+            elif key not in labels:
+                labels.append(key)
+            break
+    return replace(prompt, subtype_id=prompt.subtype_id or subtype, label_keys=prompt.label_keys or tuple(labels))
