@@ -213,6 +213,39 @@ def test_neighbour_side_counts_neighbours_not_exit_lanes():
     assert index.geometric_side(right, middle, np.array([50.0, 1.7])) == "left"
 
 
+def test_neighbour_side_per_lane_pair_for_the_detector():
+    # With lists: a listed pair is beside, either way round; a pair listed with others (1 and 3) is not.
+    index = MapIndex.build(three_lane_road(with_crosswalk=False))
+    right, middle, left = (lane_index(index, i) for i in (1, 2, 3))
+    assert index.neighbor_side(right, middle, per_lane=True) == "left"
+    assert index.neighbor_side(middle, right, per_lane=True) == "right"
+    assert index.neighbor_side(right, left, per_lane=True, band=(0.0, 10.0)) is None
+    # Without lists: lanes `band` apart beside each other (2-5 m for the detector), never an exit lane.
+    bare = three_lane_road(with_neighbors=False, with_edges=False, with_crosswalk=False)
+    ahead = MapFeature(4, MapFeatureType.LANE_SURFACE_STREET, line(ROAD_X[1], 0, ROAD_X[1] + 5, 0), entry_lanes=(1,))
+    index = MapIndex.build(RoadMap([*bare.features, ahead]))
+    right, middle, left, nxt = (lane_index(index, i) for i in (1, 2, 3, 4))
+    assert index.neighbor_side(right, middle, per_lane=True, band=(2.0, 5.0)) == "left"
+    assert index.neighbor_side(middle, right, per_lane=True, band=(2.0, 5.0)) == "right"
+    assert index.neighbor_side(right, left, per_lane=True, band=(2.0, 5.0)) is None  # 7 m apart
+    assert index.neighbor_side(right, middle, per_lane=True, band=(4.0, 5.0)) is None
+    assert index.neighbor_side(nxt, right, per_lane=True, band=(0.0, 10.0)) is None  # 4 names 1 its entry lane
+
+
+def test_parked_decision_road_side_and_kerb():
+    index = MapIndex.build(three_lane_road(with_crosswalk=False))
+    beside = np.array([[50.0, -1.2]])  # 1.2 m right of the rightmost lane centre, 0.55 m from the edge
+    match = index.match_lanes(beside, radius=2.0)
+    assert index.parked_decision(index.match_lanes(np.array([[50.0, -30.0]]), radius=2.0), beside)[0] is True
+    assert index.parked_decision(match, beside)[0] is False  # on a lane: the detector asks no more
+    assert index.parked_decision(match, beside, lane_offset=1.0)[0] is True
+    assert index.parked_decision(match, beside, lane_offset=1.5, kerb_distance=1.0)[0] is True
+    assert index.parked_decision(match, beside, lane_offset=1.5, kerb_distance=0.3)[0] is False
+    no_edges = MapIndex.build(three_lane_road(with_edges=False, with_crosswalk=False))
+    assert no_edges.parked_decision(match, beside, kerb_distance=1.0)[0] is None
+    assert MapIndex.build(RoadMap([])).parked_decision(match, beside)[0] is None
+
+
 # ---------------------------------------------------------------------------------------------- junctions
 
 

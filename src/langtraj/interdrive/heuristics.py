@@ -1,5 +1,5 @@
 """Heuristic single-agent labels (InterDrive 'Heuristic Annotation Process') over a scene's future window;
-docs/interdrive.md describes them and docs/benchmarks.md ('Label quality') measures them.
+docs/interdrive.md describes them and docs/benchmarks.md ('InterDrive labels') measures them.
 
 Every agent valid at the current step and over at least `HeuristicConfig.min_future_fraction` of the future
 steps [current_index, num_steps) gets the labels whose rule holds, each with the window steps [start, end)

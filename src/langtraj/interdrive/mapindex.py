@@ -430,8 +430,9 @@ class MapIndex:
         both lanes and of their predecessors and successors count (neighbour lanes are often split at other
         points); with inferred neighbours, geometry at `xy` decides (`geometric_side`, lanes `band` apart).
         With `per_lane` (the interaction detector) each pair of lanes decides: listed in either's neighbour list,
-        they are neighbours; when either lists others, or one is the other's exit or entry lane, they are not;
-        otherwise when the middle point of `lane_to` lies `band` from the nearest point of `lane_from` (no `xy`)."""
+        they are neighbours; when either lists others, or `lane_from` names `lane_to` an exit or entry lane, they are
+        not; otherwise when the middle point of `lane_to` lies `band` from the nearest point of `lane_from` (no
+        `xy`)."""
         if per_lane:
             return self._pair_side(lane_from, lane_to, band)
         if self.neighbor_source == "none":

@@ -1,7 +1,7 @@
 """A rule-based interaction detector from trajectories and map alone (no simulator events).
 
 For real scenes (Waymo, nuScenes) and to pre-fill the labeling tool; docs/interdrive.md ('Interaction labels')
-describes it and docs/benchmarks.md ('Label quality') measures it. One `InteractionRule` per interaction type,
+describes it and docs/benchmarks.md ('InterDrive labels') measures it. One `InteractionRule` per interaction type,
 registered in `INTERACTION_RULES`; `detect_interactions` runs them all over one shared, lazily computed
 `SceneGeometry`. Modules: `config` (thresholds), `scene` (`SceneGeometry` and who stands), `paths` (paths, leaders,
 following), `lanes` (lane matches, lane leaders, roundabouts), `lane_changes` (lane changes, merges, overtakes),

@@ -28,18 +28,10 @@ class ScenePart:
 
     def __init__(self, scene: SceneGeometry):
         self.scene = scene
-        self.scenario = scene.scenario
-        self.config = scene.config
-        self.map_index = scene.map_index
-        self.xy = scene.xy
-        self.heading = scene.heading
-        self.speed = scene.speed
-        self.accel = scene.accel
-        self.length = scene.length
-        self.valid = scene.valid
-        self.types = scene.types
-        self.ids = scene.ids
-        self.movers = scene.movers
+        self.scenario, self.config, self.map_index = scene.scenario, scene.config, scene.map_index
+        self.xy, self.heading, self.speed, self.accel = scene.xy, scene.heading, scene.speed, scene.accel
+        self.length, self.valid = scene.length, scene.valid
+        self.types, self.ids, self.movers = scene.types, scene.ids, scene.movers
 
     @property
     def num_steps(self) -> int:

@@ -52,6 +52,15 @@ def _label(scene: SceneGeometry, agent: int, other: int, subtype: str, start: in
     )
 
 
+def _pair_labels(
+    scene: SceneGeometry, pairs: Sequence[Pair], subtype: str, reverse: bool = False
+) -> list[InteractionLabel]:
+    """One label of `subtype` per pair, agent to other (other to agent with `reverse`), over the pair's steps."""
+    return [
+        _label(scene, *((p.other, p.agent) if reverse else (p.agent, p.other)), subtype, p.start, p.end) for p in pairs
+    ]
+
+
 @INTERACTION_RULES.register
 class LaneChangeRule(InteractionRule):
     """A switch to a neighbour lane, with the leader on the target lane (or the overtaken agent)."""
@@ -132,14 +141,9 @@ class YieldingRule(InteractionRule):
         for p in scene.yields.vehicle_yields:
             sub = "yielding/to_merging_or_lane_change" if p.other in changing and not roundabout else junction
             labels.append(_label(scene, p.agent, p.other, sub, p.start, p.end))
-        labels += [
-            _label(scene, p.agent, p.other, "yielding/to_pedestrian", p.start, p.end)
-            for p in scene.crossings.pedestrian_yields
-        ]
-        labels += [
-            _label(scene, w.agent, w.other, "yielding/pedestrian_to_vehicle", w.start, w.end)
-            for w, _ in scene.crossings.pedestrian_waits
-        ]
+        crossings = scene.crossings
+        labels += _pair_labels(scene, crossings.pedestrian_yields, "yielding/to_pedestrian")
+        labels += _pair_labels(scene, [w for w, _ in crossings.pedestrian_waits], "yielding/pedestrian_to_vehicle")
         return labels
 
 
@@ -160,14 +164,9 @@ class PassingRule(InteractionRule):
             else:
                 sub = "passing/intersection_with_yielding"
             labels.append(_label(scene, p.other, p.agent, sub, p.start, p.end))
-        labels += [
-            _label(scene, p.other, p.agent, "passing/vru_crossing", p.start, p.end)
-            for p in scene.crossings.pedestrian_yields
-        ]
-        labels += [
-            _label(scene, v.agent, v.other, "passing/pedestrian", v.start, v.end)
-            for _, v in scene.crossings.pedestrian_waits
-        ]
+        crossings = scene.crossings
+        labels += _pair_labels(scene, crossings.pedestrian_yields, "passing/vru_crossing", reverse=True)
+        labels += _pair_labels(scene, [v for _, v in crossings.pedestrian_waits], "passing/pedestrian")
         return labels
 
 

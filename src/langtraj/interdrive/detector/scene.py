@@ -50,31 +50,16 @@ class SceneGeometry:
         self.movers = np.isin(self.types, MOVERS)
         steps = agents.num_steps
         self.accel = np.gradient(self.speed, STEP_SECONDS, axis=1) if steps > 1 else np.zeros_like(self.speed)
+        # the parts compute nothing until asked
+        self.paths = PathGeometry(self)
+        self.lanes = LaneGeometry(self)
+        self.changes = LaneChangeGeometry(self)
+        self.yields = YieldGeometry(self)
+        self.crossings = CrosswalkGeometry(self)
 
     @property
     def num_steps(self) -> int:
         return self.scenario.num_steps
-
-    # ------------------------------------------------------------ parts
-    @cached_property
-    def paths(self) -> PathGeometry:
-        return PathGeometry(self)
-
-    @cached_property
-    def lanes(self) -> LaneGeometry:
-        return LaneGeometry(self)
-
-    @cached_property
-    def changes(self) -> LaneChangeGeometry:
-        return LaneChangeGeometry(self)
-
-    @cached_property
-    def yields(self) -> YieldGeometry:
-        return YieldGeometry(self)
-
-    @cached_property
-    def crossings(self) -> CrosswalkGeometry:
-        return CrosswalkGeometry(self)
 
     # ------------------------------------------------------------ standing agents
     @cached_property
