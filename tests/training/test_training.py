@@ -104,6 +104,23 @@ def test_the_presets_load(name):
     assert config.stage == (2 if "text" in name else 1)
 
 
+@pytest.mark.parametrize("path", sorted((ROOT / "configs" / "experiments").glob("*.yaml")), ids=lambda p: p.stem)
+def test_the_experiment_configs_load(path):
+    config = load_config(path)
+    assert config.stage == 2 and config.model.use_text
+
+
+def test_a_bad_preset_is_one_line_and_exit_2(labels, tmp_path, capsys):
+    from langtraj.cli.main import main
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(f"extends: {ROOT / 'configs' / 'tiny.yaml'}\ndata: {{max_agents: 0}}\n")
+    assert main(["train", "--config", str(bad), "--data", str(labels), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("data.max_agents: must be >= 1, got 0") and len(err.splitlines()) == 1
+    assert not (tmp_path / "run").exists()
+
+
 def test_validation_reports_min_ade_and_a_small_wosac_evaluation(labels, tmp_path):
     from langtraj.training.config import ValConfig
 

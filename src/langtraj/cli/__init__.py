@@ -1,1 +1,1 @@
-"""The `langtraj` command: one module per verb, dispatched by `langtraj.cli.main`."""
+"""The `langtraj` command: one module per verb, dispatched by `langtraj.cli.main`. See README.md."""

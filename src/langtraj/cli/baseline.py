@@ -2,6 +2,8 @@
 
 Rollouts from a model-free policy (constant velocity, log replay, stationary) in the `.npz` layout that
 `langtraj evaluate` scores: the yardsticks a learned policy is compared with.
+
+See README.md.
 """
 
 from __future__ import annotations

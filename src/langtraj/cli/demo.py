@@ -3,6 +3,8 @@
 A scene (synthesized with SUMO unless --scenario is given) simulated unconditioned, with an InterDrive
 prompt, and safety-critical (collision guidance plus the prompt), written side by side to DIR/demo.mp4
 with DIR/summary.json. Takes a few minutes on a laptop CPU with the shipped checkpoint.
+
+See README.md.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Entry point of the `langtraj` command: parses the verb, runs it, turns errors into one line."""
+"""Entry point of the `langtraj` command: parses the verb, runs it, turns errors into one line. See README.md."""
 
 from __future__ import annotations
 

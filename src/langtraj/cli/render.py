@@ -1,4 +1,4 @@
-"""`langtraj render FILE --out OUT`: a top-down PNG of one step, or an MP4/GIF of a scene or window."""
+"""`langtraj render FILE --out OUT`: a top-down PNG of one step, or an MP4/GIF of a scene or window. See README.md."""
 
 from __future__ import annotations
 

@@ -2,6 +2,8 @@
 
 Open-loop futures from a trained model, rendered top-down (OUT: .mp4, .gif or .png; with several
 samples, one file per sample named OUT_s0, OUT_s1, ...). `--npz` also saves the sampled world states.
+
+See README.md.
 """
 
 from __future__ import annotations

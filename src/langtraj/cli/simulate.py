@@ -5,6 +5,8 @@ Closed-loop simulation of one scene. DIR receives `rollouts.npz` (for `langtraj 
 WOSAC submission writer), `rollout0.mp4` (rollout 0, prompted agents highlighted, the prompt as caption)
 and `summary.json` (per-agent collision, offroad and distance travelled; timing). Without `--checkpoint`
 the checkpoint shipped with LangTraj is used. Every input is checked before anything is written.
+
+See README.md.
 """
 
 from __future__ import annotations

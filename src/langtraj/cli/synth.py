@@ -1,4 +1,4 @@
-"""`langtraj synth`: synthesize interactive scenario windows with SUMO into TFRecord shards."""
+"""`langtraj synth`: synthesize interactive scenario windows with SUMO into TFRecord shards. See README.md."""
 
 from __future__ import annotations
 

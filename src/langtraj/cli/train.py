@@ -3,6 +3,8 @@
 One training stage from a YAML preset (`configs/`): checkpoints land in RUN_DIR/checkpoints/*.ckpt,
 TensorBoard and CSV logs in RUN_DIR/logs/. LABELS_DIR is an InterDrive dataset (`langtraj interdrive
 build`), whose records name the scenario files they label.
+
+See README.md.
 """
 
 from __future__ import annotations

@@ -1,5 +1,6 @@
 """Cost guidance for the diffusion sampler: differentiable costs over rolled-out states, the
-reconstruction-guidance step, and the fixed CTG++-style library of costs per InterDrive label."""
+reconstruction-guidance step, and the fixed CTG++-style library of costs per InterDrive label.
+See docs/simulation.md."""
 
 from langtraj.guidance.base import GUIDANCE, GuidanceCost, GuidanceTerm, Schedule
 from langtraj.guidance.costs import CollisionCost, GoalCost, KeepLaneCost, NoCollisionCost, OnRoadCost, TargetSpeedCost

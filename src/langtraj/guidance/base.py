@@ -4,6 +4,8 @@ A cost maps rolled-out states [S, A, T, 4] (x, y, heading, speed in the scene fr
 candidates of one scene) to one value per candidate to MINIMISE, differentiably. A term is a cost
 with a weight and a schedule over the denoising steps (paper 'Controllable Behavior via Diffusion
 Guidance'). Costs take agent slots (model agent indices) and other parameters in `__init__`.
+
+See docs/simulation.md.
 """
 
 from __future__ import annotations

@@ -3,6 +3,8 @@
 Each cost returns one value per candidate [S] to minimise. Per-agent costs are averaged over time and
 summed over the agents they cover, so an agent's gradient does not shrink as more agents are guided.
 Agents that are not valid in the scene (padding) never contribute.
+
+See docs/simulation.md.
 """
 
 from __future__ import annotations

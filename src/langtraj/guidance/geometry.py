@@ -3,6 +3,8 @@
 The nearest segment is searched without autograd in chunks (a points x segments table can be large);
 the distance to the chosen segment is then recomputed with autograd, so the gradient is the exact one
 of the distance to the nearest segment.
+
+See docs/simulation.md.
 """
 
 from __future__ import annotations

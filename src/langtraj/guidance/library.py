@@ -9,6 +9,8 @@ agents a prompt mentions (and their current states) into `GuidanceTerm`s.
 Common range: each weight divides its cost by the size of a clear violation (2 m/s of speed error, 1 m
 off a lane centre or over a road margin, 5 m from a goal, a full disk overlap), so a clear violation of
 any term costs about 1.
+
+See docs/simulation.md.
 """
 
 from __future__ import annotations

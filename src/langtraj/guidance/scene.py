@@ -3,6 +3,8 @@
 Everything is in one scene frame (the frame of the model's `SceneBatch` row), so costs compare it
 directly with the rolled-out states. Build it from a Scenario (`from_scenario`, the whole map) or from
 one row of a SceneBatch (`from_batch`, the polylines the model sees).
+
+See docs/simulation.md.
 """
 
 from __future__ import annotations

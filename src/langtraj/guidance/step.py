@@ -3,6 +3,8 @@
 x0~ = x0 - alpha * grad_x0 sum_terms weight * J(rollout(x0)) (paper 'Controllable Behavior via
 Diffusion Guidance', after Ho et al. and TRACE), applied at every denoising step through the sampler's
 guidance hook. The gradient is taken through the differentiable rollout (actions -> states).
+
+See docs/simulation.md.
 """
 
 from __future__ import annotations

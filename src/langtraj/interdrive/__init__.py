@@ -1,1 +1,4 @@
-"""InterDrive: single-agent heuristic labels, interaction labels and prompts for any Scenario."""
+"""InterDrive: single-agent heuristic labels, interaction labels and prompts for any Scenario.
+
+See docs/interdrive.md.
+"""

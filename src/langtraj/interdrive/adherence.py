@@ -9,6 +9,8 @@ cannot reproduce (a SUMO ground-truth interaction the detector misses) is not co
 This measures instruction following directly (minADE only does so through the logged future), and,
 applied to samples drawn without text, bounds what any text-conditioned model could gain from the
 labels (`langtraj.training.text_gain`).
+
+See docs/interdrive.md.
 """
 
 from __future__ import annotations

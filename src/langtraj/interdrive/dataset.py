@@ -7,6 +7,8 @@ start. Scenes longer than one window (nuScenes, 20 s) are cut into 91-step windo
 holds the single-agent labels (with the labels the heuristics could not decide), the interaction
 labels by source (SUMO ground truth on synthesized scenes, the detector, humans), and the prompt pool
 with each prompt's role-rephrased sentences. Reruns reuse shards whose input and settings match.
+
+See docs/interdrive.md.
 """
 
 from __future__ import annotations

@@ -1,4 +1,7 @@
-"""Human-readable lines for a window's labels and prompts (for annotated renders and the terminal)."""
+"""Human-readable lines for a window's labels and prompts (for annotated renders and the terminal).
+
+See docs/interdrive.md.
+"""
 
 from __future__ import annotations
 

@@ -3,6 +3,8 @@
 A prediction matches a reference label of the same interaction TYPE with the same ordered (track_id, other_id)
 pair whose steps overlap by at least `min_overlap_steps`; matching is one-to-one (largest overlap first), so
 duplicates count as false positives. Subtypes are not compared.
+
+See docs/interdrive.md.
 """
 
 from __future__ import annotations

@@ -7,6 +7,8 @@ yielding"; keys such as "yielding" / "intersection" are read too) and `no_behavi
 free text of Other / Undefined behavior, else empty). Export writes the best-sourced pair of each window
 (human, then SUMO ground truth, then the detector); import turns files into human labels of the
 matching windows and redraws their prompt pools.
+
+See docs/interdrive.md.
 """
 
 from __future__ import annotations

@@ -2,6 +2,8 @@
 
 Plain frozen dataclasses with a JSON form (`to_json` / `from_json`); the JSON readers validate every
 key against the taxonomy and name the field that is wrong. Steps are window steps, [start, end).
+
+See docs/interdrive.md.
 """
 
 from __future__ import annotations

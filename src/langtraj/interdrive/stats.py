@@ -1,5 +1,5 @@
 """Label statistics of an InterDrive dataset: counts per interaction type and subtype (by source) and per
-single-agent label, printed as a table and plotted like the paper's Fig. 2."""
+single-agent label, printed as a table and plotted like the paper's Fig. 2. See docs/interdrive.md."""
 
 from __future__ import annotations
 

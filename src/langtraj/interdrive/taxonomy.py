@@ -4,6 +4,8 @@ Labels, prompts, the labeling tool and the model all take their keys, names and 
 Interaction types and subtypes are those of the paper's appendix 'InterDrive Interaction Type
 Definitions', plus Other; single-agent labels are those of its section 'Heuristic Annotation Process'.
 Keys are stable snake_case strings (they are stored in label files); names are the paper's wording.
+
+See docs/interdrive.md.
 """
 
 from __future__ import annotations

@@ -2,6 +2,8 @@
 
 `WOSAC_2025` is the 2025 Sim Agents Challenge configuration; `WOSAC_2024` differs only in two
 weights (road edge 0.10, traffic lights 0). Custom configurations are plain dataclasses.
+
+See docs/metrics.md.
 """
 
 from __future__ import annotations

@@ -18,6 +18,8 @@ offroad events count at every step, not only where the log happens to be valid.
 
 Rollouts must fit the scenario under the WOSAC rules (`check_rollouts`): all sim agents, 80 steps.
 Steps are indexed 0..79 over the future, step t being scenario step `current_index + 1 + t`.
+
+See docs/metrics.md.
 """
 
 from __future__ import annotations

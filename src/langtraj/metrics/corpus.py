@@ -3,6 +3,8 @@
 Rollout files are matched to scenarios by name: `<scenario_id>.npz` in a rollout folder. Each pair is an
 independent job for an executor (`langtraj.executors`), so a corpus scores on a local process pool or
 a Ray cluster alike. The corpus figure of every field is the mean over scenarios, as in the challenge.
+
+See docs/metrics.md.
 """
 
 from __future__ import annotations

@@ -3,6 +3,8 @@
 Each estimator takes `log` [B, n] and `sim` [B, m] (B independent populations) and returns the log
 probability of every logged value, [B, n]. The histogram estimator is WOSAC's: values clipped to the
 range, equal-width bins, additive smoothing; NaN counts in the last bin (as in the official code).
+
+See docs/metrics.md.
 """
 
 from __future__ import annotations

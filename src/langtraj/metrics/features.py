@@ -4,6 +4,8 @@
 rollouts), built as the challenge builds them: the simulated future is appended to the logged
 history, and box sizes over the future are those of the current step. `compute_features` returns
 every per-step feature of the evaluated agents over the future steps.
+
+See docs/metrics.md.
 """
 
 from __future__ import annotations

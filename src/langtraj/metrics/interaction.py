@@ -4,6 +4,8 @@ Objects are rectangles with rounded corners, as in WOSAC: each box is shrunk by
 `0.7 * min(length, width) / 2` on every side to a "core" rectangle, and the distance between two
 objects is the signed distance between their cores minus both shrink distances. Arrays are
 [N, A, T] (N rollouts, A objects, T steps); results are [N, E, T] for the E evaluated objects.
+
+See docs/metrics.md.
 """
 
 from __future__ import annotations

@@ -3,6 +3,8 @@
 As in WOSAC: derivatives are central differences over the whole track, so the first and last steps
 (two steps for second derivatives) are NaN; heading differences are wrapped after doubling, which
 picks the acute two-step change.
+
+See docs/metrics.md.
 """
 
 from __future__ import annotations

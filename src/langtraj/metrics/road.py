@@ -8,6 +8,8 @@ value is that of its most off-road corner.
 
 The nearest segment is found exactly with a k-d tree over short pieces of the segments plus a
 brute-force fallback, so the result equals a search over every segment at a fraction of the cost.
+
+See docs/metrics.md.
 """
 
 from __future__ import annotations

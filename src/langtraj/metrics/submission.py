@@ -9,6 +9,8 @@ A submission is a set of binary `SimAgentsChallengeSubmission` shards named
 `<prefix>.binproto-00000-of-00003`, ..., each with some scenarios' rollouts and the same metadata, and
 packaged for upload as a flat `.tar.gz` of the shards (the layout of the official tutorial,
 `tutorial/tutorial_sim_agents.ipynb`).
+
+See docs/metrics.md.
 """
 
 from __future__ import annotations

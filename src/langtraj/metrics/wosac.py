@@ -10,6 +10,8 @@ A map without road edges (nuScenes through ScenarioNet) has no road-edge distanc
 indication: those likelihoods and the offroad rate are NaN, and the buckets and the meta-metric are
 taken over the remaining features with their weights rescaled to the same total. Such figures are
 not comparable with the challenge's (the official code refuses these scenes).
+
+See docs/metrics.md.
 """
 
 from __future__ import annotations

@@ -5,6 +5,8 @@ its x axis along that agent's current heading, so every scene looks alike to the
 map polylines are padded to fixed counts; every padded slot is False in its validity mask.
 History and future are at the scenario rate (10 Hz): `H` history steps ending at the current one,
 `F` future steps after it.
+
+See docs/model.md.
 """
 
 from __future__ import annotations

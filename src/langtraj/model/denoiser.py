@@ -7,6 +7,8 @@ agent's scene embedding; agents without text carry the learned null condition). 
 also added to its input token, and together with the diffusion step it scales and shifts every
 agent's token before each block (FiLM, zero-initialised as DiT's adaLN-Zero): the direct path for its
 condition, which cross-attention alone learns too slowly to use.
+
+See docs/model.md.
 """
 
 from __future__ import annotations

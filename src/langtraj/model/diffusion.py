@@ -3,6 +3,8 @@
 The denoiser predicts the clean sample x0 (not the noise), as in LangTraj ("Denoising Process"
 appendix). Timesteps are 0-based tensor indices k = 0 .. K-1; index k is the paper's step k+1, so
 `alphas_cumprod[k]` = prod_{j<=k} alpha_j and "stepping below 0" means returning the clean sample.
+
+See docs/model.md.
 """
 
 from __future__ import annotations

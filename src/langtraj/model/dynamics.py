@@ -2,6 +2,8 @@
 
 LangTraj diffuses over unicycle actions (acceleration, yaw rate) at 2 Hz; each action is held for
 `steps_per_action` scenario steps of `dt` seconds (5 x 0.1 s). A state is (x, y, heading, speed).
+
+See docs/model.md.
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ class Unicycle(Dynamics):
     (semi-implicit Euler: the new speed and heading move the position). `forward` does not clip actions to
     the bounds, so guidance gradients never vanish there; `inverse` returns actions within them and `clip`
     applies them. Bounds: |a| <= 8 m/s^2 (about emergency braking) and |w| <= 1.5 rad/s (a 3 m radius
-    turn at 4.5 m/s). Unbounded fits to the real logs in ../shared/data/real gave vehicle |w| <= 0.76 rad/s
+    turn at 4.5 m/s). Unbounded fits to real WOMD and nuScenes logs (docs/model.md) gave vehicle |w| <= 0.76 rad/s
     and |a| p99 of 6-14 m/s^2, the excess being track glitches that the bounds rightly refuse; pedestrian
     heading flips reach 15 rad/s and are cut to 1.5 (their positions still fit within 0.6 m).
 

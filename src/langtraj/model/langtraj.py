@@ -3,6 +3,8 @@
 The network predicts the clean actions (x0) of every agent from noisy ones; actions are integrated by
 the dynamics model into 10 Hz states, and the training loss compares those states with the logged
 future in the scene frame, masked by validity (paper 'LangTraj', DESIGN.md section 6).
+
+See docs/model.md.
 """
 
 from __future__ import annotations

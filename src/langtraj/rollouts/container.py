@@ -3,6 +3,8 @@
 File layout (the WOSAC reference layout): `object_id` (A,) int64 and `x`, `y`, `z`, `heading`, each
 (R, A, T) float32, with T = 80 steps at 10 Hz after the scenario's current step. An optional
 `scenario_id` string names the scene the rollouts belong to, so a mismatch can be caught.
+
+See docs/metrics.md.
 """
 
 from __future__ import annotations

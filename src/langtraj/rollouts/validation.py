@@ -1,4 +1,7 @@
-"""Checks that rollouts fit their scenario under the WOSAC rules, with errors that say what is wrong."""
+"""Checks that rollouts fit their scenario under the WOSAC rules, with errors that say what is wrong.
+
+See docs/metrics.md.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The Scenario data model, its file formats, windowing and agent selection."""
+"""The Scenario data model, its file formats, windowing and agent selection. See docs/data.md."""
 
 from langtraj.scenario.model import (
     STEP_SECONDS,

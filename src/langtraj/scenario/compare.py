@@ -1,4 +1,4 @@
-"""Field-by-field comparison of two scenarios, for round-trip checks of readers and converters."""
+"""Field-by-field comparison of two scenarios, for round-trip checks of readers and converters. See docs/data.md."""
 
 from __future__ import annotations
 

@@ -3,6 +3,8 @@
 Typed, immutable dataclasses over numpy arrays (DESIGN.md section 4). Arrays are validated and
 coerced to their contract dtypes on construction, so every consumer can rely on shapes and dtypes.
 Convert to tensors only at the model boundary.
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -1,4 +1,7 @@
-"""Choosing which agents a consumer works on: nearest to a point, tracks to predict, interest first."""
+"""Choosing which agents a consumer works on: nearest to a point, tracks to predict, interest first.
+
+See docs/data.md.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""One JSON-compatible summary per scenario (what `langtraj inspect` prints)."""
+"""One JSON-compatible summary per scenario (what `langtraj inspect` prints). See docs/data.md."""
 
 from __future__ import annotations
 

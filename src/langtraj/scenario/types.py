@@ -2,6 +2,8 @@
 
 Integer values of `AgentType` and `TrafficLightState` equal the Waymo Open Motion proto enums; the
 names of `MapFeatureType` equal ScenarioNet's (MetaDrive) type strings, so both formats map by lookup.
+
+See docs/data.md.
 """
 
 from __future__ import annotations

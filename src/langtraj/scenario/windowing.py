@@ -1,4 +1,4 @@
-"""Cutting long scenes into fixed windows (WOMD layout: 11 history + 80 future steps at 10 Hz)."""
+"""Cutting long scenes into fixed windows (WOMD layout: 11 history + 80 future steps at 10 Hz). See docs/data.md."""
 
 from __future__ import annotations
 

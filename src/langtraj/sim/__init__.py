@@ -1,4 +1,7 @@
-"""Closed-loop simulation: the rollout engine, policies, candidate selection and simulation summaries."""
+"""Closed-loop simulation: the rollout engine, policies, candidate selection and simulation summaries.
+
+See docs/simulation.md.
+"""
 
 from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.engine import SimResult, replan_schedule, simulate

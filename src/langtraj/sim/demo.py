@@ -4,6 +4,8 @@ with collision guidance plus the prompt), rendered side by side, as in the paper
 Without a scene file the demo synthesizes a signalized intersection with SUMO and labels it with
 InterDrive; the prompt is one of its interaction prompts between two vehicles the model drives, the
 prompt's other agent becomes the adversary and its target agent the target.
+
+See docs/simulation.md.
 """
 
 from __future__ import annotations

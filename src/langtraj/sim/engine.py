@@ -4,6 +4,8 @@ At each replan step the policy plans every rollout's driven agents from that rol
 past; the world executes the first `replan_s` seconds of the plan at 10 Hz and the next replan starts
 from there (paper 'Implementation Details': 1 Hz replanning over an 8 s simulation). All R rollouts
 advance together, so a policy can batch them through its model.
+
+See docs/simulation.md.
 """
 
 from __future__ import annotations

@@ -3,6 +3,8 @@
 The paper executes the candidate with the lowest collision cost (appendix 'Implementation Details');
 with cost guidance the candidate that best meets the guidance objective is the natural choice, since
 the lowest-collision one would undo collision guidance. Selectors are registered by name.
+
+See docs/simulation.md.
 """
 
 from __future__ import annotations

@@ -1,4 +1,7 @@
-"""The JSON summary of a simulation: per agent, how often it collided or left the road and how far it went."""
+"""The JSON summary of a simulation: per agent, how often it collided or left the road and how far it went.
+
+See docs/simulation.md.
+"""
 
 from __future__ import annotations
 

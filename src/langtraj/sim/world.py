@@ -5,6 +5,8 @@ so a policy sees each rollout's past exactly as a logged scenario (`scenario_at`
 features apply unchanged. Agents that no policy drives follow their log; where the log has no valid
 future step they keep their last logged velocity (constant velocity), so every sim agent has a pose at
 every step for the rollout file.
+
+See docs/simulation.md.
 """
 
 from __future__ import annotations

@@ -3,6 +3,8 @@
 SUMO reports a vehicle's position at the middle of its front bumper and its angle in degrees clockwise
 from north; the Scenario model wants box centres and headings in radians counter-clockwise from east,
 wrapped to (-pi, pi].
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -3,6 +3,8 @@ cars, trucks, buses, cyclists and pedestrians between the network's fringe edges
 
 Vehicles get `<flow from= to=>` so SUMO routes them at departure (no duarouter run); only pairs with a
 route are written. Every draw comes from the given numpy Generator, so a seed fixes the route file.
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -5,6 +5,8 @@ each kind that is still short for enough shards of at most `windows_per_shard` w
 yields fewer (windows are filtered) is made up for by the next round. Shard seeds depend only on the run
 seed, the kind and the shard index, so the plan and every shard are the same whatever the worker count.
 A shard whose file and sidecar exist with the same seed, quota and settings is not run again (resume).
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -18,6 +18,8 @@ Conventions (WOMD-like):
   polyline (first point == last point); a longer one is split into pieces that share their end points.
 - Lane boundaries point at road lines with their own type, and at road edges with type
   ROAD_LINE_UNKNOWN (as in WOMD, whose boundary segments carry a road-line type only).
+
+See docs/data.md.
 """
 
 from __future__ import annotations

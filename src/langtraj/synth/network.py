@@ -3,6 +3,8 @@
 A kind writes a `.net.xml` (netconvert from nodes/edges XML, or netgenerate) into a work folder and
 says where the interesting places are (junction centres, merge areas, crosswalks), so windows can be
 cut around them. Register a new kind with `@register_kind`.
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -4,6 +4,8 @@ The runner only records what SUMO says (positions, angles, speeds, lanes, leader
 signal states, collisions, teleports, lane-change output); turning that into box centres, smooth
 headings and behaviour events is left to `tracks`, `smoothing` and `events`, which are pure numpy and
 testable without SUMO. libsumo holds one simulation per process, so a process runs one at a time.
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -2,6 +2,8 @@
 
 A shard is the unit of work of the factory: independent of every other shard, deterministic in its
 seed (same seed, byte-identical shard), and written atomically with a JSON sidecar of its statistics.
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -8,6 +8,8 @@
   their angle flips with them. Jumps beyond a walking speed are replaced by a linear interpolation,
   positions are averaged over a short centred window, and the heading follows the smoothed motion
   (held while standing).
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -2,6 +2,8 @@
 
 Every SUMO command the factory runs goes through `run_tool`, so a failing netconvert or a missing
 install surfaces as one `SynthError` naming the tool and its own error lines.
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -3,6 +3,8 @@
 Each agent gets a track id in order of first appearance (deterministic), box centres from the front
 bumper, headings in radians (repaired by `smoothing`), velocity along the heading at SUMO's speed, and
 its lane and leader per step. Steps where the agent was teleported are invalid.
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -4,6 +4,8 @@ A window is 91 steps (11 history, 80 future) starting every `stride_s` after the
 interest centre. It keeps the agents that come within the centre's radius during the window (10 to 128
 of them, nearest first), its interacting pair as objects of interest, and is dropped when any of its
 agents was teleported or collided in it, or two vehicle boxes overlap.
+
+See docs/data.md.
 """
 
 from __future__ import annotations

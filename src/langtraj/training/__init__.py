@@ -1,1 +1,4 @@
-"""Training LangTraj: turning InterDrive windows into model batches, and the sampling that balances them."""
+"""Training LangTraj: turning InterDrive windows into model batches, and the sampling that balances them.
+
+See docs/model.md.
+"""

@@ -4,6 +4,8 @@ A YAML file may name another with `extends: other.yaml` (relative to itself); it
 the other's, section by section. Hardware is configuration only: `accelerator`, `devices`,
 `num_nodes` and `strategy` (e.g. ddp) go straight to the Lightning Trainer, so the same command runs
 on a laptop CPU, one GPU or several nodes (launched with torchrun or a cluster scheduler).
+
+See docs/model.md.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Lightning wiring: the training step, validation measures, optimiser schedule, data loading and
 checkpoints that resume exactly (weights, optimiser, scheduler, step, data position; randomness
-derives from the step)."""
+derives from the step). See docs/model.md."""
 
 from __future__ import annotations
 
@@ -89,7 +89,7 @@ class LangTrajModule(pl.LightningModule):
 
     def _wosac(self, dataset) -> dict[str, float]:
         """WOSAC metrics of open-loop rollouts (32 by default, no text) on the first validation windows
-        that log 80 future steps: the metrics issue's code on what the model samples."""
+        that log 80 future steps (`langtraj.metrics`, docs/metrics.md) on what the model samples."""
         val = self.train_config.val
         scores = []
         for index in range(len(dataset)):

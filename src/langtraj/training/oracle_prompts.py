@@ -10,6 +10,8 @@ is at fault; if it does, a small gain on the real prompts comes from what those 
     langtraj experiment oracle-prompts LABELS_DIR --out ORACLE_DIR [--bin 5]
 
 The rewritten dataset points at the same scenario files; it keeps labels and drops the prompt pools.
+
+See docs/model.md.
 """
 
 from __future__ import annotations

@@ -4,6 +4,8 @@ Checkpoints go to `RUN_DIR/checkpoints/` every `checkpoint_every_steps` steps (`
 most recent numbered ones), each written to a temporary file and renamed, so a kill loses at most the
 steps since the last checkpoint and never leaves a half-written file. Logs: TensorBoard and CSV under
 `RUN_DIR/logs/`.
+
+See docs/model.md.
 """
 
 from __future__ import annotations

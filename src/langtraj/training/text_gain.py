@@ -13,6 +13,8 @@ Two measures beside minADE (`evaluation.open_loop_table`), both from `interdrive
 
 Agents whose prompt has no fact the labelers reproduce on the logged future count with their first
 draws (no information) in the `prompted` figures and are left out of the `checked` ones.
+
+See docs/model.md.
 """
 
 from __future__ import annotations

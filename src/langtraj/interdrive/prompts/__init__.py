@@ -1,5 +1,6 @@
 """InterDrive prompts: phrase tables written in a small template grammar, compositional prompts with
-role rephrasing, validated user prompts, per-window prompt pools and an optional LLM rephraser."""
+role rephrasing, validated user prompts, per-window prompt pools and an optional LLM rephraser.
+See docs/interdrive.md."""
 
 from langtraj.interdrive.prompts.compose import Prompt, compose_prompt, mentions_in, role_rephrase
 from langtraj.interdrive.prompts.grammar import expand, sample

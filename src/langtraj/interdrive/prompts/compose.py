@@ -4,6 +4,8 @@ A prompt names agents with `@<track_id>` tokens ("@12 yields to @7 at the inters
 and turns left"). The model is conditioned per agent: `role_rephrase` writes, for each mentioned agent,
 the sentence in which it is "the target agent" and the others are "other agent1", "other agent2", ...
 (paper, section 'LangTraj'); agents the prompt does not mention get no sentence (the null condition).
+
+See docs/interdrive.md.
 """
 
 from __future__ import annotations

@@ -13,6 +13,8 @@ Groups nest freely: `{speeds up|accelerates}[ {gradually|steadily}]`. Expansions
 fixed order (the first alternative of every group first, the leftmost group varying slowest), so the
 first expansion is a template's canonical phrase. Malformed templates raise ValueError naming the
 template and the 0-based character position.
+
+See docs/interdrive.md.
 """
 
 from __future__ import annotations

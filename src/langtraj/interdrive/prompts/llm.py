@@ -4,6 +4,8 @@ The paper rephrased its prompts with an LLM; this backend does the same for a ph
 <other> at the intersection"), keeps only outputs that preserve its `<slot>` placeholders, and caches
 the answers on disk so a rerun makes no request. Standard library only (urllib); no network is used
 unless `LLMConfig.url` is set.
+
+See docs/interdrive.md.
 """
 
 from __future__ import annotations

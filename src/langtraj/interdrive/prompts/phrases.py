@@ -6,6 +6,8 @@ intersection"), in the third person singular so that any singular subject fits (
 written with the template grammar of `grammar.py` and follow the definitions in `taxonomy.py`; the
 paper generated its rephrasings with an LLM, here they are hand-written (see `llm.py` for an
 optional LLM backend).
+
+See docs/interdrive.md.
 """
 
 from __future__ import annotations

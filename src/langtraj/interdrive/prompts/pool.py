@@ -1,5 +1,5 @@
 """The prompt pool of one window: a few distinct compositional prompts per labelled agent, drawn
-deterministically from a seed, to train and evaluate language conditioning."""
+deterministically from a seed, to train and evaluate language conditioning. See docs/interdrive.md."""
 
 from __future__ import annotations
 

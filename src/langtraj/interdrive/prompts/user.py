@@ -1,5 +1,5 @@
 """Prompts typed by users, naming agents by track id (`@12 yields to @7 at the intersection`), validated
-so that a bad prompt fails with one clear message instead of conditioning the model on junk."""
+so that a bad prompt fails with one clear message instead of conditioning the model on junk. See docs/interdrive.md."""
 
 from __future__ import annotations
 

@@ -1,6 +1,8 @@
 """Scenario files: format registry and the entry points every other module uses to read and write.
 
 Importing this package registers the built-in formats (WOMD TFRecord, ScenarioNet pickle).
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -3,6 +3,8 @@
 Each record is: uint64 length (little endian), uint32 masked CRC32C of those 8 bytes, the payload,
 uint32 masked CRC32C of the payload. Reading streams one record at a time, so shard size does not
 matter; skipping records seeks past payloads without reading them.
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -4,6 +4,8 @@
 `proto/womd.proto` and our `Scenario`; `WomdFormat` frames them in TFRecord files. Lossy only where
 our model is richer than WOMD: ROAD_EDGE_SIDEWALK is written as a boundary edge and lane polygons are
 dropped (LangTraj's own extension fields keep events and metadata).
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -2,6 +2,8 @@
 
 Modules are imported in this order so `kind_names()` lists the kinds from single junctions to the
 random city.
+
+See docs/data.md.
 """
 
 from __future__ import annotations

@@ -1,4 +1,7 @@
-"""Arterial kind: a multi-lane urban main road through 2-4 signalized intersections with side streets."""
+"""Arterial kind: a multi-lane urban main road through 2-4 signalized intersections with side streets.
+
+See docs/data.md.
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """City kind: a random street network from `netgenerate --rand`, with mixed junction types (signals,
-priority, stop signs, all-way stops, right-before-left), sidewalks, crossings and maybe bike lanes."""
+priority, stop signs, all-way stops, right-before-left), sidewalks, crossings and maybe bike lanes. See docs/data.md."""
 
 from __future__ import annotations
 

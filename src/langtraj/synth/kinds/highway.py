@@ -1,5 +1,5 @@
 """Highway on-ramp kind: a multi-lane motorway that an on-ramp joins through an acceleration lane that
-ends (the merge), optionally followed by an off-ramp with a deceleration lane."""
+ends (the merge), optionally followed by an off-ramp with a deceleration lane. See docs/data.md."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Single intersections: signalized 4-way, priority junction with stop signs, all-way stop."""
+"""Single intersections: signalized 4-way, priority junction with stop signs, all-way stop. See docs/data.md."""
 
 from __future__ import annotations
 

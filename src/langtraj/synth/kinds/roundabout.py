@@ -1,4 +1,4 @@
-"""Roundabout kind: a one- or two-lane circular junction with 3-5 arms."""
+"""Roundabout kind: a one- or two-lane circular junction with 3-5 arms. See docs/data.md."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Plain-XML network descriptions (nodes, edges, connections, crossings, roundabouts) and the netconvert
-call every hand-built kind shares, so each kind only draws geometry and says what goes where."""
+call every hand-built kind shares, so each kind only draws geometry and says what goes where. See docs/data.md."""
 
 from __future__ import annotations
 

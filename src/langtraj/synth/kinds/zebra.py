@@ -1,4 +1,4 @@
-"""Zebra kind: a straight road with a mid-block zebra crossing where pedestrians have priority."""
+"""Zebra kind: a straight road with a mid-block zebra crossing where pedestrians have priority. See docs/data.md."""
 
 from __future__ import annotations
 
