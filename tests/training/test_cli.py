@@ -75,7 +75,6 @@ def test_a_killed_run_resumes_from_its_last_checkpoint(tmp_path):
     import sys
     import time
 
-
     labels = write_dataset(tmp_path, 12)
     config = tmp_path / "tiny.yaml"
     config.write_text(yaml.safe_dump({**TINY, "stage": 1, "model": {**TINY["model"], "use_text": False},
