@@ -41,7 +41,7 @@ class Recorder(Policy):
     def drives(self, scenario, sim_agents):
         return sim_agents[:2]
 
-    def plan(self, world, step, horizon):
+    def plan(self, world, state, step, horizon):
         self.calls.append((step, horizon))
         self.seen.append(world.current(step))
         sample = world.scenario_at(0, step)
