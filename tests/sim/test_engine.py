@@ -37,6 +37,7 @@ class Recorder(Policy):
     def __init__(self):
         self.calls: list[tuple[int, int]] = []
         self.seen: list[np.ndarray] = []
+        self.planned: list[np.ndarray] = []
 
     def drives(self, scenario, sim_agents):
         return sim_agents[:2]
@@ -47,7 +48,9 @@ class Recorder(Policy):
         sample = world.scenario_at(0, step)
         assert sample.current_index == step
         assert not sample.agents.valid[world.driven, step + 1 :].any()  # the future is not yet simulated
-        return ConstantVelocityPolicy().plan(world, step, horizon) + np.array([0.0, 0.5, 0.0, 0.0])
+        plan = ConstantVelocityPolicy().plan(world, state, step, horizon) + np.array([0.0, 0.5, 0.0, 0.0])
+        self.planned.append(plan)
+        return plan
 
 
 def test_each_replan_starts_from_what_the_last_executed():
@@ -55,9 +58,9 @@ def test_each_replan_starts_from_what_the_last_executed():
     policy = Recorder()
     result = simulate(scenario, policy, SimConfig(rollouts=3, replan_s=2.0))
     assert policy.calls == [(10, 20), (30, 20), (50, 20), (70, 20)]
-    # each plan shifts y by 0.5 m; the next replan sees the shifted state
-    for before, after in zip(policy.seen, policy.seen[1:], strict=False):
-        np.testing.assert_allclose(after[..., 1] - before[..., 1], 0.5, atol=1e-4)
+    # each plan is shifted by 0.5 m in y; the next replan starts from the last executed (shifted) state
+    for (_, horizon), plan, after in zip(policy.calls, policy.planned, policy.seen[1:], strict=False):
+        np.testing.assert_allclose(after[..., :2], plan[:, :, horizon - 1, :2], atol=1e-3)
     assert result.rollouts.x.shape == (3, 4, 80)  # sim agents: 7, 17, 37, 47 (27 appears later)
     assert list(result.driven_ids) == [7, 17]
 
