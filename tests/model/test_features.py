@@ -12,7 +12,7 @@ from scenario_builders import make_scenario
 
 from langtraj.model.batch import AGENT_HISTORY_FEATURES, SceneBatch
 from langtraj.model.config import SampleConfig
-from langtraj.model.features import collate_scenes, scene_frame, scene_sample
+from langtraj.model.features import collate_scenes, map_coverage, scene_frame, scene_sample
 from langtraj.scenario import MapFeature, MapFeatureType, RoadMap, Scenario
 
 SMALL = SampleConfig(max_agents=8, max_polylines=12, points_per_polyline=10)
@@ -107,8 +107,8 @@ def test_shapes_padding_and_dtypes():
     assert speeds[7] == pytest.approx(2.0) and speeds[17] == pytest.approx(5.0)
 
 
-def test_the_map_holds_nearby_pieces_nearest_first_resampled_evenly():
-    sample = scene_sample(make_scenario(6), replace(SMALL, max_polylines=64))
+def test_the_origin_map_holds_nearby_pieces_nearest_first_resampled_evenly():
+    sample = scene_sample(make_scenario(6), replace(SMALL, max_polylines=64, map_selection="origin"))
     valid, pts, types = sample["map_valid"], sample["map_points"], sample["map_type"]
     rows = valid.any(axis=1)
     assert (types[~rows] == 0).all() and not valid[~rows].any() and (pts[~rows] == 0).all()
@@ -133,7 +133,7 @@ def test_map_radius_and_polyline_budget_are_respected():
     sample = scene_sample(scene, few)
     assert sample["map_valid"].any(axis=1).all()  # three nearest kept
     wide = scene_sample(scene, replace(SMALL, max_polylines=500))
-    assert np.abs(wide["map_points"]).max() < 100.0  # the far lane is left out
+    assert np.abs(wide["map_points"]).max() < 1000.0  # the far lane (5 km away) is left out
 
 
 def test_missing_velocities_are_estimated_from_positions():
@@ -165,3 +165,63 @@ def test_collate_makes_a_scene_batch_with_contract_dtypes():
     assert batch.has_text.sum(dim=1).tolist() == [2, 2, 2]
     assert batch.scenario_id == ["toy"] * 3
     assert batch.map_points.shape == (3, SMALL.max_polylines, SMALL.points_per_polyline, 2)
+
+
+# ---------------------------------------------------------------- map coverage
+
+
+def _two_distant_agents() -> Scenario:
+    """Agent 7 at the origin driving east at 2 m/s among 20 parallel decoy lanes; agent 17 300 m away,
+    driving north at 10 m/s on a lane of its own."""
+    scene = make_scenario(2)
+    states = scene.agents.states.copy()
+    t = scene.timestamps
+    states[1, :, 0], states[1, :, 1], states[1, :, 3] = 300.0, 10.0 * (t - t[10]), math.pi / 2
+    states[1, :, 4], states[1, :, 5] = 0.0, 10.0
+    lane = np.stack([np.linspace(-50, 150, 41), np.zeros(41), np.zeros(41)], axis=1)
+    decoys = [
+        MapFeature(600 + k, MapFeatureType.LANE_SURFACE_STREET, lane + [0, 3.5 * k * (-1) ** k, 0])
+        for k in range(1, 21)
+    ]
+    north = MapFeature(
+        700,
+        MapFeatureType.LANE_SURFACE_STREET,
+        np.stack([np.full(46, 300.0), np.linspace(-50, 400, 46), np.zeros(46)], 1),
+    )
+    road = RoadMap((MapFeature(100, MapFeatureType.LANE_SURFACE_STREET, lane), *decoys, north))
+    return replace(scene, agents=replace(scene.agents, states=states), road_map=road)
+
+
+def test_the_agent_map_covers_every_agent_and_the_road_ahead_where_the_origin_crop_does_not():
+    scene = _two_distant_agents()
+    budget = replace(SMALL, max_polylines=16)
+    for selection, covered in (("origin", [True, False]), ("agents", [True, True])):
+        sample = scene_sample(scene, replace(budget, map_selection=selection))
+        arrays = (sample["map_points"], sample["map_valid"], sample["map_type"])
+        now = map_coverage(arrays, sample["current_state"][:2, :2], np.ones(2, bool))
+        assert now.tolist() == covered, selection
+    # the north lane is kept at least 50 m ahead of agent 17 (its 8 s at 10 m/s reach 80 m), before the
+    # decoy lanes more than 21 m beside agent 7
+    ox, oy, heading = scene_frame(scene)
+    assert heading == 0.0
+    pts = sample["map_points"][sample["map_valid"]] + (ox, oy)  # back to the world
+    assert pts[np.abs(pts[:, 0] - 300.0) < 0.5, 1].max() >= 50.0
+    assert np.abs(pts[np.abs(pts[:, 0] - 300.0) > 1.0, 1]).max() <= 21.0 + 0.5
+
+
+def test_map_coverage_counts_lane_points_within_five_metres_of_valid_positions():
+    points = np.zeros((2, 3, 2), np.float32)
+    points[0] = [[0, 0], [2, 0], [4, 0]]
+    points[1] = [[0, 50], [2, 50], [4, 50]]
+    valid = np.ones((2, 3), bool)
+    types = np.array([int(MapFeatureType.ROAD_EDGE_BOUNDARY), int(MapFeatureType.LANE_FREEWAY)])
+    positions = np.array([[4.0, 4.9], [1.0, 46.0], [1.0, 44.0], [0.0, 0.0]])
+    out = map_coverage((points, valid, types), positions, np.array([True, True, True, False]))
+    assert out.tolist() == [False, True, False, False]  # edges are not lanes; invalid positions do not count
+
+
+def test_simulation_sizes_samples_for_the_agents_it_drives():
+    trained = SampleConfig(max_agents=24, max_polylines=48)
+    assert (trained.for_agents(48).max_agents, trained.for_agents(48).max_polylines) == (48, 96)
+    assert (trained.for_agents(10).max_agents, trained.for_agents(10).max_polylines) == (10, 48)
+    assert trained.for_agents(50).max_polylines == 100 and trained.for_agents(50).history_dropout == 0.0

@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+from metrics.test_submit_cli import METADATA
 
 from langtraj.cli.main import main
 from langtraj.rollouts.container import Rollouts
@@ -21,7 +22,7 @@ def test_simulate_writes_rollouts_video_and_summary(tiny_run, tmp_path, capsys):
                  "--adversary", "37", "--target", "7", "--rollouts", "2", "--candidates", "2", "--steps", "2",
                  "--replan-s", "4", "--out", str(out)])  # fmt: skip
     assert code == 0, capsys.readouterr().err
-    assert "agents driven by langtraj" in capsys.readouterr().out
+    assert "4 agents moved by langtraj" in capsys.readouterr().out
     rollouts = Rollouts.load(out / "rollouts.npz")
     check_rollouts(read_scenario(scenes), rollouts, num_rollouts=2)
     assert (out / "rollout0.mp4").stat().st_size > 0
@@ -30,9 +31,44 @@ def test_simulate_writes_rollouts_video_and_summary(tiny_run, tmp_path, capsys):
     assert summary["replans"] == [10, 50] and len(summary["seconds_per_replan"]) == 2
     agents = {a["id"]: a for a in summary["agents"]}
     assert set(agents) == {7, 17, 37, 47} and all(a["driven"] for a in agents.values())
+    assert summary["agents_by_policy"] == {"langtraj": [7, 17, 37, 47]} and not summary["reads_future_log"]
+    assert 0.0 <= summary["map_coverage"]["start"] <= 1.0 and summary["map_pieces"] > 0
     assert all(0.0 <= a["collision_rate"] <= 1.0 and a["distance_m"] >= 0.0 for a in agents.values())
     # the rollouts score with `langtraj evaluate`
     assert main(["evaluate", str(scenes), str(out / "rollouts.npz"), "--json"]) == 0
+
+
+def test_a_capped_model_leaves_the_rest_to_constant_velocity_and_says_so(tiny_run, tmp_path, capsys):
+    checkpoint, scenes = tiny_run
+    out = tmp_path / "capped"
+    code = main(["simulate", str(scenes), "--checkpoint", str(checkpoint), "--max-driven", "2", "--rollouts", "2",
+                 "--candidates", "2", "--steps", "2", "--replan-s", "4", "--no-video", "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert "2 agents moved by langtraj; 2 agents moved by constant_velocity" in capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["agents_by_policy"] == {"langtraj": [7, 17], "constant_velocity": [37, 47]}
+    assert not Rollouts.load(out / "rollouts.npz").reads_future_log
+
+
+def test_log_following_is_flagged_by_simulate_and_evaluate_and_refused_by_submit(tiny_run, tmp_path, capsys):
+    checkpoint, scenes = tiny_run
+    out = tmp_path / "log"
+    code = main(["simulate", str(scenes), "--checkpoint", str(checkpoint), "--max-driven", "2", "--undriven", "log",
+                 "--rollouts", "2", "--candidates", "2", "--steps", "2", "--replan-s", "4", "--no-video",
+                 "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert "WARNING" in capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["reads_future_log"] and summary["agents_by_policy"]["log"] == [37, 47]
+    assert main(["evaluate", str(scenes), str(out / "rollouts.npz")]) == 0
+    assert "replay their logged future" in capsys.readouterr().err
+    meta = tmp_path / "meta.json"
+    meta.write_text(json.dumps(METADATA))
+    folder = tmp_path / "folder"
+    folder.mkdir()
+    (folder / f"{read_scenario(scenes).scenario_id}.npz").write_bytes((out / "rollouts.npz").read_bytes())
+    assert main(["submit", str(scenes), str(folder), "--metadata", str(meta), "--out", str(tmp_path / "sub")]) == 2
+    assert "log_following_ids" in capsys.readouterr().err and not (tmp_path / "sub").exists()
 
 
 def test_baseline_policies_need_no_checkpoint(tiny_run, tmp_path):
@@ -58,6 +94,8 @@ def test_baseline_policies_need_no_checkpoint(tiny_run, tmp_path):
         (["--guidance", "on_road=-1"], "must be finite and >= 0"),
         (["--guidance", "on_road"], "expected NAME=WEIGHT"),
         (["--policy", "constant_velocity", "--prompt", "@7 stops"], "need a model policy"),
+        (["--policy", "constant_velocity", "--max-driven", "2"], "need a model policy"),
+        (["--max-driven", "0"], "must be >= 1"),
         (["--policy", "teleport"], "unknown policy"),
         (["--replan-s", "0.25"], "replan_s"),
     ],

@@ -65,13 +65,28 @@ def test_each_replan_starts_from_what_the_last_executed():
     assert list(result.driven_ids) == [7, 17]
 
 
-def test_undriven_agents_follow_the_log():
+def test_undriven_agents_keep_constant_velocity_and_read_no_future():
     scenario = make_scenario(5)
     result = simulate(scenario, Recorder(), SimConfig(rollouts=2))
+    cv = generate_baseline("constant_velocity", scenario, 2)
+    np.testing.assert_allclose(result.rollouts.x[:, 2:], cv.x[:, 2:], atol=1e-4)
+    np.testing.assert_allclose(result.rollouts.y[:, 2:], cv.y[:, 2:], atol=1e-4)
+    assert not result.rollouts.reads_future_log
+    world = result.world  # the world holds no logged future: only what was simulated
+    future = world.valid[:, :, world.start + 1 :]
+    assert not future[:, np.setdiff1d(np.arange(future.shape[1]), world.sim_agents)].any()
+
+
+def test_log_following_is_explicit_and_flagged():
+    scenario = make_scenario(5)
+    recorder = Recorder()
+    recorder.undriven = "log"
+    result = simulate(scenario, recorder, SimConfig(rollouts=2))
     rows = [scenario.agents.index_of(i) for i in result.rollouts.object_id]
     log = scenario.agents.states[rows, 11:91]
     np.testing.assert_allclose(result.rollouts.x[:, 2:], np.broadcast_to(log[None, 2:, :, StateField.X], (2, 2, 80)))
     assert not np.allclose(result.rollouts.y[:, :2], log[None, :2, :, StateField.Y], atol=0.1)
+    assert result.rollouts.log_following_ids.tolist() == [37, 47]
 
 
 def test_log_replay_reproduces_the_log_and_cv_the_baseline():

@@ -101,6 +101,19 @@ def _single_scenario(args: argparse.Namespace, rollouts_file: Path) -> tuple[str
     raise InputError(f"no scenario {scenario_id!r} in this folder or its subfolders", path=folder)
 
 
+def _log_following_note(report: dict) -> str | None:
+    """The warning a report carries when some rollouts replay the logged future (log replay)."""
+    scenarios = report.get("scenarios", [report])
+    flagged = [s for s in scenarios if s.get("log_following_agents")]
+    if not flagged:
+        return None
+    agents = sum(s["log_following_agents"] for s in flagged)
+    return (
+        f"WARNING: {agents} agents in {len(flagged)} of {len(scenarios)} scenarios replay their logged future "
+        "(log replay): a baseline, not a valid WOSAC simulation"
+    )
+
+
 def _table(values: dict, title: str) -> str:
     lines = [title, f"  {'metametric':<42}{values['metametric']:.4f}"]
     for bucket, names in BUCKETS.items():
@@ -150,6 +163,8 @@ def run(args: argparse.Namespace) -> int:
         result: ScenarioMetrics = run_job(EvalJob(scenario_file, index, str(rollouts), args.config))
         report = {**result.to_dict(), **_extras(args, scenario_file, index, rollouts)}
         title = f"WOSAC {args.config}, scenario {result.scenario_id}"
+    note = _log_following_note(report)
+    report["reads_future_log"] = note is not None
     text = json.dumps(_finite_or_null(report), indent=2, allow_nan=False)
     if args.out:
         with atomic_open(args.out, "w") as fh:
@@ -158,4 +173,6 @@ def run(args: argparse.Namespace) -> int:
         sys.stdout.write(text + "\n")
     else:
         print(_table(report, title))
+    if note:
+        print(note, file=sys.stderr)
     return 0

@@ -15,6 +15,8 @@ import argparse
 import json
 from pathlib import Path
 
+from langtraj.sim.config import UNDRIVEN
+
 
 def _policies() -> str:
     from langtraj.sim.policies import POLICIES
@@ -50,6 +52,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--steps", type=int, default=5, help="DDIM steps per sample (default 5)")
     p.add_argument("--replan-s", type=float, default=1.0, help="seconds between replans (default 1)")
+    p.add_argument(
+        "--max-driven",
+        type=int,
+        metavar="N",
+        help="the model drives only the N most important sim agents (default: every sim agent)",
+    )
+    p.add_argument(
+        "--undriven",
+        default="constant_velocity",
+        choices=UNDRIVEN,
+        help="how sim agents the model does not drive move: constant_velocity (default; reads no future) or log "
+        "(replays the logged future: flagged, and refused by langtraj submit)",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--no-video", action="store_true", help="skip the video")
     p.set_defaults(func=run)
@@ -78,14 +93,15 @@ def run(args: argparse.Namespace) -> int:
         cfg=args.cfg,
         candidates=args.candidates,
         steps=args.steps,
+        max_driven=args.max_driven,
+        undriven=args.undriven,
     )
     policy, described = build_policy(scenario, request)  # every check happens here, before any write
-    print(
-        f"{len(described['driven_ids'])} agents driven by {args.policy} (ids {described['driven_ids']}); "
-        "the other sim agents follow their log"
-    )
     result = simulate(scenario, policy, config)
     summary = simulation_summary(result, policy=args.policy, **described)
+    print("; ".join(f"{len(ids)} agents moved by {name}" for name, ids in summary["agents_by_policy"].items()))
+    if summary["reads_future_log"]:
+        print("WARNING: some agents replayed their logged future: a baseline, not a valid WOSAC simulation")
     args.out.mkdir(parents=True, exist_ok=True)
     result.rollouts.save(args.out / "rollouts.npz")
     if not args.no_video:

@@ -64,7 +64,14 @@ def run(args: argparse.Namespace) -> int:
     for job in jobs:
         scenario = read_scenario(job.scenario_file, job.index)
         try:
-            rollouts = validate_scenario_rollouts(scenario, Rollouts.load(job.rollouts_file))
+            rollouts = Rollouts.load(job.rollouts_file)
+            if rollouts.reads_future_log:
+                raise InputError(
+                    f"{len(rollouts.log_following_ids)} agents replay their logged future (log replay); WOSAC "
+                    "forbids reading the future, so these rollouts cannot be submitted",
+                    where="log_following_ids",
+                )
+            rollouts = validate_scenario_rollouts(scenario, rollouts)
         except InputError as exc:
             raise exc.located(path=job.rollouts_file) from None
         checked.append(replace(rollouts, scenario_id=scenario.scenario_id))

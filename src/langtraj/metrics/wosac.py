@@ -16,7 +16,7 @@ See docs/metrics.md.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -65,6 +65,7 @@ class ScenarioMetrics:
     simulated_collision_rate: float
     simulated_offroad_rate: float
     simulated_traffic_light_violation_rate: float
+    log_following_agents: int = 0  # agents whose rollouts replay the logged future: not a valid simulation
 
     def to_dict(self) -> dict[str, float | str]:
         return asdict(self)
@@ -160,6 +161,7 @@ def evaluate_scenario(
     log_features = compute_features(log, scene_map)
     sim_features = compute_features(sim, scene_map, log=log)
     log_valid = log.valid[0][log.evaluated][:, log.future]
-    return score_features(
+    scores = score_features(
         config, scenario.scenario_id, log_features, sim_features, log_valid, log.is_vehicle[log.evaluated]
     )
+    return replace(scores, log_following_agents=len(rollouts.log_following_ids))

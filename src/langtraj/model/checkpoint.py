@@ -83,10 +83,12 @@ def check_keys(own: Mapping[str, Any], saved: Mapping[str, Any], path: str | Pat
 
 
 def checkpoint_configs(checkpoint: Mapping[str, Any], path: str | Path) -> tuple[ModelConfig, SampleConfig]:
-    """The model and sample configurations a checkpoint was trained with."""
+    """The model and sample configurations a checkpoint was trained with. Checkpoints from before map
+    coverage record no `map_selection`: they saw the pieces nearest the origin, and keep doing so."""
     try:
         config = checkpoint["hyper_parameters"]["config"]
-        return ModelConfig.from_dict(config.get("model")), SampleConfig.from_dict(config.get("data"))
+        data = {"map_selection": "origin", **(config.get("data") or {})}
+        return ModelConfig.from_dict(config.get("model")), SampleConfig.from_dict(data)
     except (KeyError, TypeError, AttributeError):
         raise InputError("has no training configuration (hyper_parameters.config)", path=path) from None
     except InputError as exc:

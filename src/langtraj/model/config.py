@@ -3,7 +3,8 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+import math
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 from langtraj.errors import InputError
@@ -64,12 +65,21 @@ class ModelConfig:
         return cls(text=text, **data)
 
 
+MAP_SELECTIONS = ("agents", "origin")
+"""How a sample's map pieces are chosen (`model.features.map_polylines`): around every agent and the road
+ahead of it, or nearest the scene origin (how checkpoints trained before map coverage saw the map)."""
+
+
 @dataclass(frozen=True)
 class SampleConfig:
     """What a scene sample holds (docs/model.md, 'Inputs') and how training augments it.
 
     Sizes: `max_agents` agents, `max_polylines` map polylines of `points_per_polyline` points within
-    `map_radius` m of the origin, `history_steps` steps ending at the current one, `future_steps` after it.
+    `map_radius` m of the map's anchors, `history_steps` steps ending at the current one, `future_steps`
+    after it. `map_selection` "agents" covers every agent's surroundings and the road ahead of it (the
+    greater of `map_ahead_min` m and `map_ahead_s` seconds at its current speed); "origin" keeps the
+    pieces nearest the scene origin (checkpoints from before map coverage). Simulation scales
+    `max_polylines` with the number of agents it drives (docs/model.md, 'Inputs').
     `text` False is stage 1 (no text at all). The remaining fields are training-time choices that the
     features themselves never read: probabilities per sample (dropouts), a share of a scene's labelled
     agents (`heuristic_label_fraction`) and a share of each batch (`interaction_fraction`); they live here
@@ -82,6 +92,9 @@ class SampleConfig:
     history_steps: int = 11
     future_steps: int = 80
     map_radius: float = 80.0
+    map_selection: str = "agents"
+    map_ahead_s: float = 8.0
+    map_ahead_min: float = 20.0
     text: bool = True
     text_dropout: float = 0.5
     history_dropout: float = 0.5
@@ -96,11 +109,29 @@ class SampleConfig:
             raise InputError(f"must be >= 2, got {self.points_per_polyline}", where="data.points_per_polyline")
         if self.future_steps < 0:
             raise InputError(f"must be >= 0, got {self.future_steps}", where="data.future_steps")
-        if not self.map_radius > 0:
-            raise InputError(f"must be > 0, got {self.map_radius}", where="data.map_radius")
+        for name in ("map_radius", "map_ahead_s", "map_ahead_min"):
+            if not getattr(self, name) > 0:
+                raise InputError(f"must be > 0, got {getattr(self, name)}", where=f"data.{name}")
+        if self.map_selection not in MAP_SELECTIONS:
+            raise InputError(
+                f"must be one of {', '.join(MAP_SELECTIONS)}, got {self.map_selection!r}", where="data.map_selection"
+            )
         for name in ("text_dropout", "history_dropout", "heuristic_label_fraction", "interaction_fraction"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise InputError(f"must be in [0, 1], got {getattr(self, name)}", where=f"data.{name}")
+
+    def for_agents(self, num_agents: int) -> SampleConfig:
+        """The sizes for driving `num_agents` agents with a model trained on these samples: that many agent
+        slots, the map budget scaled by the trained pieces per agent (never below it), no dropout. The
+        network takes any number of agents and pieces; the map must still cover every one of them."""
+        scale = max(num_agents / self.max_agents, 1.0)
+        return replace(
+            self,
+            max_agents=max(num_agents, 1),
+            max_polylines=math.ceil(self.max_polylines * scale - 1e-9),
+            text_dropout=0.0,
+            history_dropout=0.0,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
+from scipy.spatial import cKDTree
 
 from langtraj.angles import wrap_angle
 from langtraj.frames import Origin, points_to_frame
@@ -104,13 +106,6 @@ MapArrays = tuple[np.ndarray, np.ndarray, np.ndarray]
 # ---------------------------------------------------------------- the map
 
 
-def _bbox_distance(xy: np.ndarray) -> float:
-    """Distance from the origin to the bounding box of points [N, 2] (a lower bound on the nearest one)."""
-    lo, hi = xy.min(axis=0), xy.max(axis=0)
-    gap = np.maximum(np.maximum(lo, -hi), 0.0)
-    return float(np.hypot(gap[0], gap[1]))
-
-
 def _pieces(xy: np.ndarray, points: int) -> np.ndarray:
     """A polyline [N, 2] cut into equal pieces of at most (points - 1) * MAP_POINT_SPACING m, each
     resampled uniformly by arc length to `points` points: [K, points, 2]. A polyline of no length gives
@@ -127,26 +122,90 @@ def _pieces(xy: np.ndarray, points: int) -> np.ndarray:
     return np.stack([np.interp(s, cum, xy[:, 0]), np.interp(s, cum, xy[:, 1])], axis=-1)
 
 
-def map_polylines(road_map: RoadMap, origin: Origin, config: SampleConfig) -> MapArrays:
-    """Map points [M, P, 2] (scene frame), validity [M, P] and types [M] of the polylines nearest the
-    origin. Features of `MAP_TYPES` are cut and resampled (`_pieces`; area polygons closed first); a
-    piece is kept when its nearest point is within `map_radius`, nearest first. A single-point feature
-    (a stop sign) is a polyline with only its first point valid."""
+ANCHOR_SPACING = 10.0
+"""Metres between the anchor points laid along each agent's road ahead."""
+
+LEAD_WEIGHT = 0.25
+"""Cost per metre of lead: a piece near an anchor 40 m ahead of its agent ranks with one 10 m beside it."""
+
+COVERAGE_RADIUS = 5.0
+"""An agent is covered when a lane point of its sample lies within this distance (m)."""
+
+
+@dataclass(frozen=True)
+class MapAnchors:
+    """World points the map must cover and how far ahead of its agent each lies (the selection's cost
+    adds `LEAD_WEIGHT` per metre of lead, so an agent's surroundings come before its far road)."""
+
+    points: np.ndarray  # float64 [K, 2], world
+    lead: np.ndarray  # float64 [K], metres ahead of the anchor's agent
+
+    @classmethod
+    def origin(cls, origin: Origin) -> MapAnchors:
+        """The scene origin alone: the nearest-to-origin crop."""
+        return cls(np.asarray([origin[:2]], np.float64), np.zeros(1))
+
+
+def map_anchors(scenario: Scenario, agents: np.ndarray, config: SampleConfig) -> MapAnchors:
+    """Anchors covering each of `agents` (scenario rows, valid at the current step): its position, and
+    points every `ANCHOR_SPACING` m straight ahead along its heading for max(`map_ahead_min`,
+    speed x `map_ahead_s`) m. Only the current step is read (nothing of the future)."""
+    t = scenario.current_index
+    rows = np.asarray(agents, np.int64)
+    if not len(rows):
+        return MapAnchors(np.zeros((0, 2)), np.zeros(0))
+    states = scenario.agents.states[rows]
+    vel = _velocities(states, scenario.agents.valid[rows], scenario.timestamps)[:, t]
+    speed = np.linalg.norm(vel, axis=-1)
+    reach = np.maximum(config.map_ahead_min, speed * config.map_ahead_s)
+    points, lead = [], []
+    for row, length in zip(states[:, t], reach, strict=True):
+        ahead = np.append(np.arange(0.0, length, ANCHOR_SPACING), length)
+        heading = float(row[StateField.HEADING])
+        direction = np.array([math.cos(heading), math.sin(heading)])
+        points.append(row[StateField.X : StateField.Y + 1].astype(np.float64) + ahead[:, None] * direction)
+        lead.append(ahead)
+    return MapAnchors(np.concatenate(points), np.concatenate(lead))
+
+
+def _bbox_distances(xy: np.ndarray, anchors: np.ndarray) -> np.ndarray:
+    """Distance from each anchor [K, 2] to the bounding box of points [N, 2] (a lower bound on the
+    distance to the nearest point)."""
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    gap = np.maximum(np.maximum(lo - anchors, anchors - hi), 0.0)
+    return np.hypot(gap[:, 0], gap[:, 1])
+
+
+def map_polylines(
+    road_map: RoadMap, origin: Origin, config: SampleConfig, anchors: MapAnchors | None = None
+) -> MapArrays:
+    """Map points [M, P, 2] (scene frame), validity [M, P] and types [M] of the `max_polylines` pieces
+    that best cover `anchors` (default: the scene origin alone).
+
+    Features of `MAP_TYPES` are cut and resampled (`_pieces`; area polygons closed first). A piece costs
+    min over anchors of (distance from the anchor to the piece's nearest point + `LEAD_WEIGHT` x the
+    anchor's lead); pieces within `map_radius` of some anchor are kept, cheapest first. A single-point
+    feature (a stop sign) is a polyline with only its first point valid. See docs/model.md, 'Inputs'.
+    """
+    anchors = MapAnchors.origin(origin) if anchors is None else anchors
     m, p = config.max_polylines, config.points_per_polyline
     ox, oy, _ = origin
-    found: list[tuple[float, int, int, np.ndarray]] = []  # (distance, order, type, points [P|1, 2] centred)
+    near = anchors.points - (ox, oy)  # anchors centred like the pieces
+    found: list[tuple[float, int, int, np.ndarray]] = []  # (cost, order, type, points [P|1, 2] centred)
     for feature in road_map.features:
-        if feature.type not in MAP_TYPES or not len(feature.points):
+        if feature.type not in MAP_TYPES or not len(feature.points) or not len(near):
             continue
         xy = feature.points[:, :2] - (ox, oy)
-        if _bbox_distance(xy) > config.map_radius:
+        reach = _bbox_distances(xy, near) <= config.map_radius
+        if not reach.any():
             continue
         if feature.type.is_area and len(xy) > 2:
             xy = np.concatenate([xy, xy[:1]])
         pieces = _pieces(xy, p)
-        dist = np.linalg.norm(pieces, axis=-1).min(axis=-1)
-        for k in np.flatnonzero(dist <= config.map_radius):
-            found.append((float(dist[k]), len(found), int(feature.type), pieces[k]))
+        dist = np.linalg.norm(pieces[:, :, None, :] - near[reach], axis=-1).min(axis=1)  # [K_pieces, anchors]
+        cost = (dist + LEAD_WEIGHT * anchors.lead[reach]).min(axis=-1)
+        for k in np.flatnonzero(dist.min(axis=-1) <= config.map_radius):
+            found.append((float(cost[k]), len(found), int(feature.type), pieces[k]))
     found.sort(key=lambda item: item[:2])
     points = np.zeros((m, p, 2), np.float32)
     valid = np.zeros((m, p), bool)
@@ -157,6 +216,32 @@ def map_polylines(road_map: RoadMap, origin: Origin, config: SampleConfig) -> Ma
         valid[row, : len(local)] = True
         types[row] = kind
     return points, valid, types
+
+
+def sample_map(scenario: Scenario, agents: np.ndarray, origin: Origin, config: SampleConfig) -> MapArrays:
+    """The map of a sample of `agents` in the frame of `origin`, chosen as `config.map_selection` says."""
+    if config.map_selection == "origin":
+        return map_polylines(scenario.road_map, origin, config)
+    return map_polylines(scenario.road_map, origin, config, map_anchors(scenario, agents, config))
+
+
+_LANE_TYPES = np.array([int(t) for t in MapFeatureType if t.is_lane], np.int64)
+
+
+def map_coverage(
+    map_arrays: MapArrays, positions: np.ndarray, valid: np.ndarray, radius: float = COVERAGE_RADIUS
+) -> np.ndarray:
+    """Which positions [..., 2] (scene frame, as the map) have a lane point of the sample's map within
+    `radius`: bool [...], False where `valid` is False. Reported as map coverage by training and
+    simulation (docs/model.md, 'Inputs')."""
+    points, point_valid, types = map_arrays
+    lane = point_valid & np.isin(types, _LANE_TYPES)[:, None]
+    lane_xy = np.asarray(points, np.float64)[lane]  # [L, 2]
+    flat = np.asarray(positions, np.float64).reshape(-1, 2)
+    if not len(lane_xy) or not len(flat):
+        return np.zeros(np.shape(valid), bool)
+    dist, _ = cKDTree(lane_xy).query(flat, k=1)
+    return (dist.reshape(np.shape(valid)) <= radius) & np.asarray(valid, bool)
 
 
 # ---------------------------------------------------------------- one sample
@@ -234,7 +319,7 @@ def scene_sample(
     agent_valid = np.zeros(a_max, bool)
     agent_valid[:n] = True
 
-    map_points, map_valid, map_type = map_arrays or map_polylines(scenario.road_map, origin, config)
+    map_points, map_valid, map_type = map_arrays or sample_map(scenario, chosen, origin, config)
     return {
         "agent_history": history,
         "history_valid": hist_valid,

@@ -71,6 +71,7 @@ class RolloutBaseline(ABC):
     """A rollout generator that needs no model: `generate` gives R joint rollouts of a scene's sim agents."""
 
     name: ClassVar[str]
+    reads_future_log: ClassVar[bool] = False  # log replay: its rollouts are flagged (`Rollouts.log_following_ids`)
 
     @abstractmethod
     def poses(self, states: np.ndarray, valid: np.ndarray, current_index: int, num_steps: int = FUTURE_STEPS):
@@ -96,6 +97,7 @@ class RolloutBaseline(ABC):
             z=z.astype(np.float32),
             heading=wrap_angle(heading).astype(np.float32),
             scenario_id=scenario.scenario_id,
+            log_following_ids=scenario.agents.ids[agents] if self.reads_future_log else None,
         )
 
     def _perturb(self, future: np.ndarray, seed: int) -> tuple[np.ndarray, ...]:
@@ -150,6 +152,7 @@ class LogReplay(RolloutBaseline):
     """
 
     name: ClassVar[str] = "log_replay"
+    reads_future_log: ClassVar[bool] = True
     noise_std: float = 0.0
 
     def __post_init__(self) -> None:

@@ -2,7 +2,10 @@
 
 File layout (the WOSAC reference layout): `object_id` (A,) int64 and `x`, `y`, `z`, `heading`, each
 (R, A, T) float32, with T = 80 steps at 10 Hz after the scenario's current step. An optional
-`scenario_id` string names the scene the rollouts belong to, so a mismatch can be caught.
+`scenario_id` string names the scene the rollouts belong to, so a mismatch can be caught. An optional
+`log_following_ids` (int64) lists the agents whose rollouts replay the logged future (log replay, or a
+simulation asked to move its undriven agents along the log): such rollouts are a baseline, not a
+simulation, and `langtraj submit` refuses them (WOSAC forbids reading the future).
 
 See docs/metrics.md.
 """
@@ -37,6 +40,7 @@ class Rollouts:
     z: np.ndarray
     heading: np.ndarray
     scenario_id: str = ""
+    log_following_ids: np.ndarray | None = None  # int64 [F]; None: none
 
     def __post_init__(self) -> None:
         ids = np.asarray(self.object_id)
@@ -57,6 +61,16 @@ class Rollouts:
                 raise InputError(f"{arr.shape[1]} agents for {len(ids)} object ids", where=name)
             object.__setattr__(self, name, arr.astype(np.float32, copy=False))
         object.__setattr__(self, "scenario_id", str(self.scenario_id))
+        following = np.zeros(0, np.int64) if self.log_following_ids is None else np.asarray(self.log_following_ids)
+        following = following.reshape(-1)
+        if len(following) and (not np.issubdtype(following.dtype, np.integer) or not np.isin(following, ids).all()):
+            raise InputError("must list object ids of these rollouts", where="log_following_ids")
+        object.__setattr__(self, "log_following_ids", following.astype(np.int64))
+
+    @property
+    def reads_future_log(self) -> bool:
+        """Whether some agent's rollouts replay its logged future (not a valid WOSAC simulation)."""
+        return bool(len(self.log_following_ids))
 
     @property
     def num_rollouts(self) -> int:
@@ -91,6 +105,8 @@ class Rollouts:
         arrays = {"object_id": self.object_id, **{n: getattr(self, n) for n in _FIELDS}}
         if self.scenario_id:
             arrays["scenario_id"] = np.array(self.scenario_id)
+        if self.reads_future_log:
+            arrays["log_following_ids"] = self.log_following_ids
         with atomic_path(path) as tmp, open(tmp, "wb") as fh:
             np.savez(fh, **arrays)
 
@@ -105,6 +121,8 @@ class Rollouts:
                     raise InputError(f"missing arrays {', '.join(missing)} (has {', '.join(data.files)})", path=path)
                 arrays = {n: data[n] for n in ("object_id", *_FIELDS)}
                 scenario_id = str(data["scenario_id"]) if "scenario_id" in data.files else ""
+                if "log_following_ids" in data.files:
+                    arrays["log_following_ids"] = data["log_following_ids"]
         except InputError:
             raise
         except FileNotFoundError:

@@ -11,6 +11,10 @@ from langtraj.errors import InputError
 from langtraj.rollouts.container import WOSAC_ROLLOUTS
 from langtraj.scenario.model import STEP_SECONDS
 
+UNDRIVEN = ("constant_velocity", "log")
+"""How sim agents that no policy drives move: by the WOSAC constant-velocity rule from their history
+(reads no future), or along their logged future (log replay: flagged, never a valid WOSAC simulation)."""
+
 
 @dataclass(frozen=True)
 class SimConfig:
@@ -49,8 +53,24 @@ class SimRequest:
     cfg: float = 0.0
     candidates: int = 4
     steps: int = 5
+    max_driven: int | None = None  # the model drives the N most important sim agents; None: every one
+    undriven: str = "constant_velocity"  # how the others move (`sim.world.UNDRIVEN`); "log" reads the future
+
+    def __post_init__(self) -> None:
+        if self.max_driven is not None and self.max_driven < 1:
+            raise InputError(f"must be >= 1, got {self.max_driven}", where="--max-driven")
+        if self.undriven not in UNDRIVEN:
+            raise InputError(f"must be one of {', '.join(UNDRIVEN)}, got {self.undriven!r}", where="--undriven")
 
     @property
     def needs_model(self) -> bool:
-        """Whether the request asks for something only a model policy can do (prompts or guidance)."""
-        return bool(self.prompts or self.adversary is not None or self.target is not None or self.guidance)
+        """Whether the request asks for something only a model policy can do (prompts, guidance, a cap on
+        the agents the model drives)."""
+        return bool(
+            self.prompts
+            or self.adversary is not None
+            or self.target is not None
+            or self.guidance
+            or self.max_driven is not None
+            or self.undriven != "constant_velocity"
+        )

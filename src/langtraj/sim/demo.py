@@ -59,8 +59,9 @@ def _pick_prompt(scenario: Scenario, prompts, driven_ids: set[int]) -> PromptEnt
     return usable[0] if usable else None
 
 
-def find_scene(files: list[Path], driven: int) -> DemoScene:
-    """The first window of `files` (InterDrive-labelled on the fly) that has a usable prompt."""
+def find_scene(files: list[Path], driven: int | None = None) -> DemoScene:
+    """The first window of `files` (InterDrive-labelled on the fly) with an interaction prompt between two
+    vehicles the model drives (`driven`: its cap on the most important agents; None: every sim agent)."""
     from langtraj.scenario.selection import prioritized_agents
 
     for path in files:
@@ -75,7 +76,7 @@ def find_scene(files: list[Path], driven: int) -> DemoScene:
     raise InputError("no window with an interaction prompt between two vehicles the model drives", path=files[0])
 
 
-def synthesize_scene(folder: Path, seed: int, driven: int) -> DemoScene:
+def synthesize_scene(folder: Path, seed: int, driven: int | None = None) -> DemoScene:
     """Synthesize a few signalized-intersection windows with SUMO into `folder` and pick one."""
     from langtraj.synth.factory import FactoryConfig, run_factory
     from langtraj.synth.network import parse_kinds
@@ -125,9 +126,8 @@ def run_demo(
     begin = time.perf_counter()
     checkpoint = checkpoint or shipped_checkpoint()
     loaded = load_model(checkpoint)  # once for the three runs
-    driven = loaded[1].max_agents
     with tempfile.TemporaryDirectory(prefix="langtraj-demo-") as tmp:
-        scene = synthesize_scene(Path(tmp), seed, driven) if scene_file is None else find_scene([scene_file], driven)
+        scene = synthesize_scene(Path(tmp), seed) if scene_file is None else find_scene([scene_file])
         target, adversary = scene.prompt.mentions
         base = {"checkpoint": checkpoint, "candidates": candidates}
         requests = {
@@ -140,7 +140,7 @@ def run_demo(
         for name, request in requests.items():
             policy, described = build_policy(scene.scenario, request, loaded)
             results[name] = simulate(scene.scenario, policy, config)
-            summaries[name] = simulation_summary(results[name], **described)
+            summaries[name] = simulation_summary(results[name], policy=request.policy, **described)
         out.mkdir(parents=True, exist_ok=True)
         kept = out / "scene.tfrecord"
         if scene_file is None:

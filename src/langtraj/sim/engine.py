@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -37,10 +38,11 @@ class SimResult:
 
     rollouts: Rollouts
     world: SimWorld  # the simulated tracks (`world.scenario`: the scene extended to 8 s of future)
-    driven_ids: np.ndarray  # int64 [A_d]: track ids the policy drove (everyone else followed the log)
+    driven_ids: np.ndarray  # int64 [A_d]: track ids the policy drove (the others moved as `world.undriven`)
     schedule: list[tuple[int, int]]
     seconds: float
     plan_seconds: list[float] = field(default_factory=list)
+    report: dict[str, Any] = field(default_factory=dict)  # the policy's figures (`Policy.report`), JSON-ready
 
     def scenario(self, rollout: int = 0) -> Scenario:
         """The scene as rollout `rollout` played it (for rendering): every simulated step valid."""
@@ -55,7 +57,7 @@ def simulate(scenario: Scenario, policy: Policy, config: SimConfig | None = None
         raise InputError(f"scenario {scenario.scenario_id} has no agent valid at its current step", where="agents")
     begin = time.perf_counter()
     driven = policy.drives(scenario, sim_agents)
-    world = SimWorld(scenario, driven, config.rollouts)
+    world = SimWorld(scenario, driven, config.rollouts, undriven=policy.undriven)
     state = policy.reset(world, config.seed)
     schedule = replan_schedule(world.start, config.replan_steps)
     plan_seconds = []
@@ -71,4 +73,5 @@ def simulate(scenario: Scenario, policy: Policy, config: SimConfig | None = None
         schedule=schedule,
         seconds=time.perf_counter() - begin,
         plan_seconds=plan_seconds,
+        report=policy.report(world, state),
     )

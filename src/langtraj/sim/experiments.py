@@ -87,7 +87,7 @@ def held_out_records(labels_dir: str, split: str, val_fraction: float = 0.1) -> 
     ]
 
 
-def cases(labels_dir: str, split: str, max_windows: int | None, max_agents: int) -> tuple[list[Case], int]:
+def cases(labels_dir: str, split: str, max_windows: int | None) -> tuple[list[Case], int]:
     """Windows of `split` with a usable prompt (at most `max_windows`) and how many were skipped."""
     found, skipped = [], 0
     for record in held_out_records(labels_dir, split):
@@ -97,7 +97,7 @@ def cases(labels_dir: str, split: str, max_windows: int | None, max_agents: int)
             scenario = load_window(record)
         except FileNotFoundError:
             raise InputError("scenario file not found", path=record.source) from None
-        driven = model_agents(scenario, max_agents)
+        driven = model_agents(scenario)
         ids = {int(i) for i in scenario.agents.ids[driven]}
         future_ok = scenario.num_steps - scenario.current_index - 1 >= 80
         prompt = choose_prompt(record, ids) if future_ok else None
@@ -122,7 +122,7 @@ def _policies(loaded: LoadedModel, case: Case, candidates: int, steps: int) -> d
         ),
     }
     if len(prompt.mentions) >= 2:
-        slots = slots_of(case.scenario, model_agents(case.scenario, data.max_agents))
+        slots = slots_of(case.scenario, model_agents(case.scenario))
         target, adversary = slots[prompt.mentions[0]], slots[prompt.mentions[1]]
         collide = [GuidanceTerm(CollisionCost(adversary, target), 1.0)]
         makers["LangTraj, collision guidance"] = lambda: LangTrajPolicy(model, data, terms=collide, **common)
@@ -221,7 +221,7 @@ def closed_loop_experiment(
         if not sep or not rest:
             raise InputError(f"expected NAME=LABELS_DIR[:SPLIT], got {item!r}", where="--data")
         folder, _, split = rest.partition(":")
-        found, skipped = cases(folder, split or "val", windows, loaded[1].max_agents)
+        found, skipped = cases(folder, split or "val", windows)
         result = run_experiment(loaded, found, config, candidates, steps)
         result["skipped_windows"] = skipped
         results[name] = result

@@ -5,9 +5,10 @@ One interface, registered by name and built from a simulation request (`Policy.f
 (a checkpoint, optionally with text, classifier-free and cost guidance), constant velocity, log replay,
 and the CTG++-style baseline (LangTraj without text, steered by a fixed library of guidance costs per
 prompt label, the role LLM-written costs play in the paper's comparison). A policy `drives` some sim
-agents; the world moves every other agent along its log. What a policy keeps for one simulation
-(random streams, the scene frame, the map) is the state `reset` returns, so one policy object can run
-several simulations.
+agents (the model policies: every sim agent unless capped); the world moves the others as the policy's
+`undriven` says, by constant velocity from their history unless log-following is asked for explicitly.
+What a policy keeps for one simulation (random streams, the scene frame, the map, the sample sizes) is
+the state `reset` returns, so one policy object can run several simulations.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from langtraj.interdrive.prompts import Prompt
 from langtraj.interdrive.prompts.user import recognize_prompt
 from langtraj.model.checkpoint import load_model
 from langtraj.model.config import SampleConfig
-from langtraj.model.features import MapArrays, collate_scenes, map_polylines, scene_frame, scene_sample
+from langtraj.model.features import MapArrays, collate_scenes, map_coverage, sample_map, scene_frame, scene_sample
 from langtraj.model.langtraj import LangTraj
 from langtraj.registry import Registry
 from langtraj.rollouts.baselines import BASELINES
@@ -60,10 +61,14 @@ class Policy(ABC):
         prompts and no guidance."""
         if request.needs_model:
             model_policies = ", ".join(c.name for c in POLICIES.classes() if c.uses_model)
-            raise InputError(f"prompts and guidance need a model policy ({model_policies}), not {cls.name}")
+            raise InputError(
+                f"prompts, guidance and --max-driven / --undriven need a model policy ({model_policies}), "
+                f"not {cls.name}"
+            )
         return cls()
 
     uses_model: ClassVar[bool] = False
+    undriven: str = "constant_velocity"  # how the sim agents it does not drive move (`sim.config.UNDRIVEN`)
 
     def drives(self, scenario: Scenario, sim_agents: np.ndarray) -> np.ndarray:
         """Scenario rows this policy drives, a subset of `sim_agents` (default: all of them)."""
@@ -81,6 +86,10 @@ class Policy(ABC):
     @abstractmethod
     def plan(self, world: SimWorld, state: Any, step: int, horizon: int) -> np.ndarray:
         """States [R, A_driven, >= horizon, 4] for steps step+1 ... of every rollout."""
+
+    def report(self, world: SimWorld, state: Any) -> dict[str, Any]:
+        """JSON-ready figures of a finished simulation for its summary (none by default)."""
+        return {}
 
 
 POLICIES: Registry[Policy] = Registry("policy")
@@ -108,9 +117,11 @@ class ConstantVelocityPolicy(Policy):
 
 @POLICIES.register
 class LogReplayPolicy(Policy):
-    """No agent is driven: everyone follows the log (constant velocity past its end)."""
+    """No agent is driven: everyone follows the log (constant velocity past its end). A labelled baseline
+    that reads the future: its rollouts are flagged and cannot be submitted."""
 
     name = "log_replay"
+    undriven = "log"
 
     def drives(self, scenario: Scenario, sim_agents: np.ndarray) -> np.ndarray:
         return sim_agents[:0]
@@ -119,10 +130,11 @@ class LogReplayPolicy(Policy):
         return np.zeros((world.num_rollouts, 0, horizon, 4))
 
 
-def model_agents(scenario: Scenario, max_agents: int) -> np.ndarray:
-    """The scenario rows a model drives: its `max_agents` most important agents (`prioritized_agents`:
-    all valid at the current step, objects of interest, the SDC and tracks to predict first)."""
-    return prioritized_agents(scenario, max_agents)
+def model_agents(scenario: Scenario, max_driven: int | None = None) -> np.ndarray:
+    """The scenario rows a model policy drives, in slot order: every sim agent, most important first
+    (`prioritized_agents`: objects of interest, the SDC and tracks to predict first), or the `max_driven`
+    most important when capped."""
+    return prioritized_agents(scenario, max_driven)
 
 
 def slots_of(scenario: Scenario, driven: np.ndarray) -> dict[int, int]:
@@ -132,10 +144,11 @@ def slots_of(scenario: Scenario, driven: np.ndarray) -> dict[int, int]:
 
 @dataclass
 class LangTrajRun:
-    """What one simulation of a `LangTrajPolicy` keeps: the start's scene frame, map and guidance scene
-    (fixed across replans, so costs and the map stay put), the terms, the selector, and one noise
-    generator per rollout."""
+    """What one simulation of a `LangTrajPolicy` keeps: the sample sizes for its driven agents, the start's
+    scene frame, map and guidance scene (fixed across replans, so costs and the map stay put), the terms,
+    the selector, and one noise generator per rollout."""
 
+    data: SampleConfig
     origin: Origin
     map_arrays: MapArrays
     scene: GuidanceScene
@@ -149,8 +162,10 @@ class LangTrajPolicy(Policy):
     """Samples `candidates` joint futures per rollout from a LangTraj model at each replan and executes
     the one `selector` picks.
 
-    The model drives the `data.max_agents` most important sim agents (`model_agents` at the start), and
-    every replan uses the scene frame of the start. `prompt` conditions the agents it mentions; `terms`
+    The model drives every sim agent (or the `max_driven` most important, `model_agents` at the start;
+    the others move as `undriven` says), however many agents it was trained with: samples are sized for
+    the driven agents and the map covers each of them (`SampleConfig.for_agents`). Every replan uses the
+    scene frame and map of the start. `prompt` conditions the agents it mentions; `terms`
     (agent slots = positions among the driven agents) add reconstruction guidance, scaled by
     `guidance_scale`; `guidance_weight` is classifier-free guidance (-1: ignore text). Each rollout draws
     its noise from its own generator seeded by (seed, rollout), so rollouts batched `rollout_batch` at a
@@ -175,6 +190,8 @@ class LangTrajPolicy(Policy):
         rollout_batch: int = 0,
         max_grad_norm: float | None = 0.5,
         checkpoint: Path | None = None,
+        max_driven: int | None = None,
+        undriven: str = "constant_velocity",
     ):
         if candidates < 1 or steps < 1 or rollout_batch < 0:
             raise InputError(
@@ -196,12 +213,14 @@ class LangTrajPolicy(Policy):
         self.rollout_batch = rollout_batch
         self.max_grad_norm = max_grad_norm
         self.checkpoint = checkpoint
+        self.max_driven = max_driven
+        self.undriven = undriven
 
     @classmethod
     def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> LangTrajPolicy:
         checkpoint = request.checkpoint or shipped_checkpoint()
         model, data = loaded or load_model(checkpoint)
-        slots = slots_of(scenario, model_agents(scenario, data.max_agents))
+        slots = slots_of(scenario, model_agents(scenario, request.max_driven))
         terms = collision_terms(scenario, slots, request) + scene_wide_terms(request.guidance)
         return cls(model, data, terms=terms, checkpoint=checkpoint, **cls._request_options(scenario, request))
 
@@ -214,11 +233,13 @@ class LangTrajPolicy(Policy):
             "steps": request.steps,
             "guidance_weight": request.cfg,
             "guidance_scale": request.guidance_scale,
+            "max_driven": request.max_driven,
+            "undriven": request.undriven,
         }
 
     # ------------------------------------------------------------------ which agents
     def drives(self, scenario: Scenario, sim_agents: np.ndarray) -> np.ndarray:
-        return model_agents(scenario, self.data.max_agents)  # valid at the current step: sim agents
+        return model_agents(scenario, self.max_driven)  # valid at the current step: sim agents
 
     def describe(self) -> dict[str, Any]:
         return {
@@ -228,6 +249,8 @@ class LangTrajPolicy(Policy):
             "candidates": self.candidates,
             "ddim_steps": self.steps,
             "cfg": self.guidance_weight,
+            "max_driven": self.max_driven,
+            "map_selection": self.data.map_selection,
         }
 
     # ------------------------------------------------------------------ simulation
@@ -235,23 +258,39 @@ class LangTrajPolicy(Policy):
         start = world.scenario_at(0, world.start)
         slots = slots_of(start, world.driven)
         if self.prompt is not None:
-            check_prompt_driven(self.prompt, list(slots), self.data.max_agents)
+            check_prompt_driven(self.prompt, list(slots), self.max_driven)
+        data = self.data.for_agents(len(world.driven))
         origin = scene_frame(start)
         device = next(self.model.parameters()).device
-        scene = GuidanceScene.from_scenario(start, origin, world.driven, num_agents=self.data.max_agents)
-        terms = self.terms + self.prompt_terms(world, slots, origin)
+        scene = GuidanceScene.from_scenario(start, origin, world.driven, num_agents=data.max_agents)
+        terms = self.terms + self.prompt_terms(world, slots, origin, data.max_agents)
         default = "min_guidance" if terms else "min_collision"
         return LangTrajRun(
+            data=data,
             origin=origin,
-            map_arrays=map_polylines(start.road_map, origin, self.data),
+            map_arrays=sample_map(start, world.driven, origin, data),
             scene=scene.to(device),
             terms=terms,
             selector=SELECTORS.create(self.selector_name or default, where="selector"),
             generators=[torch.Generator().manual_seed(seed * 1_000_003 + r) for r in range(world.num_rollouts)],
         )
 
-    def prompt_terms(self, world: SimWorld, slots: dict[int, int], origin: Origin) -> tuple[GuidanceTerm, ...]:
-        """Guidance terms derived from the scene at the start (none here; the baseline's come from labels)."""
+    def report(self, world: SimWorld, state: LangTrajRun) -> dict[str, Any]:
+        """Map coverage: the share of driven agents with a lane point of the model's map within 5 m
+        (`model.features.map_coverage`) at the start, and at the simulation's end (mean over rollouts)."""
+        ends = {"start": world.start, "end": world.end}
+        coverage = {}
+        for name, step in ends.items():
+            poses = poses_to_frame(world.current(step), state.origin)  # [R, A_d, 4]
+            covered = map_coverage(state.map_arrays, poses[..., :2], np.ones(poses.shape[:2], bool))
+            coverage[name] = float(covered.mean()) if covered.size else None
+        return {"map_pieces": int(state.map_arrays[1].any(-1).sum()), "map_coverage": coverage}
+
+    def prompt_terms(
+        self, world: SimWorld, slots: dict[int, int], origin: Origin, num_agents: int
+    ) -> tuple[GuidanceTerm, ...]:
+        """Guidance terms derived from the scene at the start, over `num_agents` model slots (none here;
+        the baseline's come from labels)."""
         return ()
 
     def plan(self, world: SimWorld, state: LangTrajRun, step: int, horizon: int) -> np.ndarray:
@@ -266,7 +305,7 @@ class LangTrajPolicy(Policy):
         """The model's input for one rollout at `step`: its simulated past in the start's frame and map."""
         sample = scene_sample(
             world.scenario_at(rollout, step),
-            self.data,
+            state.data,
             agents=world.driven,
             origin=state.origin,
             map_arrays=state.map_arrays,
@@ -341,13 +380,15 @@ class GuidanceBaselinePolicy(LangTrajPolicy):
         read = {"subtype": self.labelled.subtype, "labels": list(self.labelled.labels)}
         return {**super().describe(), "prompted_ids": list(self.labelled.mentions), "prompt_read_as": read}
 
-    def prompt_terms(self, world: SimWorld, slots: dict[int, int], origin: Origin) -> tuple[GuidanceTerm, ...]:
+    def prompt_terms(
+        self, world: SimWorld, slots: dict[int, int], origin: Origin, num_agents: int
+    ) -> tuple[GuidanceTerm, ...]:
         mentions = {i: slots[t] for i, t in enumerate(self.labelled.mentions[:2]) if t in slots}
         if 0 not in mentions:
             raise InputError(
                 f"the prompt's target agent @{self.labelled.mentions[0]} is not driven by the model", where="prompt"
             )
-        current = np.zeros((self.data.max_agents, 4))
+        current = np.zeros((num_agents, 4))
         current[: len(world.driven)] = poses_to_frame(world.current(world.start)[0], origin)
         state = torch.as_tensor(current, dtype=torch.float32)
         return tuple(

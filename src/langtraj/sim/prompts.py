@@ -33,12 +33,18 @@ def merged_prompt(scenario: Scenario, prompts: Sequence[str]) -> PromptEntry | N
     return PromptEntry("; ".join(e.text for e in entries), tuple(roles), roles, None, (), "user")
 
 
-def check_prompt_driven(prompt: PromptEntry, driven_ids: Sequence[int], max_agents: int) -> None:
-    """InputError naming the prompt's agents that are not among `driven_ids` (the model's agents)."""
+def check_prompt_driven(prompt: PromptEntry, driven_ids: Sequence[int], max_driven: int | None) -> None:
+    """InputError naming the prompt's agents that are not among `driven_ids` (the model's agents: every
+    sim agent, or the `max_driven` most important)."""
     outside = [m for m in prompt.mentions if m not in set(driven_ids)]
     if outside:
+        which = (
+            f"it drives the {max_driven} most important (--max-driven)"
+            if max_driven is not None
+            else "it drives the agents valid at the current step"
+        )
         raise InputError(
             f"agents {', '.join(f'@{m}' for m in outside)} are not among the {len(driven_ids)} agents the model "
-            f"drives in this scene (it takes the {max_agents} most important)",
+            f"drives in this scene ({which})",
             where="prompt",
         )

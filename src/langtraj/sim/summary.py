@@ -15,9 +15,11 @@ from langtraj.scenario.types import AgentType
 from langtraj.sim.engine import SimResult
 
 
-def simulation_summary(result: SimResult, **settings: Any) -> dict[str, Any]:
+def simulation_summary(result: SimResult, policy: str, **settings: Any) -> dict[str, Any]:
     """Per-agent collision and offroad rates over the rollouts (offroad: vehicles only, null without road
-    edges), mean distance travelled, which agents the policy drove, and the timing; `settings` are echoed."""
+    edges), mean distance travelled, what moved each agent (`policy` for the driven ones, the world's
+    undriven rule for the others; `reads_future_log` when that is the log), and the timing; `settings`
+    are echoed."""
     scenario, rollouts = result.world.scenario, result.rollouts
     collided = collision_flags(scenario, rollouts).mean(axis=0)  # [A]
     offroad: dict[int, float] = {}
@@ -30,10 +32,13 @@ def simulation_summary(result: SimResult, **settings: Any) -> dict[str, Any]:
         offroad = {int(i): float(f) for i, f in zip(ids, flags.mean(axis=0), strict=True)}
     steps = np.hypot(np.diff(rollouts.x, axis=-1), np.diff(rollouts.y, axis=-1)).sum(-1).mean(0)  # [A]
     driven = set(result.driven_ids.tolist())
+    undriven = result.world.undriven
+    moved_by = {int(t): policy if int(t) in driven else undriven for t in rollouts.object_id}
     agents = [
         {
             "id": int(track),
             "driven": int(track) in driven,
+            "moved_by": moved_by[int(track)],
             "collision_rate": float(collided[col]),
             "offroad_rate": offroad.get(int(track)),
             "distance_m": float(steps[col]),
@@ -43,12 +48,18 @@ def simulation_summary(result: SimResult, **settings: Any) -> dict[str, Any]:
     return {
         "scenario_id": scenario.scenario_id,
         "rollouts": rollouts.num_rollouts,
+        "policy": policy,
         "driven_ids": [int(i) for i in result.driven_ids],
+        "agents_by_policy": {
+            name: [track for track, by in moved_by.items() if by == name] for name in dict.fromkeys(moved_by.values())
+        },
+        "reads_future_log": rollouts.reads_future_log,
         "replans": [step for step, _ in result.schedule],
         "seconds": result.seconds,
         "seconds_per_replan": result.plan_seconds,
         "collision_rate": float(collided.mean()),
         "offroad_rate": float(np.mean(list(offroad.values()))) if offroad else None,
+        **result.report,
         "agents": agents,
         **settings,
     }

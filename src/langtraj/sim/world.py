@@ -16,11 +16,13 @@ from dataclasses import replace
 import numpy as np
 
 from langtraj.angles import wrap_angle
+from langtraj.errors import InputError
 from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.rollouts.baselines import generate_baseline
 from langtraj.rollouts.container import FUTURE_STEPS, Rollouts
 from langtraj.scenario.model import STEP_SECONDS, Agents, Scenario, TrafficLights
 from langtraj.scenario.types import StateField
+from langtraj.sim.config import UNDRIVEN
 
 POSE_FIELDS = 4
 """Plan states per step: x, y, heading, speed (world frame)."""
@@ -57,44 +59,67 @@ def extended_scenario(scenario: Scenario, future_steps: int = FUTURE_STEPS) -> S
     )
 
 
+def without_future(scenario: Scenario) -> Scenario:
+    """The scenario as a simulation may see it: every agent's steps after the current one invalid and
+    zeroed (the log's future is the ground truth a simulation is scored against; WOSAC forbids reading it)."""
+    later = slice(scenario.current_index + 1, None)
+    states = scenario.agents.states.copy()
+    valid = scenario.agents.valid.copy()
+    states[:, later] = 0.0
+    valid[:, later] = False
+    return replace(scenario, agents=replace(scenario.agents, states=states, valid=valid))
+
+
 class SimWorld:
     """R rollouts of one scene. `driven` (scenario rows, a subset of the sim agents) are written by a
-    policy with `execute`; every other sim agent follows its log (constant velocity past its end)."""
+    policy with `execute`; every other sim agent moves as `undriven` says (`UNDRIVEN`). Unless it is
+    "log", the world holds no logged future at all: no policy can read it."""
 
-    def __init__(self, scenario: Scenario, driven: np.ndarray, num_rollouts: int):
+    def __init__(self, scenario: Scenario, driven: np.ndarray, num_rollouts: int, undriven: str = "constant_velocity"):
         if num_rollouts < 1:
             raise ValueError(f"num_rollouts must be at least 1, got {num_rollouts}")
-        self.scenario = extended_scenario(scenario)
+        if undriven not in UNDRIVEN:
+            raise InputError(f"must be one of {', '.join(UNDRIVEN)}, got {undriven!r}", where="undriven")
+        seen = scenario if undriven == "log" else without_future(scenario)
+        self.scenario = extended_scenario(seen)
         self.start = scenario.current_index
         self.end = self.start + FUTURE_STEPS
         self.num_rollouts = num_rollouts
+        self.undriven = undriven
         self.sim_agents = sim_agent_indices(scenario)
         sim = set(self.sim_agents.tolist())
         self.driven = np.asarray(driven, np.int64)
         if not set(self.driven.tolist()) <= sim:
             raise ValueError("every driven agent must be a sim agent (valid at the current step)")
-        # Non-driven agents: the log, and constant velocity where it ends (the rollout baseline's rule).
+        self.others = np.setdiff1d(self.sim_agents, self.driven)  # sim agents no policy drives
+        # Undriven agents: the log where `undriven` is "log", and constant velocity wherever no logged
+        # state is held (all their future otherwise): the rollout baseline's rule, from the history.
         states = self.scenario.agents.states.copy()
         valid = self.scenario.agents.valid.copy()
-        cv = generate_baseline("constant_velocity", scenario, 1)
+        cv = generate_baseline("constant_velocity", seen, 1)
         future = slice(self.start + 1, self.end + 1)
         for col, row in enumerate(self.sim_agents):
             gap = ~valid[row, future]
             if not gap.any():
                 continue
             steps = np.arange(self.start + 1, self.end + 1)[gap]
-            states[row, steps, StateField.X] = cv.x[0, col, gap]
-            states[row, steps, StateField.Y] = cv.y[0, col, gap]
-            states[row, steps, StateField.Z] = cv.z[0, col, gap]
-            states[row, steps, StateField.HEADING] = cv.heading[0, col, gap]
-            states[row, steps, StateField.VX : StateField.VY + 1] = states[
-                row, self.start, StateField.VX : StateField.VY + 1
-            ]
+            xy = np.stack([cv.x[0, col], cv.y[0, col]], -1).astype(np.float64)  # [80, 2]
+            step_length = np.linalg.norm(np.diff(xy, axis=0, prepend=states[row, self.start, None, :2]), axis=-1)
+            poses = np.stack([xy[gap, 0], xy[gap, 1], cv.heading[0, col, gap], step_length[gap] / STEP_SECONDS], -1)
+            block = states[row, steps]
+            Agents.write_poses(block, poses)
+            block[:, StateField.Z] = cv.z[0, col, gap]
             keep = [StateField.LENGTH, StateField.WIDTH, StateField.HEIGHT]
-            states[np.ix_([row], steps, keep)] = states[row, self.start, keep]
+            block[:, keep] = states[row, self.start, keep]
+            states[row, steps] = block
             valid[row, steps] = True
         self.states = np.repeat(states[None], num_rollouts, axis=0)  # float32 [R, A_all, T, 9]
         self.valid = np.repeat(valid[None], num_rollouts, axis=0)  # bool [R, A_all, T]
+
+    @property
+    def log_following(self) -> np.ndarray:
+        """Scenario rows whose simulated future replays the log (empty unless `undriven` is "log")."""
+        return self.others if self.undriven == "log" else self.others[:0]
 
     def scenario_at(self, rollout: int, step: int) -> Scenario:
         """What rollout `rollout` looks like at `step`: its simulated past, `step` as the current index.
@@ -148,4 +173,5 @@ class SimWorld:
             z=future[..., StateField.Z].astype(np.float32),
             heading=wrap_angle(future[..., StateField.HEADING]).astype(np.float32),
             scenario_id=self.scenario.scenario_id,
+            log_following_ids=self.scenario.agents.ids[self.log_following],
         )
