@@ -63,3 +63,38 @@ class SceneBatch:
             if isinstance(getattr(self, f.name), torch.Tensor)
         }
         return replace(self, **moved)
+
+    def advanced(self, executed: torch.Tensor) -> SceneBatch:
+        """The batch S steps later, after every agent executed `executed` [B, A, S, 4] (x, y, heading, speed
+        in the scene frame, at 10 Hz): those steps join the history (its last H steps kept, all valid for
+        real agents), the last of them becomes the current state, and the future moves on by S steps
+        (its last S steps invalid). What closed-loop training feeds back to the model (docs/model.md)."""
+        s = executed.shape[2]
+        heading, speed = executed[..., 2], executed[..., 3]
+        steps = torch.stack(
+            [
+                executed[..., 0],
+                executed[..., 1],
+                torch.cos(heading),
+                torch.sin(heading),
+                speed * torch.cos(heading),
+                speed * torch.sin(heading),
+                torch.ones_like(speed),
+            ],
+            dim=-1,
+        )
+        real = self.agent_valid[..., None]
+        steps = steps * real[..., None]
+        h = self.agent_history.shape[2]
+        history = torch.cat([self.agent_history, steps.to(self.agent_history)], dim=2)[:, :, -h:]
+        history_valid = torch.cat([self.history_valid, real.expand(-1, -1, s)], dim=2)[:, :, -h:]
+        pad_future = self.future.new_zeros(*self.future.shape[:2], s, self.future.shape[3])
+        pad_valid = self.future_valid.new_zeros(*self.future_valid.shape[:2], s)
+        return replace(
+            self,
+            agent_history=history,
+            history_valid=history_valid,
+            current_state=torch.where(real, executed[:, :, -1], self.current_state),
+            future=torch.cat([self.future[:, :, s:], pad_future], dim=2),
+            future_valid=torch.cat([self.future_valid[:, :, s:], pad_valid], dim=2),
+        )

@@ -19,6 +19,10 @@ from langtraj.model.config import ModelConfig
 from langtraj.model.layers import AttentionBlock, mlp, step_embedding
 from langtraj.model.scene_encoder import SceneContext
 
+STEP_REFERENCE = 100
+"""Steps of the schedule the step embedding is expressed in (the paper's pretraining K): step k of a
+K-step cosine schedule has the noise level of step (k + 1) * 100 / K - 1 of the 100-step one."""
+
 
 class Denoiser(nn.Module):
     """x_k [B, A, N, 2] and step k [B] -> x0 estimate [B, A, N, 2] (actions in network units)."""
@@ -29,6 +33,9 @@ class Denoiser(nn.Module):
         self.dim = d
         self.action_in = mlp(config.num_actions * 2, d, d)
         self.step = mlp(d, d, d)
+        # Steps are embedded as the step of a STEP_REFERENCE-step schedule with the same noise level, so a
+        # model distilled to K = 5 starts from what its K = 100 teacher does at those levels.
+        self.step_scale = STEP_REFERENCE / config.diffusion_steps
         self.blocks = nn.ModuleList(
             nn.ModuleList(AttentionBlock(d, config.num_heads, config.dropout) for _ in range(3))
             for _ in range(config.denoiser_blocks)
@@ -62,7 +69,7 @@ class Denoiser(nn.Module):
         kept across the denoising steps of one scene, holds the relative-pose embeddings (`pose_cache`),
         filled on first use when empty."""
         b, a, n, c = x_k.shape
-        step = self.step(step_embedding(k, self.dim))[:, None, :]
+        step = self.step(step_embedding((k.float() + 1.0) * self.step_scale - 1.0, self.dim))[:, None, :]
         condition = step + self.condition_in(language)  # [B, A, D]: each agent's step and own text
         h = self.action_in(x_k.reshape(b, a, n * c)) + scene.agent_tokens + condition
         film = nn.functional.silu(condition)

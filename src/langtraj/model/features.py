@@ -205,7 +205,7 @@ def map_polylines(
         dist = np.linalg.norm(pieces[:, :, None, :] - near[reach], axis=-1).min(axis=1)  # [K_pieces, anchors]
         cost = (dist + LEAD_WEIGHT * anchors.lead[reach]).min(axis=-1)
         for k in np.flatnonzero(dist.min(axis=-1) <= config.map_radius):
-            found.append((float(cost[k]), len(found), int(feature.type), pieces[k]))
+            found.append((round(float(cost[k]), 6), len(found), int(feature.type), pieces[k]))  # ties: map order
     found.sort(key=lambda item: item[:2])
     points = np.zeros((m, p, 2), np.float32)
     valid = np.zeros((m, p), bool)

@@ -43,13 +43,22 @@ class LangTraj(nn.Module):
         self.register_buffer("action_scale", torch.tensor(config.action_scale, dtype=torch.float32), persistent=False)
 
     # ------------------------------------------------------------------ conditioning
-    def language(self, batch: SceneBatch, scene: SceneContext, *, drop_text: bool = False) -> Tensor:
-        """E_L [B, A, D]: each agent's sentence embedding (or the null condition) fused with its scene token."""
+    def language(
+        self,
+        batch: SceneBatch,
+        scene: SceneContext,
+        *,
+        drop_text: bool = False,
+        embedded: tuple[Tensor, Tensor] | None = None,
+    ) -> Tensor:
+        """E_L [B, A, D]: each agent's sentence embedding (or the null condition) fused with its scene token.
+        `embedded`: the text encoder's output for `batch.text`, when already computed (closed-loop
+        training encodes a batch's sentences once for all its replans)."""
         b, a = batch.agent_valid.shape
         text = self.null_condition.expand(b, a, -1)
         if self.text_encoder is not None and not drop_text:
-            embedded, has_text = self.text_encoder(batch.text)
-            text = torch.where(has_text[..., None], embedded, text)
+            vectors, has_text = embedded if embedded is not None else self.text_encoder(batch.text)
+            text = torch.where(has_text[..., None], vectors, text)
         return self.fuse(torch.cat([scene.agent_tokens, text], dim=-1))
 
     # ------------------------------------------------------------------ actions <-> network units
@@ -59,12 +68,25 @@ class LangTraj(nn.Module):
     def from_units(self, x: Tensor) -> Tensor:
         return x * self.action_scale
 
+    @property
+    def horizon_steps(self) -> int:
+        """Scenario steps (10 Hz) the model's N actions cover: 80 for the 16-action model, 40 for 8."""
+        return self.config.num_actions * self.dynamics.steps_per_action
+
     def target_actions(self, batch: SceneBatch) -> tuple[Tensor, Tensor]:
-        """Clean actions fitted to the logged future by inverse dynamics, in network units, and where
-        they are defined: [B, A, N, 2], bool [B, A, N]."""
+        """Clean actions fitted to the logged future's first `horizon_steps` steps by inverse dynamics, in
+        network units, and where they are defined: [B, A, N, 2], bool [B, A, N]."""
+        return self.fit_actions(batch.current_state, batch.future, batch.future_valid, batch.agent_valid)
+
+    def fit_actions(
+        self, current: Tensor, future: Tensor, future_valid: Tensor, agent_valid: Tensor
+    ) -> tuple[Tensor, Tensor]:
+        """Network-unit actions [B, A, N, 2] that take `current` [B, A, 4] along the first `horizon_steps`
+        steps of `future` [B, A, >= T, 3], and where they are defined (bool [B, A, N])."""
+        t = self.horizon_steps
         with torch.no_grad():
-            actions, valid = self.dynamics.inverse(batch.current_state, batch.future, batch.future_valid)
-        return self.to_units(actions).clamp(-4.0, 4.0), valid & batch.agent_valid[..., None]
+            actions, valid = self.dynamics.inverse(current, future[:, :, :t], future_valid[:, :, :t])
+        return self.to_units(actions).clamp(-4.0, 4.0), valid & agent_valid[..., None]
 
     def rollout(self, batch: SceneBatch, x0: Tensor) -> Tensor:
         """States [B, A, T, 4] (x, y, heading, speed) from network-unit actions [B, A, N, 2]."""
@@ -93,13 +115,15 @@ class LangTraj(nn.Module):
         scene = self.encoder(batch)
         pred = self.denoiser(x_k, k, scene, self.language(batch, scene))
         states = self.rollout(batch, pred)
-        mask = batch.future_valid & batch.agent_valid[..., None]
+        horizon = self.horizon_steps
+        future = batch.future[:, :, :horizon]
+        mask = batch.future_valid[:, :, :horizon] & batch.agent_valid[..., None]
         weight = mask.float()
         if text_weight != 1.0 and self.text_encoder is not None:
             weight = weight * torch.where(batch.has_text & batch.agent_valid, text_weight, 1.0)[..., None]
         count = weight.sum().clamp(min=1.0)
-        position = ((states[..., :2] - batch.future[..., :2]) ** 2).sum(-1)
-        dh = torch.remainder(states[..., 2] - batch.future[..., 2] + torch.pi, 2 * torch.pi) - torch.pi
+        position = ((states[..., :2] - future[..., :2]) ** 2).sum(-1)
+        dh = torch.remainder(states[..., 2] - future[..., 2] + torch.pi, 2 * torch.pi) - torch.pi
         position_loss = (position * weight).sum() / count
         heading_loss = (dh**2 * weight).sum() / count
         ade = (torch.sqrt(position + 1e-9) * weight).sum() / count

@@ -55,6 +55,50 @@ class ValConfig:
         require(self.wosac_scenes >= 0, "val.wosac_scenes", f"must be >= 0, got {self.wosac_scenes}")
 
 
+OBJECTIVES = ("denoising", "closed_loop")
+"""What a stage minimises: the denoising loss at a random noise level (stages 1 and 2, and distillation
+to fewer steps), or Algorithm 1's closed-loop loss (`training.closed_loop`)."""
+
+
+@dataclass(frozen=True)
+class ClosedLoopConfig:
+    """Algorithm 1's settings, defaults from the appendix 'Closed-loop Training Details': `iterations`
+    replans of `replan_actions` executed actions each (4 x 2 x 0.5 s over the 8 s of ground truth with a
+    4-s horizon), `candidates` one-step-denoised samples per replan (M), noise levels tau ~ U(1, K x
+    `noise_ratio`) (gamma), teacher forcing in `teacher_forcing` of the samples for `forced_agents` of
+    their agents, and the non-collision loss weighted `collision_weight`."""
+
+    iterations: int = 4
+    replan_actions: int = 2
+    candidates: int = 8
+    noise_ratio: float = 0.6
+    teacher_forcing: float = 0.5
+    forced_agents: float = 0.7
+    collision_weight: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("iterations", "replan_actions", "candidates"):
+            require(getattr(self, name) >= 1, f"closed_loop.{name}", f"must be >= 1, got {getattr(self, name)}")
+        require(0 < self.noise_ratio <= 1, "closed_loop.noise_ratio", f"must be in (0, 1], got {self.noise_ratio}")
+        for name in ("teacher_forcing", "forced_agents"):
+            value = getattr(self, name)
+            require(0 <= value <= 1, f"closed_loop.{name}", f"must be in [0, 1], got {value}")
+        require(
+            self.collision_weight >= 0, "closed_loop.collision_weight", f"must be >= 0, got {self.collision_weight}"
+        )
+
+    def check(self, num_actions: int, logged_actions: int) -> None:
+        """InputError unless the last replan's horizon (`num_actions` model actions) ends within the
+        `logged_actions` actions of ground truth a sample holds."""
+        need = (self.iterations - 1) * self.replan_actions + num_actions
+        require(
+            need <= logged_actions,
+            "closed_loop",
+            f"{self.iterations} replans of {self.replan_actions} actions with a {num_actions}-action horizon need "
+            f"{need} logged actions; samples hold {logged_actions}",
+        )
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     """One training stage. Stage 1 learns without text; stage 2 adds text (and LoRA), starting from
@@ -74,6 +118,8 @@ class TrainConfig:
     num_workers: int = 0
     seed: int = 0
     init_from: str | None = None
+    objective: str = "denoising"
+    closed_loop: ClosedLoopConfig = field(default_factory=ClosedLoopConfig)
     accelerator: str = "auto"
     devices: int | str = "auto"
     num_nodes: int = 1
@@ -85,6 +131,22 @@ class TrainConfig:
             require(getattr(self, name) >= 1, name, f"must be >= 1, got {getattr(self, name)}")
         require(self.num_workers >= 0, "num_workers", f"must be >= 0, got {self.num_workers}")
         require(self.text_loss_weight >= 0, "text_loss_weight", f"must be >= 0, got {self.text_loss_weight}")
+        require(
+            self.objective in OBJECTIVES, "objective", f"must be one of {', '.join(OBJECTIVES)}, got {self.objective!r}"
+        )
+        require(
+            self.val.sample_steps <= self.model.diffusion_steps,
+            "val.sample_steps",
+            f"{self.val.sample_steps} sampling steps for a {self.model.diffusion_steps}-step model",
+        )
+        horizon = self.model.num_actions * 5  # 0.5-s actions at 10 Hz
+        require(
+            not self.val.wosac_scenes or horizon >= 80,
+            "val.wosac_scenes",
+            f"WOSAC validation scores 8 s; this model plans {horizon / 10:g} s (set wosac_scenes: 0)",
+        )
+        if self.objective == "closed_loop":
+            self.closed_loop.check(self.model.num_actions, self.data.future_steps // 5)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -98,6 +160,9 @@ class TrainConfig:
                 "data": SampleConfig.from_dict(data.pop("data", {})),
                 "optim": OptimConfig(**dataclass_kwargs(OptimConfig, data.pop("optim", {}), "optim")),
                 "val": ValConfig(**dataclass_kwargs(ValConfig, data.pop("val", {}), "val")),
+                "closed_loop": ClosedLoopConfig(
+                    **dataclass_kwargs(ClosedLoopConfig, data.pop("closed_loop", {}), "closed_loop")
+                ),
             }
             config = cls(**sections, **data)
         except TypeError as exc:

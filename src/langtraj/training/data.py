@@ -26,7 +26,7 @@ from torch.utils.data import Dataset, Sampler
 from langtraj.errors import InputError
 from langtraj.interdrive.dataset import PromptEntry, WindowRecord, iter_records, load_window, split_of
 from langtraj.model.config import SampleConfig
-from langtraj.model.features import scene_sample
+from langtraj.model.features import map_coverage, scene_sample
 from langtraj.scenario.model import Scenario
 
 # ---------------------------------------------------------------- text
@@ -314,3 +314,29 @@ class _Cycler:
             self.order, self.pos = self.rng.permutation(self.pool), 0
         self.pos += 1
         return int(self.order[self.pos - 1])
+
+
+# ---------------------------------------------------------------- map coverage
+
+
+def dataset_map_coverage(dataset: SceneDataset, max_windows: int = 64) -> dict[str, float | int]:
+    """The share of the agents of up to `max_windows` evenly spread windows that have a lane point of
+    their sample's map within 5 m (`model.features.map_coverage`) at the current step, and at their
+    logged 8-s position (agents valid there). What `langtraj train` reports before it starts."""
+    count = min(len(dataset), max_windows)
+    now, later, windows = [], [], np.linspace(0, len(dataset) - 1, count).round().astype(int) if count else []
+    for index in windows:
+        sample = scene_sample(dataset.window(int(index)), dataset.config)
+        arrays = (sample["map_points"], sample["map_valid"], sample["map_type"])
+        agents = sample["agent_valid"]
+        now.append(map_coverage(arrays, sample["current_state"][:, :2], agents)[agents])
+        end = sample["future_valid"][:, -1] & agents if sample["future_valid"].shape[1] else agents & False
+        later.append(map_coverage(arrays, sample["future"][:, -1, :2], end)[end])
+    now_all = np.concatenate(now) if now else np.zeros(0, bool)
+    later_all = np.concatenate(later) if later else np.zeros(0, bool)
+    return {
+        "windows": int(count),
+        "agents": len(now_all),
+        "now": float(now_all.mean()) if len(now_all) else float("nan"),
+        "at_8s": float(later_all.mean()) if len(later_all) else float("nan"),
+    }

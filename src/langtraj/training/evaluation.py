@@ -21,11 +21,12 @@ from langtraj.training.data import SceneDataset
 
 
 def ade_per_sample(states: Tensor, batch: SceneBatch) -> tuple[Tensor, Tensor]:
-    """ADE [S, B, A] of sampled states [S, B, A, T, >=2] against the logged future, over valid steps,
+    """ADE [S, B, A] of sampled states [S, B, A, T, >=2] against the logged future's first T steps, over valid steps,
     and which agents have any valid future step (bool [B, A])."""
-    valid = batch.future_valid & batch.agent_valid[..., None]
+    horizon = states.shape[-2]  # a model may plan fewer than the logged steps (the closed-loop model: 4 s)
+    valid = batch.future_valid[..., :horizon] & batch.agent_valid[..., None]
     count = valid.sum(-1)
-    err = torch.linalg.norm(states[..., :2] - batch.future[None, ..., :2], dim=-1)
+    err = torch.linalg.norm(states[..., :2] - batch.future[None, :, :, :horizon, :2], dim=-1)
     ade = (err * valid).sum(-1) / count.clamp(min=1)
     return ade, count > 0
 

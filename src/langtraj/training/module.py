@@ -24,6 +24,7 @@ from langtraj.model.features import collate_scenes
 from langtraj.model.langtraj import LangTraj
 from langtraj.rollouts.container import FUTURE_STEPS
 from langtraj.sim.open_loop import open_loop_rollouts, sample_open_loop
+from langtraj.training.closed_loop import closed_loop_loss
 from langtraj.training.config import TrainConfig
 from langtraj.training.data import MixingSampler, SceneDataset
 from langtraj.training.evaluation import constant_velocity, min_ade
@@ -47,11 +48,18 @@ class LangTrajModule(pl.LightningModule):
         step, rank, world = _position(self.trainer)
         torch.manual_seed(self.train_config.seed * 1_000_003 + step * world + rank)
 
+    def objective(self, batch) -> dict[str, torch.Tensor]:
+        """The stage's loss and its parts on one batch (denoising, or Algorithm 1's closed-loop loss)."""
+        if self.train_config.objective == "closed_loop":
+            return closed_loop_loss(self.model, batch, self.train_config.closed_loop)
+        return self.model.loss(batch, text_weight=self.train_config.text_loss_weight)
+
     def training_step(self, batch, batch_idx: int) -> torch.Tensor:
-        out = self.model.loss(batch, text_weight=self.train_config.text_loss_weight)
+        out = self.objective(batch)
         size = batch.batch_size
         for name, value in out.items():
-            self.log(f"train/{name}", value, batch_size=size, prog_bar=name in ("loss", "ade"))
+            if value.dim() == 0:
+                self.log(f"train/{name}", value, batch_size=size, prog_bar=name in ("loss", "ade"))
         return out["loss"]
 
     def on_validation_epoch_start(self) -> None:
@@ -67,6 +75,11 @@ class LangTrajModule(pl.LightningModule):
             return
         out = self.model.loss(batch)
         self._accumulate("loss", out["loss"] * batch.batch_size, torch.tensor(batch.batch_size))
+        if self.train_config.objective == "closed_loop":  # every agent on its own: no teacher forcing
+            config = replace(self.train_config.closed_loop, teacher_forcing=0.0)
+            generator = torch.Generator().manual_seed(self.train_config.seed + batch_idx)
+            unrolled = closed_loop_loss(self.model, batch, config, generator=generator)
+            self._accumulate("closed_loop_ade", unrolled["ade"] * batch.batch_size, torch.tensor(batch.batch_size))
         generator = torch.Generator(device=self.device).manual_seed(self.train_config.seed + batch_idx)
         kwargs = {"steps": val.sample_steps, "generator": generator}
         states, _ = self.model.sample(batch, val.num_samples, **kwargs)

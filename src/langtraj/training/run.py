@@ -10,6 +10,7 @@ See docs/model.md.
 
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import replace
 from pathlib import Path
@@ -20,9 +21,12 @@ import torch
 from pytorch_lightning.callbacks import LearningRateMonitor, ModelCheckpoint
 from pytorch_lightning.loggers import CSVLogger, TensorBoardLogger
 from pytorch_lightning.plugins.io import TorchCheckpointIO
+from pytorch_lightning.utilities import rank_zero_only
 
+from langtraj.fileio import atomic_path
 from langtraj.model.checkpoint import read_checkpoint
 from langtraj.training.config import TrainConfig
+from langtraj.training.data import SceneDataset, dataset_map_coverage
 from langtraj.training.module import CorpusData, LangTrajModule
 
 
@@ -41,12 +45,51 @@ class AtomicCheckpointIO(TorchCheckpointIO):
             partial.unlink(missing_ok=True)
 
 
+def _leading_slice(saved: torch.Tensor, shape: torch.Size) -> torch.Tensor | None:
+    """`saved` cut to `shape` when that keeps its leading entries along the one axis that shrinks (a
+    shorter action horizon keeps the weights of the first actions, which the flattened (action, channel)
+    layout stores first); None otherwise."""
+    if saved.dim() != len(shape):
+        return None
+    shrunk = [i for i, (old, new) in enumerate(zip(saved.shape, shape, strict=True)) if old != new]
+    if len(shrunk) != 1 or saved.shape[shrunk[0]] < shape[shrunk[0]]:
+        return None
+    return saved.narrow(shrunk[0], 0, shape[shrunk[0]]).clone()
+
+
 def _initialise(module: LangTrajModule, path: str) -> None:
-    """Stage 2 starts from stage 1's weights; the new text branch keeps its fresh initialisation."""
+    """A stage starts from the weights of the one before: stage 2 from stage 1 (the new text branch keeps
+    its fresh initialisation), distillation and closed-loop training from the stage before them. A
+    shorter horizon (the closed-loop model's 8 actions after 16) keeps the first actions' weights of the
+    action embedding and output layers (`_leading_slice`)."""
     checkpoint = read_checkpoint(path)
     own = module.state_dict()
-    state = {k: v for k, v in checkpoint["state_dict"].items() if k in own and own[k].shape == v.shape}
+    state = {}
+    for key, value in checkpoint["state_dict"].items():
+        if key not in own:
+            continue
+        if own[key].shape == value.shape:
+            state[key] = value
+        elif (cut := _leading_slice(value, own[key].shape)) is not None:
+            state[key] = cut
     module.load_state_dict(state, strict=False)
+
+
+@rank_zero_only
+def report_map_coverage(data_dir: str | Path, config: TrainConfig, out: Path) -> dict[str, float | int]:
+    """Print and write `RUN_DIR/map_coverage.json`: how many training agents see a lane within 5 m of
+    them in their sample's map now and at their logged 8-s position (docs/model.md, 'Inputs')."""
+    dataset = SceneDataset(data_dir, config.data, split="train", augment=False)
+    coverage = dataset_map_coverage(dataset)
+    print(
+        f"map coverage ({config.data.map_selection}, {config.data.max_polylines} pieces) on {coverage['agents']} "
+        f"agents of {coverage['windows']} training windows: {coverage['now']:.1%} have a lane within 5 m now, "
+        f"{coverage['at_8s']:.1%} at their 8-s position"
+    )
+    out.mkdir(parents=True, exist_ok=True)
+    with atomic_path(out / "map_coverage.json") as tmp:
+        tmp.write_text(json.dumps(coverage, indent=2))
+    return coverage
 
 
 def resolve_resume(resume: str | None, out: Path) -> str | None:
@@ -75,6 +118,7 @@ def train(
         config = replace(config, max_steps=max_steps)
     pl.seed_everything(config.seed, workers=True, verbose=False)
     data = CorpusData(data_dir, config)
+    report_map_coverage(data_dir, config, out)
     module = LangTrajModule(config.to_dict())
     ckpt_path = resolve_resume(resume, out)
     if ckpt_path is None and config.init_from:
