@@ -4,9 +4,8 @@
 The scenes come from the real WOMD scene 2a1e44d405a6833f (ScenarioNet pickle in ../shared/data/real,
 211 tracks, 66 of them valid at the current step). Its 64 most important sim agents make the 64-agent
 scene; no real file here has 128 sim agents, so the 128-agent scene is the 64-agent one plus a copy of
-its agents 1 km east (new track ids, no map there). The model drives at most its `max_agents` of them
-(the shipped tiny model: 24, all in the original copy); the rest follow their log. Medians over
---repeats runs.
+its agents 1 km east (new track ids, no map there). The model drives every sim agent (samples sized
+for them, `SampleConfig.for_agents`), as in every scored simulation. Medians over --repeats runs.
 
     python benchmarks/simulate_speed.py [--checkpoint CKPT] [--candidates 4] [--repeats 3] [--rollouts 32]
 """

@@ -163,8 +163,7 @@ def run(args: argparse.Namespace) -> int:
         result: ScenarioMetrics = run_job(EvalJob(scenario_file, index, str(rollouts), args.config))
         report = {**result.to_dict(), **_extras(args, scenario_file, index, rollouts)}
         title = f"WOSAC {args.config}, scenario {result.scenario_id}"
-    note = _log_following_note(report)
-    report["reads_future_log"] = note is not None
+    note = _log_following_note(report)  # the JSON says it too: `log_following_agents` per scenario
     text = json.dumps(_finite_or_null(report), indent=2, allow_nan=False)
     if args.out:
         with atomic_open(args.out, "w") as fh:
