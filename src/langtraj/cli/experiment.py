@@ -1,10 +1,11 @@
-"""`langtraj experiment open-loop|closed-loop|oracle-prompts ...`: the experiments of docs/experiments.md.
+"""`langtraj experiment open-loop|closed-loop|realism|oracle-prompts ...`: the experiments of docs/experiments.md.
 
 `open-loop`: minADE with and without the ground-truth prompt on held-out windows (optionally prompt
 adherence and the ceiling of the text gain); `closed-loop`: realism, controllability and safety of each
-method; `oracle-prompts`: a copy of a dataset whose sentences state each agent's displacement, to check
-the text pathway apart from the labels. Training runs of an experiment are `langtraj train` with its
-committed config under `configs/experiments/`.
+method; `realism`: the closed-loop realism of each model or baseline driving every agent (the paper's
+closed-loop ablation, selection and guidance variants); `oracle-prompts`: a copy of a dataset whose
+sentences state each agent's displacement, to check the text pathway apart from the labels. Training
+runs of an experiment are `langtraj train` with its committed config under `configs/experiments/`.
 """
 
 from __future__ import annotations
@@ -46,6 +47,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     c.add_argument("--seed", type=int, default=0)
     c.add_argument("--json", type=Path, help="also write every figure here")
     c.set_defaults(func=run_closed_loop)
+
+    e = sub.add_parser("realism", help="closed-loop realism per method (every agent driven, no text), per dataset")
+    e.add_argument(
+        "--method",
+        action="append",
+        required=True,
+        help="NAME=SPEC: constant_velocity, stationary, log_replay, or CKPT[|selector=S][|guidance=COST:W[+COST:W]]",
+    )
+    e.add_argument("--data", action="append", required=True, help="NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]] (val, 8)")
+    e.add_argument("--windows", type=int, default=None, help="at most this many windows per dataset")
+    e.add_argument("--candidates", type=int, default=4)
+    e.add_argument("--steps", type=int, default=5, help="DDIM steps (at most the model's K)")
+    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--json", type=Path, help="also write every figure here")
+    e.set_defaults(func=run_realism)
 
     r = sub.add_parser("oracle-prompts", help="a dataset copy whose sentences state each agent's displacement")
     r.add_argument("labels", type=Path, help="InterDrive dataset folder")
@@ -91,6 +107,23 @@ def run_closed_loop(args: argparse.Namespace) -> int:
         args.data,
         windows=args.windows,
         rollouts=args.rollouts,
+        candidates=args.candidates,
+        steps=args.steps,
+        seed=args.seed,
+        json_out=args.json,
+    )
+    return 0
+
+
+def run_realism(args: argparse.Namespace) -> int:
+    from langtraj.sim.realism import realism_experiment
+
+    for value, flag in ((args.windows, "--windows"), (args.candidates, "--candidates"), (args.steps, "--steps")):
+        _positive(value, flag)
+    realism_experiment(
+        args.method,
+        args.data,
+        windows=args.windows,
         candidates=args.candidates,
         steps=args.steps,
         seed=args.seed,

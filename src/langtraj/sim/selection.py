@@ -16,7 +16,7 @@ from typing import ClassVar
 import torch
 from torch import Tensor
 
-from langtraj.guidance import GuidanceScene, GuidanceTerm, NoCollisionCost
+from langtraj.guidance import GuidanceScene, GuidanceTerm, NoCollisionCost, OnRoadCost
 from langtraj.registry import Registry
 
 
@@ -48,6 +48,19 @@ class MinCollision(CandidateSelector):
     def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
         with torch.no_grad():
             return _per_candidate(NoCollisionCost(), states, scene).argmin(dim=0)
+
+
+@SELECTORS.register
+class MinCollisionOffroad(CandidateSelector):
+    """The paper's selection with map adherence added: the least disk overlap plus the on-road cost
+    (squared distance of the driven agents' centres past the road edge, 1 m margin, `OnRoadCost`)."""
+
+    name = "min_collision_offroad"
+
+    def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
+        with torch.no_grad():
+            cost = _per_candidate(NoCollisionCost(), states, scene) + _per_candidate(OnRoadCost(), states, scene)
+            return cost.argmin(dim=0)
 
 
 @SELECTORS.register
