@@ -39,7 +39,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
     c = sub.add_parser("closed-loop", help="realism, controllability and safety per method, per dataset")
     c.add_argument("--checkpoint", required=True, type=Path)
-    c.add_argument("--data", action="append", required=True, help="NAME=LABELS_DIR[:SPLIT] (default split val)")
+    c.add_argument(
+        "--data", action="append", required=True, help="NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]] (val, --rollouts)"
+    )
     c.add_argument("--windows", type=int, default=None, help="at most this many windows per dataset")
     c.add_argument("--rollouts", type=int, default=8)
     c.add_argument("--candidates", type=int, default=4)

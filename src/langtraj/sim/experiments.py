@@ -20,7 +20,7 @@ import json
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -73,6 +73,31 @@ def choose_prompt(record: WindowRecord, driven_ids: set[int]) -> PromptEntry | N
     fits = [p for p in record.prompts if p.mentions and set(p.mentions) <= driven_ids]
     interaction = [p for p in fits if p.subtype is not None and len(p.mentions) >= 2]
     return (interaction or fits or [None])[0]
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """`NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]]` as the experiments take it (split default val)."""
+
+    name: str
+    folder: str
+    split: str = "val"
+    rollouts: int | None = None
+
+    @classmethod
+    def parse(cls, item: str) -> DatasetSpec:
+        name, sep, rest = item.partition("=")
+        if not sep or not rest:
+            raise InputError(f"expected NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]], got {item!r}", where="--data")
+        folder, _, tail = rest.partition(":")
+        split, _, count = tail.partition(":")
+        try:
+            rollouts = int(count) if count else None
+        except ValueError:
+            raise InputError(f"rollouts must be a whole number, got {count!r}", where="--data") from None
+        if rollouts is not None and rollouts < 1:
+            raise InputError(f"rollouts must be >= 1, got {rollouts}", where="--data")
+        return cls(name, folder, split or "val", rollouts)
 
 
 def held_out_records(labels_dir: str, split: str, val_fraction: float = 0.1) -> list[WindowRecord]:
@@ -211,18 +236,16 @@ def closed_loop_experiment(
     seed: int = 0,
     json_out: str | Path | None = None,
 ) -> dict[str, dict]:
-    """The closed-loop table of every dataset (`NAME=LABELS_DIR[:SPLIT]`, default split val), printed as
+    """The closed-loop table of every dataset (`NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]]`, default split val), printed as
     Markdown; every figure is also written to `json_out` when given."""
     loaded = load_model(checkpoint)
     config = SimConfig(rollouts=rollouts, seed=seed)
     results = {}
     for item in datasets:
-        name, sep, rest = item.partition("=")
-        if not sep or not rest:
-            raise InputError(f"expected NAME=LABELS_DIR[:SPLIT], got {item!r}", where="--data")
-        folder, _, split = rest.partition(":")
-        found, skipped = cases(folder, split or "val", windows)
-        result = run_experiment(loaded, found, config, candidates, steps)
+        spec = DatasetSpec.parse(item)
+        name = spec.name
+        found, skipped = cases(spec.folder, spec.split, windows)
+        result = run_experiment(loaded, found, replace(config, rollouts=spec.rollouts or rollouts), candidates, steps)
         result["skipped_windows"] = skipped
         results[name] = result
         print(

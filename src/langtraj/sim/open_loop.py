@@ -30,7 +30,8 @@ class OpenLoopSamples:
     conditioned: tuple[int, ...]
 
     def scenario_with(self, scenario: Scenario, sample: int = 0) -> Scenario:
-        """The scenario with the driven agents' future replaced by sample `sample` (for rendering)."""
+        """The scenario with the driven agents' future replaced by sample `sample` (for rendering); their
+        steps past the model's horizon are invalid (never the log's)."""
         c = scenario.current_index
         steps = min(self.states.shape[2], scenario.num_steps - c - 1)
         states = scenario.agents.states.copy()
@@ -43,6 +44,7 @@ class OpenLoopSamples:
         sizes = [StateField.Z, StateField.LENGTH, StateField.WIDTH, StateField.HEIGHT]
         states[np.ix_(self.agents, np.arange(cols.start, cols.stop), sizes)] = states[self.agents, c][:, None, sizes]
         valid[self.agents, cols] = True
+        valid[self.agents, cols.stop :] = False  # past the model's horizon (4 s for a closed-loop model): unknown
         return replace(scenario, agents=replace(scenario.agents, states=states, valid=valid))
 
 

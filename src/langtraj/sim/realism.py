@@ -35,7 +35,7 @@ from langtraj.rollouts.container import FUTURE_STEPS, Rollouts
 from langtraj.scenario.model import Scenario
 from langtraj.sim.config import SimConfig
 from langtraj.sim.engine import simulate
-from langtraj.sim.experiments import held_out_records
+from langtraj.sim.experiments import DatasetSpec, held_out_records
 from langtraj.sim.policies import POLICIES, LangTrajPolicy, LoadedModel
 from langtraj.sim.terms import scene_wide_terms
 
@@ -197,16 +197,9 @@ def realism_experiment(
     loaded = [m.load() for m in parsed]
     results = {}
     for item in datasets:
-        name, sep, rest = item.partition("=")
-        if not sep or not rest:
-            raise InputError(f"expected NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]], got {item!r}", where="--data")
-        folder, _, tail = rest.partition(":")
-        split, _, count = tail.partition(":")
-        try:
-            rollouts = int(count) if count else 8
-        except ValueError:
-            raise InputError(f"rollouts must be a number, got {count!r}", where="--data") from None
-        scenes = windows_of(folder, split or "val", windows)
+        spec = DatasetSpec.parse(item)
+        name, folder, rollouts = spec.name, spec.folder, spec.rollouts or 8
+        scenes = windows_of(folder, spec.split, windows)
         if not scenes:
             raise InputError("no window logs 8 s after its current step", path=folder)
         print(f"\n{name}: {len(scenes)} windows, {rollouts} rollouts, {candidates} candidates per replan, K = {steps}")
