@@ -41,7 +41,7 @@ def write_dataset(folder: Path, num_scenes: int = 24) -> Path:
     records = [
         make_record(
             s,
-            [make_prompt((7, 17), "yield/yield_to")] if n % 2 == 0 else [make_prompt((7,)), make_prompt((37,))],
+            [make_prompt((7, 17), "yielding/intersection")] if n % 2 == 0 else [make_prompt((7,)), make_prompt((37,))],
             source=str(source.resolve()),
             record=n,
         )

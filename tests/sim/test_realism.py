@@ -44,3 +44,17 @@ def test_the_realism_table_scores_every_method(tiny_run, tmp_path, capsys):
         assert row["windows"] == 2
         assert all(math.isnan(row[c]) or 0.0 <= row[c] <= 1.0 for c in COLUMNS)
     assert table["log"]["meta"] > table["still"]["meta"]  # replaying the log is what the log scores best
+
+
+def test_the_closed_loop_table_takes_rollouts_per_dataset(tiny_run, tmp_path, capsys):
+    checkpoint, _ = tiny_run
+    labels = write_dataset(tmp_path, 2)
+    out = tmp_path / "closed.json"
+    args = ["experiment", "closed-loop", "--checkpoint", str(checkpoint), "--data", f"toy={labels}:all:2",
+            "--windows", "1", "--candidates", "2", "--steps", "2", "--json", str(out)]  # fmt: skip
+    assert main(args) == 0
+    assert "2 rollouts" in capsys.readouterr().out
+    table = json.loads(out.read_text())["toy"]["table"]
+    assert table["log replay"]["windows"] == 1 and 0.0 <= table["LangTraj, text"]["meta"] <= 1.0
+    assert main([*args[:5], f"toy={labels}:all:x"]) == 2
+    assert "rollouts must be a whole number" in capsys.readouterr().err

@@ -245,12 +245,13 @@ def closed_loop_experiment(
         spec = DatasetSpec.parse(item)
         name = spec.name
         found, skipped = cases(spec.folder, spec.split, windows)
-        result = run_experiment(loaded, found, replace(config, rollouts=spec.rollouts or rollouts), candidates, steps)
+        count = spec.rollouts or rollouts
+        result = run_experiment(loaded, found, replace(config, rollouts=count), candidates, steps)
         result["skipped_windows"] = skipped
         results[name] = result
         print(
             f"\n{name}: {len(found)} windows ({skipped} skipped: no prompt whose agents the model drives), "
-            f"{rollouts} rollouts, {candidates} candidates per replan, K = {steps}"
+            f"{count} rollouts, {candidates} candidates per replan, K = {steps}"
         )
         print(markdown(result["table"]))
     if json_out:
