@@ -15,7 +15,7 @@ from langtraj.errors import InputError
 from langtraj.model import ModelConfig
 from langtraj.model.checkpoint import load_model, read_checkpoint
 from langtraj.model.config import SampleConfig
-from langtraj.training.config import TrainConfig, load_config
+from langtraj.training.config import ClosedLoopConfig, TrainConfig, load_config
 from langtraj.training.run import train
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -49,8 +49,18 @@ def test_twenty_steps_lower_the_loss(labels, tmp_path):
     assert last.is_file() and read_checkpoint(last)["global_step"] == 20
 
 
-def test_resuming_from_a_checkpoint_continues_exactly(labels, tmp_path):
-    config = replace(CONFIG, max_steps=6)
+CLOSED_LOOP = replace(
+    CONFIG,
+    objective="closed_loop",
+    model=replace(CONFIG.model, num_actions=8, diffusion_steps=5),
+    val=replace(CONFIG.val, sample_steps=5, wosac_scenes=0),
+    closed_loop=ClosedLoopConfig(candidates=2),
+)
+
+
+@pytest.mark.parametrize("base", [CONFIG, CLOSED_LOOP], ids=["denoising", "closed_loop"])
+def test_resuming_from_a_checkpoint_continues_exactly(labels, tmp_path, base):
+    config = replace(base, max_steps=6)
     train(config, labels, tmp_path / "a", progress=False)
     middle = tmp_path / "a" / "checkpoints" / "step0000003.ckpt"
     assert middle.is_file()
