@@ -21,7 +21,7 @@ from langtraj.model.denoiser import Denoiser
 from langtraj.model.diffusion import Guidance, classifier_free_guidance, cosine_schedule, sample
 from langtraj.model.dynamics import DYNAMICS
 from langtraj.model.layers import mlp
-from langtraj.model.scene_encoder import SceneContext, SceneEncoder
+from langtraj.model.scene_encoder import MapContext, SceneContext, SceneEncoder
 from langtraj.model.text_encoder import TextEncoder
 from langtraj.scenario.types import AgentType
 
@@ -142,16 +142,18 @@ class LangTraj(nn.Module):
         guidance: Guidance | None = None,
         generator: torch.Generator | None = None,
         noise: Callable[[tuple[int, ...]], Tensor] | None = None,
+        map_context: MapContext | None = None,
     ) -> tuple[Tensor, Tensor]:
         """`num_samples` joint futures per scene: states [S, B, A, T, 4] and actions [S, B, A, N, 2].
 
         `steps` DDIM steps (default K); `guidance_weight` w is classifier-free guidance (w = -1: no text,
         0: text as given, > 0: stronger); `guidance` modifies x0 at every step (cost guidance). Its x0 rows
         are sample-major (all scenes of sample 0, then sample 1, ...), as are the rows `noise(shape)`
-        must draw when given (instead of `generator`).
+        must draw when given (instead of `generator`). `map_context` is the encoded map when the caller
+        keeps it (`SceneEncoder.encode_map`; a simulation's map is fixed).
         """
         # The scene and its sentences are encoded once; the samples share them (sample-major repeats).
-        base = self.encoder(batch)
+        base = self.encoder(batch, map_context)
         conditional = _repeat(self.language(batch, base), num_samples)
         unconditional = (
             _repeat(self.language(batch, base, drop_text=True), num_samples) if guidance_weight != 0.0 else None

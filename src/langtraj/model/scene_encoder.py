@@ -17,6 +17,15 @@ _MAP_TYPES = 40  # padding + MapFeatureType values (< 40)
 
 
 @dataclass
+class MapContext:
+    """Encoded map: polyline tokens with their poses and mask."""
+
+    tokens: Tensor  # [B, M, D]
+    pose: Tensor  # [B, M, 3]
+    mask: Tensor  # bool [B, M]
+
+
+@dataclass
 class SceneContext:
     """Encoded scene: agent and map tokens with their poses and masks."""
 
@@ -98,11 +107,9 @@ class SceneEncoder(nn.Module):
             AttentionBlock(d, config.num_heads, config.dropout) for _ in range(config.encoder_layers)
         )
 
-    def forward(self, batch: SceneBatch) -> SceneContext:
-        b, a = batch.agent_valid.shape
-        agent_pose = batch.current_state[..., :3]
-        agent = self.agent_embed(agent_local_history(batch).reshape(b, a, -1))
-        agent = agent + self.agent_type(batch.agent_type.clamp(0, _AGENT_TYPES - 1)) + self.agent_size(batch.agent_size)
+    def encode_map(self, batch: SceneBatch) -> MapContext:
+        """The map tokens alone: they depend on the map only, so a simulation, whose map is fixed, encodes
+        them once and passes them to every replan (`forward(batch, map_context)`)."""
         map_pose = polyline_pose(batch.map_points, batch.map_valid)
         local = _rotate(batch.map_points - map_pose[..., None, :2], -map_pose[..., 2][..., None])
         seg = torch.diff(local, dim=-2, prepend=local[..., :1, :])
@@ -115,6 +122,19 @@ class SceneEncoder(nn.Module):
         map_attn = near & map_mask[:, None, :] & map_mask[:, :, None]
         for layer in self.map_layers:
             polylines = layer(polylines, map_pose, polylines, map_pose, map_attn)
+        return MapContext(polylines, map_pose, map_mask)
+
+    def forward(self, batch: SceneBatch, map_context: MapContext | None = None) -> SceneContext:
+        """Agent and map tokens of a batch; `map_context`, when given, is `encode_map` of this batch's map
+        (rows broadcast: one row serves every scene of a batch that shares its map)."""
+        b, a = batch.agent_valid.shape
+        agent_pose = batch.current_state[..., :3]
+        agent = self.agent_embed(agent_local_history(batch).reshape(b, a, -1))
+        agent = agent + self.agent_type(batch.agent_type.clamp(0, _AGENT_TYPES - 1)) + self.agent_size(batch.agent_size)
+        encoded = map_context if map_context is not None else self.encode_map(batch)
+        polylines, map_pose, map_mask = (
+            t.expand(b, *t.shape[1:]) for t in (encoded.tokens, encoded.pose, encoded.mask)
+        )
         context_mask = torch.cat([batch.agent_valid, map_mask], dim=1)
         context_pose = torch.cat([agent_pose, map_pose], dim=1)
         agent_attn = context_mask[:, None, :].expand(b, a, -1) & batch.agent_valid[:, :, None]

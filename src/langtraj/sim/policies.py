@@ -34,6 +34,7 @@ from langtraj.model.checkpoint import load_model
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import MapArrays, collate_scenes, map_coverage, sample_map, scene_frame, scene_sample
 from langtraj.model.langtraj import LangTraj
+from langtraj.model.scene_encoder import MapContext
 from langtraj.registry import Registry
 from langtraj.rollouts.baselines import BASELINES
 from langtraj.scenario.model import STEP_SECONDS, Scenario
@@ -151,6 +152,7 @@ class LangTrajRun:
     data: SampleConfig
     origin: Origin
     map_arrays: MapArrays
+    map_context: MapContext  # the map encoded once (one row, shared by every rollout and replan)
     scene: GuidanceScene
     terms: tuple[GuidanceTerm, ...]
     selector: CandidateSelector
@@ -265,10 +267,15 @@ class LangTrajPolicy(Policy):
         scene = GuidanceScene.from_scenario(start, origin, world.driven, num_agents=data.max_agents)
         terms = self.terms + self.prompt_terms(world, slots, origin, data.max_agents)
         default = "min_guidance" if terms else "min_collision"
+        map_arrays = sample_map(start, world.driven, origin, data)
+        first = collate_scenes([scene_sample(start, data, agents=world.driven, origin=origin, map_arrays=map_arrays)])
+        with torch.no_grad():
+            map_context = self.model.encoder.encode_map(first.to(device))
         return LangTrajRun(
             data=data,
             origin=origin,
-            map_arrays=sample_map(start, world.driven, origin, data),
+            map_arrays=map_arrays,
+            map_context=map_context,
             scene=scene.to(device),
             terms=terms,
             selector=SELECTORS.create(self.selector_name or default, where="selector"),
@@ -340,7 +347,13 @@ class LangTrajPolicy(Policy):
                 max_grad_norm=self.max_grad_norm,
             )
         states, _ = self.model.sample(
-            batch, m, steps=self.steps, guidance_weight=self.guidance_weight, guidance=hook, noise=noise
+            batch,
+            m,
+            steps=self.steps,
+            guidance_weight=self.guidance_weight,
+            guidance=hook,
+            noise=noise,
+            map_context=state.map_context,
         )
         choice = state.selector.select(states, state.scene, state.terms)  # states [M, R, A, T, 4], scene frame
         chosen = states[choice, torch.arange(len(rollouts), device=device), : len(world.driven)].double().cpu().numpy()
