@@ -173,9 +173,11 @@ def test_a_kept_map_encoding_gives_the_same_samples(model):
     shared = replace(batch, map_points=batch.map_points[:1].expand_as(batch.map_points).clone(),
                      map_valid=batch.map_valid[:1].expand_as(batch.map_valid).clone(),
                      map_type=batch.map_type[:1].expand_as(batch.map_type).clone())  # fmt: skip
+    one = replace(
+        shared, map_points=shared.map_points[:1], map_valid=shared.map_valid[:1], map_type=shared.map_type[:1]
+    )
     with torch.no_grad():
-        kept = model.encoder.encode_map(replace(shared, map_points=shared.map_points[:1],
-                                                map_valid=shared.map_valid[:1], map_type=shared.map_type[:1]))  # fmt: skip
+        kept = model.encoder.encode_map(one)
     plain, _ = model.sample(shared, 2, steps=3, generator=torch.Generator().manual_seed(4))
     cached, _ = model.sample(shared, 2, steps=3, generator=torch.Generator().manual_seed(4), map_context=kept)
     torch.testing.assert_close(cached, plain, atol=1e-5, rtol=1e-5)

@@ -137,3 +137,21 @@ def test_a_shorter_horizon_starts_from_the_first_actions_weights():
     assert _leading_slice(weight, torch.Size([2, 4])).tolist() == [[0, 1, 2, 3], [6, 7, 8, 9]]
     assert _leading_slice(weight, torch.Size([3, 4])) is None
     assert np.array_equal(_leading_slice(torch.arange(6.0), torch.Size([4])).numpy(), np.arange(4.0))
+
+
+def test_the_denoising_loss_can_join_the_closed_loop_loss():
+    from langtraj.training.module import LangTrajModule
+
+    val = replace(TrainConfig().val, sample_steps=5, wosac_scenes=0)
+    with pytest.raises(InputError, match=r"closed_loop\.denoising_weight: must be >= 0"):
+        ClosedLoopConfig(denoising_weight=-1.0)
+    config = TrainConfig(
+        objective="closed_loop", model=MODEL, data=DATA, val=val,
+        closed_loop=ClosedLoopConfig(candidates=2, iterations=1, denoising_weight=2.0, collision_weight=0.0),
+    )  # fmt: skip
+    module = LangTrajModule(config.to_dict())
+    torch.manual_seed(0)
+    out = module.objective(_batch())
+    torch.manual_seed(0)
+    plain = closed_loop_loss(module.model, _batch(), config.closed_loop)
+    torch.testing.assert_close(out["loss"], plain["loss"] + 2.0 * out["denoising"])

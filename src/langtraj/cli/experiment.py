@@ -55,7 +55,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--method",
         action="append",
         required=True,
-        help="NAME=SPEC: constant_velocity, stationary, log_replay, or CKPT[|selector=S][|guidance=COST:W[+COST:W]]",
+        help="NAME=SPEC (no '=' in NAME): constant_velocity, stationary, log_replay, or "
+        "CKPT[|selector=S][|guidance=COST:W[+COST:W]]",
     )
     e.add_argument("--data", action="append", required=True, help="NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]] (val, 8)")
     e.add_argument("--windows", type=int, default=None, help="at most this many windows per dataset")

@@ -66,7 +66,9 @@ class ClosedLoopConfig:
     replans of `replan_actions` executed actions each (4 x 2 x 0.5 s over the 8 s of ground truth with a
     4-s horizon), `candidates` one-step-denoised samples per replan (M), noise levels tau ~ U(1, K x
     `noise_ratio`) (gamma), teacher forcing in `teacher_forcing` of the samples for `forced_agents` of
-    their agents, and the non-collision loss weighted `collision_weight`."""
+    their agents, and the non-collision loss weighted `collision_weight`. `denoising_weight` adds the
+    usual denoising loss of the same batch (every noise level; Algorithm 1 trains only tau <= K gamma,
+    while sampling starts from pure noise): not in the paper, off by default."""
 
     iterations: int = 4
     replan_actions: int = 2
@@ -75,6 +77,7 @@ class ClosedLoopConfig:
     teacher_forcing: float = 0.5
     forced_agents: float = 0.7
     collision_weight: float = 0.1
+    denoising_weight: float = 0.0  # not in the paper: the plain denoising loss beside it, at every noise level
 
     def __post_init__(self) -> None:
         for name in ("iterations", "replan_actions", "candidates"):
@@ -83,9 +86,9 @@ class ClosedLoopConfig:
         for name in ("teacher_forcing", "forced_agents"):
             value = getattr(self, name)
             require(0 <= value <= 1, f"closed_loop.{name}", f"must be in [0, 1], got {value}")
-        require(
-            self.collision_weight >= 0, "closed_loop.collision_weight", f"must be >= 0, got {self.collision_weight}"
-        )
+        for name in ("collision_weight", "denoising_weight"):
+            value = getattr(self, name)
+            require(value >= 0, f"closed_loop.{name}", f"must be >= 0, got {value}")
 
     def check(self, num_actions: int, logged_actions: int) -> None:
         """InputError unless the last replan's horizon (`num_actions` model actions) ends within the

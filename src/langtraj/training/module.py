@@ -51,7 +51,12 @@ class LangTrajModule(pl.LightningModule):
     def objective(self, batch) -> dict[str, torch.Tensor]:
         """The stage's loss and its parts on one batch (denoising, or Algorithm 1's closed-loop loss)."""
         if self.train_config.objective == "closed_loop":
-            return closed_loop_loss(self.model, batch, self.train_config.closed_loop)
+            config = self.train_config.closed_loop
+            out = closed_loop_loss(self.model, batch, config)
+            if config.denoising_weight > 0:
+                out["denoising"] = self.model.loss(batch, text_weight=self.train_config.text_loss_weight)["loss"]
+                out["loss"] = out["loss"] + config.denoising_weight * out["denoising"]
+            return out
         return self.model.loss(batch, text_weight=self.train_config.text_loss_weight)
 
     def training_step(self, batch, batch_idx: int) -> torch.Tensor:
