@@ -93,7 +93,7 @@ def main() -> None:
     print(
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, torch threads "
         f"{torch.get_num_threads()}, device {device}; checkpoint {Path(checkpoint).name} "
-        f"(drives up to {data.max_agents} agents)"
+        f"(trained on {data.max_agents}-agent scenes; drives every sim agent)"
     )
     print(f"{args.rollouts} rollouts x 8 s, K = 5, replanning at 1 Hz, {args.candidates} candidates per replan")
     full = read_scenario(SCENE)
