@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from dataset_builders import TINY_TRAINING
 
 from langtraj.cli.main import main
 from langtraj.errors import InputError
@@ -15,14 +16,12 @@ from langtraj.model.checkpoint import load_model
 from langtraj.training.recipe import load_recipe
 
 SMALL = {
-    "model": {"hidden_dim": 32, "num_heads": 4, "encoder_layers": 1, "denoiser_blocks": 1, "dropout": 0.0},
-    "data": {"max_agents": 8, "max_polylines": 16, "points_per_polyline": 10},
+    **{k: v for k, v in TINY_TRAINING.items() if k not in ("name", "stage")},
     "batch_size": 2,
-    "max_steps": 2,
-    "val_every_steps": 1000,
-    "checkpoint_every_steps": 1,
+    "data": {**TINY_TRAINING["data"], "max_polylines": 16},
     "val": {"sample_steps": 5, "wosac_scenes": 0, "max_batches": 1},
 }
+"""The tests' tiny training settings, with validation a 5-step model can run."""
 
 
 def _write(folder: Path, name: str, data: dict) -> None:

@@ -18,7 +18,7 @@ import json
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -80,7 +80,7 @@ class Method:
         """The method with its checkpoint loaded (once for every window)."""
         if self.checkpoint is None:
             return self
-        return Method(**{**self.__dict__, "loaded": load_model(self.checkpoint)})
+        return replace(self, loaded=load_model(self.checkpoint))
 
     def rollouts(self, scenario: Scenario, config: SimConfig, candidates: int, steps: int) -> Rollouts:
         """R rollouts of every sim agent of `scenario`."""

@@ -87,7 +87,7 @@ def closed_loop_loss(
     forced = forced_agents(batch, config, generator)
     free = batch.agent_valid & ~forced
     embedded = model.text_encoder(batch.text) if model.text_encoder is not None else None  # once per batch
-    current, executed_parts, chosen_parts = batch, [], []
+    current, executed_parts = batch, []
     for _ in range(config.iterations):
         x0, _ = model.fit_actions(current.current_state, current.future, current.future_valid, current.agent_valid)
         k = torch.randint(0, levels, (b,), generator=generator).to(device)
@@ -110,7 +110,6 @@ def closed_loop_loss(
         truth = model.integrate(start, current.agent_type, x0)[:, :, :execute].detach()
         executed = torch.where(forced[..., None, None], truth, executed)
         executed_parts.append(executed)
-        chosen_parts.append(chosen)
         current = current.advanced(executed.detach())
 
     executed = torch.cat(executed_parts, dim=2)  # [B, A, iterations * execute, 4]
@@ -132,5 +131,4 @@ def closed_loop_loss(
         "collision": collision,
         "ade": ade,
         "forced": forced.sum() / real,
-        "chosen": torch.stack(chosen_parts),  # [iterations, B, A, N, 2]: the executed candidates (tests)
     }

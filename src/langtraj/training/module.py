@@ -63,8 +63,7 @@ class LangTrajModule(pl.LightningModule):
         out = self.objective(batch)
         size = batch.batch_size
         for name, value in out.items():
-            if value.dim() == 0:
-                self.log(f"train/{name}", value, batch_size=size, prog_bar=name in ("loss", "ade"))
+            self.log(f"train/{name}", value, batch_size=size, prog_bar=name in ("loss", "ade"))
         return out["loss"]
 
     def on_validation_epoch_start(self) -> None:
