@@ -244,9 +244,15 @@ class OnRoadCost(GuidanceCost):
         self.margin = _finite(self.name, margin, "margin")
 
     def __call__(self, states: Tensor, scene: GuidanceScene) -> Tensor:
+        return self.per_agent(states, scene).sum(-1)
+
+    def per_agent(self, states: Tensor, scene: GuidanceScene) -> Tensor:
+        """Each agent's share of the cost: [S, A], zero for agents it does not steer (what a selector
+        that picks each agent's candidate on its own compares, `sim.selection.PerAgent`)."""
         steered = self.steered(states, scene)
+        out = states.new_zeros(states.shape[:2])
         if scene.road_edges.shape[0] == 0 or not steered.any():
-            return _zero(states)
+            return out + _zero(states)[:, None]
         edges = scene.road_edges.to(states)
         xy = states[:, steered, :, :2]
         offset, index = offset_to_segments(xy, edges[:, 0], edges[:, 1])
@@ -255,7 +261,8 @@ class OnRoadCost(GuidanceCost):
         left = direction[..., 0] * relative[..., 1] - direction[..., 1] * relative[..., 0] > 0
         distance = torch.sqrt((offset**2).sum(-1) + _EPS)
         signed = torch.where(left, -distance, distance)
-        return (torch.relu(signed + self.margin) ** 2).mean(-1).sum(-1)
+        cost = (torch.relu(signed + self.margin) ** 2).mean(-1)  # [S, steered]
+        return out.index_add(1, steered.nonzero()[:, 0], cost)
 
 
 @GUIDANCE.register

@@ -37,14 +37,20 @@ from langtraj.model.langtraj import LangTraj
 from langtraj.model.scene_encoder import MapContext
 from langtraj.registry import Registry
 from langtraj.rollouts.baselines import BASELINES
+from langtraj.rollouts.container import FUTURE_STEPS
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.selection import prioritized_agents
 from langtraj.sim.checkpoints import shipped_checkpoint
 from langtraj.sim.config import SimRequest
 from langtraj.sim.prompts import check_prompt_driven, merged_prompt
-from langtraj.sim.selection import SELECTORS, CandidateSelector
+from langtraj.sim.selection import SELECTORS, CandidateSelector, chosen_states
 from langtraj.sim.terms import collision_terms, scene_wide_terms
 from langtraj.sim.world import SimWorld
+
+FUTURE_SECONDS = FUTURE_STEPS * STEP_SECONDS
+MAP_REACH_MARGIN = 60.0
+"""Metres beyond its current speed x 8 s within which an agent's map (road edges, lanes) is kept for the
+costs and selectors of a simulation: room to speed up from a stop, and to the road edge beside its lane."""
 
 LoadedModel = tuple[LangTraj, SampleConfig]
 """A trained model and the sample configuration it was trained with (`langtraj.model.load_model`)."""
@@ -265,6 +271,8 @@ class LangTrajPolicy(Policy):
         origin = scene_frame(start)
         device = next(self.model.parameters()).device
         scene = GuidanceScene.from_scenario(start, origin, world.driven, num_agents=data.max_agents)
+        current = torch.as_tensor(poses_to_frame(world.current(world.start)[0], origin), dtype=torch.float32)
+        scene = scene.near(current[:, :2], current[:, 3] * FUTURE_SECONDS + MAP_REACH_MARGIN)
         terms = self.terms + self.prompt_terms(world, slots, origin, data.max_agents)
         default = "min_guidance" if terms else "min_collision"
         map_arrays = sample_map(start, world.driven, origin, data)
@@ -356,7 +364,7 @@ class LangTrajPolicy(Policy):
             map_context=state.map_context,
         )
         choice = state.selector.select(states, state.scene, state.terms)  # states [M, R, A, T, 4], scene frame
-        chosen = states[choice, torch.arange(len(rollouts), device=device), : len(world.driven)].double().cpu().numpy()
+        chosen = chosen_states(states, choice)[:, : len(world.driven)].double().cpu().numpy()
         return poses_to_world(chosen, state.origin)
 
 

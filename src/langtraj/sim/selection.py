@@ -21,13 +21,24 @@ from langtraj.registry import Registry
 
 
 class CandidateSelector(ABC):
-    """Picks one candidate per rollout from states [M, R, A, T, 4] (scene frame, the planning horizon)."""
+    """Picks a candidate per rollout, or per rollout and agent, from states [M, R, A, T, 4] (scene frame,
+    the planning horizon)."""
 
     name: ClassVar[str]
 
     @abstractmethod
     def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
-        """Index of the chosen candidate of each rollout: long [R]."""
+        """Index of the chosen candidate of each rollout, long [R] (a joint choice), or of each agent of
+        each rollout, long [R, A] (agents assembled from different candidates)."""
+
+
+def chosen_states(states: Tensor, choice: Tensor) -> Tensor:
+    """The executed states [R, A, T, 4] of candidates [M, R, A, T, 4] by a selector's `choice` ([R] or [R, A])."""
+    r, a = states.shape[1:3]
+    if choice.dim() == 1:
+        choice = choice[:, None].expand(r, a)
+    rows = torch.arange(r, device=states.device)[:, None]
+    return states[choice, rows, torch.arange(a, device=states.device)[None, :]]
 
 
 SELECTORS: Registry[CandidateSelector] = Registry("candidate selector")
@@ -61,6 +72,36 @@ class MinCollisionOffroad(CandidateSelector):
         with torch.no_grad():
             cost = _per_candidate(NoCollisionCost(), states, scene) + _per_candidate(OnRoadCost(), states, scene)
             return cost.argmin(dim=0)
+
+
+@SELECTORS.register
+class PerAgent(CandidateSelector):
+    """Each agent its own candidate: starting from the paper's joint choice (`min_collision`), every agent
+    in slot order (most important first) takes the candidate with the least on-road cost (`OnRoadCost`,
+    its own share) plus `collision_weight` x its disk overlap with the others as assembled so far; ties
+    keep the joint choice. Agents no longer share one joint sample, but the overlap term keeps the
+    assembled scene apart (docs/simulation.md, 'Candidate selection')."""
+
+    name = "per_agent"
+    collision_weight = 10.0  # an agent's summed pair overlaps (each in [0, 1]) against m^2 of road cost
+
+    def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
+        m, r, a = states.shape[:3]
+        with torch.no_grad():
+            choice = MinCollision().select(states, scene, terms)[:, None].expand(r, a).clone()
+            flat = states.reshape(m * r, *states.shape[2:])
+            road = OnRoadCost().per_agent(flat, scene).reshape(m, r, a)
+            agents = scene.agent_valid.nonzero()[:, 0].tolist()
+            involved = len(agents) ** 2  # NoCollisionCost's normaliser: undone to sum the pair overlaps
+            candidates = torch.arange(m, device=states.device)[:, None]
+            for agent in agents:
+                trial = chosen_states(states, choice)[None].repeat(m, 1, 1, 1, 1)  # [M, R, A, T, 4]
+                trial[:, :, agent] = states[:, :, agent]
+                overlap = _per_candidate(NoCollisionCost(agent), trial, scene) * involved
+                cost = road[:, :, agent] + self.collision_weight * overlap
+                cost = cost + 1e-6 * (candidates != choice[None, :, agent])  # ties keep the current choice
+                choice[:, agent] = cost.argmin(dim=0)
+            return choice
 
 
 @SELECTORS.register

@@ -103,6 +103,26 @@ class ClosedLoopConfig:
 
 
 @dataclass(frozen=True)
+class PerturbationConfig:
+    """Recovery training (ChauffeurNet's perturbations; not in the paper): each moving agent (at least
+    `min_speed` m/s), with probability `probability`, has its observed past moved rigidly sideways by up
+    to `lateral_m` and turned by up to `heading_rad` about its current position, while its target future
+    stays the logged one; so the model sees agents off their lane and learns to steer back, which logged
+    traffic, always on its lane, never shows (docs/model.md, 'Recovery training'). Off by default."""
+
+    probability: float = 0.0
+    lateral_m: float = 1.0
+    heading_rad: float = 0.1
+    min_speed: float = 3.0
+
+    def __post_init__(self) -> None:
+        require(0 <= self.probability <= 1, "perturbation.probability", f"must be in [0, 1], got {self.probability}")
+        for name in ("lateral_m", "heading_rad", "min_speed"):
+            value = getattr(self, name)
+            require(value >= 0, f"perturbation.{name}", f"must be >= 0, got {value}")
+
+
+@dataclass(frozen=True)
 class TrainConfig:
     """One training stage. Stage 1 learns without text; stage 2 adds text (and LoRA), starting from
     `init_from` (a stage-1 checkpoint) when given."""
@@ -123,6 +143,7 @@ class TrainConfig:
     init_from: str | None = None
     objective: str = "denoising"
     closed_loop: ClosedLoopConfig = field(default_factory=ClosedLoopConfig)
+    perturbation: PerturbationConfig = field(default_factory=PerturbationConfig)
     accelerator: str = "auto"
     devices: int | str = "auto"
     num_nodes: int = 1
@@ -165,6 +186,9 @@ class TrainConfig:
                 "val": ValConfig(**dataclass_kwargs(ValConfig, data.pop("val", {}), "val")),
                 "closed_loop": ClosedLoopConfig(
                     **dataclass_kwargs(ClosedLoopConfig, data.pop("closed_loop", {}), "closed_loop")
+                ),
+                "perturbation": PerturbationConfig(
+                    **dataclass_kwargs(PerturbationConfig, data.pop("perturbation", {}), "perturbation")
                 ),
             }
             config = cls(**sections, **data)

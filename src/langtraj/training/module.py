@@ -28,6 +28,7 @@ from langtraj.training.closed_loop import closed_loop_loss
 from langtraj.training.config import TrainConfig
 from langtraj.training.data import MixingSampler, SceneDataset
 from langtraj.training.evaluation import constant_velocity, min_ade
+from langtraj.training.perturbation import perturb_pasts
 
 
 class LangTrajModule(pl.LightningModule):
@@ -57,6 +58,7 @@ class LangTrajModule(pl.LightningModule):
                 out["denoising"] = self.model.loss(batch, text_weight=self.train_config.text_loss_weight)["loss"]
                 out["loss"] = out["loss"] + config.denoising_weight * out["denoising"]
             return out
+        batch = perturb_pasts(batch, self.train_config.perturbation)  # recovery training (off by default)
         return self.model.loss(batch, text_weight=self.train_config.text_loss_weight)
 
     def training_step(self, batch, batch_idx: int) -> torch.Tensor:

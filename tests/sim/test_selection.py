@@ -1,0 +1,68 @@
+"""Candidate selectors on constructed candidates: the joint choice, and each agent's own choice."""
+
+import torch
+
+from langtraj.guidance import GuidanceScene
+from langtraj.sim.selection import SELECTORS, chosen_states
+
+STEPS = 10
+
+
+def _scene(num_agents: int = 2) -> GuidanceScene:
+    """A road along x between y = -5 and y = 5 (edges keep the road on their left)."""
+    right_edge = torch.tensor([[-100.0, -5.0], [100.0, -5.0]])
+    left_edge = torch.tensor([[100.0, 5.0], [-100.0, 5.0]])
+    return GuidanceScene(
+        road_edges=torch.stack([right_edge, left_edge]),
+        lanes=torch.zeros(0, 2, 2),
+        lane_valid=torch.zeros(0, 2, dtype=torch.bool),
+        agent_size=torch.tensor([[4.0, 2.0]] * num_agents),
+        agent_valid=torch.ones(num_agents, dtype=torch.bool),
+    )
+
+
+def _track(x0: float, y: float) -> torch.Tensor:
+    """A straight drive along x at height y: states [T, 4]."""
+    x = x0 + torch.arange(1, STEPS + 1, dtype=torch.float32)
+    return torch.stack([x, torch.full_like(x, y), torch.zeros_like(x), torch.ones_like(x)], -1)
+
+
+def test_chosen_states_takes_joint_and_per_agent_choices():
+    states = torch.arange(3 * 2 * 2 * STEPS * 4, dtype=torch.float32).reshape(3, 2, 2, STEPS, 4)
+    joint = chosen_states(states, torch.tensor([2, 0]))
+    assert torch.equal(joint[0], states[2, 0]) and torch.equal(joint[1], states[0, 1])
+    mixed = chosen_states(states, torch.tensor([[1, 2], [0, 1]]))
+    assert torch.equal(mixed[0, 0], states[1, 0, 0]) and torch.equal(mixed[0, 1], states[2, 0, 1])
+    assert torch.equal(mixed[1, 1], states[1, 1, 1])
+
+
+def test_per_agent_keeps_each_agent_on_the_road_where_no_joint_candidate_does():
+    # Candidate 0 has agent 0 off the road, candidate 1 agent 1: every joint choice leaves one off.
+    on_a, off_a = _track(0.0, 0.0), _track(0.0, 8.0)
+    on_b, off_b = _track(30.0, -1.0), _track(30.0, -9.0)
+    states = torch.stack([torch.stack([off_a, on_b]), torch.stack([on_a, off_b])])[:, None]  # [M=2, R=1, A, T, 4]
+    scene = _scene()
+    assert SELECTORS.create("min_collision").select(states, scene, ()).shape == (1,)
+    choice = SELECTORS.create("per_agent").select(states, scene, ())
+    assert choice.tolist() == [[1, 0]]
+
+
+def test_per_agent_refuses_a_candidate_that_collides_with_the_assembled_scene():
+    # Agent 1's candidate 1 is on the road but drives through agent 0's candidate 0; its candidate 0 is
+    # slightly closer to the edge (a small road cost) and clear of agent 0.
+    a = _track(0.0, 0.0)
+    b_clear, b_crash = _track(0.0, -4.5), _track(0.0, 0.5)
+    states = torch.stack([torch.stack([a, b_clear]), torch.stack([a, b_crash])])[:, None]
+    choice = SELECTORS.create("per_agent").select(states, _scene(), ())
+    assert choice[0, 1] == 0
+    road = SELECTORS.create("per_agent")
+    road.collision_weight = 0.0  # without the overlap term the on-road but colliding candidate would win
+    assert road.select(states, _scene(), ())[0, 1] == 1
+
+
+def test_per_agent_keeps_the_joint_choice_when_nothing_is_gained():
+    a, b = _track(0.0, 0.0), _track(30.0, 1.0)
+    states = torch.stack([torch.stack([a, b]), torch.stack([a, b])])[:, None]
+    joint = SELECTORS.create("min_collision").select(states, _scene(), ())
+    choice = SELECTORS.create("per_agent").select(states, _scene(), ())
+    assert choice.tolist() == [[int(joint[0])] * 2]
