@@ -1,15 +1,17 @@
 """Nearest points on line segments, differentiable in the query points, for the map costs.
 
-The nearest segment is searched without autograd in chunks (a points x segments table can be large);
-the distance to the chosen segment is then recomputed with autograd, so the gradient is the exact one
-of the distance to the nearest segment.
+The nearest segment is searched without autograd (a k-d tree over segment pieces where the points x
+segments table is large); the distance to the chosen segment is then recomputed with autograd, so the
+gradient is the exact one of the distance to the nearest segment.
 
 See docs/simulation.md.
 """
 
 from __future__ import annotations
 
+import numpy as np
 import torch
+from scipy.spatial import cKDTree
 from torch import Tensor
 
 CHUNK_ELEMENTS = 1 << 22
@@ -24,11 +26,10 @@ def closest_on_segments(points: Tensor, start: Tensor, end: Tensor) -> Tensor:
     return start + along[..., None] * direction
 
 
-CELL = 20.0
-"""Side (m) of the square cells the nearest-segment search groups points into."""
-REACH = 20.0
-"""A cell's points are first compared with the segments whose bounding box comes within this many metres
-of the cell; a point whose nearest of those is farther is searched among all segments."""
+PIECE = 2.0
+"""Longest piece (m) a segment is cut into for the nearest-segment index; each piece is keyed by its centre."""
+NEIGHBOURS = (8, 64)
+"""Pieces the index offers a point, in rounds: a point left unsure by one round gets the next, then every segment."""
 
 
 def _brute_force(points: Tensor, start: Tensor, end: Tensor) -> Tensor:
@@ -44,33 +45,48 @@ def _brute_force(points: Tensor, start: Tensor, end: Tensor) -> Tensor:
 def nearest_segment(points: Tensor, start: Tensor, end: Tensor) -> Tensor:
     """Index (long [...]) of the segment nearest to each of `points` [..., 2] among start, end [K, 2], K > 0.
 
-    Exact: points are grouped by `CELL`-metre cells and compared with the segments near their cell, which
-    hold every segment within `REACH` m of them; the rare point farther from all of those is searched
-    among every segment. Where the table is small, every point meets every segment at once."""
+    Where the table is small every point meets every segment. Otherwise segments are cut into pieces of
+    at most `PIECE` m, a k-d tree over the piece centres (scipy) offers each point its nearest pieces
+    (`NEIGHBOURS` of them, in rounds), and a point for which a piece not offered could still hold a
+    nearer segment (the farthest offered centre is within the best distance plus half a piece) goes to
+    the next round, then to every segment; so the distance found is the nearest one (between segments
+    at the same distance, e.g. at a shared vertex, either may be returned)."""
     flat = points.detach().reshape(-1, 2)
     with torch.no_grad():
         if flat.shape[0] * start.shape[0] <= CHUNK_ELEMENTS:
             return _brute_force(flat, start, end).reshape(points.shape[:-1])
-        index = torch.empty(flat.shape[0], dtype=torch.long, device=flat.device)
-        low, high = torch.minimum(start, end), torch.maximum(start, end)
-        cells, group = torch.unique(torch.floor(flat / CELL).long(), dim=0, return_inverse=True)
-        order = torch.argsort(group)
-        bounds = torch.searchsorted(group[order], torch.arange(len(cells) + 1, device=flat.device))
-        for c, cell in enumerate(cells.to(flat.dtype)):
-            rows = order[bounds[c] : bounds[c + 1]]
-            lo, hi = cell * CELL - REACH, (cell + 1) * CELL + REACH
-            near = ((high >= lo) & (low <= hi)).all(-1).nonzero()[:, 0]
-            if len(near) == 0:
-                index[rows] = _brute_force(flat[rows], start, end)
-                continue
-            pts = flat[rows]
-            closest = closest_on_segments(pts[:, None], start[near][None], end[near][None])
-            distance2 = ((pts[:, None] - closest) ** 2).sum(-1)
-            best, arg = distance2.min(-1)
-            index[rows] = near[arg]
-            far = best > REACH**2
-            if far.any():
-                index[rows[far]] = _brute_force(pts[far], start, end)
+        a, b = start.detach().double().cpu().numpy(), end.detach().double().cpu().numpy()
+        lengths = np.linalg.norm(b - a, axis=-1)
+        pieces = np.maximum(np.ceil(lengths / PIECE).astype(np.int64), 1)
+        parent = np.repeat(np.arange(len(a)), pieces)
+        first = np.repeat(np.cumsum(pieces) - pieces, pieces)
+        frac = (np.arange(len(parent)) - first + 0.5) / pieces[parent]
+        centres = a[parent] + (b - a)[parent] * frac[:, None]
+        half_piece = float((lengths / pieces).max() / 2)
+        query = flat.double().cpu().numpy()
+        tree = cKDTree(centres)
+        index = torch.empty(len(query), dtype=torch.long, device=flat.device)
+        todo = np.arange(len(query))
+        for k in NEIGHBOURS:  # more pieces for the points the fewer left unsure
+            if not len(todo):
+                break
+            k = min(k, len(parent))
+            reach, piece = tree.query(query[todo], k=k)
+            reach, piece = reach.reshape(len(todo), k), piece.reshape(len(todo), k)
+            candidates = parent[piece]  # [N, k]
+            ca, cb = a[candidates], b[candidates]
+            direction = cb - ca
+            along = ((query[todo, None] - ca) * direction).sum(-1) / np.maximum((direction**2).sum(-1), 1e-12)
+            closest = ca + np.clip(along, 0.0, 1.0)[..., None] * direction
+            distance = np.linalg.norm(query[todo, None] - closest, axis=-1)
+            best = distance.argmin(-1)
+            rows = np.arange(len(todo))
+            index[torch.as_tensor(todo, device=flat.device)] = torch.as_tensor(candidates[rows, best], device=flat.device)
+            sure = (reach[:, -1] > distance[rows, best] + half_piece) | (k == len(parent))
+            todo = todo[~sure]
+        if len(todo):
+            rows = torch.as_tensor(todo, device=flat.device)
+            index[rows] = _brute_force(flat[rows], start, end)
         return index.reshape(points.shape[:-1])
 
 
