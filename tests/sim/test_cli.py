@@ -28,6 +28,7 @@ def test_simulate_writes_rollouts_video_and_summary(tiny_run, tmp_path, capsys):
     assert (out / "rollout0.mp4").stat().st_size > 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["prompted_ids"] == [7, 17] and summary["guidance"] == ["collision=1"]
+    assert summary["on_road"] == 1.0 and summary["selector"] == "min_guidance"  # the defaults with guidance
     assert summary["replans"] == [10, 50] and len(summary["seconds_per_replan"]) == 2
     agents = {a["id"]: a for a in summary["agents"]}
     assert set(agents) == {7, 17, 37, 47} and all(a["driven"] for a in agents.values())
@@ -47,6 +48,7 @@ def test_a_capped_model_leaves_the_rest_to_constant_velocity_and_says_so(tiny_ru
     assert "2 agents moved by langtraj; 2 agents moved by constant_velocity" in capsys.readouterr().out
     summary = json.loads((out / "summary.json").read_text())
     assert summary["agents_by_policy"] == {"langtraj": [7, 17], "constant_velocity": [37, 47]}
+    assert summary["on_road"] == 1.0 and summary["selector"] == "per_agent"  # the defaults without guidance
     assert not Rollouts.load(out / "rollouts.npz").reads_future_log
 
 
@@ -96,6 +98,9 @@ def test_baseline_policies_need_no_checkpoint(tiny_run, tmp_path):
         (["--policy", "constant_velocity", "--prompt", "@7 stops"], "need a model policy"),
         (["--policy", "constant_velocity", "--max-driven", "2"], "need a model policy"),
         (["--max-driven", "0"], "must be >= 1"),
+        (["--on-road", "-1"], "must be finite and >= 0"),
+        (["--selector", "best"], "best"),
+        (["--policy", "constant_velocity", "--selector", "per_agent"], "need a model policy"),
         (["--policy", "teleport"], "unknown policy"),
         (["--replan-s", "0.25"], "replan_s"),
     ],

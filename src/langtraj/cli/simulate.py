@@ -44,6 +44,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="NAME=WEIGHT",
         help="extra guidance cost on every driven agent: no_collision, on_road, keep_lane (repeatable)",
     )
+    p.add_argument(
+        "--on-road",
+        type=float,
+        metavar="W",
+        help="weight of the on-road guidance every driven agent gets (default 1, chosen by measurement; 0: off)",
+    )
+    p.add_argument(
+        "--selector",
+        help="candidate selection: per_agent (default without guidance), min_guidance (default with it), "
+        "min_collision (the paper's), min_collision_offroad, first",
+    )
     p.add_argument("--guidance-scale", type=float, default=1.0, help="step size alpha of reconstruction guidance")
     p.add_argument("--cfg", type=float, default=0.0, help="classifier-free guidance weight w (-1: ignore text)")
     p.add_argument("--rollouts", type=int, default=32, help="joint rollouts (default 32, as WOSAC)")
@@ -95,6 +106,8 @@ def run(args: argparse.Namespace) -> int:
         steps=args.steps,
         max_driven=args.max_driven,
         undriven=args.undriven,
+        selector=args.selector,
+        on_road=args.on_road,
     )
     policy, described = build_policy(scenario, request)  # every check happens here, before any write
     result = simulate(scenario, policy, config)

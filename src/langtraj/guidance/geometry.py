@@ -81,7 +81,9 @@ def nearest_segment(points: Tensor, start: Tensor, end: Tensor) -> Tensor:
             distance = np.linalg.norm(query[todo, None] - closest, axis=-1)
             best = distance.argmin(-1)
             rows = np.arange(len(todo))
-            index[torch.as_tensor(todo, device=flat.device)] = torch.as_tensor(candidates[rows, best], device=flat.device)
+            index[torch.as_tensor(todo, device=flat.device)] = torch.as_tensor(
+                candidates[rows, best], device=flat.device
+            )
             sure = (reach[:, -1] > distance[rows, best] + half_piece) | (k == len(parent))
             todo = todo[~sure]
         if len(todo):

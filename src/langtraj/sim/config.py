@@ -55,6 +55,8 @@ class SimRequest:
     steps: int = 5
     max_driven: int | None = None  # the model drives the N most important sim agents; None: every one
     undriven: str = "constant_velocity"  # how the others move (`sim.world.UNDRIVEN`); "log" reads the future
+    selector: str | None = None  # candidate selection (`sim.selection.SELECTORS`); None: the policy's default
+    on_road: float | None = None  # weight of the on-road guidance on every driven agent; None: the policy's default
 
     def __post_init__(self) -> None:
         if self.max_driven is not None and self.max_driven < 1:
@@ -64,8 +66,8 @@ class SimRequest:
 
     @property
     def needs_model(self) -> bool:
-        """Whether the request asks for something only a model policy can do (prompts, guidance, a cap on
-        the agents the model drives)."""
+        """Whether the request asks for something only a model policy can do (prompts, guidance, candidate
+        selection, a cap on the agents the model drives)."""
         return bool(
             self.prompts
             or self.adversary is not None
@@ -73,4 +75,6 @@ class SimRequest:
             or self.guidance
             or self.max_driven is not None
             or self.undriven != "constant_velocity"
+            or self.selector is not None
+            or self.on_road is not None
         )

@@ -13,6 +13,7 @@ the state `reset` returns, so one policy object can run several simulations.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -25,7 +26,7 @@ from torch import Tensor
 
 from langtraj.errors import InputError
 from langtraj.frames import Origin, poses_to_frame, poses_to_world
-from langtraj.guidance import GuidanceScene, GuidanceTerm, reconstruction_guidance
+from langtraj.guidance import GuidanceScene, GuidanceTerm, OnRoadCost, reconstruction_guidance
 from langtraj.guidance.library import terms_for_prompt
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import Prompt
@@ -52,6 +53,14 @@ MAP_REACH_MARGIN = 60.0
 """Metres beyond its current speed x 8 s within which an agent's map (road edges, lanes) is kept for the
 costs and selectors of a simulation: room to speed up from a stop, and to the road edge beside its lane."""
 
+DEFAULT_ON_ROAD = 1.0
+"""Weight of the on-road guidance a LangTraj simulation applies to every driven agent unless told
+otherwise (`--on-road`; 0 turns it off): chosen by measurement (docs/experiments.md, 'Closed-loop
+realism, every agent driven'), not in the paper."""
+DEFAULT_SELECTOR = "per_agent"
+"""Candidate selection without steering guidance (prompts' costs, collision or `--guidance` terms, which
+use `min_guidance`): chosen by measurement like `DEFAULT_ON_ROAD`; the paper's is `min_collision`."""
+
 LoadedModel = tuple[LangTraj, SampleConfig]
 """A trained model and the sample configuration it was trained with (`langtraj.model.load_model`)."""
 
@@ -69,8 +78,8 @@ class Policy(ABC):
         if request.needs_model:
             model_policies = ", ".join(c.name for c in POLICIES.classes() if c.uses_model)
             raise InputError(
-                f"prompts, guidance and --max-driven / --undriven need a model policy ({model_policies}), "
-                f"not {cls.name}"
+                "prompts, guidance, --selector, --on-road, --max-driven and --undriven need a model policy "
+                f"({model_policies}), not {cls.name}"
             )
         return cls()
 
@@ -200,6 +209,7 @@ class LangTrajPolicy(Policy):
         checkpoint: Path | None = None,
         max_driven: int | None = None,
         undriven: str = "constant_velocity",
+        on_road: float = DEFAULT_ON_ROAD,
     ):
         if candidates < 1 or steps < 1 or rollout_batch < 0:
             raise InputError(
@@ -223,6 +233,9 @@ class LangTrajPolicy(Policy):
         self.checkpoint = checkpoint
         self.max_driven = max_driven
         self.undriven = undriven
+        if not (math.isfinite(on_road) and on_road >= 0):
+            raise InputError(f"must be finite and >= 0, got {on_road}", where="--on-road")
+        self.on_road = float(on_road)
 
     @classmethod
     def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> LangTrajPolicy:
@@ -243,6 +256,8 @@ class LangTrajPolicy(Policy):
             "guidance_scale": request.guidance_scale,
             "max_driven": request.max_driven,
             "undriven": request.undriven,
+            "selector": request.selector,
+            "on_road": DEFAULT_ON_ROAD if request.on_road is None else request.on_road,
         }
 
     # ------------------------------------------------------------------ which agents
@@ -259,6 +274,8 @@ class LangTrajPolicy(Policy):
             "cfg": self.guidance_weight,
             "max_driven": self.max_driven,
             "map_selection": self.data.map_selection,
+            "on_road": self.on_road,
+            "selector": self.selector_name or ("min_guidance" if self.terms else DEFAULT_SELECTOR),
         }
 
     # ------------------------------------------------------------------ simulation
@@ -273,8 +290,9 @@ class LangTrajPolicy(Policy):
         scene = GuidanceScene.from_scenario(start, origin, world.driven, num_agents=data.max_agents)
         current = torch.as_tensor(poses_to_frame(world.current(world.start)[0], origin), dtype=torch.float32)
         scene = scene.near(current[:, :2], current[:, 3] * FUTURE_SECONDS + MAP_REACH_MARGIN)
-        terms = self.terms + self.prompt_terms(world, slots, origin, data.max_agents)
-        default = "min_guidance" if terms else "min_collision"
+        steering = self.terms + self.prompt_terms(world, slots, origin, data.max_agents)
+        default = "min_guidance" if steering else DEFAULT_SELECTOR
+        terms = steering + ((GuidanceTerm(OnRoadCost(), self.on_road),) if self.on_road > 0 else ())
         map_arrays = sample_map(start, world.driven, origin, data)
         first = collate_scenes([scene_sample(start, data, agents=world.driven, origin=origin, map_arrays=map_arrays)])
         with torch.no_grad():

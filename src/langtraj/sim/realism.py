@@ -8,7 +8,9 @@ with and without teacher forcing) beside the baselines, and the selection and gu
         [--windows N] [--candidates M] [--seed S] [--json OUT]
 
 SPEC is `constant_velocity`, `stationary`, `log_replay` (a labelled baseline that reads the future), or
-a checkpoint, optionally followed by `|selector=NAME` and `|guidance=COST:WEIGHT[+COST:WEIGHT]`.
+a checkpoint, optionally followed by `|selector=NAME` and `|guidance=COST:WEIGHT[+COST:WEIGHT]`. A
+checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says otherwise;
+`langtraj simulate`'s defaults are `|guidance=on_road:1|selector=per_agent`.
 """
 
 from __future__ import annotations
@@ -97,7 +99,8 @@ class Method:
                 terms=scene_wide_terms(self.guidance),
                 candidates=candidates,
                 steps=min(steps, model.schedule.num_steps),
-                selector=self.selector,
+                selector=self.selector or "min_collision",  # the paper's rows unless a selector is given
+                on_road=0.0,  # only the guidance the spec names
             )
         return simulate(scenario, policy, config).rollouts
 
