@@ -8,6 +8,8 @@ its agents 1 km east (new track ids, no map there). The model drives every sim a
 for them, `SampleConfig.for_agents`), as in every scored simulation. Medians over --repeats runs.
 
     python benchmarks/simulate_speed.py [--checkpoint CKPT] [--candidates 4] [--repeats 3] [--rollouts 32]
+        [--on-road W] [--selector NAME]    (default: langtraj simulate's; the paper's: --on-road 0
+                                            --selector min_collision)
 """
 
 from __future__ import annotations
@@ -76,6 +78,8 @@ def main() -> None:
     parser.add_argument("--rollouts", type=int, default=32)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--agents", type=int, nargs="+", default=[64, 128], choices=[16, 32, 64, 128])
+    parser.add_argument("--on-road", type=float, help="on-road guidance weight (default: langtraj simulate's)")
+    parser.add_argument("--selector", help="candidate selection (default: langtraj simulate's)")
     args = parser.parse_args()
     if not SCENE.is_file():
         sys.exit(f"benchmark scene not found: {SCENE}")
@@ -84,7 +88,7 @@ def main() -> None:
     from langtraj.scenario.io import read_scenario
     from langtraj.sim.checkpoints import shipped_checkpoint
     from langtraj.sim.engine import SimConfig, simulate
-    from langtraj.sim.policies import LangTrajPolicy
+    from langtraj.sim.policies import DEFAULT_ON_ROAD, DEFAULT_SELECTOR, LangTrajPolicy
 
     device = "cuda" if torch.cuda.is_available() else "cpu"
     checkpoint = args.checkpoint or shipped_checkpoint()
@@ -95,13 +99,20 @@ def main() -> None:
         f"{torch.get_num_threads()}, device {device}; checkpoint {Path(checkpoint).name} "
         f"(trained on {data.max_agents}-agent scenes; drives every sim agent)"
     )
-    print(f"{args.rollouts} rollouts x 8 s, K = 5, replanning at 1 Hz, {args.candidates} candidates per replan")
+    on_road = DEFAULT_ON_ROAD if args.on_road is None else args.on_road
+    selector = args.selector or DEFAULT_SELECTOR
+    print(
+        f"{args.rollouts} rollouts x 8 s, K = 5, replanning at 1 Hz, {args.candidates} candidates per replan, "
+        f"on-road guidance {on_road:g}, selector {selector}"
+    )
     full = read_scenario(SCENE)
     for count in args.agents:
         scene = cut_scene(full, count) if count <= 64 else doubled(cut_scene(full, count // 2))
         times = []
         for repeat in range(args.repeats):
-            policy = LangTrajPolicy(model, data, candidates=args.candidates, steps=5)
+            policy = LangTrajPolicy(
+                model, data, candidates=args.candidates, steps=5, on_road=on_road, selector=selector
+            )
             result = simulate(scene, policy, SimConfig(rollouts=args.rollouts, replan_s=1.0, seed=repeat))
             times.append(result.seconds)
         print(

@@ -18,6 +18,7 @@ def test_method_specs():
     assert Method.parse("cv=constant_velocity").baseline == "constant_velocity"
     model = Method.parse("m=runs/x.ckpt|selector=min_collision_offroad|guidance=on_road:1+no_collision:0.5")
     assert model.selector == "min_collision_offroad" and model.guidance == ("on_road=1", "no_collision=0.5")
+    assert not model.defaults and Method.parse("m=runs/x.ckpt|defaults").defaults
     for bad, message in (
         ("nothing", "expected NAME=SPEC"),
         ("cv=constant_velocity|selector=first", "takes no options"),
@@ -33,13 +34,13 @@ def test_the_realism_table_scores_every_method(tiny_run, tmp_path, capsys):
     labels = write_dataset(tmp_path, 4)
     out = tmp_path / "realism.json"
     methods = ["cv=constant_velocity", "still=stationary", "log=log_replay",
-               f"model={checkpoint}|selector=min_collision_offroad|guidance=on_road:1"]  # fmt: skip
+               f"model={checkpoint}|selector=min_collision_offroad|guidance=on_road:1", f"sim={checkpoint}|defaults"]  # fmt: skip
     args = ["experiment", "realism", "--data", f"toy={labels}:all:2", "--windows", "2", "--candidates", "2",
             "--steps", "2", "--json", str(out)]  # fmt: skip
     assert main([*args, *(x for m in methods for x in ("--method", m))]) == 0
     assert "| model |" in capsys.readouterr().out
     table = json.loads(out.read_text())["toy"]["table"]
-    assert set(table) == {"cv", "still", "log", "model"}
+    assert set(table) == {"cv", "still", "log", "model", "sim"}
     for row in table.values():
         assert row["windows"] == 2
         assert all(math.isnan(row[c]) or 0.0 <= row[c] <= 1.0 for c in COLUMNS)

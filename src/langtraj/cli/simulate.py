@@ -51,6 +51,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="weight of the on-road guidance every driven agent gets (default 1, chosen by measurement; 0: off)",
     )
     p.add_argument(
+        "--no-collision",
+        type=float,
+        metavar="W",
+        help="weight per agent pair of the no-collision guidance between driven agents (default 0.25, chosen by "
+        "measurement; 0: off; an --adversary and its --target are left out)",
+    )
+    p.add_argument(
         "--selector",
         help="candidate selection: per_agent (default without guidance), min_guidance (default with it), "
         "min_collision (the paper's), min_collision_offroad, first",
@@ -108,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
         undriven=args.undriven,
         selector=args.selector,
         on_road=args.on_road,
+        no_collision=args.no_collision,
     )
     policy, described = build_policy(scenario, request)  # every check happens here, before any write
     result = simulate(scenario, policy, config)

@@ -57,6 +57,7 @@ class SimRequest:
     undriven: str = "constant_velocity"  # how the others move (`sim.world.UNDRIVEN`); "log" reads the future
     selector: str | None = None  # candidate selection (`sim.selection.SELECTORS`); None: the policy's default
     on_road: float | None = None  # weight of the on-road guidance on every driven agent; None: the policy's default
+    no_collision: float | None = None  # weight per pair of the no-collision guidance; None: the policy's default
 
     def __post_init__(self) -> None:
         if self.max_driven is not None and self.max_driven < 1:
@@ -77,4 +78,5 @@ class SimRequest:
             or self.undriven != "constant_velocity"
             or self.selector is not None
             or self.on_road is not None
+            or self.no_collision is not None
         )

@@ -26,7 +26,7 @@ from torch import Tensor
 
 from langtraj.errors import InputError
 from langtraj.frames import Origin, poses_to_frame, poses_to_world
-from langtraj.guidance import GuidanceScene, GuidanceTerm, OnRoadCost, reconstruction_guidance
+from langtraj.guidance import GuidanceScene, GuidanceTerm, NoCollisionCost, OnRoadCost, reconstruction_guidance
 from langtraj.guidance.library import terms_for_prompt
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import Prompt
@@ -57,6 +57,9 @@ DEFAULT_ON_ROAD = 1.0
 """Weight of the on-road guidance a LangTraj simulation applies to every driven agent unless told
 otherwise (`--on-road`; 0 turns it off): chosen by measurement (docs/experiments.md, 'Closed-loop
 realism, every agent driven'), not in the paper."""
+DEFAULT_NO_COLLISION = 0.25
+"""Weight per agent pair of the no-collision guidance a LangTraj simulation applies between its driven
+agents unless told otherwise (`--no-collision`; 0 turns it off), chosen like `DEFAULT_ON_ROAD`."""
 DEFAULT_SELECTOR = "per_agent"
 """Candidate selection without steering guidance (prompts' costs, collision or `--guidance` terms, which
 use `min_guidance`): chosen by measurement like `DEFAULT_ON_ROAD`; the paper's is `min_collision`."""
@@ -78,8 +81,8 @@ class Policy(ABC):
         if request.needs_model:
             model_policies = ", ".join(c.name for c in POLICIES.classes() if c.uses_model)
             raise InputError(
-                "prompts, guidance, --selector, --on-road, --max-driven and --undriven need a model policy "
-                f"({model_policies}), not {cls.name}"
+                "prompts, guidance, --selector, --on-road, --no-collision, --max-driven and --undriven need a model "
+                f"policy ({model_policies}), not {cls.name}"
             )
         return cls()
 
@@ -210,6 +213,8 @@ class LangTrajPolicy(Policy):
         max_driven: int | None = None,
         undriven: str = "constant_velocity",
         on_road: float = DEFAULT_ON_ROAD,
+        no_collision: float = DEFAULT_NO_COLLISION,
+        free: Sequence[int] = (),
     ):
         if candidates < 1 or steps < 1 or rollout_batch < 0:
             raise InputError(
@@ -236,6 +241,10 @@ class LangTrajPolicy(Policy):
         if not (math.isfinite(on_road) and on_road >= 0):
             raise InputError(f"must be finite and >= 0, got {on_road}", where="--on-road")
         self.on_road = float(on_road)
+        if not (math.isfinite(no_collision) and no_collision >= 0):
+            raise InputError(f"must be finite and >= 0, got {no_collision}", where="--no-collision")
+        self.no_collision = float(no_collision)
+        self.free = tuple(int(slot) for slot in free)
 
     @classmethod
     def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> LangTrajPolicy:
@@ -243,7 +252,10 @@ class LangTrajPolicy(Policy):
         model, data = loaded or load_model(checkpoint)
         slots = slots_of(scenario, model_agents(scenario, request.max_driven))
         terms = collision_terms(scenario, slots, request) + scene_wide_terms(request.guidance)
-        return cls(model, data, terms=terms, checkpoint=checkpoint, **cls._request_options(scenario, request))
+        free = [slots[t] for t in (request.adversary, request.target) if t is not None]  # the collision's pair
+        return cls(
+            model, data, terms=terms, checkpoint=checkpoint, free=free, **cls._request_options(scenario, request)
+        )
 
     @staticmethod
     def _request_options(scenario: Scenario, request: SimRequest) -> dict[str, Any]:
@@ -258,6 +270,7 @@ class LangTrajPolicy(Policy):
             "undriven": request.undriven,
             "selector": request.selector,
             "on_road": DEFAULT_ON_ROAD if request.on_road is None else request.on_road,
+            "no_collision": DEFAULT_NO_COLLISION if request.no_collision is None else request.no_collision,
         }
 
     # ------------------------------------------------------------------ which agents
@@ -275,6 +288,7 @@ class LangTrajPolicy(Policy):
             "max_driven": self.max_driven,
             "map_selection": self.data.map_selection,
             "on_road": self.on_road,
+            "no_collision": self.no_collision,
             "selector": self.selector_name or ("min_guidance" if self.terms else DEFAULT_SELECTOR),
         }
 
@@ -292,7 +306,7 @@ class LangTrajPolicy(Policy):
         scene = scene.near(current[:, :2], current[:, 3] * FUTURE_SECONDS + MAP_REACH_MARGIN)
         steering = self.terms + self.prompt_terms(world, slots, origin, data.max_agents)
         default = "min_guidance" if steering else DEFAULT_SELECTOR
-        terms = steering + ((GuidanceTerm(OnRoadCost(), self.on_road),) if self.on_road > 0 else ())
+        terms = steering + self.realism_terms(len(world.driven))
         map_arrays = sample_map(start, world.driven, origin, data)
         first = collate_scenes([scene_sample(start, data, agents=world.driven, origin=origin, map_arrays=map_arrays)])
         with torch.no_grad():
@@ -307,6 +321,19 @@ class LangTrajPolicy(Policy):
             selector=SELECTORS.create(self.selector_name or default, where="selector"),
             generators=[torch.Generator().manual_seed(seed * 1_000_003 + r) for r in range(world.num_rollouts)],
         )
+
+    def realism_terms(self, num_driven: int) -> tuple[GuidanceTerm, ...]:
+        """The default guidance on every driven agent: on-road, and no-collision between every pair except
+        the agents in `free` (an adversary and its target). The paper's no-collision cost divides by the
+        square of the agents involved, so its weight is `no_collision` x that square: a fixed weight per
+        pair, whatever the scene's size."""
+        terms = []
+        if self.on_road > 0:
+            terms.append(GuidanceTerm(OnRoadCost(), self.on_road))
+        kept = [slot for slot in range(num_driven) if slot not in self.free]
+        if self.no_collision > 0 and len(kept) > 1:
+            terms.append(GuidanceTerm(NoCollisionCost(kept, others=kept), self.no_collision * len(kept) ** 2))
+        return tuple(terms)
 
     def report(self, world: SimWorld, state: LangTrajRun) -> dict[str, Any]:
         """Map coverage: the share of driven agents with a lane point of the model's map within 5 m

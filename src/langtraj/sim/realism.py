@@ -8,9 +8,10 @@ with and without teacher forcing) beside the baselines, and the selection and gu
         [--windows N] [--candidates M] [--seed S] [--json OUT]
 
 SPEC is `constant_velocity`, `stationary`, `log_replay` (a labelled baseline that reads the future), or
-a checkpoint, optionally followed by `|selector=NAME` and `|guidance=COST:WEIGHT[+COST:WEIGHT]`. A
-checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says otherwise;
-`langtraj simulate`'s defaults are `|guidance=on_road:1|selector=per_agent`.
+a checkpoint, optionally followed by `|selector=NAME`, `|guidance=COST:WEIGHT[+COST:WEIGHT]` and
+`|defaults`. A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says
+otherwise; `|defaults` adds `langtraj simulate`'s default guidance and selection (on-road guidance,
+no-collision guidance per agent pair, `per_agent` selection; `sim.policies`).
 """
 
 from __future__ import annotations
@@ -55,6 +56,7 @@ class Method:
     checkpoint: Path | None = None
     selector: str | None = None
     guidance: tuple[str, ...] = ()
+    defaults: bool = False  # `langtraj simulate`'s default guidance and selection besides the spec's
     loaded: LoadedModel | None = field(default=None, compare=False, repr=False)
 
     @classmethod
@@ -69,14 +71,17 @@ class Method:
                 raise InputError(f"baseline {head} takes no options, got {options}", where="--method")
             return cls(name, baseline=head)
         settings: dict[str, str] = {}
-        for option in options:
+        defaults = "defaults" in options
+        for option in (o for o in options if o != "defaults"):
             key, eq, value = option.partition("=")
             if not eq or key not in ("selector", "guidance"):
-                raise InputError(f"expected selector=NAME or guidance=COST:WEIGHT, got {option!r}", where="--method")
+                raise InputError(
+                    f"expected selector=NAME, guidance=COST:WEIGHT or defaults, got {option!r}", where="--method"
+                )
             settings[key] = value
         guidance = tuple(g.replace(":", "=") for g in settings.get("guidance", "").split("+") if g)
         scene_wide_terms(guidance)  # checked now, before anything runs
-        return cls(name, checkpoint=Path(head), selector=settings.get("selector"), guidance=guidance)
+        return cls(name, checkpoint=Path(head), selector=settings.get("selector"), guidance=guidance, defaults=defaults)
 
     def load(self) -> Method:
         """The method with its checkpoint loaded (once for every window)."""
@@ -93,14 +98,16 @@ class Method:
         else:
             assert self.loaded is not None
             model, data = self.loaded
+            paper = {} if self.defaults else {"selector": "min_collision", "on_road": 0.0, "no_collision": 0.0}
+            if self.selector:
+                paper["selector"] = self.selector
             policy = LangTrajPolicy(
                 model,
                 data,
                 terms=scene_wide_terms(self.guidance),
                 candidates=candidates,
                 steps=min(steps, model.schedule.num_steps),
-                selector=self.selector or "min_collision",  # the paper's rows unless a selector is given
-                on_road=0.0,  # only the guidance the spec names
+                **paper,
             )
         return simulate(scenario, policy, config).rollouts
 
