@@ -34,7 +34,8 @@ def test_the_realism_table_scores_every_method(tiny_run, tmp_path, capsys):
     labels = write_dataset(tmp_path, 4)
     out = tmp_path / "realism.json"
     methods = ["cv=constant_velocity", "still=stationary", "log=log_replay",
-               f"model={checkpoint}|selector=min_collision_offroad|guidance=on_road:1", f"sim={checkpoint}|defaults"]  # fmt: skip
+               f"model={checkpoint}|selector=min_collision_offroad|guidance=on_road:1",
+               f"sim={checkpoint}|defaults"]  # fmt: skip
     args = ["experiment", "realism", "--data", f"toy={labels}:all:2", "--windows", "2", "--candidates", "2",
             "--steps", "2", "--json", str(out)]  # fmt: skip
     assert main([*args, *(x for m in methods for x in ("--method", m))]) == 0

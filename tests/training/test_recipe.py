@@ -43,7 +43,12 @@ def recipe_file(tmp_path) -> Path:
     _write(
         tmp_path,
         "recipe.yaml",
-        {"name": "toy", "corpus": {"kinds": "signalized", "windows": 2, "seed": 3}, "stages": stages},
+        {
+            "name": "toy",
+            "corpus": {"kinds": "signalized", "windows": 2, "seed": 3},
+            "stages": stages,
+            "ship": "distill",
+        },
     )
     return tmp_path / "recipe.yaml"
 
@@ -56,8 +61,10 @@ def test_the_recipe_runs_every_stage_then_skips_them(recipe_file, tmp_path, caps
         assert f"{step}: " in printed and (out / step / "DONE.json").is_file()
     model, data = load_model(out / "cl" / "checkpoints" / "last.ckpt")
     assert (model.config.diffusion_steps, model.config.num_actions) == (5, 8) and data.map_selection == "agents"
-    times = json.loads((out / "recipe.json").read_text())["seconds"]
-    assert set(times) == {"corpus", "labels", "s1", "s2", "distill", "cl"}
+    record = json.loads((out / "recipe.json").read_text())
+    assert set(record["seconds"]) == {"corpus", "labels", "s1", "s2", "distill", "cl"}
+    assert record["shipped"] == str(out / "distill" / "checkpoints" / "last.ckpt")  # the stage it ships
+    assert "shipped checkpoint (distill)" in printed
     # a second run skips what is done; a stage whose marker is gone resumes from its checkpoint
     (out / "cl" / "DONE.json").unlink()
     assert main(["recipe", str(recipe_file), "--out", str(out), "--workers", "1"]) == 0
@@ -72,3 +79,6 @@ def test_a_bad_recipe_is_one_line(recipe_file, tmp_path):
     with pytest.raises(InputError, match="no such file"):
         load_recipe(tmp_path / "bad.yaml")
     assert main(["recipe", "no-such-recipe", "--out", str(tmp_path / "x")]) == 2
+    _write(tmp_path, "ship.yaml", {**yaml.safe_load(recipe_file.read_text()), "ship": "stage9"})
+    with pytest.raises(InputError, match="'stage9' is not a stage"):
+        load_recipe(tmp_path / "ship.yaml")

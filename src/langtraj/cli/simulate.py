@@ -54,7 +54,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--no-collision",
         type=float,
         metavar="W",
-        help="weight per agent pair of the no-collision guidance between driven agents (default 0.25, chosen by "
+        help="weight per agent pair of the no-collision guidance between driven agents (default 1, chosen by "
         "measurement; 0: off; an --adversary and its --target are left out)",
     )
     p.add_argument(

@@ -57,7 +57,7 @@ DEFAULT_ON_ROAD = 1.0
 """Weight of the on-road guidance a LangTraj simulation applies to every driven agent unless told
 otherwise (`--on-road`; 0 turns it off): chosen by measurement (docs/experiments.md, 'Closed-loop
 realism, every agent driven'), not in the paper."""
-DEFAULT_NO_COLLISION = 0.25
+DEFAULT_NO_COLLISION = 1.0
 """Weight per agent pair of the no-collision guidance a LangTraj simulation applies between its driven
 agents unless told otherwise (`--no-collision`; 0 turns it off), chosen like `DEFAULT_ON_ROAD`."""
 DEFAULT_SELECTOR = "per_agent"

@@ -55,12 +55,19 @@ class Recipe:
     corpus: CorpusStep = field(default_factory=CorpusStep)
     label_seed: int = 0
     stages: tuple[TrainStep, ...] = ()
+    ship: str | None = None  # the stage whose last checkpoint is the recipe's output (None: the last stage)
     folder: Path = Path(".")
 
     def __post_init__(self) -> None:
         require(bool(self.stages), "stages", "a recipe needs at least one training stage")
         names = [s.name for s in self.stages]
         require(len(set(names)) == len(names), "stages", f"stage names repeat: {names}")
+        require(self.ship is None or self.ship in names, "ship", f"{self.ship!r} is not a stage: {names}")
+
+    @property
+    def shipped_stage(self) -> str:
+        """The stage whose last checkpoint the recipe hands out."""
+        return self.ship or self.stages[-1].name
 
 
 def load_recipe(path: str | Path) -> Recipe:
@@ -103,8 +110,8 @@ def run_recipe(
     max_steps: int | None = None,
     say: Callable[[str], None] = print,
 ) -> Path:
-    """Run (or resume) `recipe` into `out`: `corpus/`, `labels/`, one folder per stage. Returns the last
-    stage's final checkpoint. `max_steps` caps every stage (smoke runs)."""
+    """Run (or resume) `recipe` into `out`: `corpus/`, `labels/`, one folder per stage. Returns the final
+    checkpoint of the stage it ships (`Recipe.shipped_stage`). `max_steps` caps every stage (smoke runs)."""
     from langtraj.interdrive.dataset import BuildConfig, build_dataset
     from langtraj.scenario.io import expand_scenario_paths
     from langtraj.synth.factory import FactoryConfig, run_factory
@@ -163,8 +170,9 @@ def run_recipe(
             },
         )
         previous = folder / "checkpoints" / "last.ckpt"
+    shipped = out / recipe.shipped_stage / "checkpoints" / "last.ckpt"
     with atomic_path(out / "recipe.json") as tmp:
-        tmp.write_text(json.dumps({"recipe": recipe.name, "seconds": times}, indent=2))
+        tmp.write_text(json.dumps({"recipe": recipe.name, "seconds": times, "shipped": str(shipped)}, indent=2))
     say("recipe " + recipe.name + ": " + ", ".join(f"{k} {v / 60:.1f} min" for k, v in times.items()))
-    assert previous is not None
-    return previous
+    say(f"shipped checkpoint ({recipe.shipped_stage}): {shipped}")
+    return shipped
