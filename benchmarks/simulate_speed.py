@@ -8,8 +8,8 @@ its agents 1 km east (new track ids, no map there). The model drives every sim a
 for them, `SampleConfig.for_agents`), as in every scored simulation. Medians over --repeats runs.
 
     python benchmarks/simulate_speed.py [--checkpoint CKPT] [--candidates 4] [--repeats 3] [--rollouts 32]
-        [--on-road W] [--selector NAME]    (default: langtraj simulate's; the paper's: --on-road 0
-                                            --selector min_collision)
+        [--on-road W] [--no-collision W] [--selector NAME]
+    (default: langtraj simulate's; the paper's: --on-road 0 --no-collision 0 --selector min_collision)
 """
 
 from __future__ import annotations
@@ -79,6 +79,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--agents", type=int, nargs="+", default=[64, 128], choices=[16, 32, 64, 128])
     parser.add_argument("--on-road", type=float, help="on-road guidance weight (default: langtraj simulate's)")
+    parser.add_argument("--no-collision", type=float, help="no-collision weight per pair (default: simulate's)")
     parser.add_argument("--selector", help="candidate selection (default: langtraj simulate's)")
     args = parser.parse_args()
     if not SCENE.is_file():
@@ -88,7 +89,7 @@ def main() -> None:
     from langtraj.scenario.io import read_scenario
     from langtraj.sim.checkpoints import shipped_checkpoint
     from langtraj.sim.engine import SimConfig, simulate
-    from langtraj.sim.policies import DEFAULT_ON_ROAD, DEFAULT_SELECTOR, LangTrajPolicy
+    from langtraj.sim.policies import DEFAULT_NO_COLLISION, DEFAULT_ON_ROAD, DEFAULT_SELECTOR, LangTrajPolicy
 
     device = "cuda" if torch.cuda.is_available() else "cpu"
     checkpoint = args.checkpoint or shipped_checkpoint()
@@ -100,10 +101,11 @@ def main() -> None:
         f"(trained on {data.max_agents}-agent scenes; drives every sim agent)"
     )
     on_road = DEFAULT_ON_ROAD if args.on_road is None else args.on_road
+    no_collision = DEFAULT_NO_COLLISION if args.no_collision is None else args.no_collision
     selector = args.selector or DEFAULT_SELECTOR
     print(
         f"{args.rollouts} rollouts x 8 s, K = 5, replanning at 1 Hz, {args.candidates} candidates per replan, "
-        f"on-road guidance {on_road:g}, selector {selector}"
+        f"on-road guidance {on_road:g}, no-collision {no_collision:g} per pair, selector {selector}"
     )
     full = read_scenario(SCENE)
     for count in args.agents:
@@ -111,7 +113,13 @@ def main() -> None:
         times = []
         for repeat in range(args.repeats):
             policy = LangTrajPolicy(
-                model, data, candidates=args.candidates, steps=5, on_road=on_road, selector=selector
+                model,
+                data,
+                candidates=args.candidates,
+                steps=5,
+                on_road=on_road,
+                no_collision=no_collision,
+                selector=selector,
             )
             result = simulate(scene, policy, SimConfig(rollouts=args.rollouts, replan_s=1.0, seed=repeat))
             times.append(result.seconds)
