@@ -96,20 +96,3 @@ def test_badly_shaped_tensors_are_refused():
         GuidanceScene(**{**good, "lane_valid": torch.ones(1, 2, dtype=torch.bool)})
     with pytest.raises(InputError, match="agent_size must be"):
         GuidanceScene(**{**good, "agent_valid": torch.ones(3, dtype=torch.bool)})
-
-
-def test_near_keeps_the_map_within_reach_of_the_agents():
-    edges = torch.tensor([[[0.0, 5.0], [10.0, 5.0]], [[200.0, 5.0], [210.0, 5.0]], [[50.0, -30.0], [50.0, 30.0]]])
-    lanes = torch.tensor([[[0.0, 0.0], [10.0, 0.0], [0.0, 0.0]], [[300.0, 0.0], [310.0, 0.0], [0.0, 0.0]]])
-    scene = GuidanceScene(
-        road_edges=edges,
-        lanes=lanes,
-        lane_valid=torch.tensor([[True, True, False], [True, True, False]]),
-        agent_size=torch.ones(2, 2),
-        agent_valid=torch.ones(2, dtype=torch.bool),
-    )
-    near = scene.near(torch.tensor([[0.0, 0.0], [45.0, 40.0]]), torch.tensor([20.0, 12.0]))
-    # agent 0 reaches the first edge (5 m) and lane 0; agent 1 the third edge (11.2 m from its end)
-    assert torch.equal(near.road_edges, edges[[0, 2]])
-    assert torch.equal(near.lanes, lanes[:1]) and near.lane_valid.shape == (1, 3)
-    assert scene.near(torch.zeros(0, 2), torch.zeros(0)).road_edges.shape == (0, 2, 2)

@@ -35,6 +35,9 @@ def test_every_registered_policy_simulates_a_real_scene(name, real_data_dir, tmp
     if name == "guidance_baseline":
         assert summary["prompted_ids"] == [2320, 1676]
         assert summary["prompt_read_as"]["subtype"].startswith("yielding/")
+        assert summary["selector"] == "min_guidance"  # its costs steer the scene: selection keeps them
+    if name == "langtraj":
+        assert summary["selector"] == "per_agent"
 
 
 @pytest.mark.real_data

@@ -18,7 +18,6 @@ from torch import Tensor
 
 from langtraj.errors import InputError
 from langtraj.frames import points_to_frame
-from langtraj.guidance.geometry import closest_on_segments
 from langtraj.model.batch import SceneBatch
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import MapFeatureType, StateField
@@ -124,28 +123,6 @@ class GuidanceScene:
             agent_size=torch.as_tensor(size, dtype=torch.float32),
             agent_valid=torch.as_tensor(valid),
         )
-
-    def near(self, positions: Tensor, reach: Tensor) -> GuidanceScene:
-        """The scene with only the road-edge segments and lane rows within `reach` [A] m of one of
-        `positions` [A, 2] (scene frame). A simulation crops its scene to where its agents can get (their
-        speed over the horizon plus a margin), so the map costs search a few hundred segments instead of
-        a whole city's; a cost is unchanged for every point whose nearest segment was kept."""
-        positions, reach = positions.to(self.road_edges), reach.to(self.road_edges)
-
-        def close(start: Tensor, end: Tensor) -> Tensor:  # [K]: segment within reach of some position
-            if start.shape[0] == 0 or positions.shape[0] == 0:
-                return torch.zeros(start.shape[0], dtype=torch.bool, device=start.device)
-            nearest = closest_on_segments(positions[None], start[:, None], end[:, None])  # [K, A, 2]
-            return ((nearest - positions[None]).norm(dim=-1) <= reach[None]).any(-1)
-
-        edges = self.road_edges[close(self.road_edges[:, 0], self.road_edges[:, 1])]
-        lane_segments = self.lane_valid[:, :-1] & self.lane_valid[:, 1:]
-        kept = torch.zeros(self.lanes.shape[0], dtype=torch.bool, device=self.lanes.device)
-        if lane_segments.any():
-            rows = lane_segments.nonzero()[:, 0]
-            hit = close(self.lanes[:, :-1][lane_segments], self.lanes[:, 1:][lane_segments])
-            kept[rows[hit]] = True
-        return replace(self, road_edges=edges, lanes=self.lanes[kept], lane_valid=self.lane_valid[kept])
 
     @classmethod
     def from_batch(cls, batch: SceneBatch, row: int) -> GuidanceScene:

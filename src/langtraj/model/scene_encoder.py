@@ -49,7 +49,7 @@ class SceneContext:
         return torch.cat([self.agent_mask, self.map_mask], dim=1)
 
 
-def _rotate(xy: Tensor, angle: Tensor) -> Tensor:
+def rotate(xy: Tensor, angle: Tensor) -> Tensor:
     """Rotate [..., 2] vectors by `angle` [...] (broadcast)."""
     c, s = torch.cos(angle), torch.sin(angle)
     return torch.stack([c * xy[..., 0] - s * xy[..., 1], s * xy[..., 0] + c * xy[..., 1]], dim=-1)
@@ -61,10 +61,10 @@ def agent_local_history(batch: SceneBatch) -> Tensor:
     hist = batch.agent_history
     pose = batch.current_state[..., :3]
     heading = pose[..., 2][..., None]  # [B, A, 1]
-    rel_xy = _rotate(hist[..., 0:2] - pose[..., None, 0:2], -heading)
+    rel_xy = rotate(hist[..., 0:2] - pose[..., None, 0:2], -heading)
     hist_heading = torch.atan2(hist[..., 3], hist[..., 2])
     dh = hist_heading - heading
-    vel = _rotate(hist[..., 4:6], -heading)
+    vel = rotate(hist[..., 4:6], -heading)
     valid = batch.history_valid.float()
     local = torch.cat([rel_xy, torch.cos(dh)[..., None], torch.sin(dh)[..., None], vel, valid[..., None]], dim=-1)
     return local * valid[..., None]
@@ -111,7 +111,7 @@ class SceneEncoder(nn.Module):
         """The map tokens alone: they depend on the map only, so a simulation, whose map is fixed, encodes
         them once and passes them to every replan (`forward(batch, map_context)`)."""
         map_pose = polyline_pose(batch.map_points, batch.map_valid)
-        local = _rotate(batch.map_points - map_pose[..., None, :2], -map_pose[..., 2][..., None])
+        local = rotate(batch.map_points - map_pose[..., None, :2], -map_pose[..., 2][..., None])
         seg = torch.diff(local, dim=-2, prepend=local[..., :1, :])
         points = self.point_embed(torch.cat([local, seg], dim=-1))
         points = points.masked_fill(~batch.map_valid[..., None], float("-inf")).max(dim=-2).values

@@ -38,7 +38,6 @@ from langtraj.model.langtraj import LangTraj
 from langtraj.model.scene_encoder import MapContext
 from langtraj.registry import Registry
 from langtraj.rollouts.baselines import BASELINES
-from langtraj.rollouts.container import FUTURE_STEPS
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.selection import prioritized_agents
 from langtraj.sim.checkpoints import shipped_checkpoint
@@ -47,11 +46,6 @@ from langtraj.sim.prompts import check_prompt_driven, merged_prompt
 from langtraj.sim.selection import SELECTORS, CandidateSelector, chosen_states
 from langtraj.sim.terms import collision_terms, scene_wide_terms
 from langtraj.sim.world import SimWorld
-
-FUTURE_SECONDS = FUTURE_STEPS * STEP_SECONDS
-MAP_REACH_MARGIN = 60.0
-"""Metres beyond its current speed x 8 s within which an agent's map (road edges, lanes) is kept for the
-costs and selectors of a simulation: room to speed up from a stop, and to the road edge beside its lane."""
 
 DEFAULT_ON_ROAD = 1.0
 """Weight of the on-road guidance a LangTraj simulation applies to every driven agent unless told
@@ -194,6 +188,7 @@ class LangTrajPolicy(Policy):
 
     name = "langtraj"
     uses_model = True
+    steers_by_prompt: ClassVar[bool] = False  # whether `prompt_terms` derives guidance from the prompt
 
     def __init__(
         self,
@@ -289,7 +284,7 @@ class LangTrajPolicy(Policy):
             "map_selection": self.data.map_selection,
             "on_road": self.on_road,
             "no_collision": self.no_collision,
-            "selector": self.selector_name or ("min_guidance" if self.terms else DEFAULT_SELECTOR),
+            "selector": self.selector_name or self.default_selector(),
         }
 
     # ------------------------------------------------------------------ simulation
@@ -302,11 +297,8 @@ class LangTrajPolicy(Policy):
         origin = scene_frame(start)
         device = next(self.model.parameters()).device
         scene = GuidanceScene.from_scenario(start, origin, world.driven, num_agents=data.max_agents)
-        current = torch.as_tensor(poses_to_frame(world.current(world.start)[0], origin), dtype=torch.float32)
-        scene = scene.near(current[:, :2], current[:, 3] * FUTURE_SECONDS + MAP_REACH_MARGIN)
-        steering = self.terms + self.prompt_terms(world, slots, origin, data.max_agents)
-        default = "min_guidance" if steering else DEFAULT_SELECTOR
-        terms = steering + self.realism_terms(len(world.driven))
+        terms = self.terms + self.prompt_terms(world, slots, origin, data.max_agents)
+        terms += self.realism_terms(len(world.driven))
         map_arrays = sample_map(start, world.driven, origin, data)
         first = collate_scenes([scene_sample(start, data, agents=world.driven, origin=origin, map_arrays=map_arrays)])
         with torch.no_grad():
@@ -318,9 +310,14 @@ class LangTrajPolicy(Policy):
             map_context=map_context,
             scene=scene.to(device),
             terms=terms,
-            selector=SELECTORS.create(self.selector_name or default, where="selector"),
+            selector=SELECTORS.create(self.selector_name or self.default_selector(), where="selector"),
             generators=[torch.Generator().manual_seed(seed * 1_000_003 + r) for r in range(world.num_rollouts)],
         )
+
+    def default_selector(self) -> str:
+        """`min_guidance` when guidance steers the scene (terms given, or derived from the prompt), so
+        selection keeps what it asks for; otherwise `DEFAULT_SELECTOR`."""
+        return "min_guidance" if self.terms or self.steers_by_prompt else DEFAULT_SELECTOR
 
     def realism_terms(self, num_driven: int) -> tuple[GuidanceTerm, ...]:
         """The default guidance on every driven agent: on-road, and no-collision between every pair except
@@ -420,6 +417,7 @@ class GuidanceBaselinePolicy(LangTrajPolicy):
     loss functions an LLM writes for each instruction in CTG++."""
 
     name = "guidance_baseline"
+    steers_by_prompt = True
 
     def __init__(self, model: LangTraj, data: SampleConfig, *, prompt: PromptEntry, **kwargs):
         if prompt.subtype is None and not prompt.labels:  # a typed prompt: read its labels from its words

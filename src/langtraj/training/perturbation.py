@@ -13,15 +13,10 @@ from __future__ import annotations
 from dataclasses import replace
 
 import torch
-from torch import Tensor
 
 from langtraj.model.batch import SceneBatch
+from langtraj.model.scene_encoder import rotate
 from langtraj.training.config import PerturbationConfig
-
-
-def _rotate(xy: Tensor, angle: Tensor) -> Tensor:
-    c, s = torch.cos(angle), torch.sin(angle)
-    return torch.stack([c * xy[..., 0] - s * xy[..., 1], s * xy[..., 0] + c * xy[..., 1]], dim=-1)
 
 
 def perturb_pasts(
@@ -46,12 +41,12 @@ def perturb_pasts(
 
     history = batch.agent_history
     valid = batch.history_valid[..., None]
-    moved_xy = centre[:, :, None] + _rotate(history[..., 0:2] - centre[:, :, None], turn[..., None]) + shift[:, :, None]
+    moved_xy = centre[:, :, None] + rotate(history[..., 0:2] - centre[:, :, None], turn[..., None]) + shift[:, :, None]
     moved = torch.cat(
         [
             moved_xy,
-            _rotate(history[..., 2:4], turn[..., None]),  # (cos, sin) of the heading turn as a vector
-            _rotate(history[..., 4:6], turn[..., None]),
+            rotate(history[..., 2:4], turn[..., None]),  # (cos, sin) of the heading turn as a vector
+            rotate(history[..., 4:6], turn[..., None]),
             history[..., 6:7],
         ],
         dim=-1,
