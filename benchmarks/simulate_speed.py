@@ -4,11 +4,13 @@
 The scenes come from the real WOMD scene 2a1e44d405a6833f (ScenarioNet pickle in ../shared/data/real,
 211 tracks, 66 of them valid at the current step). Its 64 most important sim agents make the 64-agent
 scene; no real file here has 128 sim agents, so the 128-agent scene is the 64-agent one plus a copy of
-its agents 1 km east (new track ids, no map there). The model drives every sim agent (samples sized
-for them, `SampleConfig.for_agents`), as in every scored simulation. Medians over --repeats runs.
+its agents and its map 1 km east (new track and map feature ids; until 2026-11-25 the copy had no map,
+which left the copied agents nowhere near a road edge for the on-road guidance). The model drives every
+sim agent (samples sized for them, `SampleConfig.for_agents`), as in every scored simulation, attending
+locally unless --dense-attention. Medians over --repeats runs.
 
     python benchmarks/simulate_speed.py [--checkpoint CKPT] [--candidates 4] [--repeats 3] [--rollouts 32]
-        [--on-road W] [--no-collision W] [--selector NAME]
+        [--on-road W] [--no-collision W] [--selector NAME] [--dense-attention]
     (default: langtraj simulate's; the paper's: --on-road 0 --no-collision 0 --selector min_collision)
 """
 
@@ -52,8 +54,50 @@ def cut_scene(scenario, num_agents: int):
     return replace(scenario, agents=cut, sdc_index=sdc)
 
 
+def _shifted_map(road_map, offset: float, id_shift: int):
+    """The map's features moved `offset` m east, every feature id (and each reference to one) + `id_shift`."""
+    from langtraj.scenario.model import MapFeature, RoadMap
+
+    def shift_ids(ids):
+        return tuple(int(i) + id_shift for i in ids)
+
+    def boundary(b):
+        return replace(b, boundary_feature_id=b.boundary_feature_id + id_shift)
+
+    def neighbour(n):
+        return replace(n, feature_id=n.feature_id + id_shift, boundaries=tuple(boundary(b) for b in n.boundaries))
+
+    def moved(points):
+        if points is None:
+            return None
+        points = points.copy()
+        points[:, 0] += offset
+        return points
+
+    copies = [
+        MapFeature(
+            **{
+                **vars(f),
+                "id": f.id + id_shift,
+                "points": moved(f.points),
+                "polygon": moved(f.polygon),
+                "entry_lanes": shift_ids(f.entry_lanes),
+                "exit_lanes": shift_ids(f.exit_lanes),
+                "controlled_lanes": shift_ids(f.controlled_lanes),
+                "left_neighbors": tuple(neighbour(n) for n in f.left_neighbors),
+                "right_neighbors": tuple(neighbour(n) for n in f.right_neighbors),
+                "left_boundaries": tuple(boundary(b) for b in f.left_boundaries),
+                "right_boundaries": tuple(boundary(b) for b in f.right_boundaries),
+            }
+        )
+        for f in road_map
+    ]
+    return RoadMap(tuple(road_map) + tuple(copies))
+
+
 def doubled(scenario, offset: float = 1000.0):
-    """The scenario with a copy of every track `offset` m east (ids shifted past the largest)."""
+    """The scenario with a copy of every track and of the map `offset` m east (ids shifted past the
+    largest), so every agent of the copy drives on its own copy of the road."""
     agents = scenario.agents
     shifted = agents.states.copy()
     shifted[..., 0] += offset
@@ -68,7 +112,8 @@ def doubled(scenario, offset: float = 1000.0):
         objects_of_interest=agents.objects_of_interest,
     )
     assert both.num_agents == 2 * n
-    return replace(scenario, agents=both)
+    id_shift = max(f.id for f in scenario.road_map) + 1
+    return replace(scenario, agents=both, road_map=_shifted_map(scenario.road_map, offset, id_shift))
 
 
 def main() -> None:
@@ -81,6 +126,7 @@ def main() -> None:
     parser.add_argument("--on-road", type=float, help="on-road guidance weight (default: langtraj simulate's)")
     parser.add_argument("--no-collision", type=float, help="no-collision weight per pair (default: simulate's)")
     parser.add_argument("--selector", help="candidate selection (default: langtraj simulate's)")
+    parser.add_argument("--dense-attention", action="store_true", help="dense attention (default: local, as simulate)")
     args = parser.parse_args()
     if not SCENE.is_file():
         sys.exit(f"benchmark scene not found: {SCENE}")
@@ -105,7 +151,8 @@ def main() -> None:
     selector = args.selector or DEFAULT_SELECTOR
     print(
         f"{args.rollouts} rollouts x 8 s, K = 5, replanning at 1 Hz, {args.candidates} candidates per replan, "
-        f"on-road guidance {on_road:g}, no-collision {no_collision:g} per pair, selector {selector}"
+        f"on-road guidance {on_road:g}, no-collision {no_collision:g} per pair, selector {selector}, "
+        f"{'dense' if args.dense_attention else 'local'} attention"
     )
     full = read_scenario(SCENE)
     for count in args.agents:
@@ -120,6 +167,7 @@ def main() -> None:
                 on_road=on_road,
                 no_collision=no_collision,
                 selector=selector,
+                local_attention=not args.dense_attention,
             )
             result = simulate(scene, policy, SimConfig(rollouts=args.rollouts, replan_s=1.0, seed=repeat))
             times.append(result.seconds)

@@ -83,6 +83,48 @@ def test_no_collision_covers_only_the_chosen_pairs_and_valid_agents():
     assert NoCollisionCost()(states, invalid).item() == pytest.approx(2 * 0.25 / 4, abs=1e-4)
 
 
+def _no_collision_by_hand(states, scene, slots, others, num_disks=5):
+    """The paper's cost over every ordered pair and step, without the search's shortcuts."""
+    size = scene.agent_size
+    radius = size[:, 1] / 2
+    reach = (size[:, 0] / 2 - radius).clamp(min=0.0)
+    offsets = torch.linspace(-1.0, 1.0, num_disks)[None, :] * reach[:, None]  # [A, D]
+    heading = torch.stack([torch.cos(states[..., 2]), torch.sin(states[..., 2])], dim=-1)  # [S, A, T, 2]
+    disks = states[..., None, :2] + offsets[None, :, None, :, None] * heading[..., None, :]  # [S, A, T, D, 2]
+    total = states.new_zeros(states.shape[0])
+    for i in slots:
+        for j in others:
+            if i == j:
+                continue
+            gap = (disks[:, i, :, :, None] - disks[:, j, :, None, :]).norm(dim=-1).flatten(2).min(-1).values
+            penalty = torch.relu(1.0 - gap / (radius[i] + radius[j]))  # [S, T]
+            total = total + penalty.sum(-1) / (penalty > 0).sum(-1).clamp(min=1)
+    return total / len(set(slots) | set(others)) ** 2
+
+
+@pytest.mark.parametrize("slots, others", [(None, None), ([0, 3, 5], None), ([1, 2], [2, 4, 6, 7])])
+def test_no_collision_search_matches_every_pair_and_step_by_hand(slots, others):
+    # A crowded scene of queued and crossing cars plus one far away: the box and symmetry shortcuts of
+    # the search must give the same value and gradient as summing every ordered pair and step.
+    generator = torch.Generator().manual_seed(3)
+    start = torch.rand(8, 2, generator=generator) * 12.0
+    start[7] += 500.0
+    velocity = torch.randn(8, 2, generator=generator) * 3.0
+    steps = torch.arange(23)[:, None] * 0.1
+    xy = start[None, :, None] + velocity[None, :, None] * steps + 0.5 * torch.randn(3, 8, 1, 2, generator=generator)
+    heading = torch.rand(3, 8, 23, 1, generator=generator) * 6.0
+    states = torch.cat([xy, heading, torch.zeros_like(heading)], dim=-1)
+    scene = make_scene(8, size=(4.5, 2.0))
+    value, grad = cost_gradient(NoCollisionCost(slots, others=others), states, scene)
+    everyone = list(range(8))
+    reference = states.clone().requires_grad_(True)
+    expected = _no_collision_by_hand(reference, scene, slots or everyone, others or everyone)
+    (expected_grad,) = torch.autograd.grad(expected.sum(), reference)
+    assert value.min() > 0
+    assert torch.allclose(value, expected.detach(), atol=1e-6)
+    assert torch.allclose(grad, expected_grad, atol=1e-5)
+
+
 def test_goal_pulls_the_chosen_step_towards_the_goal():
     scene = make_scene(2)
     states = standing([[0.0, 0.0], [1.0, 1.0]])

@@ -29,6 +29,7 @@ def test_simulate_writes_rollouts_video_and_summary(tiny_run, tmp_path, capsys):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["prompted_ids"] == [7, 17] and summary["guidance"] == ["collision=1"]
     assert summary["on_road"] == 1.0 and summary["selector"] == "min_guidance"  # the defaults with guidance
+    assert summary["attention"] == "local"
     assert summary["replans"] == [10, 50] and len(summary["seconds_per_replan"]) == 2
     agents = {a["id"]: a for a in summary["agents"]}
     assert set(agents) == {7, 17, 37, 47} and all(a["driven"] for a in agents.values())
@@ -43,10 +44,12 @@ def test_a_capped_model_leaves_the_rest_to_constant_velocity_and_says_so(tiny_ru
     checkpoint, scenes = tiny_run
     out = tmp_path / "capped"
     code = main(["simulate", str(scenes), "--checkpoint", str(checkpoint), "--max-driven", "2", "--rollouts", "2",
-                 "--candidates", "2", "--steps", "2", "--replan-s", "4", "--no-video", "--out", str(out)])  # fmt: skip
+                 "--candidates", "2", "--steps", "2", "--replan-s", "4", "--no-video", "--dense-attention",
+                 "--out", str(out)])  # fmt: skip
     assert code == 0, capsys.readouterr().err
     assert "2 agents moved by langtraj; 2 agents moved by constant_velocity" in capsys.readouterr().out
     summary = json.loads((out / "summary.json").read_text())
+    assert summary["attention"] == "dense"
     assert summary["agents_by_policy"] == {"langtraj": [7, 17], "constant_velocity": [37, 47]}
     assert summary["on_road"] == 1.0 and summary["selector"] == "per_agent"  # the defaults without guidance
     assert not Rollouts.load(out / "rollouts.npz").reads_future_log
@@ -101,6 +104,7 @@ def test_baseline_policies_need_no_checkpoint(tiny_run, tmp_path):
         (["--on-road", "-1"], "must be finite and >= 0"),
         (["--selector", "best"], "best"),
         (["--policy", "constant_velocity", "--selector", "per_agent"], "need a model policy"),
+        (["--policy", "constant_velocity", "--dense-attention"], "need a model policy"),
         (["--policy", "teleport"], "unknown policy"),
         (["--replan-s", "0.25"], "replan_s"),
     ],

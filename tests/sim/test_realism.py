@@ -19,6 +19,7 @@ def test_method_specs():
     model = Method.parse("m=runs/x.ckpt|selector=min_collision_offroad|guidance=on_road:1+no_collision:0.5")
     assert model.selector == "min_collision_offroad" and model.guidance == ("on_road=1", "no_collision=0.5")
     assert not model.defaults and Method.parse("m=runs/x.ckpt|defaults").defaults
+    assert not model.dense and Method.parse("m=runs/x.ckpt|dense|defaults").dense
     for bad, message in (
         ("nothing", "expected NAME=SPEC"),
         ("cv=constant_velocity|selector=first", "takes no options"),

@@ -62,6 +62,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="candidate selection: per_agent (default without guidance), min_guidance (default with it), "
         "min_collision (the paper's), min_collision_offroad, first",
     )
+    p.add_argument(
+        "--dense-attention",
+        action="store_true",
+        help="every driven agent attends to every agent and map piece (default: in scenes larger than the model's "
+        "training scenes, each attends to a neighbourhood of the size it was trained on; docs/model.md)",
+    )
     p.add_argument("--guidance-scale", type=float, default=1.0, help="step size alpha of reconstruction guidance")
     p.add_argument("--cfg", type=float, default=0.0, help="classifier-free guidance weight w (-1: ignore text)")
     p.add_argument("--rollouts", type=int, default=32, help="joint rollouts (default 32, as WOSAC)")
@@ -116,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
         selector=args.selector,
         on_road=args.on_road,
         no_collision=args.no_collision,
+        dense_attention=args.dense_attention,
     )
     policy, described = build_policy(scenario, request)  # every check happens here, before any write
     result = simulate(scenario, policy, config)

@@ -29,6 +29,7 @@ from langtraj.guidance.base import (
 from langtraj.guidance.geometry import CHUNK_ELEMENTS, offset_to_segments
 from langtraj.guidance.scene import GuidanceScene
 
+_WINDOW = 8  # steps per window of NoCollisionCost's coarse search
 _EPS = 1e-6  # inside square roots: keeps distances differentiable at 0
 
 
@@ -130,21 +131,37 @@ class NoCollisionCost(GuidanceCost):
         offsets = torch.linspace(-1.0, 1.0, self.num_disks, device=states.device) * reach[:, None]
         if self.num_disks == 1:
             offsets = torch.zeros_like(offsets)
-        first, second = pairs.nonzero(as_tuple=True)  # Q pairs
+        # J_pair is symmetric: each unordered pair is computed once and counted as often as it is asked for.
+        unordered = (pairs | pairs.T).triu(diagonal=1)
+        first, second = unordered.nonzero(as_tuple=True)  # Q pairs
+        multiplicity = (pairs[first, second].to(states) + pairs[second, first].to(states))[None, :]
         num_pairs = first.shape[0]
         limit = reach[first] + radius[first] + reach[second] + radius[second] + self.buffer
 
         # Candidates (sample, pair, step) whose centres are close enough for disks to overlap, found
-        # without autograd in chunks of pairs; only those get disk distances (with autograd).
+        # without autograd in chunks of pairs: first the windows of `_WINDOW` steps in which the two
+        # paths' boxes come that close (most pairs of a large scene never do), then their steps. Only
+        # the candidates get disk distances (with autograd); the others cost nothing.
         xy = states[..., :2].detach()
+        windows = -(-num_steps // _WINDOW)
+        padded = torch.cat([xy, xy[:, :, -1:].expand(-1, -1, windows * _WINDOW - num_steps, -1)], dim=2)
+        boxes = padded.view(num_samples, num_agents, windows, _WINDOW, 2)
+        low, high = boxes.amin(dim=3), boxes.amax(dim=3)  # [S, A, W, 2]
+        offsets_t = torch.arange(_WINDOW, device=states.device)
         found = []
-        chunk = max(1, CHUNK_ELEMENTS // (num_samples * num_steps))
+        chunk = max(1, CHUNK_ELEMENTS // (num_samples * windows * 2))
         with torch.no_grad():
             for lo in range(0, num_pairs, chunk):
-                hi = min(lo + chunk, num_pairs)
-                centre = torch.linalg.vector_norm(xy[:, first[lo:hi]] - xy[:, second[lo:hi]], dim=-1)
-                s, q, t = (centre <= limit[lo:hi, None]).nonzero(as_tuple=True)
-                found.append((s, q + lo, t))
+                i, j = first[lo : lo + chunk], second[lo : lo + chunk]
+                gap = torch.maximum(low[:, j] - high[:, i], low[:, i] - high[:, j]).clamp(min=0.0)
+                s, q, w = (torch.linalg.vector_norm(gap, dim=-1) <= limit[lo : lo + chunk, None]).nonzero(as_tuple=True)
+                t = (w[:, None] * _WINDOW + offsets_t).flatten()
+                s, q = s.repeat_interleave(_WINDOW), q.repeat_interleave(_WINDOW) + lo
+                inside = t < num_steps
+                s, q, t = s[inside], q[inside], t[inside]
+                centre = torch.linalg.vector_norm(xy[s, first[q], t] - xy[s, second[q], t], dim=-1)
+                close = centre <= limit[q]
+                found.append((s[close], q[close], t[close]))
         s, q, t = (torch.cat(parts) for parts in zip(*found, strict=True))
         if s.numel() == 0:
             return _zero(states)
@@ -158,7 +175,7 @@ class NoCollisionCost(GuidanceCost):
         total = states.new_zeros(num_samples * num_pairs).index_add(0, row, penalty)
         overlapping = states.new_zeros(num_samples * num_pairs).index_add(0, row, (penalty.detach() > 0).to(states))
         per_pair = (total / overlapping.clamp(min=1.0)).view(num_samples, num_pairs)
-        return per_pair.sum(-1) / involved**2
+        return (per_pair * multiplicity).sum(-1) / involved**2
 
 
 def _disks(state: Tensor, offsets: Tensor) -> Tensor:

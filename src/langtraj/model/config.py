@@ -133,6 +133,10 @@ class SampleConfig:
             history_dropout=0.0,
         )
 
+    def local_attention(self) -> LocalAttention:
+        """The neighbourhood a model trained on these samples saw: its agent slots and map pieces."""
+        return LocalAttention(agents=self.max_agents, map_pieces=self.max_polylines)
+
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
@@ -142,3 +146,19 @@ class SampleConfig:
             return cls(**dataclass_kwargs(cls, data, where))
         except TypeError as exc:
             raise InputError(str(exc), where=where) from None
+
+
+@dataclass(frozen=True)
+class LocalAttention:
+    """Local attention for scenes larger than a model's training scenes: each agent attends to its `agents`
+    nearest agents (itself included) and its `map_pieces` nearest map pieces only, so it sees a
+    neighbourhood of the size it was trained on, and the pose terms grow with the agents instead of their
+    square (docs/model.md, 'Local attention'). A scene within both budgets is attended densely."""
+
+    agents: int
+    map_pieces: int
+
+    def __post_init__(self) -> None:
+        for name in ("agents", "map_pieces"):
+            if getattr(self, name) < 1:
+                raise InputError(f"must be >= 1, got {getattr(self, name)}", where=f"local attention {name}")

@@ -52,15 +52,19 @@ class Denoiser(nn.Module):
             nn.init.zeros_(layer.bias)
 
     def pose_cache(self, scene: SceneContext) -> dict:
-        """Relative-pose embeddings of every attention block, keyed (block, sub-block). They depend on the
-        current poses only, so one computation serves every denoising step, and, computed on the scenes
-        before they are repeated per sample, every sample (see `RelPoseAttention.forward`)."""
-        pose, token_pose = scene.agent_pose, scene.pose
-        return {
-            (i, j): block.attn.relative(pose, key_pose)
-            for i, blocks in enumerate(self.blocks)
-            for j, (block, key_pose) in enumerate(zip(blocks, (pose, token_pose, pose), strict=True))
-        }
+        """Relative-pose terms of every attention block, keyed (block, sub-block), with the scene tokens
+        folded into those of the scene cross-attention. They depend on the current poses and the encoded
+        scene only, so one computation serves every denoising step, and, computed on the scenes before
+        they are repeated per sample, every sample (see `RelPoseAttention.forward`). Under local attention
+        they cover each agent's neighbours only."""
+        pose = scene.agent_pose
+        agents, context = _indices(scene)
+        cache = {}
+        for i, (agent_block, context_block, text_block) in enumerate(self.blocks):
+            cache[(i, 0)] = agent_block.attn.relative(pose, pose, agents)
+            cache[(i, 1)] = context_block.fixed_context(pose, scene.tokens, scene.pose, context)
+            cache[(i, 2)] = text_block.attn.relative(pose, pose, agents)
+        return cache
 
     def forward(
         self, x_k: Tensor, k: Tensor, scene: SceneContext, language: Tensor, cache: dict | None = None
@@ -74,18 +78,29 @@ class Denoiser(nn.Module):
         h = self.action_in(x_k.reshape(b, a, n * c)) + scene.agent_tokens + condition
         film = nn.functional.silu(condition)
         pose, mask = scene.agent_pose, scene.agent_mask
-        pair = mask[:, :, None] & mask[:, None, :]
-        scene_attn = mask[:, :, None] & scene.mask[:, None, :]
+        agents, context = _indices(scene)
+        if scene.neighbours is None:
+            pair = mask[:, :, None] & mask[:, None, :]
+            scene_attn = mask[:, :, None] & scene.mask[:, None, :]
+        else:
+            pair = scene.neighbours.agents_valid & mask[:, :, None]
+            scene_attn = scene.neighbours.context_valid & mask[:, :, None]
         tokens, token_pose = scene.tokens, scene.pose
         if cache is None:
             cache = self.pose_cache(scene)
         elif not cache:
             cache.update(self.pose_cache(scene))
-        for i, (agents, context, text) in enumerate(self.blocks):
+        for i, (agent_block, context_block, text_block) in enumerate(self.blocks):
             rel = [cache[(i, j)] for j in range(3)]
             scale, shift = self.modulation[i](film).chunk(2, dim=-1)
             h = h * (1.0 + scale) + shift
-            h = agents(h, pose, h, pose, pair, rel[0])
-            h = context(h, pose, tokens, token_pose, scene_attn, rel[1])
-            h = text(h, pose, language, pose, pair, rel[2])
+            h = agent_block(h, pose, h, pose, pair, rel[0], agents)
+            h = context_block(h, pose, tokens, token_pose, scene_attn, rel[1], context)
+            h = text_block(h, pose, language, pose, pair, rel[2], agents)
         return self.out(h).reshape(b, a, n, c) * mask[..., None, None]
+
+
+def _indices(scene: SceneContext) -> tuple[Tensor | None, Tensor | None]:
+    """The agent and scene-token keys of each agent under local attention (None, None: dense)."""
+    nb = scene.neighbours
+    return (None, None) if nb is None else (nb.agents, nb.context)

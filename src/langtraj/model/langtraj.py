@@ -16,7 +16,7 @@ import torch
 from torch import Tensor, nn
 
 from langtraj.model.batch import SceneBatch
-from langtraj.model.config import ModelConfig
+from langtraj.model.config import LocalAttention, ModelConfig
 from langtraj.model.denoiser import Denoiser
 from langtraj.model.diffusion import Guidance, classifier_free_guidance, cosine_schedule, sample
 from langtraj.model.dynamics import DYNAMICS
@@ -143,6 +143,7 @@ class LangTraj(nn.Module):
         generator: torch.Generator | None = None,
         noise: Callable[[tuple[int, ...]], Tensor] | None = None,
         map_context: MapContext | None = None,
+        local: LocalAttention | None = None,
     ) -> tuple[Tensor, Tensor]:
         """`num_samples` joint futures per scene: states [S, B, A, T, 4] and actions [S, B, A, N, 2].
 
@@ -150,15 +151,16 @@ class LangTraj(nn.Module):
         0: text as given, > 0: stronger); `guidance` modifies x0 at every step (cost guidance). Its x0 rows
         are sample-major (all scenes of sample 0, then sample 1, ...), as are the rows `noise(shape)`
         must draw when given (instead of `generator`). `map_context` is the encoded map when the caller
-        keeps it (`SceneEncoder.encode_map`; a simulation's map is fixed).
+        keeps it (`SceneEncoder.encode_map`; a simulation's map is fixed). `local`: attend locally in
+        scenes larger than its budgets (a model driving more agents than it was trained with).
         """
         # The scene and its sentences are encoded once; the samples share them (sample-major repeats).
-        base = self.encoder(batch, map_context)
+        base = self.encoder(batch, map_context, local)
         conditional = _repeat(self.language(batch, base), num_samples)
         unconditional = (
             _repeat(self.language(batch, base, drop_text=True), num_samples) if guidance_weight != 0.0 else None
         )
-        scene = SceneContext(**{name: _repeat(t, num_samples) for name, t in vars(base).items()})
+        scene = base.repeat(num_samples)
         expanded = _repeat_batch(batch, num_samples)
 
         cache = self.denoiser.pose_cache(base)  # per scene, shared by every step and sample

@@ -10,6 +10,7 @@ See docs/model.md.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import torch
 from torch import Tensor, nn
@@ -26,21 +27,47 @@ def mlp(in_dim: int, hidden: int, out_dim: int, layers: int = 2) -> nn.Sequentia
     return nn.Sequential(*mods)
 
 
+def gather_keys(values: Tensor, index: Tensor) -> Tensor:
+    """values [B, Nk, ...] gathered per query: [B, Nq, K, ...] with row (b, i, j) = values[b, index[b, i, j]]
+    (index [B, Nq, K], long)."""
+    rows = torch.arange(values.shape[0], device=values.device)[:, None, None]
+    return values[rows, index]
+
+
 def relative_pose_features(query_pose: Tensor, key_pose: Tensor) -> Tensor:
     """[..., Nq, Nk, 5]: log(1 + distance), sin and cos of the bearing of j from i in i's frame, and sin
-    and cos of the heading difference; poses are [..., N, 3] (x, y, heading)."""
-    dx = key_pose[..., None, :, 0] - query_pose[..., :, None, 0]
-    dy = key_pose[..., None, :, 1] - query_pose[..., :, None, 1]
+    and cos of the heading difference; query poses are [..., Nq, 3] (x, y, heading), key poses [..., Nk, 3]
+    shared by every query or [..., Nq, Nk, 3] per query (a query's neighbours, `gather_keys`)."""
+    keys = key_pose if key_pose.dim() == query_pose.dim() + 1 else key_pose[..., None, :, :]
+    dx = keys[..., 0] - query_pose[..., :, None, 0]
+    dy = keys[..., 1] - query_pose[..., :, None, 1]
     heading = query_pose[..., :, None, 2]
     cos_h, sin_h = torch.cos(heading), torch.sin(heading)
     forward, left = cos_h * dx + sin_h * dy, -sin_h * dx + cos_h * dy  # j seen from i's frame
     distance = torch.sqrt(dx**2 + dy**2 + 1e-6)
     bearing = torch.atan2(left, forward)  # 0 for coincident tokens, whatever the frame
-    dheading = key_pose[..., None, :, 2] - heading
+    dheading = keys[..., 2] - heading
     return torch.stack(
         [torch.log1p(distance), torch.sin(bearing), torch.cos(bearing), torch.sin(dheading), torch.cos(dheading)],
         dim=-1,
     )
+
+
+@dataclass
+class PoseTerms:
+    """Relative-pose embeddings r_ij of one attention, laid out for the two products they enter: `keys`
+    [B0, Nq, heads, head_dim, K] (against the queries) and `values` [B0, Nq, heads, K, head_dim]. With
+    `tokens`, the key and value tokens are folded in (k_j + r_ij, v_j + r_ij): keys fixed for a scene,
+    such as the encoded scene tokens every denoising step attends to."""
+
+    keys: Tensor
+    values: Tensor
+    tokens: bool = False
+
+    @property
+    def width(self) -> int:
+        """K: the keys of each query."""
+        return self.keys.shape[-1]
 
 
 class RelPoseAttention(nn.Module):
@@ -58,39 +85,81 @@ class RelPoseAttention(nn.Module):
         self.out = nn.Linear(dim, dim)
         self.drop = nn.Dropout(dropout)
 
-    def relative(self, query_pose: Tensor, key_pose: Tensor) -> Tensor:
-        """The pose embeddings [B, Nq, Nk, D] added to keys and values (reusable while poses stay put)."""
-        return self.rel(relative_pose_features(query_pose, key_pose))
+    def relative(
+        self, query_pose: Tensor, key_pose: Tensor, index: Tensor | None = None, key: Tensor | None = None
+    ) -> PoseTerms:
+        """The pose terms of queries at `query_pose` [B0, Nq, 3] against keys at `key_pose` [B0, Nk, 3] (all
+        of them, or each query's `index` [B0, Nq, K]), reusable while poses stay put. With `key` [B0, Nk, D],
+        the key tokens are folded in (`PoseTerms.tokens`)."""
+        if index is not None:
+            key_pose = gather_keys(key_pose, index)
+        rel = self.rel(relative_pose_features(query_pose, key_pose))  # [B0, Nq, K, D]
+        b0, nq, width, _ = rel.shape
+        rel = rel.view(b0, nq, width, self.heads, self.head_dim)
+        keys = values = rel
+        if key is not None:
+            k = self.k(key).view(b0, -1, self.heads, self.head_dim)
+            v = self.v(key).view(b0, -1, self.heads, self.head_dim)
+            if index is None:
+                keys, values = rel + k[:, None], rel + v[:, None]
+            else:
+                keys, values = rel + gather_keys(k, index), rel + gather_keys(v, index)
+        return PoseTerms(
+            keys.permute(0, 1, 3, 4, 2).contiguous(), values.permute(0, 1, 3, 2, 4).contiguous(), key is not None
+        )
 
     def forward(
-        self, query: Tensor, query_pose: Tensor, key: Tensor, key_pose: Tensor, mask: Tensor, rel: Tensor | None = None
+        self,
+        query: Tensor,
+        query_pose: Tensor,
+        key: Tensor,
+        key_pose: Tensor,
+        mask: Tensor,
+        rel: PoseTerms | None = None,
+        index: Tensor | None = None,
     ) -> Tensor:
         """query [B, Nq, D], key [B, Nk, D], poses [B, N, 3], mask bool [B, Nq, Nk] (True: attend); `rel`
-        from `relative` when already computed. Rows with nothing to attend to return zeros.
+        from `relative` when already computed (with the key tokens folded in, `key` is not read). Rows
+        with nothing to attend to return zeros.
 
-        `rel` may hold B0 rows where B is a multiple of B0 and row r of the batch has the poses of row
-        r % B0 (samples of the same scenes, sample-major): the pose terms are then computed once per scene
-        instead of once per sample. q . (k_j + r_ij) and sum_j w_ij (v_j + r_ij) are split into their
+        Local attention: with `index` [B0 or B, Nq, K] (long, distinct keys per query), query i attends to
+        keys index[i] only; `mask` is then [B, Nq, K]. The plain query-key products are computed densely
+        (one matrix product) and gathered; the pose terms, the costly part, only for the K keys
+        (docs/model.md, 'Local attention').
+
+        `rel` (and `index`) may hold B0 rows where B is a multiple of B0 and row r of the batch has the poses
+        of row r % B0 (samples of the same scenes, sample-major): the pose terms are then computed once per
+        scene instead of once per sample. q . (k_j + r_ij) and sum_j w_ij (v_j + r_ij) are split into their
         plain-attention and pose parts so that the pose embeddings are never copied per sample.
         """
         b, nq, d = query.shape
-        nk = key.shape[1]
-        rel = self.relative(query_pose, key_pose) if rel is None else rel  # [B0, Nq, Nk, D]
-        b0 = rel.shape[0]
+        terms = self.relative(query_pose, key_pose, index) if rel is None else rel
+        b0, width = terms.keys.shape[0], terms.width
         if b % b0:
             raise ValueError(f"{b} query rows are not a multiple of the {b0} rows of the pose embeddings")
         g, h, hd = b // b0, self.heads, self.head_dim
-        rel = rel.view(b0, nq, nk, h, hd)
-        q = self.q(query).view(b, nq, h, hd)
-        k = self.k(key).view(b, nk, h, hd)
-        v = self.v(key).view(b, nk, h, hd)
-        logits = torch.einsum("bqhd,bkhd->bhqk", q, k)
-        logits = logits + torch.einsum("gbqhd,bqkhd->gbhqk", q.view(g, b0, nq, h, hd), rel).reshape(b, h, nq, nk)
+        q = self.q(query).view(g, b0, nq, h, hd)
+        # The pose part: per query, its samples' queries [g, hd] against its K pose terms.
+        logits = torch.matmul(q.permute(1, 2, 3, 0, 4), terms.keys)  # [B0, Nq, h, g, K]
+        logits = logits.permute(3, 0, 2, 1, 4).reshape(b, h, nq, width)
+        if not terms.tokens:
+            k = self.k(key).view(b, -1, h, hd)
+            plain = torch.einsum("bqhd,bkhd->bhqk", q.view(b, nq, h, hd), k)
+            if index is not None:
+                columns = index.repeat(b // index.shape[0], 1, 1)[:, None].expand(b, h, nq, width)
+                plain = torch.gather(plain, -1, columns)
+            logits = logits + plain
         logits = logits.masked_fill(~mask[:, None], float("-inf")) / math.sqrt(hd)
         any_key = mask.any(-1)[:, None, :, None]  # [B, 1, Nq, 1]
         weights = self.drop(torch.softmax(logits.masked_fill(~any_key, 0.0), dim=-1) * any_key)
-        out = torch.einsum("bhqk,bkhd->bqhd", weights, v)
-        out = out + torch.einsum("gbhqk,bqkhd->gbqhd", weights.view(g, b0, h, nq, nk), rel).reshape(b, nq, h, hd)
+        out = torch.matmul(weights.view(g, b0, h, nq, width).permute(1, 3, 2, 0, 4), terms.values)  # [B0, Nq, h, g, hd]
+        out = out.permute(3, 0, 1, 2, 4).reshape(b, nq, h, hd)
+        if not terms.tokens:
+            v = self.v(key).view(b, -1, h, hd)
+            dense = (
+                weights if index is None else weights.new_zeros(b, h, nq, v.shape[1]).scatter_add(-1, columns, weights)
+            )
+            out = out + torch.einsum("bhqk,bkhd->bqhd", dense, v)
         return self.out(out.reshape(b, nq, d))
 
 
@@ -105,10 +174,24 @@ class AttentionBlock(nn.Module):
         self.norm_ff = nn.LayerNorm(dim)
         self.ff = nn.Sequential(nn.Linear(dim, 4 * dim), nn.GELU(), nn.Dropout(dropout), nn.Linear(4 * dim, dim))
 
+    def fixed_context(
+        self, pose: Tensor, context: Tensor, context_pose: Tensor, index: Tensor | None = None
+    ) -> PoseTerms:
+        """Pose terms with the context tokens folded in, for a context that stays put across calls (the
+        scene tokens of every denoising step): `forward` then reads neither `context` nor its pose."""
+        return self.attn.relative(pose, context_pose, index, key=self.norm_k(context))
+
     def forward(
-        self, x: Tensor, pose: Tensor, context: Tensor, context_pose: Tensor, mask: Tensor, rel: Tensor | None = None
+        self,
+        x: Tensor,
+        pose: Tensor,
+        context: Tensor,
+        context_pose: Tensor,
+        mask: Tensor,
+        rel: PoseTerms | None = None,
+        index: Tensor | None = None,
     ) -> Tensor:
-        x = x + self.attn(self.norm_q(x), pose, self.norm_k(context), context_pose, mask, rel)
+        x = x + self.attn(self.norm_q(x), pose, self.norm_k(context), context_pose, mask, rel, index)
         return x + self.ff(self.norm_ff(x))
 
 

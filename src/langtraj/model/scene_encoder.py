@@ -9,7 +9,7 @@ import torch
 from torch import Tensor, nn
 
 from langtraj.model.batch import SceneBatch
-from langtraj.model.config import ModelConfig
+from langtraj.model.config import LocalAttention, ModelConfig
 from langtraj.model.layers import AttentionBlock, mlp
 
 _AGENT_TYPES = 5  # padding + AgentType 1..4
@@ -26,8 +26,42 @@ class MapContext:
 
 
 @dataclass
+class Neighbours:
+    """The keys of each agent under local attention (`LocalAttention`): its nearest agents, and its scene
+    tokens (those agents, then its nearest map pieces, as indices into agents followed by map pieces),
+    each with whether it is a real token."""
+
+    agents: Tensor  # long [B, A, Ka]
+    agents_valid: Tensor  # bool [B, A, Ka]
+    context: Tensor  # long [B, A, Ka + Km]
+    context_valid: Tensor  # bool [B, A, Ka + Km]
+
+
+def nearest_neighbours(batch: SceneBatch, local: LocalAttention) -> Neighbours:
+    """Each agent's `local.agents` nearest valid agents (by current position; itself first) and
+    `local.map_pieces` nearest valid map pieces (by their nearest valid point)."""
+    xy = batch.current_state[..., :2]
+    b, a = batch.agent_valid.shape
+    far = torch.tensor(torch.inf, device=xy.device)
+    to_agents = torch.where(batch.agent_valid[:, None, :], torch.cdist(xy, xy), far)
+    near, agents = to_agents.topk(min(local.agents, a), dim=-1, largest=False)
+    points = batch.map_points  # [B, M, P, 2]
+    m, p = points.shape[1:3]
+    to_points = torch.cdist(xy, points.reshape(b, m * p, 2)).view(b, a, m, p)
+    to_map = torch.where(batch.map_valid[:, None], to_points, far).amin(-1)  # [B, A, M]
+    near_map, pieces = to_map.topk(min(local.map_pieces, m), dim=-1, largest=False)
+    return Neighbours(
+        agents=agents,
+        agents_valid=near.isfinite(),
+        context=torch.cat([agents, pieces + a], dim=-1),
+        context_valid=torch.cat([near.isfinite(), near_map.isfinite()], dim=-1),
+    )
+
+
+@dataclass
 class SceneContext:
-    """Encoded scene: agent and map tokens with their poses and masks."""
+    """Encoded scene: agent and map tokens with their poses and masks, and each agent's neighbours when
+    attention is local (None: every agent attends to every token)."""
 
     agent_tokens: Tensor  # [B, A, D]
     agent_pose: Tensor  # [B, A, 3]
@@ -35,6 +69,21 @@ class SceneContext:
     map_tokens: Tensor  # [B, M, D]
     map_pose: Tensor  # [B, M, 3]
     map_mask: Tensor  # bool [B, M]
+    neighbours: Neighbours | None = None
+
+    def repeat(self, times: int) -> SceneContext:
+        """Every scene repeated `times` times, sample-major (all scenes, then again)."""
+        if times == 1:
+            return self
+
+        def rows(t: Tensor) -> Tensor:
+            return t.repeat(times, *([1] * (t.dim() - 1)))
+
+        tensors = {name: rows(t) for name, t in vars(self).items() if isinstance(t, Tensor)}
+        nb = self.neighbours
+        return SceneContext(
+            **tensors, neighbours=None if nb is None else Neighbours(*(rows(t) for t in vars(nb).values()))
+        )
 
     @property
     def tokens(self) -> Tensor:
@@ -124,9 +173,12 @@ class SceneEncoder(nn.Module):
             polylines = layer(polylines, map_pose, polylines, map_pose, map_attn)
         return MapContext(polylines, map_pose, map_mask)
 
-    def forward(self, batch: SceneBatch, map_context: MapContext | None = None) -> SceneContext:
+    def forward(
+        self, batch: SceneBatch, map_context: MapContext | None = None, local: LocalAttention | None = None
+    ) -> SceneContext:
         """Agent and map tokens of a batch; `map_context`, when given, is `encode_map` of this batch's map
-        (rows broadcast: one row serves every scene of a batch that shares its map)."""
+        (rows broadcast: one row serves every scene of a batch that shares its map). With `local`, agents of
+        a scene larger than its budgets attend to their neighbourhood only (here and in the denoiser)."""
         b, a = batch.agent_valid.shape
         agent_pose = batch.current_state[..., :3]
         agent = self.agent_embed(agent_local_history(batch).reshape(b, a, -1))
@@ -137,9 +189,14 @@ class SceneEncoder(nn.Module):
         )
         context_mask = torch.cat([batch.agent_valid, map_mask], dim=1)
         context_pose = torch.cat([agent_pose, map_pose], dim=1)
-        agent_attn = context_mask[:, None, :].expand(b, a, -1) & batch.agent_valid[:, :, None]
+        neighbours = None
+        if local is not None and (a > local.agents or polylines.shape[1] > local.map_pieces):
+            neighbours = nearest_neighbours(batch, local)
+            agent_attn, index = neighbours.context_valid & batch.agent_valid[:, :, None], neighbours.context
+        else:
+            agent_attn, index = context_mask[:, None, :].expand(b, a, -1) & batch.agent_valid[:, :, None], None
         for layer in self.agent_layers:
             context = torch.cat([agent, polylines], dim=1)
-            agent = layer(agent, agent_pose, context, context_pose, agent_attn)
+            agent = layer(agent, agent_pose, context, context_pose, agent_attn, index=index)
         agent = agent * batch.agent_valid[..., None]
-        return SceneContext(agent, agent_pose, batch.agent_valid, polylines, map_pose, map_mask)
+        return SceneContext(agent, agent_pose, batch.agent_valid, polylines, map_pose, map_mask, neighbours)

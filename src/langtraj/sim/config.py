@@ -58,6 +58,7 @@ class SimRequest:
     selector: str | None = None  # candidate selection (`sim.selection.SELECTORS`); None: the policy's default
     on_road: float | None = None  # weight of the on-road guidance on every driven agent; None: the policy's default
     no_collision: float | None = None  # weight per pair of the no-collision guidance; None: the policy's default
+    dense_attention: bool = False  # every agent attends to every token, however large the scene (slower)
 
     def __post_init__(self) -> None:
         if self.max_driven is not None and self.max_driven < 1:
@@ -79,4 +80,5 @@ class SimRequest:
             or self.selector is not None
             or self.on_road is not None
             or self.no_collision is not None
+            or self.dense_attention
         )

@@ -75,8 +75,8 @@ class Policy(ABC):
         if request.needs_model:
             model_policies = ", ".join(c.name for c in POLICIES.classes() if c.uses_model)
             raise InputError(
-                "prompts, guidance, --selector, --on-road, --no-collision, --max-driven and --undriven need a model "
-                f"policy ({model_policies}), not {cls.name}"
+                "prompts, guidance, --selector, --on-road, --no-collision, --dense-attention, --max-driven and "
+                f"--undriven need a model policy ({model_policies}), not {cls.name}"
             )
         return cls()
 
@@ -183,7 +183,9 @@ class LangTrajPolicy(Policy):
     (agent slots = positions among the driven agents) add reconstruction guidance, scaled by
     `guidance_scale`; `guidance_weight` is classifier-free guidance (-1: ignore text). Each rollout draws
     its noise from its own generator seeded by (seed, rollout), so rollouts batched `rollout_batch` at a
-    time give what they give one by one.
+    time give what they give one by one. With `local_attention`, in a scene larger than the model's
+    training scenes each agent attends to as many nearest agents and map pieces as those scenes held
+    (`SampleConfig.local_attention`); otherwise to all of them.
     """
 
     name = "langtraj"
@@ -210,6 +212,7 @@ class LangTrajPolicy(Policy):
         on_road: float = DEFAULT_ON_ROAD,
         no_collision: float = DEFAULT_NO_COLLISION,
         free: Sequence[int] = (),
+        local_attention: bool = True,
     ):
         if candidates < 1 or steps < 1 or rollout_batch < 0:
             raise InputError(
@@ -240,6 +243,7 @@ class LangTrajPolicy(Policy):
             raise InputError(f"must be finite and >= 0, got {no_collision}", where="--no-collision")
         self.no_collision = float(no_collision)
         self.free = tuple(int(slot) for slot in free)
+        self.local_attention = local_attention
 
     @classmethod
     def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> LangTrajPolicy:
@@ -266,6 +270,7 @@ class LangTrajPolicy(Policy):
             "selector": request.selector,
             "on_road": DEFAULT_ON_ROAD if request.on_road is None else request.on_road,
             "no_collision": DEFAULT_NO_COLLISION if request.no_collision is None else request.no_collision,
+            "local_attention": not request.dense_attention,
         }
 
     # ------------------------------------------------------------------ which agents
@@ -285,6 +290,7 @@ class LangTrajPolicy(Policy):
             "on_road": self.on_road,
             "no_collision": self.no_collision,
             "selector": self.selector_name or self.default_selector(),
+            "attention": "local" if self.local_attention else "dense",
         }
 
     # ------------------------------------------------------------------ simulation
@@ -404,6 +410,7 @@ class LangTrajPolicy(Policy):
             guidance=hook,
             noise=noise,
             map_context=state.map_context,
+            local=self.data.local_attention() if self.local_attention else None,
         )
         choice = state.selector.select(states, state.scene, state.terms)  # states [M, R, A, T, 4], scene frame
         chosen = chosen_states(states, choice)[:, : len(world.driven)].double().cpu().numpy()

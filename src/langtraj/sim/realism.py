@@ -9,9 +9,11 @@ with and without teacher forcing) beside the baselines, and the selection and gu
 
 SPEC is `constant_velocity`, `stationary`, `log_replay` (a labelled baseline that reads the future), or
 a checkpoint, optionally followed by `|selector=NAME`, `|guidance=COST:WEIGHT[+COST:WEIGHT]` and
-`|defaults`. A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says
-otherwise; `|defaults` adds `langtraj simulate`'s default guidance and selection (on-road guidance,
-no-collision guidance per agent pair, `per_agent` selection; `sim.policies`).
+`|defaults` and `|dense`. A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its
+spec says otherwise; `|defaults` adds `langtraj simulate`'s default guidance and selection (on-road
+guidance, no-collision guidance per agent pair, `per_agent` selection; `sim.policies`). Every model row
+attends locally in scenes larger than its training scenes (docs/model.md, 'Local attention') unless
+`|dense` asks for dense attention.
 """
 
 from __future__ import annotations
@@ -57,6 +59,7 @@ class Method:
     selector: str | None = None
     guidance: tuple[str, ...] = ()
     defaults: bool = False  # `langtraj simulate`'s default guidance and selection besides the spec's
+    dense: bool = False  # dense attention in scenes larger than the training scenes (default: local)
     loaded: LoadedModel | None = field(default=None, compare=False, repr=False)
 
     @classmethod
@@ -71,17 +74,24 @@ class Method:
                 raise InputError(f"baseline {head} takes no options, got {options}", where="--method")
             return cls(name, baseline=head)
         settings: dict[str, str] = {}
-        defaults = "defaults" in options
-        for option in (o for o in options if o != "defaults"):
+        flags = {"defaults", "dense"}
+        for option in (o for o in options if o not in flags):
             key, eq, value = option.partition("=")
             if not eq or key not in ("selector", "guidance"):
                 raise InputError(
-                    f"expected selector=NAME, guidance=COST:WEIGHT or defaults, got {option!r}", where="--method"
+                    f"expected selector=NAME, guidance=COST:WEIGHT, defaults or dense, got {option!r}", where="--method"
                 )
             settings[key] = value
         guidance = tuple(g.replace(":", "=") for g in settings.get("guidance", "").split("+") if g)
         scene_wide_terms(guidance)  # checked now, before anything runs
-        return cls(name, checkpoint=Path(head), selector=settings.get("selector"), guidance=guidance, defaults=defaults)
+        return cls(
+            name,
+            checkpoint=Path(head),
+            selector=settings.get("selector"),
+            guidance=guidance,
+            defaults="defaults" in options,
+            dense="dense" in options,
+        )
 
     def load(self) -> Method:
         """The method with its checkpoint loaded (once for every window)."""
@@ -107,6 +117,7 @@ class Method:
                 terms=scene_wide_terms(self.guidance),
                 candidates=candidates,
                 steps=min(steps, model.schedule.num_steps),
+                local_attention=not self.dense,
                 **paper,
             )
         return simulate(scenario, policy, config).rollouts

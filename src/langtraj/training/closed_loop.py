@@ -26,7 +26,6 @@ from langtraj.guidance.costs import NoCollisionCost
 from langtraj.guidance.scene import GuidanceScene
 from langtraj.model.batch import SceneBatch
 from langtraj.model.langtraj import LangTraj
-from langtraj.model.scene_encoder import SceneContext
 from langtraj.training.config import ClosedLoopConfig
 
 
@@ -50,10 +49,6 @@ def select_closest(states: Tensor, target: Tensor, valid: Tensor) -> Tensor:
     weight = valid[None].to(err.dtype)
     mean = (err * weight).sum(dim=(2, 3)) / weight.sum(dim=(2, 3)).clamp(min=1.0)
     return mean.argmin(dim=0)
-
-
-def _repeat_context(scene: SceneContext, times: int) -> SceneContext:
-    return SceneContext(**{name: t.repeat(times, *([1] * (t.dim() - 1))) for name, t in vars(scene).items()})
 
 
 def collision_cost(states: Tensor, batch: SceneBatch) -> Tensor:
@@ -98,7 +93,7 @@ def closed_loop_loss(
         start = current.current_state
         with torch.no_grad():  # the M candidates; only the executed one needs a graph (computed again below)
             cache = model.denoiser.pose_cache(scene)  # per scene, shared by its M candidates (as in sampling)
-            pred = model.denoiser(x_k, k.repeat(m), _repeat_context(scene, m), language.repeat(m, 1, 1), cache)
+            pred = model.denoiser(x_k, k.repeat(m), scene.repeat(m), language.repeat(m, 1, 1), cache)
             states = model.integrate(start.repeat(m, 1, 1), current.agent_type.repeat(m, 1), pred)
             states = states.reshape(m, b, *states.shape[1:])
             horizon = states.shape[3]
