@@ -38,7 +38,7 @@ class Neighbours:
 
 
 def nearest_neighbours(batch: SceneBatch, local: LocalAttention) -> Neighbours:
-    """Each agent's `local.agents` nearest valid agents (by current position; itself first) and
+    """Each agent's `local.agents` nearest valid agents (by current position, itself included) and
     `local.map_pieces` nearest valid map pieces (by their nearest valid point)."""
     xy = batch.current_state[..., :2]
     b, a = batch.agent_valid.shape
