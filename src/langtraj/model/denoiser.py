@@ -85,7 +85,6 @@ class Denoiser(nn.Module):
         else:
             pair = scene.neighbours.agents_valid & mask[:, :, None]
             scene_attn = scene.neighbours.context_valid & mask[:, :, None]
-        tokens, token_pose = scene.tokens, scene.pose
         if cache is None:
             cache = self.pose_cache(scene)
         elif not cache:
@@ -95,7 +94,7 @@ class Denoiser(nn.Module):
             scale, shift = self.modulation[i](film).chunk(2, dim=-1)
             h = h * (1.0 + scale) + shift
             h = agent_block(h, pose, h, pose, pair, rel[0], agents)
-            h = context_block(h, pose, tokens, token_pose, scene_attn, rel[1], context)
+            h = context_block(h, pose, None, None, scene_attn, rel[1], context)  # tokens folded into rel[1]
             h = text_block(h, pose, language, pose, pair, rel[2], agents)
         return self.out(h).reshape(b, a, n, c) * mask[..., None, None]
 

@@ -112,8 +112,8 @@ class RelPoseAttention(nn.Module):
         self,
         query: Tensor,
         query_pose: Tensor,
-        key: Tensor,
-        key_pose: Tensor,
+        key: Tensor | None,
+        key_pose: Tensor | None,
         mask: Tensor,
         rel: PoseTerms | None = None,
         index: Tensor | None = None,
@@ -185,13 +185,15 @@ class AttentionBlock(nn.Module):
         self,
         x: Tensor,
         pose: Tensor,
-        context: Tensor,
-        context_pose: Tensor,
+        context: Tensor | None,
+        context_pose: Tensor | None,
         mask: Tensor,
         rel: PoseTerms | None = None,
         index: Tensor | None = None,
     ) -> Tensor:
-        x = x + self.attn(self.norm_q(x), pose, self.norm_k(context), context_pose, mask, rel, index)
+        """`context` and its pose may be None when `rel` holds them folded in (`fixed_context`)."""
+        keys = None if rel is not None and rel.tokens else self.norm_k(context)  # folded: not read again
+        x = x + self.attn(self.norm_q(x), pose, keys, context_pose, mask, rel, index)
         return x + self.ff(self.norm_ff(x))
 
 
