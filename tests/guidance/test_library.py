@@ -92,6 +92,15 @@ def test_turns_and_lane_changes_place_goals_to_the_right_side():
     assert turn.cost.goal[0] < -5.0
 
 
+def test_pulling_over_stops_at_a_goal_to_the_right_on_the_road():
+    terms = terms_for_prompt(ROLES, STATE, label_keys=["pulling_over"])
+    (goal,) = [t.cost for t in terms if isinstance(t.cost, GoalCost)]
+    (speed,) = [t.cost for t in terms if isinstance(t.cost, TargetSpeedCost)]
+    assert goal.goal[0] > 5.0 and goal.goal[1] == pytest.approx(-1.75)
+    assert speed.speeds[0] == 0.0 and speed.start == 40
+    assert "on_road" in [t.cost.name for t in terms]
+
+
 def test_roles_may_be_named_and_a_prompt_maps_its_mentions():
     by_index = terms_for_prompt({0: 0, 1: 1}, STATE, subtype_id="following/tailgating", label_keys=["speeding_up"])
     by_name = terms_for_prompt(

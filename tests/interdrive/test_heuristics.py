@@ -184,6 +184,116 @@ def test_car_far_from_every_lane_is_off_the_main_road():
     assert "lane_position" not in keys_of(labels)
 
 
+# ---------------------------------------------------------------------------------------------- pulling over
+
+
+def two_lane_road(with_edges: bool = True, with_neighbors: bool = True) -> RoadMap:
+    """Two eastbound lanes (ids 1 and 2 at y = 0 and 3.5: rightmost and leftmost), a kerb at y = -2.75 (a 1 m
+    shoulder beside the rightmost lane) and one at y = 5.25; no junction."""
+    pts = line(ROAD_X[0], 0.0, ROAD_X[1], 0.0)
+    last = len(pts) - 1
+
+    def nb(feature_id: int) -> tuple[LaneNeighbor, ...]:
+        return (LaneNeighbor(feature_id, 0, last, 0, last),) if with_neighbors else ()
+
+    features = [
+        MapFeature(1, MapFeatureType.LANE_SURFACE_STREET, pts, left_neighbors=nb(2)),
+        MapFeature(2, MapFeatureType.LANE_SURFACE_STREET, pts + [0, LANE_WIDTH], right_neighbors=nb(1)),
+    ]
+    if with_edges:
+        features += [
+            MapFeature(10, MapFeatureType.ROAD_EDGE_BOUNDARY, pts + [0, -2.75]),
+            MapFeature(11, MapFeatureType.ROAD_EDGE_BOUNDARY, pts + [0, LANE_WIDTH + 1.75]),
+        ]
+    return RoadMap(features)
+
+
+def braking_speed(v0: float = 10.0, brake_at: float = 2.0, decel: float = 2.5) -> np.ndarray:
+    """Per-step speed (m/s): `v0` until `brake_at` (s), then braking at `decel` (m/s^2) to a stop (at 6 s)."""
+    return np.clip(v0 - decel * np.clip(TIME - brake_at, 0.0, None), 0.0, None)
+
+
+def sideways_stop(
+    dy: float, y0: float = 0.0, t0: float = 3.0, t1: float = 5.5, x0: float = 0.0
+) -> tuple[AgentType, np.ndarray, np.ndarray]:
+    """An eastbound car at y = `y0` braking from 10 m/s to a stop at t = 6 s (about 20 m after braking starts)
+    while moving sideways by `dy` (m, left positive) between t = `t0` and `t1` (s); it stands from then on."""
+    speed = braking_speed()
+    x = x0 + np.concatenate([[0.0], np.cumsum(speed[:-1] * 0.1)])
+    blend = np.clip((TIME - t0) / (t1 - t0), 0.0, 1.0)
+    y = y0 + dy * (1 - np.cos(np.pi * blend)) / 2
+    heading = np.arctan2(np.gradient(y), np.maximum(np.gradient(x), 1e-6))
+    return AgentType.VEHICLE, np.stack([x, y], axis=1), heading
+
+
+def test_car_drifting_to_the_right_kerb_and_stopping_pulls_over():
+    labels, undecided = label_agents(scene(two_lane_road(), sideways_stop(-1.5)))
+    pull = only(labels, "pulling_over")
+    # The sideways motion starts at t = 3 s (window step 30); the car stands from about t = 6 s to the end.
+    assert 30 <= pull.start <= 40 and pull.end == T
+    still = only(labels, "static")
+    assert pull.start < still.start and still.end == T
+    assert "parked" not in keys_of(labels) and "changing_lanes" not in keys_of(labels)
+    assert "pulling_over" not in undecided_keys(undecided)
+
+
+def test_pull_over_thresholds_come_from_the_config():
+    road = scene(two_lane_road(), sideways_stop(-1.5))
+    assert "pulling_over" not in keys_of(label_agents(road, HeuristicConfig(pull_over_min_lateral=2.0))[0])
+    assert "pulling_over" not in keys_of(label_agents(road, HeuristicConfig(pull_over_min_stop_s=4.0))[0])
+    assert "pulling_over" not in keys_of(label_agents(road, HeuristicConfig(pull_over_max_edge_distance=0.5))[0])
+
+
+def test_pull_over_to_a_kerb_the_map_does_not_draw_is_told_from_lane_neighbours():
+    labels, _ = label_agents(scene(two_lane_road(with_edges=False), sideways_stop(-1.5)))
+    assert only(labels, "pulling_over").end == T
+    # From the leftmost lane to the right: the rightmost lane lies there, so that is not the road side.
+    labels, _ = label_agents(scene(two_lane_road(with_edges=False), sideways_stop(-1.5, y0=LANE_WIDTH)))
+    assert "pulling_over" not in keys_of(labels)
+    labels, undecided = label_agents(scene(two_lane_road(with_edges=False, with_neighbors=False), sideways_stop(-1.5)))
+    assert "pulling_over" not in keys_of(labels)
+    assert "road side" in next(u.reason for u in undecided if u.key == "pulling_over")
+
+
+def test_car_stopping_in_its_lane_behind_a_leader_does_not_pull_over():
+    leader = car_on_lane(0.0, np.zeros(T), x0=30.0)  # stands in the lane centre, 10 m ahead of where the car stops
+    follower = sideways_stop(0.0)
+    labels, _ = label_agents(scene(two_lane_road(), follower, leader))
+    assert "static" in keys_of(labels, 1) and "pulling_over" not in keys_of(labels, 1)
+    assert "pulling_over" not in keys_of(labels, 2)
+
+
+def test_lane_change_to_the_right_does_not_pull_over():
+    # It keeps driving in the rightmost lane.
+    kind, xy, heading = sideways_track(3.0, 6.0, dy=-LANE_WIDTH)
+    labels, _ = label_agents(scene(two_lane_road(), (kind, xy + [0.0, LANE_WIDTH], heading)))
+    assert "changing_lanes" in keys_of(labels) and "pulling_over" not in keys_of(labels)
+    # It stops on the new lane's centre (a queue), not at its edge.
+    labels, _ = label_agents(scene(two_lane_road(), sideways_stop(-LANE_WIDTH, y0=LANE_WIDTH)))
+    assert "static" in keys_of(labels) and "pulling_over" not in keys_of(labels)
+
+
+def test_parked_car_does_not_pull_over():
+    labels, _ = label_agents(scene(two_lane_road(), car_on_lane(-1.5, np.zeros(T), x0=60.0)))
+    assert "parked" in keys_of(labels) and "pulling_over" not in keys_of(labels)
+
+
+def test_car_stopping_by_the_kerb_at_a_junction_does_not_pull_over():
+    kerb = MapFeature(99, MapFeatureType.ROAD_EDGE_BOUNDARY, line(1.75, -80, 1.75, -10))
+    road = RoadMap((*junction_map().features, kerb))
+
+    def northbound_stop(stop_y: float) -> tuple[AgentType, np.ndarray, np.ndarray]:
+        _, xy, _ = sideways_stop(-0.9)  # eastbound, stopping about 32.5 m from its start
+        travel, right = xy[:, 0], -xy[:, 1]
+        north = np.stack([right, stop_y - travel[-1] + travel], axis=1)
+        heading = np.arctan2(np.gradient(north[:, 1]), np.gradient(north[:, 0]) + 1e-9)
+        return AgentType.VEHICLE, north, np.where(np.gradient(north[:, 1]) > 1e-6, heading, math.pi / 2)
+
+    labels, _ = label_agents(scene(road, northbound_stop(-15.0), northbound_stop(-45.0)))
+    assert "static" in keys_of(labels, 1) and "pulling_over" not in keys_of(labels, 1)  # 5 m before the junction
+    assert only(labels, "pulling_over", 2).end == T  # the same move 35 m before it
+
+
 # ---------------------------------------------------------------------------------------------- junctions and turns
 
 

@@ -164,6 +164,27 @@ def test_lane_change_phrases_name_the_lanes() -> None:
     assert generic[0] == CANONICAL["changing_lanes"] == "changes lanes"
 
 
+def test_pulling_over_renders_with_its_phrases_and_reads_back() -> None:
+    from langtraj.interdrive.prompts.user import recognize_prompt
+
+    phrases = label_phrases("pulling_over")
+    assert phrases[0] == CANONICAL["pulling_over"] == "pulls over and stops"
+    assert {"pulls over to the curb and stops", "is pulling over to stop"} <= set(phrases)
+    assert all("pull" in p or (("stop" in p or "halt" in p) and ("curb" in p or "side" in p)) for p in phrases)
+    labels = [AgentLabel(12, "slowing_down", 10, 50), AgentLabel(12, "pulling_over", 60, 91)]
+    for seed in range(6):
+        prompt = compose_prompt(12, None, labels, np.random.default_rng(seed))
+        assert prompt.label_keys == ("slowing_down", "pulling_over")
+        first, second = _split(prompt.text, ", then ")
+        assert first[4:] in label_phrases("slowing_down") and second in phrases
+        assert not second.startswith("is ")  # "then pulls over", not "then is pulling over"
+        assert set(recognize_prompt(Prompt(prompt.text, (12,))).label_keys) == {"slowing_down", "pulling_over"}
+    alone = compose_prompt(12, None, labels[1:], np.random.default_rng(0))
+    assert alone.text[4:] in phrases and alone.label_keys == ("pulling_over",)
+    user = parse_user_prompt("@12 pulls over and stops", [7, 12])
+    assert recognize_prompt(user).label_keys == ("pulling_over",)
+
+
 def test_unknown_keys_raise_input_error_listing_known() -> None:
     with pytest.raises(InputError, match="unknown single-agent label 'flying'; known: parked, "):
         label_phrases("flying")

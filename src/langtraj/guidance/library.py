@@ -194,6 +194,15 @@ def _change_lanes(agents: PromptAgents) -> list[GuidanceTerm]:
     return terms
 
 
+def _pull_over(agents: PromptAgents) -> list[GuidanceTerm]:
+    """Stop in the second half of the horizon, on the road, at a goal half a lane width to the right (the kerb
+    side in right-hand traffic), as far ahead as braking evenly over the first half carries the agent (at
+    least 5 m)."""
+    forward = max(agents.speed() * agents.horizon / 4, 5.0)
+    goal = GuidanceTerm(GoalCost(agents.target, agents.point(forward, -LANE_WIDTH / 2)), GOAL_WEIGHT)
+    return [goal, *_speed(_fixed(0.0), "second")(agents), *_road(agents)]
+
+
 # ---------------------------------------------------------------- the library
 
 INTERACTION_GUIDANCE: Mapping[str, Builder] = MappingProxyType(
@@ -259,6 +268,7 @@ LABEL_GUIDANCE: Mapping[str, Builder] = MappingProxyType(
         "approaching_intersection": _all(_lane(), _speed(_own())),
         "lane_position": _lane(),
         "changing_lanes": _change_lanes,
+        "pulling_over": _pull_over,
         "crossing_street": _all(_straight, _speed(_own(low=WALKING_SPEED))),
         "walking_along_road": _speed(_own(low=WALKING_SPEED)),
         "moving": _speed(_own(low=1.0)),

@@ -106,6 +106,26 @@ class HeuristicConfig:
     `lane_change_start_offset` over the last `lane_change_settle_s` (the manoeuvre must end in the scene)."""
     lane_change_settle_s: float = 1.0
     """See `lane_change_require_settled` (s)."""
+    pull_over_min_stop_s: float = 2.0
+    """Shortest stop (at or below `static_speed`) that ends a pull-over (s)."""
+    pull_over_lookback_s: float = 8.0
+    """How far before the stop (and no earlier than the current step or the end of an earlier stop) the sideways
+    motion of a pull-over is looked for (s)."""
+    pull_over_min_lateral: float = 0.5
+    """Least sideways displacement toward the road side, across the lane, before or during a stop that makes a
+    pull-over (m; SUMO's pull-overs to the kerb of a 3.2 m lane move 0.6 m)."""
+    pull_over_min_lane_offset: float = 0.4
+    """Least offset of a pulled-over vehicle's stop from its lane's centre, toward the road side: it stops at the
+    edge of its lane or beyond it, not on the centre as in a queue (m)."""
+    pull_over_max_edge_distance: float = 3.0
+    """Largest distance from a pulled-over vehicle's centre to a road edge where the map has road edges (m; a
+    bike lane or a parking strip may lie between the kerb and the road edge)."""
+    pull_over_junction_distance: float = 15.0
+    """A stop on a junction lane or at most this far before one along its lane is a stop at the junction, not a
+    pull-over (m; needs lane connectivity)."""
+    pull_over_start_offset: float = 0.2
+    """A pull-over starts at the last step within this of the vehicle's offset farthest from the road side before
+    its stop: where its sideways motion begins (m)."""
     lane_position_max_offset: float = 1.5
     """Largest distance from the lane centre at which a vehicle gets a lane position (m)."""
     crossing_lane_radius: float = 2.0
@@ -506,6 +526,85 @@ def _lane_changes(ctx: LabelContext, a: int) -> list[LaneChange]:
     return out
 
 
+def _lane_frame(index: MapIndex, lane: int, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Signed lateral offset (left positive), station and centerline heading of each point [N, 2] at the nearest
+    segment of `lane`. The offset is measured from that segment's line, so a point past the lane's start (on the
+    lane before a split) keeps its sideways offset instead of its distance to the lane's end point."""
+    segs = index.lanes.segments_of(lane)
+    rows = np.arange(len(xy))
+    dist, _, station = index.lanes.project(np.repeat(xy, len(segs), axis=0), np.tile(segs, len(xy)))
+    pick = dist.reshape(len(xy), len(segs)).argmin(axis=1)
+    best = segs[pick]
+    heading = index.lanes.heading[best]
+    rel = xy - index.lanes.start[best]
+    lateral = np.cos(heading) * rel[:, 1] - np.sin(heading) * rel[:, 0]
+    return lateral, station.reshape(len(xy), len(segs))[rows, pick], heading
+
+
+def _nearest_edge_point(index: MapIndex, xy: np.ndarray, radius: float) -> np.ndarray | None:
+    """The point [2] of the road edges nearest to `xy` [2], or None when none lies within `radius`."""
+    point = np.asarray(xy, np.float64).reshape(1, 2)
+    query, seg = index.edges.candidates(point, radius)
+    if not len(seg):
+        return None
+    dist, _, _ = index.edges.project(point[query], seg)
+    if dist.min() > radius:
+        return None
+    best = int(seg[np.argmin(dist)])
+    start, end = index.edges.start[best], index.edges.end[best]
+    along = end - start
+    t = float(np.clip(np.dot(point[0] - start, along) / max(float(np.dot(along, along)), 1e-12), 0.0, 1.0))
+    return start + t * along
+
+
+def _pull_over_start(ctx: LabelContext, a: int, floor: int, stop: int) -> int | str | None:
+    """The future step where vehicle `a`'s pull-over into the stop beginning at future step `stop` starts, a reason
+    why it cannot be decided, or None when the stop is not a pull-over (see `PullingOverRule`). Sideways motion is
+    looked for over future steps from `floor` on (the end of an earlier stop)."""
+    cfg, index = ctx.config, ctx.map_index
+    first = max(floor, stop - ctx.steps(cfg.pull_over_lookback_s))
+    lanes = ctx.vehicle_lanes.lane[a, first : stop + 1]
+    matched = np.flatnonzero(lanes >= 0)
+    if not len(matched):
+        return None  # off every lane all along: off the main roads, not pulling over from a lane
+    lane = int(lanes[matched[-1]])  # the lane it drove in last: sideways motion is measured across it
+    if index.is_junction[lane]:
+        return None  # stopped in a junction
+    xy = ctx.fut(ctx.kin.xy)[a, first : stop + 1]
+    lateral, station, heading = _lane_frame(index, lane, xy)
+    # Only the steps since the vehicle last turned away from that lane or drove on a junction lane count: offsets
+    # from another road (before a turn) say nothing about moving sideways on this one.
+    aligned = np.abs(wrap_angle(ctx.fut(ctx.kin.yaw)[a, first : stop + 1] - heading)) <= cfg.lane_match_max_heading
+    on_junction = (lanes >= 0) & index.is_junction[np.maximum(lanes, 0)]
+    broken = np.flatnonzero(~aligned | on_junction | ~ctx.future[a, first : stop + 1])
+    begin = int(broken[-1]) + 1 if len(broken) else 0
+    if begin >= len(xy) - 1:
+        return None
+    lat = lateral[begin:]
+    to_right, to_left = float(lat.max() - lat[-1]), float(lat[-1] - lat.min())
+    side = -1.0 if to_right >= to_left else 1.0  # toward the road side: right (-1) or left (+1) of the lane
+    shift = max(to_right, to_left)
+    if shift < cfg.pull_over_min_lateral or side * float(lat[-1]) < cfg.pull_over_min_lane_offset:
+        return None  # no sideways move, or back on (or short of) a lane centre: a lane change, a queue
+    if index.distance_to_junction(lane, float(station[-1])) <= cfg.pull_over_junction_distance:
+        return None  # stopped at a junction
+    if index.has_road_edges:
+        kerb = _nearest_edge_point(index, xy[-1], cfg.pull_over_max_edge_distance)
+        if kerb is None:
+            return None  # not at the kerb
+        if side * (float(_lane_frame(index, lane, kerb[None])[0][0]) - float(lat[-1])) < 0.0:
+            return None  # the nearest edge lies on the other side: it moved away from the kerb (to the median)
+    else:
+        position = index.lane_position(lane, float(station[-1]))
+        if position == "unknown":
+            return "the map has no road edges and no lane neighbour lists to tell the road side"
+        if position not in ("single", "rightmost" if side < 0 else "leftmost"):
+            return None  # another lane lies on that side: not the road side
+    toward = side * lat
+    settled = np.flatnonzero(toward <= toward.min() + cfg.pull_over_start_offset)
+    return first + begin + int(settled[-1])
+
+
 # ---------------------------------------------------------------------------------------------- rules
 
 Output = Iterator[AgentLabel | Undecided]
@@ -783,6 +882,42 @@ class ChangingLanesRule(LabelRule):
                         change.end - ctx.current,
                         **{"from": change.from_position, "to": change.to_position},
                     )
+
+
+@LABEL_RULES.register
+class PullingOverRule(LabelRule):
+    """Vehicles: pulling_over when a vehicle that moves at the current step or later (after any earlier stop) comes
+    to a stop of at least `pull_over_min_stop_s` at the road side, having moved sideways toward it within
+    `pull_over_lookback_s` before the stop. Sideways motion is measured across the lane it drove in last (since it
+    last turned or left a junction lane): at least `pull_over_min_lateral` toward one side, ending at least
+    `pull_over_min_lane_offset` beyond the lane centre on that side (at the edge of its lane or beyond it). That
+    side is the road side when the stop is within `pull_over_max_edge_distance` of a road edge the vehicle moved
+    toward or, on a map without road edges, when no same-direction lane lies on that side (a rightmost lane for a
+    move to the right, a leftmost one for a move to the left, or a single lane). A stop on a junction lane or
+    within `pull_over_junction_distance` before one is a stop at the junction, not a pull-over; a stop on a lane
+    centre (behind a leader, at a stop line, after a lane change) has no offset, and a parked vehicle never moves.
+    Span: from where the sideways motion begins (`pull_over_start_offset`) to the end of the stop. Undecided
+    when the map has no lanes, or neither road edges nor lane neighbour lists to tell the road side."""
+
+    name = "pulling_over"
+    keys = ("pulling_over",)
+
+    def apply(self, ctx: LabelContext) -> Output:
+        stopped = ctx.future & ~ctx.moving
+        min_stop = ctx.steps(ctx.config.pull_over_min_stop_s)
+        for a in ctx.agents_of(AgentType.VEHICLE):
+            floor = 0
+            for stop, end in true_runs(stopped[a], min_stop, ctx.steps(0.3)):
+                if ctx.moving[a, floor:stop].any():
+                    if not ctx.map_index.has_lanes:
+                        yield ctx.undecided(a, "pulling_over", "the map has no lanes")
+                        break
+                    start = _pull_over_start(ctx, int(a), floor, stop)
+                    if isinstance(start, str):
+                        yield ctx.undecided(a, "pulling_over", start)
+                    elif start is not None:
+                        yield ctx.label(a, "pulling_over", start, end)
+                floor = end
 
 
 @LABEL_RULES.register

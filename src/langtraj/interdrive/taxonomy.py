@@ -283,6 +283,7 @@ SINGLE_AGENT_LABELS: tuple[LabelDef, ...] = (
     LabelDef("approaching_intersection", "approaching an intersection", VEHICLES),
     LabelDef("lane_position", "lane position", VEHICLES, ("position",)),
     LabelDef("changing_lanes", "changing lanes", VEHICLES, ("from", "to")),
+    LabelDef("pulling_over", "pulling over and stopping", VEHICLES),  # not in the paper's list
     LabelDef("crossing_street", "crossing the street", VRUS),
     LabelDef("walking_along_road", "walking along the road", VRUS),
     LabelDef("moving", "moving", VRUS),

@@ -88,6 +88,14 @@ _LABEL_TEMPLATES: dict[str, tuple[str, ...]] = {
         "|heads toward|is heading toward|gets close to|is getting close to}"
         " {the intersection|the junction|an intersection|a junction}",
     ),
+    "pulling_over": (
+        "{pulls over|pulls in|pulls over to the side} and {stops|comes to a stop|comes to a halt}",
+        "{pulls over|pulls in|moves over|steers over} to {the side of the road|the curb|the roadside}"
+        " and {stops|comes to a stop|halts}",
+        "{is pulling over|is pulling in} {to stop|to the side of the road|to the curb}",
+        "{stops|comes to a stop|halts} {at the side of the road|at the curb|by the roadside} after pulling over",
+        "pulls over[ to the {side of the road|curb}]",
+    ),
     "crossing_street": (
         "{crosses|is crossing|goes across|is going across|makes its way across|moves across|is moving across"
         "|heads across|is heading across|gets across|travels across} {the street|the road|the roadway}",
