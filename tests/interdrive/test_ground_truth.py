@@ -145,6 +145,17 @@ def test_yield_gives_the_yield_and_the_reverse_passing():
     assert triples(cyclist) == [(1, 2, "yielding/intersection"), (2, 1, "passing/vru_crossing")]
 
 
+def test_going_first_passes_the_foe_which_yields_only_when_it_brakes():
+    go = BehaviorEvent("go_first", 1, 20, 50, 2, {"junction": "C", "roundabout": False})
+    steady = _two_cars([go])
+    assert triples(steady) == [(1, 2, "passing/intersection_with_yielding")]
+    braking = np.where(np.arange(T) < 30, 10.0, 7.0)
+    foe = scene({1: (VEH, straight(0, 0, 0, 10.0)), 2: (VEH, straight(20, 3.5, 0, braking))}, [go])
+    assert triples(foe) == [(1, 2, "passing/intersection_with_yielding"), (2, 1, "yielding/intersection")]
+    rb = BehaviorEvent("go_first", 1, 20, 50, 2, {"junction": "C", "roundabout": True})
+    assert triples(_two_cars([rb])) == [(1, 2, "passing/roundabout")]
+
+
 def test_yield_to_pedestrian_and_reverse():
     tracks = {1: (VEH, straight(0, 0, 0, 0.0)), 5: (PED, straight(10, -3, np.pi / 2, 1.2))}
     event = BehaviorEvent("yield_to_pedestrian", 1, 10, 40, 5, {"crosswalk": "c0"})

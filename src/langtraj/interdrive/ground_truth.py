@@ -26,6 +26,11 @@ Mapping (checked top to bottom per event; A the event's agent, "lead" its `other
   `yielding/roundabout` + `passing/roundabout`; F has a lane change overlapping the yield ->
   `yielding/to_merging_or_lane_change` + `passing/intersection_with_yielding`; F a cyclist ->
   `yielding/intersection` + `passing/vru_crossing`; else `yielding/intersection` + `passing/intersection_with_yielding`.
+- `go_first` (A went before foe F it had to yield to), A -> F `passing/intersection_with_yielding`
+  (`passing/roundabout` on a roundabout), and F -> A `yielding/intersection` (`yielding/roundabout`) when F
+  lost at least `go_first_braking` over the event and `go_first_reaction_steps` after it.
+- `decision` (a driver's own decision, `langtraj.synth.intents`): no interaction label; the single-agent
+  labels judge what it led to.
 - `yield_to_pedestrian`, A -> P `yielding/to_pedestrian` and P -> A `passing/vru_crossing`.
 - `ped_waiting` of P: for each vehicle or cyclist V with its centre on the map CROSSWALK P steps onto (the one
   within `crosswalk_search` of P's first step after the wait, grown by `crosswalk_margin`) during the wait:
@@ -85,6 +90,8 @@ class GroundTruthConfig:
     min_window_s: float = 1.0  # a label must overlap the current and future steps by this long
     follow_range: float = 60.0  # m: a follow counts while the leader's bumper gap is at most this
     min_follow_s: float = 1.0  # a follow (after the range cut) lasts at least this long
+    go_first_braking: float = 1.0  # m/s a foe must lose after a vehicle went before it to count as yielding
+    go_first_reaction_steps: int = 20  # how long after a go-first event the foe's braking is looked for
 
 
 _SUB = SUBTYPES_BY_ID
@@ -135,6 +142,7 @@ def ground_truth_interactions(
         *_lane_change_labels(ctx),
         *_follow_labels(ctx),
         *_yield_labels(ctx),
+        *_go_first_labels(ctx),
         *_pedestrian_yield_labels(ctx),
         *_pedestrian_waiting_labels(ctx),
     ]
@@ -380,6 +388,30 @@ def _follow_subtype(ctx: _Context, event: BehaviorEvent) -> str:
 
 def _changing_lanes(ctx: _Context, track: int, start: int, end: int) -> bool:
     return any(e.start < end and e.end > start for e in ctx.events("lane_change", track))
+
+
+def _go_first_labels(ctx: _Context) -> list[InteractionLabel]:
+    """A -> F passing for a vehicle that went before a foe it had to yield to; F -> A yielding when F then
+    lost at least `go_first_braking` m/s."""
+    labels = []
+    roundabout_kind = ctx.scenario.metadata.get("kind") == "roundabout"
+    for e in ctx.events("go_first"):
+        if e.track_id not in ctx.index or e.other_id not in ctx.index:
+            continue
+        roundabout = e.attributes.get("roundabout", roundabout_kind)
+        mine, theirs = (
+            ("passing/roundabout", "yielding/roundabout")
+            if roundabout
+            else (
+                "passing/intersection_with_yielding",
+                "yielding/intersection",
+            )
+        )
+        labels.append(_label(e.track_id, e.other_id, mine, e.start, e.end))
+        foe = ctx.speeds(e.other_id, e.start, e.end + ctx.config.go_first_reaction_steps)
+        if len(foe) and foe[0] - foe.min() >= ctx.config.go_first_braking:
+            labels.append(_label(e.other_id, e.track_id, theirs, e.start, e.end))
+    return labels
 
 
 def _yield_labels(ctx: _Context) -> list[InteractionLabel]:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import itertools
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -33,12 +33,19 @@ MIN_RATE = 0.5
 """Flows below this many per hour are left out (they would hardly ever depart)."""
 
 
+VEHICLE_CLASSES = ("passenger", "truck", "bus", "bicycle")
+"""The SUMO vehicle classes the demand draws (persons walk)."""
+
+
 @dataclass(frozen=True)
 class Demand:
-    """The route file written for one simulation and the values drawn for it (JSON-compatible)."""
+    """The route file written for one simulation, the values drawn for it (JSON-compatible), and for each
+    vehicle class the edges where its trips may end (a vehicle that picks a new direction is routed on to
+    one of them, `langtraj.synth.intents`)."""
 
     route_file: Path
     params: Mapping[str, object]
+    sinks: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -113,7 +120,8 @@ def write_demand(network: BuiltNetwork, rng: np.random.Generator, duration_s: fl
     route_file = workdir / f"{network.kind}.rou.xml"
     ET.indent(root)
     ET.ElementTree(root).write(route_file, encoding="UTF-8", xml_declaration=True)
-    return Demand(route_file, params)
+    sinks = {vclass: tuple(fringe_edges(net, vclass)[1]) for vclass in VEHICLE_CLASSES}
+    return Demand(route_file, params, sinks)
 
 
 # --- vehicle types ----------------------------------------------------------------------------------

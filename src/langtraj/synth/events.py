@@ -18,6 +18,12 @@ Every event is a `BehaviorEvent(kind, track_id, start, end, other_id, attributes
   Equal-rank links (all-way stops) use first come: the foe must have stopped at the junction before the
   vehicle. Attributes: `junction`, `rule` (priority / first_come), `min_speed`, `stopped`, `ego_lane`,
   `foe_lane`, `roundabout`.
+- `go_first`: a vehicle that had to yield to a junction foe by priority (not an all-way stop) entered the
+  conflict area first while the foe was at most `FOE_HORIZON_S` from it; `other_id` the foe. Attributes:
+  `junction`, `gap_s`, `foe_dist`, `entry_step`, `bold`, `ego_lane`, `foe_lane`, `roundabout`.
+- `decision`: a driver's decision made after its departure (`langtraj.synth.intents`): `decision`
+  (route_choice, lane_change, pull_over, stop, speed_change), `decision_step`, what was chosen and
+  `executed`; it spans the decision and what it led to.
 - `junction_pass`: a vehicle or cyclist on the internal lanes of one junction, entry to exit. Attributes:
   `junction`, `direction` (SUMO link direction: s, l, r, t, L, R), `control` (SUMO junction type),
   `legs` (roads meeting there; 2 at a mid-block crossing), `intersection` (roads from two or more places
@@ -40,6 +46,7 @@ from matplotlib.path import Path as MplPath
 from langtraj.runs import true_runs, value_runs
 from langtraj.scenario.model import STEP_SECONDS, BehaviorEvent
 from langtraj.scenario.types import AgentType
+from langtraj.synth.intents import Decision, decision_events
 from langtraj.synth.runner import LEADER_RANGE_M, FoeObservation, LaneChangeRecord, SimulationLog
 from langtraj.synth.tracks import Track
 
@@ -303,6 +310,63 @@ def yield_events(
     return events
 
 
+GO_FIRST_LEAD_STEPS = 20
+"""A `go_first` event starts this many steps (2 s) before the vehicle enters the conflict area."""
+
+GO_FIRST_TAIL_STEPS = 10
+"""... and ends this many steps after it."""
+
+
+def go_first_events(
+    observations: Sequence[FoeObservation],
+    tracks: Mapping[str, Track],
+    ctx: NetContext,
+    bold: frozenset[str] = frozenset(),
+) -> list[BehaviorEvent]:
+    """Vehicles that had to yield to a junction foe by priority but entered the conflict area first, while
+    the foe was at most `FOE_HORIZON_S` from it (the gap they accepted). Attributes: `junction`, `gap_s`
+    (the foe's time to the conflict area), `foe_dist`, `bold` (a driver drawn to accept gaps it should
+    leave, `langtraj.synth.intents`), `ego_lane`, `foe_lane`, `roundabout`."""
+    firsts: dict[tuple[str, str], FoeObservation] = {}
+    for obs in observations:
+        if obs.mutual or obs.ego not in tracks or obs.foe not in tracks:
+            continue
+        if obs.ego_dist <= 0.0 < obs.foe_dist and (obs.ego, obs.foe) not in firsts:
+            firsts[(obs.ego, obs.foe)] = obs
+    events = []
+    for (ego, foe), obs in sorted(firsts.items()):
+        track, foe_track = tracks[ego], tracks[foe]
+        if not foe_track.start <= obs.step < foe_track.stop:
+            continue
+        foe_speed = max(float(foe_track.speed[foe_track.local(obs.step)]), 1.0)
+        gap = obs.foe_dist / foe_speed
+        if gap > FOE_HORIZON_S:
+            continue
+        junction = ctx.junction_of_lane.get(obs.ego_lane, _edge_of(obs.ego_lane))
+        start = max(track.start, obs.step - GO_FIRST_LEAD_STEPS)
+        end = min(track.stop, obs.step + GO_FIRST_TAIL_STEPS)
+        events.append(
+            BehaviorEvent(
+                "go_first",
+                track.track_id,
+                start,
+                max(end, start + 1),
+                foe_track.track_id,
+                {
+                    "junction": junction,
+                    "gap_s": round(gap, 2),
+                    "foe_dist": round(float(obs.foe_dist), 2),
+                    "entry_step": obs.step,
+                    "bold": ego in bold,
+                    "ego_lane": obs.ego_lane,
+                    "foe_lane": obs.foe_lane,
+                    "roundabout": junction in ctx.roundabout_junctions,
+                },
+            )
+        )
+    return events
+
+
 # ---------------------------------------------------------------- junction passages
 
 
@@ -456,6 +520,7 @@ def _pedestrian_yields(track: Track, crossing: str, hits: Mapping[int, list[int]
 def extract_events(log: SimulationLog, tracks: Sequence[Track], ctx: NetContext) -> tuple[BehaviorEvent, ...]:
     """All events of a simulation, sorted by (start, track, kind, other)."""
     by_sumo = {t.sumo_id: t for t in tracks}
+    bold = frozenset(d.sumo_id for d in log.decisions if d.decision == Decision.BOLD)
     peds = pedestrian_events(tracks, log, ctx)
     held = HeldSteps(log, ctx)
     events = [
@@ -463,6 +528,8 @@ def extract_events(log: SimulationLog, tracks: Sequence[Track], ctx: NetContext)
         *follow_events(tracks),
         *junction_pass_events(tracks, log, ctx),
         *yield_events(log.foe_observations, by_sumo, ctx, held),
+        *go_first_events(log.foe_observations, by_sumo, ctx, bold),
+        *decision_events(log.decisions, by_sumo, log.lane_names, log.lane_changes),
         *peds,
         *pedestrian_yield_events(tracks, peds, ctx, held),
     ]

@@ -168,6 +168,8 @@ def build_manifest(config: FactoryConfig, outcomes: Sequence[ShardOutcome], targ
             "agents_per_window": _distribution(a for o in mine for a in o.agents_per_window),
             "agent_types": dict(sum((Counter(o.agent_types) for o in mine), Counter())),
             "events": dict(sum((Counter(o.events) for o in mine), Counter())),
+            "decisions": dict(sum((Counter(o.decisions) for o in mine), Counter())),
+            "windows_with_decision_ahead": sum(o.decisions_ahead for o in mine),
             "rejections": dict(sum((Counter(o.rejections) for o in mine), Counter())),
             "sumo_collisions": sum(o.collisions for o in mine),
             "sumo_teleports": sum(o.teleports for o in mine),
@@ -182,7 +184,7 @@ def build_manifest(config: FactoryConfig, outcomes: Sequence[ShardOutcome], targ
         "config": {
             "windows_per_shard": config.windows_per_shard,
             "duration_s": "auto" if config.shard.duration_s is None else config.shard.duration_s,
-            "window": asdict(config.shard.window),
+            "window": json.loads(json.dumps(asdict(config.shard.window))),
         },
         "per_kind": per_kind,
         "shards": [

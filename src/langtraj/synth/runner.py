@@ -10,13 +10,14 @@ See docs/data.md.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from langtraj.scenario.types import AgentType
+from langtraj.synth.intents import AppliedDecision, IntentConfig, IntentController
 from langtraj.synth.sumo import STEP_LENGTH, SynthError, simulation_options
 
 # TraCI variable ids (traci.constants); spelled out so the runner does not import the TraCI client.
@@ -97,11 +98,13 @@ class SimulationLog:
     teleports: tuple[tuple[int, str], ...]
     foe_observations: tuple[FoeObservation, ...]
     lane_changes: tuple[LaneChangeRecord, ...]
+    decisions: tuple[AppliedDecision, ...] = ()
 
 
 @dataclass(frozen=True)
 class SimulationInput:
-    """What to simulate: files, seed, length, and the (tls id, link index) pairs to record."""
+    """What to simulate: files, seed, length, the (tls id, link index) pairs to record, and the drivers'
+    decisions (`intents`, None for none; `sinks` are the edges where trips of each vehicle class may end)."""
 
     net_file: Path
     route_files: tuple[Path, ...]
@@ -109,6 +112,8 @@ class SimulationInput:
     duration_s: float
     signal_links: tuple[tuple[str, int], ...] = ()
     additional_files: tuple[Path, ...] = ()
+    intents: IntentConfig | None = None
+    sinks: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
 
 def _agent_type(vclass: str) -> AgentType:
@@ -256,9 +261,13 @@ def simulate(sim: SimulationInput, workdir: Path) -> SimulationLog:
     try:
         recorder = _Recorder(libsumo, sim.signal_links)
         recorder.signal_rows.append(bytes(len(sim.signal_links)))  # step 0: before the first step, unknown
+        intents = sim.intents if sim.intents is not None and sim.intents.enabled else None
+        controller = None if intents is None else IntentController(libsumo, intents, sim.seed, sim.sinks)
         for step in range(1, num_steps + 1):
             libsumo.simulationStep()
             recorder.record(step)
+            if controller is not None:
+                controller.step(step)
     except (libsumo.TraCIException, libsumo.FatalTraCIError) as exc:
         raise SynthError(f"SUMO failed on {sim.net_file}: {exc}") from None
     finally:
@@ -275,4 +284,5 @@ def simulate(sim: SimulationInput, workdir: Path) -> SimulationLog:
         teleports=tuple(recorder.teleports),
         foe_observations=tuple(recorder.foes),
         lane_changes=_parse_lane_changes(lc_path),
+        decisions=() if controller is None else tuple(controller.applied),
     )

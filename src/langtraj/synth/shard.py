@@ -22,9 +22,10 @@ import numpy as np
 
 from langtraj.fileio import atomic_open
 from langtraj.scenario.io import write_scenarios
-from langtraj.scenario.model import STEP_SECONDS, RoadMap, Scenario
+from langtraj.scenario.model import STEP_SECONDS, BehaviorEvent, RoadMap, Scenario
 from langtraj.synth.demand import write_demand
 from langtraj.synth.events import NetContext, extract_events
+from langtraj.synth.intents import IntentConfig
 from langtraj.synth.mapping import NetMap, build_net_map, crop_road_map
 from langtraj.synth.network import BuiltNetwork, get_kind
 from langtraj.synth.runner import SimulationInput, SimulationLog, simulate
@@ -41,7 +42,7 @@ AUTO_DURATION_S = (150.0, 900.0)
 
 @dataclass(frozen=True)
 class ShardConfig:
-    """Per-shard settings: simulated seconds and the window cutting rules.
+    """Per-shard settings: simulated seconds, the window cutting rules and the drivers' decisions.
 
     `duration_s=None` sizes each simulation to its quota: the warm-up plus `AUTO_SLACK` window lengths
     per window wanted from each interest centre (windows of one centre do not overlap), bounded by
@@ -50,6 +51,7 @@ class ShardConfig:
 
     duration_s: float | None = None
     window: WindowConfig = field(default_factory=WindowConfig)
+    intents: IntentConfig = field(default_factory=IntentConfig)
 
     def duration_for(self, quota: int, centres: int) -> float:
         """Simulated seconds for a shard that wants `quota` windows from `centres` interest centres."""
@@ -150,24 +152,40 @@ class ShardOutcome:
     demand: dict[str, Any]
     sumo_version: str
     seconds: float
+    decisions: dict[str, int] = field(default_factory=dict)
+    """Drivers' decisions in the windows, by kind (`langtraj.synth.intents`)."""
+    decisions_ahead: int = 0
+    """Windows with an executed decision within `decision_lead_s` after the current step."""
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), sort_keys=True, indent=1)
 
 
+def _decisions(scenario: Scenario) -> list[BehaviorEvent]:
+    return [e for e in scenario.events if e.kind == "decision" and e.attributes.get("executed")]
+
+
+def _ahead(scenario: Scenario, event: BehaviorEvent, window: WindowConfig) -> bool:
+    """Whether a decision falls within `decision_lead_s` after the window's current step."""
+    lo, hi = window.decision_lead_s
+    lead = (int(event.attributes["decision_step"]) - scenario.current_index) * STEP_SECONDS
+    return lo <= lead <= hi
+
+
 def cut_windows(
     task: ShardTask, network: BuiltNetwork, run: RunData, net_map: NetMap, config: ShardConfig, meta: dict[str, Any]
 ) -> tuple[list[Scenario], Counter]:
-    """Up to `task.quota` windows in time order (centres interleaved), and the rejection counts."""
+    """Up to `task.quota` windows in time order (centres interleaved), and the rejection counts. Windows
+    around drivers' decisions are cut first (`WindowCutter.candidates`); windows of one centre never overlap."""
     cutter = WindowCutter(run, config.window)
-    scenarios: list[Scenario] = []
+    scenarios: list[tuple[int, int, Scenario]] = []
     rejections: Counter = Counter()
-    last_start: dict[int, int] = {}
+    taken: dict[int, list[int]] = {}
     length = config.window.length
     for c, start in cutter.candidates(network.centres):
         if len(scenarios) >= task.quota:
             break
-        if start < last_start.get(c, -length):  # windows of one centre do not overlap
+        if any(abs(start - other) < length for other in taken.get(c, ())):  # windows of one centre do not overlap
             continue
         cut = cutter.cut(network.centres[c], start)
         if isinstance(cut, Rejection):
@@ -187,9 +205,9 @@ def cut_windows(
         if isinstance(scenario, Rejection):
             rejections[scenario.reason] += 1
             continue
-        scenarios.append(scenario)
-        last_start[c] = start + length
-    return scenarios, rejections
+        scenarios.append((start, c, scenario))
+        taken.setdefault(c, []).append(start)
+    return [s for _, _, s in sorted(scenarios, key=lambda t: t[:2])], rejections
 
 
 def run_shard(task: ShardTask, config: ShardConfig) -> ShardOutcome:
@@ -209,6 +227,8 @@ def run_shard(task: ShardTask, config: ShardConfig) -> ShardOutcome:
             duration_s=duration,
             signal_links=tuple((s.tls_id, s.link_index) for s in net_map.signals),
             additional_files=network.additional_files,
+            intents=config.intents,
+            sinks=demand.sinks,
         )
         log = simulate(sim, workdir)
         ctx = _net_context(net_map)
@@ -247,6 +267,8 @@ def run_shard(task: ShardTask, config: ShardConfig) -> ShardOutcome:
         demand=meta["demand"],
         sumo_version=meta["sumo_version"],
         seconds=round(time.perf_counter() - began, 3),
+        decisions=dict(sorted(Counter(e.attributes["decision"] for s in scenarios for e in _decisions(s)).items())),
+        decisions_ahead=sum(any(_ahead(s, e, config.window) for e in _decisions(s)) for s in scenarios),
     )
     with atomic_open(task.stats_path, "w") as fh:
         fh.write(outcome.to_json())

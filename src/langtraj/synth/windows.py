@@ -20,7 +20,14 @@ from langtraj.scenario.types import NUM_STATE_FIELDS, AgentType, StateField, Tra
 from langtraj.synth.network import InterestCentre
 from langtraj.synth.tracks import Track
 
-INTERACTION_RANK = {"yield": 0, "yield_to_pedestrian": 1, "lane_change": 2, "ped_crossing": 3, "ped_waiting": 4}
+INTERACTION_RANK = {
+    "yield": 0,
+    "go_first": 1,
+    "yield_to_pedestrian": 2,
+    "lane_change": 3,
+    "ped_crossing": 4,
+    "ped_waiting": 5,
+}
 """Event kinds that make a window interesting, best first (`follow` alone does not)."""
 
 MIN_INTERACTION_STEPS = 10
@@ -60,6 +67,9 @@ class WindowConfig:
     """m shaved off each box side before the overlap test (SUMO boxes touch when queued)."""
     max_tracks_to_predict: int = 8
     require_interaction: bool = True
+    decision_lead_s: tuple[float, float] = (0.5, 5.0)
+    """Windows are first cut so that a driver's decision (`decision` events) near the centre falls this long
+    after the current step (history cannot reveal it); the regular grid fills in after them."""
 
     @property
     def length(self) -> int:
@@ -163,10 +173,36 @@ class WindowCutter:
         return range(first, self.run.num_steps + 1 - cfg.length + 1, stride)
 
     def candidates(self, centres: Sequence[InterestCentre]) -> Iterator[tuple[int, int]]:
-        """(centre index, start step) pairs in time order, centres interleaved."""
+        """(centre index, start step) pairs: first those that put a decision near the centre inside
+        `decision_lead_s` after the current step, then the regular grid; each in time order, centres
+        interleaved."""
+        yield from self.decision_candidates(centres)
         for start in self.starts():
             for c in range(len(centres)):
                 yield c, start
+
+    def decision_candidates(self, centres: Sequence[InterestCentre]) -> list[tuple[int, int]]:
+        """Starts putting each executed decision, made within a centre's radius, at the middle of
+        `decision_lead_s` after the current step (one per decision; the first centre that holds it)."""
+        cfg = self.config
+        grid = self.starts()
+        if not len(grid):
+            return []
+        lead = round(0.5 * sum(cfg.decision_lead_s) / STEP_SECONDS)
+        out = []
+        for e in self.run.events:
+            if e.kind != "decision" or not e.attributes.get("executed", False):
+                continue
+            start = int(e.attributes["decision_step"]) - lead - (cfg.history - 1)
+            if not grid.start <= start <= grid[-1]:
+                continue
+            track = self.by_id[e.track_id]
+            x, y = track.xy[track.local(e.start)]
+            for c, centre in enumerate(centres):
+                if np.hypot(x - centre.x, y - centre.y) <= max(centre.radius, cfg.agent_radius_m):
+                    out.append((start, c))
+                    break
+        return [(c, start) for start, c in sorted(set(out))]
 
     def _agents_near(self, centre: InterestCentre, start: int) -> tuple[np.ndarray, np.ndarray]:
         """Indices of tracks within the radius at some step of the window, and their nearest distance."""
@@ -327,8 +363,8 @@ class WindowCutter:
             if e.other_id >= 0 and e.other_id not in ids:
                 continue
             attributes = dict(e.attributes)
-            if "change_step" in attributes:
-                attributes["change_step"] = int(attributes["change_step"]) - start
+            for key in [k for k in attributes if k.endswith("_step") and isinstance(attributes[k], int)]:
+                attributes[key] = int(attributes[key]) - start  # steps of the run -> steps of the window
             if e.start < start:
                 attributes["clipped_start"] = True
             if e.end > stop:
