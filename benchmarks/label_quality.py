@@ -16,6 +16,8 @@ see only positions and the map) against it, per agent over the future of each wi
   thresholds, on SUMO's speed instead of speed from positions);
 - turning left / right, going straight: the SUMO link direction of the vehicle's intersection
   passage in the future (agents with one whole passage in the future, not on a roundabout);
+- pulling over: the drivers' executed pull-over decisions (`decision` events, `langtraj.synth.intents`)
+  whose stop begins in the future at least 2 s before the window's end;
 - crossing an intersection: a passage over an intersection's internal lanes (`junction_pass` with
   `intersection`) of at least 0.5 s in the future.
 
@@ -176,6 +178,22 @@ def score_single(scenario: Scenario, labels: tuple[AgentLabel, ...], config: Heu
                 scores.add("turning_left", direction == "l", "turning_left" in keys)
                 scores.add("turning_right", direction == "r", "turning_right" in keys)
                 scores.add("going_straight", direction == "s", "going_straight" in keys)
+
+        _score_pull_over(scenario, events.get(tid, []), keys, scores)
+
+
+def _score_pull_over(scenario: Scenario, events: list, keys: set[str], scores: Scores) -> None:
+    """`pulling_over` against the drivers' executed pull-over decisions (`langtraj.synth.intents`) whose
+    stop begins in the future at least `SETTLE_STEPS` before the window's end; an agent whose pull-over stop
+    began before the current step is not scored (its sideways move may still come after it)."""
+    pulls = [e for e in events if e.kind == "decision" and e.attributes.get("decision") == "pull_over"]
+    pulls = [e for e in pulls if e.attributes.get("executed")]
+    if any(e.attributes["stopped_step"] < scenario.current_index for e in pulls):
+        return
+    truth = any(e.attributes["stopped_step"] < scenario.num_steps - SETTLE_STEPS for e in pulls)
+    if pulls and not truth:
+        return  # the stop begins in the last 2 s: not yet visible
+    scores.add("pulling_over", truth, "pulling_over" in keys)
 
 
 def run(corpus: Path) -> dict:
