@@ -4,7 +4,9 @@
 Closed-loop simulation of one scene. DIR receives `rollouts.npz` (for `langtraj evaluate` and the
 WOSAC submission writer), `rollout0.mp4` (rollout 0, prompted agents highlighted, the prompt as caption)
 and `summary.json` (per-agent collision, offroad and distance travelled; timing). Without `--checkpoint`
-the checkpoint shipped with LangTraj is used. Every input is checked before anything is written.
+the checkpoint shipped with LangTraj is used. Every input is checked before anything is written; a prompt
+asking for a turn or lane change the map does not allow is warned about on stderr (and in the summary's
+`prompt_warnings`) and simulated as typed.
 
 See README.md.
 """
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from langtraj.sim.config import UNDRIVEN
@@ -99,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
     from langtraj.scenario.io import read_scenario
     from langtraj.sim.config import SimConfig, SimRequest
     from langtraj.sim.engine import simulate
+    from langtraj.sim.prompts import prompt_warnings
     from langtraj.sim.setup import build_policy
     from langtraj.sim.summary import simulation_summary
     from langtraj.viz import RenderConfig, save_video
@@ -125,8 +129,11 @@ def run(args: argparse.Namespace) -> int:
         dense_attention=args.dense_attention,
     )
     policy, described = build_policy(scenario, request)  # every check happens here, before any write
+    warnings = prompt_warnings(scenario, request.prompts)
+    for line in warnings:
+        print(f"warning: {line}", file=sys.stderr)
     result = simulate(scenario, policy, config)
-    summary = simulation_summary(result, policy=args.policy, **described)
+    summary = simulation_summary(result, policy=args.policy, **described) | {"prompt_warnings": warnings}
     print("; ".join(f"{len(ids)} agents moved by {name}" for name, ids in summary["agents_by_policy"].items()))
     if summary["reads_future_log"]:
         print("WARNING: some agents replayed their logged future: a baseline, not a valid WOSAC simulation")

@@ -4,7 +4,9 @@ A prompt states facts: the single-agent label keys of its target agent and, for 
 the interaction (target, other, subtype). The labelers that made the prompt (the heuristics and the
 rule-based detector) read a sample's future, and the sample follows the prompt when every fact is
 found there. Only facts the labelers also find on the logged future are checked, so a fact they
-cannot reproduce (a SUMO ground-truth interaction the detector misses) is not counted as a miss.
+cannot reproduce (a SUMO ground-truth interaction the detector misses) is not counted as a miss. A lane
+change whose lane positions tell its side also holds the fact `changing_lanes:left` or `changing_lanes:right`
+(`lane_change_key`), so a counterfactual prompt can ask for a side (`interdrive.counterfactual`).
 
 This measures instruction following directly (minADE only does so through the logged future), and,
 applied to samples drawn without text, bounds what any text-conditioned model could gain from the
@@ -15,18 +17,38 @@ See docs/interdrive.md.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from typing import Literal
 
 from langtraj.interdrive.dataset import PromptEntry, WindowRecord
 from langtraj.interdrive.detector import DetectorConfig, detect_interactions
 from langtraj.interdrive.heuristics import HeuristicConfig, label_agents
 from langtraj.interdrive.labels import AgentLabel, InteractionLabel
 from langtraj.interdrive.mapindex import MapIndex
+from langtraj.interdrive.taxonomy import LANE_POSITIONS
 from langtraj.scenario.model import Scenario
 
 Fact = tuple[str, int, str] | tuple[str, int, int, str]
 """("label", track, key) or ("interaction", track, other, subtype id)."""
+
+_ACROSS = LANE_POSITIONS[:3]
+"""Lane positions from left to right ("single" has no side)."""
+
+
+def lane_change_side(params: Mapping[str, str]) -> Literal["left", "right"] | None:
+    """The side a `changing_lanes` label moves to, from its `from`/`to` lane positions; None where they do
+    not order (middle to middle on a road of four lanes or more, or a single lane)."""
+    src, dst = params.get("from"), params.get("to")
+    if src not in _ACROSS or dst not in _ACROSS or src == dst:
+        return None
+    return "left" if _ACROSS.index(dst) < _ACROSS.index(src) else "right"
+
+
+def lane_change_key(side: str) -> str:
+    """The fact key of a lane change to `side` ("changing_lanes:left"): `label_facts` adds it beside the
+    plain `changing_lanes` key, so a prompt can ask for a direction."""
+    return f"changing_lanes:{side}"
 
 
 def prompt_facts(prompt: PromptEntry) -> frozenset[Fact]:
@@ -42,8 +64,14 @@ def prompt_facts(prompt: PromptEntry) -> frozenset[Fact]:
 
 
 def label_facts(labels: Iterable[AgentLabel], interactions: Iterable[InteractionLabel]) -> frozenset[Fact]:
-    """The facts a window's labels hold (label keys per track, interactions per ordered pair)."""
+    """The facts a window's labels hold (label keys per track, interactions per ordered pair); a lane
+    change whose side `lane_change_side` tells also holds `lane_change_key(side)`."""
+    labels = tuple(labels)
     facts: set[Fact] = {("label", lab.track_id, lab.key) for lab in labels}
+    for lab in labels:
+        side = lane_change_side(lab.params) if lab.key == "changing_lanes" else None
+        if side is not None:
+            facts.add(("label", lab.track_id, lane_change_key(side)))
     facts |= {("interaction", i.track_id, i.other_id, i.subtype.id) for i in interactions}
     return frozenset(facts)
 
@@ -70,11 +98,16 @@ class AdherenceChecker:
 
     @classmethod
     def build(
-        cls, scenario: Scenario, heuristics: HeuristicConfig | None = None, detector: DetectorConfig | None = None
+        cls,
+        scenario: Scenario,
+        heuristics: HeuristicConfig | None = None,
+        detector: DetectorConfig | None = None,
+        map_index: MapIndex | None = None,
     ) -> AdherenceChecker:
+        """The checker of `scenario` with its logged facts; `map_index` may be passed to reuse one."""
         heuristics = heuristics or HeuristicConfig()
         detector = detector or DetectorConfig()
-        index = MapIndex.build(scenario.road_map, infer_neighbors=heuristics.infer_neighbors)
+        index = map_index or MapIndex.build(scenario.road_map, infer_neighbors=heuristics.infer_neighbors)
         checker = cls(scenario, index, frozenset(), heuristics, detector)
         checker.logged = checker.facts(scenario)
         return checker

@@ -1,12 +1,15 @@
 """Typed `@id` prompts in a simulation: parsed against the scene, merged into one prompt entry, checked
-against the agents the model drives, and turned into each driven agent's sentence (docs/simulation.md)."""
+against the agents the model drives and against the map (a turn or lane change it does not allow is warned
+about), and turned into each driven agent's sentence (docs/simulation.md)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
 from langtraj.errors import InputError
+from langtraj.interdrive.counterfactual import infeasible_manoeuvres
 from langtraj.interdrive.dataset import PromptEntry
+from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.prompts import parse_user_prompt
 from langtraj.scenario.model import Scenario
 
@@ -48,3 +51,17 @@ def check_prompt_driven(prompt: PromptEntry, driven_ids: Sequence[int], max_driv
             f"drives in this scene ({which})",
             where="prompt",
         )
+
+
+def prompt_warnings(scenario: Scenario, prompts: Sequence[str]) -> list[str]:
+    """One line per turn or lane change a typed prompt asks of its target agent that the map does not allow
+    there ("@12 cannot turn left: no left turn from its lane at the next junction ..."); empty without prompts.
+    A warning does not stop a simulation: the model is conditioned on the prompt as typed."""
+    if not prompts:
+        return []
+    index = MapIndex.build(scenario.road_map)
+    return [
+        warning.message
+        for text in prompts
+        for warning in infeasible_manoeuvres(scenario, user_prompt_entry(scenario, text), index)
+    ]
