@@ -61,3 +61,29 @@ def test_the_closed_loop_table_takes_rollouts_per_dataset(tiny_run, tmp_path, ca
     assert table["log replay"]["windows"] == 1 and 0.0 <= table["LangTraj, text"]["meta"] <= 1.0
     assert main([*args[:5], f"toy={labels}:all:x"]) == 2
     assert "rollouts must be a whole number" in capsys.readouterr().err
+
+
+def test_the_instruction_following_table_judges_ground_truth_and_counterfactual_prompts(tiny_run, tmp_path, capsys):
+    checkpoint, _ = tiny_run
+    labels = write_dataset(tmp_path, 3)
+    out = tmp_path / "ifr.json"
+    args = ["experiment", "instruction-following", "--checkpoint", str(checkpoint), "--data", f"toy={labels}:all",
+            "--windows", "1", "--agents", "1", "--counterfactuals", "1", "--rollouts", "2", "--candidates", "2",
+            "--steps", "2", "--cfg", "0", "--cfg", "1", "--json", str(out)]  # fmt: skip
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    assert "| no text |" in printed and "| w = 1 |" in printed and "GT-IFR" in printed
+    result = json.loads(out.read_text())["toy"]
+    table = result["table"]
+    assert set(table) == {"no text", "w = 0", "w = 1"}
+    prompts = result["prompts"]
+    assert prompts >= 1
+    assert table["no text"]["simulations"] == 1 and table["w = 1"]["simulations"] == prompts
+    for condition, judged in result["judgements"].items():
+        assert len(judged) == prompts * 2  # every prompt on every rollout
+        counterfactual = [j["followed"] for j in judged if not j["ground_truth"]]
+        assert counterfactual and table[condition]["report"]["f_ifr"]["judgements"] == len(counterfactual)
+        if table[condition]["f_ifr"] is not None:
+            assert 0.0 <= table[condition]["f_ifr"] <= 1.0
+    assert main([*args[:5], f"toy={labels}:all", "--cfg", "-1"]) == 2
+    assert "--cfg" in capsys.readouterr().err

@@ -1,9 +1,12 @@
-"""`langtraj experiment open-loop|closed-loop|realism|oracle-prompts ...`: the experiments of docs/experiments.md.
+"""`langtraj experiment open-loop|closed-loop|realism|instruction-following|oracle-prompts ...`: the experiments of
+docs/experiments.md.
 
 `open-loop`: minADE with and without the ground-truth prompt on held-out windows (optionally prompt
 adherence and the ceiling of the text gain); `closed-loop`: realism, controllability and safety of each
 method; `realism`: the closed-loop realism of each model or baseline driving every agent (the paper's
-closed-loop ablation, selection and guidance variants); `oracle-prompts`: a copy of a dataset whose
+closed-loop ablation, selection and guidance variants); `instruction-following`: closed-loop GT-IFR and F-IFR
+(ground-truth and feasible counterfactual prompts) with and without text, and the classifier-free guidance
+table; `oracle-prompts`: a copy of a dataset whose
 sentences state each agent's displacement, to check the text pathway apart from the labels. Training
 runs of an experiment are `langtraj train` with its committed config under `configs/experiments/`.
 """
@@ -65,6 +68,27 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--json", type=Path, help="also write every figure here")
     e.set_defaults(func=run_realism)
+
+    i = sub.add_parser(
+        "instruction-following",
+        help="closed-loop GT-IFR and F-IFR (feasible counterfactual prompts) with and without text, per weight",
+    )
+    i.add_argument("--checkpoint", required=True)
+    i.add_argument("--data", action="append", required=True, help="NAME=LABELS_DIR[:SPLIT] (split default val)")
+    i.add_argument("--windows", type=int, default=None, help="at most this many windows per dataset")
+    i.add_argument("--agents", type=int, default=2, help="prompted agents per window")
+    i.add_argument("--counterfactuals", type=int, default=2, help="feasible counterfactual prompts per agent")
+    i.add_argument("--rollouts", type=int, default=4)
+    i.add_argument("--candidates", type=int, default=4)
+    i.add_argument("--steps", type=int, default=5, help="DDIM steps (at most the model's K)")
+    i.add_argument("--seed", type=int, default=0)
+    i.add_argument(
+        "--cfg", type=float, action="append", help="classifier-free guidance weight with text, repeatable (default 0)"
+    )
+    i.add_argument("--on-road", type=float, default=None, help="on-road guidance weight (default: simulate's)")
+    i.add_argument("--no-collision", type=float, default=None, help="no-collision weight (default: simulate's)")
+    i.add_argument("--json", help="also write every figure and judgement here")
+    i.set_defaults(func=run_instruction_following)
 
     r = sub.add_parser("oracle-prompts", help="a dataset copy whose sentences state each agent's displacement")
     r.add_argument("labels", type=Path, help="InterDrive dataset folder")
@@ -132,6 +156,29 @@ def run_realism(args: argparse.Namespace) -> int:
         seed=args.seed,
         json_out=args.json,
     )
+    return 0
+
+
+def run_instruction_following(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from langtraj.sim.instruction import IFRSettings, instruction_following_experiment
+
+    settings = IFRSettings(
+        windows=args.windows,
+        agents=args.agents,
+        counterfactuals=args.counterfactuals,
+        rollouts=args.rollouts,
+        candidates=args.candidates,
+        steps=args.steps,
+        seed=args.seed,
+        cfg=tuple(args.cfg or (0.0,)),
+    )
+    if args.on_road is not None:
+        settings = replace(settings, on_road=args.on_road)
+    if args.no_collision is not None:
+        settings = replace(settings, no_collision=args.no_collision)
+    instruction_following_experiment(args.checkpoint, args.data, settings, args.json)
     return 0
 
 

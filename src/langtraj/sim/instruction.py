@@ -1,0 +1,268 @@
+"""Instruction following in closed loop (docs/experiments.md, 'Instruction following in closed loop').
+
+    langtraj experiment instruction-following --checkpoint CKPT --data NAME=LABELS_DIR[:SPLIT] \
+        [--windows N] [--agents A] [--counterfactuals C] [--rollouts R] [--cfg W]... [--json OUT]
+
+For each held-out window, up to `agents` driven vehicles (objects of interest first) get prompts from
+`interdrive.counterfactual.feasible_alternatives`: what the log shows (ground truth) and up to
+`counterfactuals` feasible behaviours it does not (turns the lane allows, lane changes into existing
+lanes, stopping, speeding up, slowing down, going first or yielding in a logged pair). Every agent of the
+window is driven by the model, closed loop, once without text and once per prompt and classifier-free
+guidance weight; the labelers judge each rollout (`metrics.instruction_following`). Without text the
+same rollouts are judged against every prompt: the rate at which the model does the asked thing anyway.
+Reported per weight: GT-IFR and F-IFR (macro over behaviour kinds, and per kind), the WOSAC 2025
+meta-metric and buckets, and the prompted agents' minADE under their ground-truth prompts.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from langtraj.errors import InputError
+from langtraj.fileio import atomic_path
+from langtraj.interdrive.adherence import AdherenceChecker
+from langtraj.interdrive.counterfactual import Alternative, Behaviour, feasible_alternatives
+from langtraj.interdrive.dataset import load_window
+from langtraj.interdrive.mapindex import MapIndex
+from langtraj.metrics.controllability import min_ade
+from langtraj.metrics.features import SceneMap
+from langtraj.metrics.instruction_following import Judgement, instruction_following, judge_rollouts
+from langtraj.metrics.wosac import evaluate_scenario
+from langtraj.model.checkpoint import load_model
+from langtraj.scenario.model import Scenario
+from langtraj.scenario.types import AgentType
+from langtraj.sim.config import SimConfig
+from langtraj.sim.engine import simulate
+from langtraj.sim.experiments import DatasetSpec, held_out_records
+from langtraj.sim.policies import DEFAULT_NO_COLLISION, DEFAULT_ON_ROAD, LangTrajPolicy, LoadedModel, model_agents
+
+NO_TEXT = "no text"
+REALISM = ("meta", "kinematic", "interactive", "map")
+
+
+@dataclass(frozen=True)
+class IFRSettings:
+    """What the experiment runs: prompts per window, closed-loop settings, the guidance weights to compare."""
+
+    windows: int | None = None
+    agents: int = 2
+    counterfactuals: int = 2
+    rollouts: int = 4
+    candidates: int = 4
+    steps: int = 5
+    seed: int = 0
+    cfg: tuple[float, ...] = (0.0,)
+    on_road: float = DEFAULT_ON_ROAD
+    no_collision: float = DEFAULT_NO_COLLISION
+
+    def __post_init__(self) -> None:
+        for name in ("agents", "rollouts", "candidates", "steps"):
+            if getattr(self, name) < 1:
+                raise InputError(f"must be >= 1, got {getattr(self, name)}", where=f"--{name}")
+        if self.counterfactuals < 0:
+            raise InputError(f"must be >= 0, got {self.counterfactuals}", where="--counterfactuals")
+        if self.windows is not None and self.windows < 1:
+            raise InputError(f"must be >= 1, got {self.windows}", where="--windows")
+        if not self.cfg or any(not math.isfinite(w) or w < 0 for w in self.cfg):
+            raise InputError(f"weights must be finite and >= 0 (no text is always run), got {self.cfg}", where="--cfg")
+
+
+@dataclass(frozen=True)
+class IFRCase:
+    """One window and the prompts of its chosen agents (ground truth first, then counterfactuals)."""
+
+    scenario: Scenario
+    prompts: tuple[Alternative, ...]
+    checker: AdherenceChecker = field(repr=False)
+
+
+def choose_prompts(
+    scenario: Scenario, settings: IFRSettings, rng: np.random.Generator
+) -> tuple[tuple[Alternative, ...], AdherenceChecker]:
+    """Prompts for up to `settings.agents` driven vehicles valid over the whole future that have any: all their
+    ground-truth prompts and `counterfactuals` drawn among their feasible counterfactual ones."""
+    index = MapIndex.build(scenario.road_map)
+    checker = AdherenceChecker.build(scenario, map_index=index)
+    agents = scenario.agents
+    driven = set(model_agents(scenario).tolist())
+    order = [*agents.objects_of_interest.tolist(), *agents.tracks_to_predict.tolist(), *range(agents.num_agents)]
+    chosen: list[Alternative] = []
+    seen: set[int] = set()
+    for a in order:
+        if a in seen or a not in driven:
+            continue
+        seen.add(a)
+        if agents.types[a] != AgentType.VEHICLE or not agents.valid[a, scenario.current_index :].all():
+            continue
+        alternatives = feasible_alternatives(scenario, int(agents.ids[a]), index, logged=checker.logged)
+        truth = [alt for alt in alternatives if alt.logged]
+        other = [alt for alt in alternatives if not alt.logged]
+        if not alternatives:
+            continue
+        picks = rng.choice(len(other), size=min(settings.counterfactuals, len(other)), replace=False) if other else []
+        chosen += truth + [other[int(i)] for i in sorted(picks)]
+        if len({alt.track_id for alt in chosen}) >= settings.agents:
+            break
+    return tuple(chosen), checker
+
+
+def ifr_cases(spec: DatasetSpec, settings: IFRSettings) -> tuple[list[IFRCase], int]:
+    """The windows of the dataset's split with prompts (at most `settings.windows`) and how many had none."""
+    rng = np.random.default_rng(settings.seed)
+    found, skipped = [], 0
+    for record in held_out_records(spec.folder, spec.split):
+        if settings.windows is not None and len(found) >= settings.windows:
+            break
+        try:
+            scenario = load_window(record)
+        except FileNotFoundError:
+            raise InputError("scenario file not found", path=record.source) from None
+        if scenario.num_steps - scenario.current_index - 1 < 80:
+            skipped += 1
+            continue
+        prompts, checker = choose_prompts(scenario, settings, rng)
+        if not prompts:
+            skipped += 1
+            continue
+        found.append(IFRCase(scenario, prompts, checker))
+    return found, skipped
+
+
+def _policy(loaded: LoadedModel, settings: IFRSettings, prompt: Alternative | None, weight: float) -> LangTrajPolicy:
+    model, data = loaded
+    return LangTrajPolicy(
+        model,
+        data,
+        prompt=None if prompt is None else prompt.prompt,
+        candidates=settings.candidates,
+        steps=settings.steps,
+        guidance_weight=weight,
+        on_road=settings.on_road,
+        no_collision=settings.no_collision,
+    )
+
+
+def _realism(scenario: Scenario, rollouts, scene_map: SceneMap) -> dict[str, float]:
+    wosac = evaluate_scenario(scenario, rollouts, "2025", scene_map=scene_map)
+    return {
+        "meta": wosac.metametric,
+        "kinematic": wosac.kinematic_metrics,
+        "interactive": wosac.interactive_metrics,
+        "map": wosac.map_based_metrics,
+    }
+
+
+def run_case(loaded: LoadedModel, case: IFRCase, settings: IFRSettings) -> dict[str, dict]:
+    """Per condition (no text, and each weight): judgements, realism rows (one per simulation) and minADE of the
+    ground-truth prompts' agents, and seconds spent simulating."""
+    config = SimConfig(rollouts=settings.rollouts, seed=settings.seed)
+    scene_map = SceneMap.from_scenario(case.scenario)
+    out: dict[str, dict] = {}
+    start = time.perf_counter()
+    plain = simulate(case.scenario, _policy(loaded, settings, None, 0.0), config).rollouts
+    out[NO_TEXT] = {
+        "judgements": list(judge_rollouts(case.scenario, plain, case.prompts, checker=case.checker)),
+        "realism": [_realism(case.scenario, plain, scene_map)],
+        "minade": [min_ade(case.scenario, plain, [p.track_id]).mean for p in case.prompts if p.logged],
+        "seconds": time.perf_counter() - start,
+    }
+    for weight in settings.cfg:
+        row: dict = {"judgements": [], "realism": [], "minade": [], "seconds": 0.0}
+        for prompt in case.prompts:
+            start = time.perf_counter()
+            rollouts = simulate(case.scenario, _policy(loaded, settings, prompt, weight), config).rollouts
+            row["seconds"] += time.perf_counter() - start
+            row["judgements"] += judge_rollouts(case.scenario, rollouts, [prompt], checker=case.checker)
+            row["realism"].append(_realism(case.scenario, rollouts, scene_map))
+            if prompt.logged:
+                row["minade"].append(min_ade(case.scenario, rollouts, [prompt.track_id]).mean)
+        out[f"w = {weight:g}"] = row
+    return out
+
+
+def summarize(per_case: Sequence[dict[str, dict]]) -> dict[str, dict]:
+    """The table: per condition, GT-IFR and F-IFR (macro and per kind), mean realism and minADE, counts."""
+    table: dict[str, dict] = {}
+    for condition in per_case[0] if per_case else ():
+        judgements: list[Judgement] = [j for case in per_case for j in case[condition]["judgements"]]
+        realism = [r for case in per_case for r in case[condition]["realism"]]
+        minade = [m for case in per_case for m in case[condition]["minade"]]
+        report = instruction_following(judgements)
+        table[condition] = {
+            **{k: float(np.mean([r[k] for r in realism])) for k in REALISM},
+            "minade": float(np.mean(minade)) if minade else math.nan,
+            "gt_ifr": report.ground_truth.macro,
+            "f_ifr": report.counterfactual.macro,
+            "report": report.to_json(),
+            "simulations": len(realism),
+            "seconds": sum(case[condition]["seconds"] for case in per_case),
+        }
+    return table
+
+
+def _cell(value: float | None) -> str:
+    return "–" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.3f}"
+
+
+def markdown(table: dict[str, dict]) -> str:
+    """The classifier-free guidance table (the paper's columns plus GT-IFR and F-IFR), then F-IFR and GT-IFR
+    per behaviour kind."""
+    lines = [
+        "| condition | meta | kinematic | interactive | map | minADE (m) | GT-IFR | F-IFR |",
+        "|" + " --- |" * 8,
+    ]
+    for name, row in table.items():
+        cells = [row[k] for k in (*REALISM, "minade", "gt_ifr", "f_ifr")]
+        lines.append(f"| {name} | " + " | ".join(_cell(v) for v in cells) + " |")
+    lines += ["", "| behaviour | " + " | ".join(f"{name} F-IFR / GT-IFR" for name in table) + " |"]
+    lines.append("|" + " --- |" * (len(table) + 1))
+    for behaviour in Behaviour:
+        cells = []
+        for row in table.values():
+            f = row["report"]["f_ifr"]["per_kind"].get(behaviour.value)
+            g = row["report"]["gt_ifr"]["per_kind"].get(behaviour.value)
+            f_cell = f"{_cell(f and f['ifr'])} ({f['prompts'] if f else 0})"
+            cells.append(f"{f_cell} / {_cell(g and g['ifr'])} ({g['prompts'] if g else 0})")
+        lines.append(f"| {behaviour.value} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def instruction_following_experiment(
+    checkpoint: str, datasets: Sequence[str], settings: IFRSettings, json_out: str | None = None
+) -> dict[str, dict]:
+    """The instruction-following table of each dataset, printed as Markdown; all figures (and every judgement) in
+    `json_out` when given."""
+    loaded = load_model(checkpoint)
+    results = {}
+    for item in datasets:
+        spec = DatasetSpec.parse(item)
+        found, skipped = ifr_cases(spec, settings)
+        if not found:
+            raise InputError(f"no held-out window of {spec.folder} has an agent with prompts to judge", where="--data")
+        per_case = [run_case(loaded, case, settings) for case in found]
+        table = summarize(per_case)
+        prompts = sum(len(c.prompts) for c in found)
+        results[spec.name] = {
+            "table": table,
+            "windows": len(found),
+            "skipped_windows": skipped,
+            "prompts": prompts,
+            "judgements": {
+                cond: [j.to_json() for case in per_case for j in case[cond]["judgements"]] for cond in table
+            },
+        }
+        print(
+            f"\n{spec.name}: {len(found)} windows ({skipped} without a judgeable agent), {prompts} prompts, "
+            f"{settings.rollouts} rollouts, {settings.candidates} candidates, K = {settings.steps}"
+        )
+        print(markdown(table))
+    if json_out:
+        with atomic_path(json_out) as tmp:
+            tmp.write_text(json.dumps(results, indent=1, default=float))
+    return results
