@@ -17,7 +17,8 @@ from langtraj.errors import InputError
 from langtraj.interdrive.dataset import split_of
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import collate_scenes
-from langtraj.training.data import MixingSampler, SceneDataset, build_sample
+from langtraj.scenario.model import BehaviorEvent
+from langtraj.training.data import MixingSampler, SceneDataset, build_sample, deciders
 
 SMALL = SampleConfig(max_agents=8, max_polylines=12, points_per_polyline=10)
 TEXT_ALWAYS = replace(SMALL, text_dropout=0.0, history_dropout=0.0)
@@ -93,6 +94,35 @@ def test_single_agent_sentences_go_to_a_fraction_of_the_labelled_agents():
     assert len(picked) > 3  # a different share each time
     two = make_record(scene, [make_prompt((7,)), make_prompt((17,))])
     assert sum(t is not None for t in build_sample(scene, two, config, _rng())["text"]) == 1  # at least one
+
+
+def test_decision_first_prompts_every_agent_deciding_after_the_current_step_then_fills_the_share():
+    scene = make_scenario(12)
+    valid_ids = [int(i) for i, v in zip(scene.agents.ids, scene.agents.valid[:, 10], strict=True) if v]
+    record = make_record(scene, [make_prompt((i,)) for i in valid_ids[:10]])
+
+    def decision(track: int, step: int, executed: bool = True) -> BehaviorEvent:
+        return BehaviorEvent("decision", track, step, step + 5, -1, {"decision_step": step, "executed": executed})
+
+    deciders_ids = valid_ids[5:7]
+    events = (
+        *(decision(t, 30) for t in deciders_ids),
+        decision(valid_ids[0], 5),  # decided before the current step: history shows it
+        decision(valid_ids[1], 40, executed=False),
+    )
+    scene = replace(scene, events=events)
+    assert deciders(scene) == frozenset(deciders_ids)
+    config = replace(TEXT_ALWAYS, max_agents=16, decision_first=True)
+    for seed in range(10):
+        sample = build_sample(scene, record, config, _rng(seed))
+        got = {int(i) for i, t in zip(sample["agent_id"], sample["text"], strict=True) if t is not None}
+        assert set(deciders_ids) <= got and len(got) == 3  # both deciders, then one more: 30 % of 10
+    plain = replace(config, decision_first=False)
+    hits = sum(
+        set(deciders_ids) <= {int(i) for i, t in zip(s["agent_id"], s["text"], strict=True) if t is not None}
+        for s in (build_sample(scene, record, plain, _rng(seed)) for seed in range(10))
+    )
+    assert hits < 10  # without the option the deciders are not always prompted
 
 
 def test_text_dropout_removes_all_text_at_its_rate():

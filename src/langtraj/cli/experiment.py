@@ -35,6 +35,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="share of the other labelled agents given a single-agent sentence (the paper's 0.3; the same for "
         "every checkpoint, so all are scored on the same agents)",
     )
+    o.add_argument(
+        "--decision-first",
+        action="store_true",
+        help="single-agent sentences go first to the agents that decide after the current step (synthesized scenes)",
+    )
     o.add_argument("--text-gain", action="store_true", help="also measure adherence and the text-gain ceiling")
     o.add_argument("--prior-samples", type=int, default=48, help="draws without text for the ceiling")
     o.add_argument("--json", type=Path, help="also write the figures here")
@@ -117,6 +122,7 @@ def run_open_loop(args: argparse.Namespace) -> int:
         steps=args.steps,
         cfg=args.cfg,
         label_fraction=args.label_fraction,
+        decision_first=args.decision_first,
         text_gain=args.text_gain,
         prior_samples=args.prior_samples,
         json_out=args.json,

@@ -100,6 +100,9 @@ class SampleConfig:
     history_dropout: float = 0.5
     heuristic_label_fraction: float = 0.3
     interaction_fraction: float = 0.5
+    decision_first: bool = False
+    """Single-agent sentences go first to the agents that make a decision after the current step (`decision`
+    events of synthesized scenes: what history cannot show); the share fills up with the others."""
 
     def __post_init__(self) -> None:
         for name in ("max_agents", "max_polylines", "history_steps"):

@@ -43,9 +43,11 @@ def choose_text(
     config: SampleConfig,
     rng: np.random.Generator,
     prompt: PromptEntry | None = None,
+    first: frozenset[int] = frozenset(),
 ) -> dict[int, str]:
     """Sentences by agent slot (positions in `agent_ids`, -1 for padding; see `build_sample`). A role
-    sentence names every other mentioned agent, so a prompt is used only when it `fits` the sample."""
+    sentence names every other mentioned agent, so a prompt is used only when it `fits` the sample. Agents in
+    `first` (track ids) get their single-agent sentence before any other, all of them."""
     ids = [int(i) for i in agent_ids if i >= 0]
     if prompt is not None:
         return prompt.sentences(ids)
@@ -66,13 +68,31 @@ def choose_text(
         return text
     agents = sorted(by_agent)
     count = max(1, round(config.heuristic_label_fraction * len(agents)))
-    for track in rng.choice(agents, size=count, replace=False).tolist():
+    chosen = [t for t in agents if t in first]
+    rest = [t for t in agents if t not in first]
+    if chosen:
+        chosen += rng.choice(rest, size=min(max(count - len(chosen), 0), len(rest)), replace=False).tolist()
+    else:
+        chosen = rng.choice(agents, size=count, replace=False).tolist()
+    for track in chosen:
         options = by_agent[int(track)]
         text[slots[int(track)]] = options[int(rng.integers(len(options)))].roles[int(track)]
     return text
 
 
 # ---------------------------------------------------------------- one sample
+
+
+def deciders(scenario: Scenario) -> frozenset[int]:
+    """Track ids of the agents that carry out a decision after the scene's current step (`decision` events of
+    synthesized scenes, docs/data.md 'Intents')."""
+    return frozenset(
+        e.track_id
+        for e in scenario.events
+        if e.kind == "decision"
+        and e.attributes.get("executed")
+        and int(e.attributes.get("decision_step", -1)) >= scenario.current_index
+    )
 
 
 def build_sample(
@@ -103,7 +123,8 @@ def build_sample(
     drop_text = augment and rng.random() < config.text_dropout
     sample = scene_sample(scenario, config, drop_history=drop_history)
     if config.text and not drop_text:
-        for slot, sentence in choose_text(record, sample["agent_id"], config, rng, prompt).items():
+        first = deciders(scenario) if config.decision_first else frozenset()
+        for slot, sentence in choose_text(record, sample["agent_id"], config, rng, prompt, first).items():
             sample["text"][slot] = sentence
     labelled = has_interaction_prompt(record) or (prompt is not None and prompt.subtype is not None)
     sample["interaction_labelled"] = np.bool_(labelled)

@@ -60,14 +60,24 @@ def constant_velocity(batch: SceneBatch, steps: int) -> Tensor:
 
 
 def held_out_dataset(
-    data: SampleConfig, labels_dir, *, split: str = "val", seed: int = 0, label_fraction: float | None = None
+    data: SampleConfig,
+    labels_dir,
+    *,
+    split: str = "val",
+    seed: int = 0,
+    label_fraction: float | None = None,
+    decision_first: bool | None = None,
 ) -> SceneDataset:
     """The windows of `split` as samples of a model trained with `data`, each with its ground-truth prompt:
     no text or history dropout. `label_fraction` (default: the training setting) is the share of the
-    other labelled agents given a single-agent sentence beside an interaction prompt's agents."""
+    other labelled agents given a single-agent sentence beside an interaction prompt's agents;
+    `decision_first` (default: the training setting) gives it first to the agents that decide after the current
+    step (`SampleConfig.decision_first`)."""
     data = replace(data, text=True, text_dropout=0.0, history_dropout=0.0)
     if label_fraction is not None:
         data = replace(data, heuristic_label_fraction=label_fraction)
+    if decision_first is not None:
+        data = replace(data, decision_first=decision_first)
     return SceneDataset(labels_dir, data, split=split, seed=seed, augment=False)
 
 
@@ -84,6 +94,7 @@ def open_loop_table(
     seed: int = 0,
     guidance_weight: float = 0.0,
     label_fraction: float | None = None,
+    decision_first: bool | None = None,
 ) -> dict[str, float]:
     """Open-loop minADE over `num_samples` samples on held-out windows, against constant velocity.
 
@@ -96,7 +107,9 @@ def open_loop_table(
     `guidance_weight`, 0 = the plain conditional model). `all_*` cover every
     agent with a logged future; constant velocity is one deterministic sample.
     """
-    dataset = held_out_dataset(data, labels_dir, split=split, seed=seed, label_fraction=label_fraction)
+    dataset = held_out_dataset(
+        data, labels_dir, split=split, seed=seed, label_fraction=label_fraction, decision_first=decision_first
+    )
     count = len(dataset) if max_windows is None else min(max_windows, len(dataset))
     loader = DataLoader(Subset(dataset, list(range(count))), batch_size=batch_size, collate_fn=collate_scenes)
     sums: dict[str, list[float]] = {}

@@ -29,14 +29,15 @@ def open_loop_experiment(
     steps: int = 10,
     cfg: float = 0.0,
     label_fraction: float = 0.3,
+    decision_first: bool = False,
     text_gain: bool = False,
     prior_samples: int = 48,
     json_out: str | Path | None = None,
 ) -> dict[str, dict]:
     """The open-loop table (and with `text_gain` the adherence table) of each checkpoint
     (`NAME=PATH`) on the held-out windows of `labels_dir`, printed as Markdown; every figure is also
-    written to `json_out` when given. The same `label_fraction` for every checkpoint scores all of
-    them on the same agents."""
+    written to `json_out` when given. The same `label_fraction` and `decision_first` for every checkpoint
+    score all of them on the same agents."""
     results = {}
     for item in checkpoints:
         name, sep, path = item.partition("=")
@@ -53,6 +54,7 @@ def open_loop_experiment(
             max_windows=windows,
             guidance_weight=cfg,
             label_fraction=label_fraction,
+            decision_first=decision_first,
         )
         if text_gain:
             gain_config = TextGainConfig(
@@ -62,6 +64,7 @@ def open_loop_experiment(
                 guidance_weight=cfg,
                 max_windows=windows,
                 label_fraction=label_fraction,
+                decision_first=decision_first,
             )
             results[name]["text_gain"] = text_gain_table(model, data, labels_dir, gain_config, progress=True)
         results[name]["seconds"] = time.perf_counter() - start

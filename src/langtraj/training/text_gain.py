@@ -48,6 +48,7 @@ class TextGainConfig:
     max_windows: int | None = None
     seed: int = 0
     label_fraction: float | None = None  # share of labelled agents prompted (None: the training setting)
+    decision_first: bool | None = None  # prompt the agents that decide after the current step first (None: training)
 
     def __post_init__(self) -> None:
         if self.num_samples < 1 or self.prior_samples < self.num_samples:
@@ -91,7 +92,9 @@ def text_gain_table(
     prompted agents of the held-out windows (the prompts of `open_loop_table`, same seed). Labelling
     every draw dominates the time (about 5 s per window at 48 draws on one core); `progress` shows a bar."""
     config = TextGainConfig() if config is None else config
-    dataset = held_out_dataset(data, labels_dir, seed=config.seed, label_fraction=config.label_fraction)
+    dataset = held_out_dataset(
+        data, labels_dir, seed=config.seed, label_fraction=config.label_fraction, decision_first=config.decision_first
+    )
     count = len(dataset) if config.max_windows is None else min(config.max_windows, len(dataset))
     model = model.eval()
     n, k = config.num_samples, config.prior_samples
