@@ -23,7 +23,17 @@ def test_demo_writes_three_panels_and_a_summary(tiny_run, tmp_path, capsys):
     assert set(summary["runs"]) == {"unconditioned", "prompt", "safety-critical"}
     safety = summary["runs"]["safety-critical"]
     assert safety["guidance"] == ["collision=1"] and safety["adversary"] == summary["adversary"]
-    assert set(summary["runs"]["prompt"]["prompted_ids"]) == {summary["adversary"], summary["target"]}
+    prompted = set(summary["runs"]["prompt"]["prompted_ids"])
+    assert summary["target"] in prompted and prompted <= {summary["adversary"], summary["target"]}
+    # the prompt asks for what the unconditioned run does not do, and each panel is judged against it
+    assert set(summary["followed"]) == set(summary["runs"])
+    assert all(0.0 <= share <= 1.0 for share in summary["followed"].values())
+    if summary["prompt_kind"] == "counterfactual":
+        assert summary["followed"]["unconditioned"] == 0.0 and summary["prompt"] != summary["logged_prompt"]
+        assert summary["behaviour"] is not None
+    else:
+        assert summary["prompt"] == summary["logged_prompt"]
+    assert "prompt followed" in printed
     # the scene is kept, so each panel can be rerun with `langtraj simulate`
     scene = read_scenario(out / "scene.tfrecord")
     ids = set(scene.agents.ids[sim_agent_indices(scene)].tolist())

@@ -40,11 +40,14 @@ def run(args: argparse.Namespace) -> int:
         video=not args.no_video,
     )
     print(
-        f"scene {summary['scene']}: prompt {summary['prompt']!r}; adversary @{summary['adversary']} -> target "
-        f"@{summary['target']}"
+        f"scene {summary['scene']}: {summary['prompt_kind']} prompt {summary['prompt']!r} (logged: "
+        f"{summary['logged_prompt']!r}); adversary @{summary['adversary']} -> target @{summary['target']}"
     )
     for name, run_summary in summary["runs"].items():
-        print(f"  {name:16s} collision rate {run_summary['collision_rate']:.3f}  ({run_summary['seconds']:.1f} s)")
+        print(
+            f"  {name:16s} collision rate {run_summary['collision_rate']:.3f}  prompt followed "
+            f"{summary['followed'][name]:.2f}  ({run_summary['seconds']:.1f} s)"
+        )
     if not args.no_video:
         print(f"video: {args.out / 'demo.mp4'}")
     print(f"summary: {args.out / 'summary.json'} ({summary['seconds']:.0f} s in all)")

@@ -2,8 +2,12 @@
 with collision guidance plus the prompt), rendered side by side, as in the paper's teaser figure.
 
 Without a scene file the demo synthesizes a signalized intersection with SUMO and labels it with
-InterDrive; the prompt is one of its interaction prompts between two vehicles the model drives, the
-prompt's other agent becomes the adversary and its target agent the target.
+InterDrive; the scene is a window with an interaction prompt between two vehicles the model drives, whose
+other agent becomes the adversary and its target agent the target. The prompt is counterfactual: a
+feasible behaviour of the target agent that the log does not show and the unconditioned run does not do
+(going first instead of yielding to the adversary, or the other way round, before a turn the lane
+allows, a lane change, stopping, ...; `interdrive.counterfactual`), else the logged interaction prompt.
+The summary says, per panel, the share of rollouts in which the labelers find the prompt followed.
 
 See docs/simulation.md.
 """
@@ -22,7 +26,12 @@ import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_path
+from langtraj.interdrive.adherence import AdherenceChecker, prompt_facts
+from langtraj.interdrive.counterfactual import Alternative, Behaviour, feasible_alternatives
 from langtraj.interdrive.dataset import BuildConfig, PromptEntry, label_file, load_window
+from langtraj.interdrive.mapindex import MapIndex
+from langtraj.metrics.instruction_following import judge_rollouts, rollout_scenario
+from langtraj.rollouts import Rollouts
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
 from langtraj.sim.config import SimConfig, SimRequest
@@ -32,7 +41,21 @@ from langtraj.sim.summary import simulation_summary
 
 PANEL_PX = 480
 PREFERRED_TYPES = ("yielding", "following", "merging", "passing", "overtaking", "lane_change")
-"""Interaction types the demo prefers for its prompt, first to last."""
+"""Interaction types the demo prefers for its scene's prompt, first to last."""
+
+COUNTERFACTUAL_ORDER = (
+    Behaviour.GO_FIRST,
+    Behaviour.YIELD,
+    Behaviour.TURN_LEFT,
+    Behaviour.TURN_RIGHT,
+    Behaviour.GO_STRAIGHT,
+    Behaviour.LANE_CHANGE_LEFT,
+    Behaviour.LANE_CHANGE_RIGHT,
+    Behaviour.STOP,
+    Behaviour.SLOW_DOWN,
+    Behaviour.SPEED_UP,
+)
+"""Counterfactual behaviours the demo prefers, first to last (pair behaviours toward the adversary first)."""
 
 
 @dataclass(frozen=True)
@@ -74,6 +97,31 @@ def find_scene(files: list[Path], driven: int | None = None) -> DemoScene:
             if prompt is not None:
                 return DemoScene(scenario, path, record.record, prompt)
     raise InputError("no window with an interaction prompt between two vehicles the model drives", path=files[0])
+
+
+def choose_counterfactual(
+    scenario: Scenario, target: int, other: int, unconditioned: Rollouts
+) -> tuple[Alternative | None, AdherenceChecker]:
+    """The first feasible behaviour of `target` (`COUNTERFACTUAL_ORDER`; pair behaviours only toward `other`)
+    that the log does not show and no unconditioned rollout does, judged by the labelers; None when none."""
+    index = MapIndex.build(scenario.road_map)
+    checker = AdherenceChecker.build(scenario, map_index=index)
+    options = [
+        a
+        for a in feasible_alternatives(scenario, target, index, logged=checker.logged)
+        if not a.logged and a.other_id in (None, other)
+    ]
+    options.sort(key=lambda a: COUNTERFACTUAL_ORDER.index(a.behaviour))
+    for option in options:
+        if not any(j.followed for j in judge_rollouts(scenario, unconditioned, [option], checker=checker)):
+            return option, checker
+    return None, checker
+
+
+def followed_share(scenario: Scenario, rollouts: Rollouts, facts: frozenset, checker: AdherenceChecker) -> float:
+    """The share of rollouts in which the labelers find every one of a prompt's `facts`."""
+    found = [facts <= checker.facts(rollout_scenario(scenario, rollouts, r)) for r in range(rollouts.num_rollouts)]
+    return float(np.mean(found))
 
 
 def synthesize_scene(folder: Path, seed: int, driven: int | None = None) -> DemoScene:
@@ -130,17 +178,23 @@ def run_demo(
         scene = synthesize_scene(Path(tmp), seed) if scene_file is None else find_scene([scene_file])
         target, adversary = scene.prompt.mentions
         base = {"checkpoint": checkpoint, "candidates": candidates}
-        requests = {
-            "unconditioned": SimRequest(**base),
-            "prompt": SimRequest(**base, prompts=(scene.prompt.text,)),
-            "safety-critical": SimRequest(**base, prompts=(scene.prompt.text,), adversary=adversary, target=target),
-        }
         config = SimConfig(rollouts=rollouts, seed=seed)
         results, summaries = {}, {}
-        for name, request in requests.items():
+
+        def run(name: str, request: SimRequest) -> None:
             policy, described = build_policy(scene.scenario, request, loaded)
             results[name] = simulate(scene.scenario, policy, config)
             summaries[name] = simulation_summary(results[name], policy=request.policy, **described)
+
+        run("unconditioned", SimRequest(**base))
+        alternative, checker = choose_counterfactual(
+            scene.scenario, target, adversary, results["unconditioned"].rollouts
+        )
+        text = scene.prompt.text if alternative is None else alternative.prompt.text
+        facts = prompt_facts(scene.prompt) if alternative is None else alternative.facts
+        run("prompt", SimRequest(**base, prompts=(text,)))
+        run("safety-critical", SimRequest(**base, prompts=(text,), adversary=adversary, target=target))
+        followed = {name: followed_share(scene.scenario, r.rollouts, facts, checker) for name, r in results.items()}
         out.mkdir(parents=True, exist_ok=True)
         kept = out / "scene.tfrecord"
         if scene_file is None:
@@ -150,15 +204,19 @@ def run_demo(
         prompted = tuple(scene.prompt.mentions)
         panels = [
             (results["unconditioned"], "unconditioned", ()),
-            (results["prompt"], scene.prompt.text, prompted),
-            (results["safety-critical"], f"{scene.prompt.text} + @{adversary} collides with @{target}", prompted),
+            (results["prompt"], text, prompted),
+            (results["safety-critical"], f"{text} + @{adversary} collides with @{target}", prompted),
         ]
         if video:
             write_side_by_side(out / "demo.mp4", panels, follow=target)
     summary = {
         "scene": str(kept if scene_file is None else scene.source),
         "record": 0 if scene_file is None else scene.index,
-        "prompt": scene.prompt.text,
+        "prompt": text,
+        "prompt_kind": "logged" if alternative is None else "counterfactual",
+        "behaviour": None if alternative is None else alternative.behaviour.value,
+        "logged_prompt": scene.prompt.text,
+        "followed": followed,
         "adversary": adversary,
         "target": target,
         "seconds": time.perf_counter() - begin,
