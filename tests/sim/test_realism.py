@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import pytest
 from dataset_builders import write_dataset
@@ -12,6 +13,8 @@ from dataset_builders import write_dataset
 from langtraj.cli.main import main
 from langtraj.errors import InputError
 from langtraj.sim.realism import COLUMNS, Method
+
+FREE_TEXT = Path(__file__).parents[1] / "data" / "free_text_prompts.yaml"
 
 
 def test_method_specs():
@@ -69,13 +72,16 @@ def test_the_instruction_following_table_judges_ground_truth_and_counterfactual_
     out = tmp_path / "ifr.json"
     args = ["experiment", "instruction-following", "--checkpoint", str(checkpoint), "--data", f"toy={labels}:all",
             "--windows", "1", "--agents", "1", "--counterfactuals", "1", "--rollouts", "2", "--candidates", "2",
-            "--steps", "2", "--cfg", "0", "--cfg", "1", "--json", str(out)]  # fmt: skip
+            "--steps", "2", "--cfg", "0", "--cfg", "1", "--json", str(out),
+            "--free-text", str(FREE_TEXT)]  # fmt: skip
     assert main(args) == 0
     printed = capsys.readouterr().out
     assert "| no text |" in printed and "| w = 1 |" in printed and "GT-IFR" in printed
     result = json.loads(out.read_text())["toy"]
     table = result["table"]
-    assert set(table) == {"no text", "w = 0", "w = 1"}
+    assert set(table) - {"w = 0, free text"} == {"no text", "w = 0", "w = 1"}
+    if "w = 0, free text" in table:  # the prompts of behaviours the hand-written file covers, in its words
+        assert 1 <= table["w = 0, free text"]["simulations"] <= result["prompts"]
     prompts = result["prompts"]
     assert prompts >= 1
     assert table["no text"]["simulations"] == 1 and table["w = 1"]["simulations"] == prompts

@@ -92,6 +92,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     i.add_argument("--on-road", type=float, default=None, help="on-road guidance weight (default: simulate's)")
     i.add_argument("--no-collision", type=float, default=None, help="no-collision weight (default: simulate's)")
+    i.add_argument(
+        "--free-text",
+        help="YAML/JSON of hand-written prompts per behaviour: each prompt is also run in their words (first weight)",
+    )
     i.add_argument("--json", help="also write every figure and judgement here")
     i.set_defaults(func=run_instruction_following)
 
@@ -168,9 +172,11 @@ def run_realism(args: argparse.Namespace) -> int:
 def run_instruction_following(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
+    from langtraj.interdrive.counterfactual import load_free_text_prompts
     from langtraj.sim.instruction import IFRSettings, instruction_following_experiment
 
     settings = IFRSettings(
+        free_text=load_free_text_prompts(args.free_text) if args.free_text else (),
         windows=args.windows,
         agents=args.agents,
         counterfactuals=args.counterfactuals,

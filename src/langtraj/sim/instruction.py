@@ -27,7 +27,7 @@ import numpy as np
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_path
 from langtraj.interdrive.adherence import AdherenceChecker
-from langtraj.interdrive.counterfactual import Alternative, Behaviour, feasible_alternatives
+from langtraj.interdrive.counterfactual import Alternative, Behaviour, FreeTextPrompt, feasible_alternatives
 from langtraj.interdrive.dataset import load_window
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.metrics.controllability import min_ade
@@ -60,6 +60,9 @@ class IFRSettings:
     cfg: tuple[float, ...] = (0.0,)
     on_road: float = DEFAULT_ON_ROAD
     no_collision: float = DEFAULT_NO_COLLISION
+    free_text: tuple[FreeTextPrompt, ...] = ()
+    """Hand-written prompts: each prompt of a behaviour they cover is also run in their words (the first
+    weight only), as the condition '..., free text'."""
 
     def __post_init__(self) -> None:
         for name in ("agents", "rollouts", "candidates", "steps"):
@@ -158,7 +161,34 @@ def _realism(scenario: Scenario, rollouts, scene_map: SceneMap) -> dict[str, flo
     }
 
 
-def run_case(loaded: LoadedModel, case: IFRCase, settings: IFRSettings) -> dict[str, dict]:
+def in_free_text(prompt: Alternative, free_text: Sequence[FreeTextPrompt], pick: int) -> Alternative | None:
+    """`prompt` in the words of one of the hand-written prompts of its behaviour (the `pick`-th, cyclically),
+    judged by the same facts; None when none covers the behaviour."""
+    options = [f for f in free_text if f.behaviour is prompt.behaviour]
+    if not options:
+        return None
+    entry, _ = options[pick % len(options)].entry(prompt.track_id, prompt.other_id)
+    return Alternative(prompt.track_id, prompt.behaviour, entry, prompt.facts, prompt.logged, prompt.other_id)
+
+
+def _run_prompts(
+    loaded: LoadedModel, case: IFRCase, settings: IFRSettings, prompts: Sequence[Alternative], weight: float
+) -> dict:
+    config = SimConfig(rollouts=settings.rollouts, seed=settings.seed)
+    scene_map = SceneMap.from_scenario(case.scenario)
+    row: dict = {"judgements": [], "realism": [], "minade": [], "seconds": 0.0}
+    for prompt in prompts:
+        start = time.perf_counter()
+        rollouts = simulate(case.scenario, _policy(loaded, settings, prompt, weight), config).rollouts
+        row["seconds"] += time.perf_counter() - start
+        row["judgements"] += judge_rollouts(case.scenario, rollouts, [prompt], checker=case.checker)
+        row["realism"].append(_realism(case.scenario, rollouts, scene_map))
+        if prompt.logged:
+            row["minade"].append(min_ade(case.scenario, rollouts, [prompt.track_id]).mean)
+    return row
+
+
+def run_case(loaded: LoadedModel, case: IFRCase, settings: IFRSettings, pick: int = 0) -> dict[str, dict]:
     """Per condition (no text, and each weight): judgements, realism rows (one per simulation) and minADE of the
     ground-truth prompts' agents, and seconds spent simulating."""
     config = SimConfig(rollouts=settings.rollouts, seed=settings.seed)
@@ -173,26 +203,24 @@ def run_case(loaded: LoadedModel, case: IFRCase, settings: IFRSettings) -> dict[
         "seconds": time.perf_counter() - start,
     }
     for weight in settings.cfg:
-        row: dict = {"judgements": [], "realism": [], "minade": [], "seconds": 0.0}
-        for prompt in case.prompts:
-            start = time.perf_counter()
-            rollouts = simulate(case.scenario, _policy(loaded, settings, prompt, weight), config).rollouts
-            row["seconds"] += time.perf_counter() - start
-            row["judgements"] += judge_rollouts(case.scenario, rollouts, [prompt], checker=case.checker)
-            row["realism"].append(_realism(case.scenario, rollouts, scene_map))
-            if prompt.logged:
-                row["minade"].append(min_ade(case.scenario, rollouts, [prompt.track_id]).mean)
-        out[f"w = {weight:g}"] = row
+        out[f"w = {weight:g}"] = _run_prompts(loaded, case, settings, case.prompts, weight)
+    if settings.free_text:
+        worded = [in_free_text(p, settings.free_text, pick + i) for i, p in enumerate(case.prompts)]
+        covered = [p for p in worded if p is not None]
+        if covered:
+            out[f"w = {settings.cfg[0]:g}, free text"] = _run_prompts(loaded, case, settings, covered, settings.cfg[0])
     return out
 
 
 def summarize(per_case: Sequence[dict[str, dict]]) -> dict[str, dict]:
     """The table: per condition, GT-IFR and F-IFR (macro and per kind), mean realism and minADE, counts."""
     table: dict[str, dict] = {}
-    for condition in per_case[0] if per_case else ():
-        judgements: list[Judgement] = [j for case in per_case for j in case[condition]["judgements"]]
-        realism = [r for case in per_case for r in case[condition]["realism"]]
-        minade = [m for case in per_case for m in case[condition]["minade"]]
+    conditions = list(dict.fromkeys(c for case in per_case for c in case))
+    for condition in conditions:
+        rows = [case[condition] for case in per_case if condition in case]
+        judgements: list[Judgement] = [j for row in rows for j in row["judgements"]]
+        realism = [r for row in rows for r in row["realism"]]
+        minade = [m for row in rows for m in row["minade"]]
         report = instruction_following(judgements)
         table[condition] = {
             **{k: float(np.mean([r[k] for r in realism])) for k in REALISM},
@@ -201,7 +229,7 @@ def summarize(per_case: Sequence[dict[str, dict]]) -> dict[str, dict]:
             "f_ifr": report.counterfactual.macro,
             "report": report.to_json(),
             "simulations": len(realism),
-            "seconds": sum(case[condition]["seconds"] for case in per_case),
+            "seconds": sum(row["seconds"] for row in rows),
         }
     return table
 
@@ -245,7 +273,7 @@ def instruction_following_experiment(
         found, skipped = ifr_cases(spec, settings)
         if not found:
             raise InputError(f"no held-out window of {spec.folder} has an agent with prompts to judge", where="--data")
-        per_case = [run_case(loaded, case, settings) for case in found]
+        per_case = [run_case(loaded, case, settings, pick=i) for i, case in enumerate(found)]
         table = summarize(per_case)
         prompts = sum(len(c.prompts) for c in found)
         results[spec.name] = {
@@ -254,7 +282,8 @@ def instruction_following_experiment(
             "skipped_windows": skipped,
             "prompts": prompts,
             "judgements": {
-                cond: [j.to_json() for case in per_case for j in case[cond]["judgements"]] for cond in table
+                cond: [j.to_json() for case in per_case for j in case.get(cond, {}).get("judgements", [])]
+                for cond in table
             },
         }
         print(
