@@ -259,3 +259,45 @@ def test_pull_over_stops_at_the_kerb_side_of_the_lane(junction_net):
     assert (end - stopped) / 10 >= first.attributes["duration_s"] - 0.5
     # the road runs east along the lane centre the car drove on: standing, it moves to the right kerb
     assert track.xy[stopped:end, 1].min() < track.xy[0, 1] - 0.4
+
+
+# A one-lane road with a zebra crossing over its east arm; one walker crosses it.
+ZEBRA_NODES = """<nodes>
+  <node id="W" x="-150" y="0"/><node id="E" x="150" y="0"/><node id="C" x="0" y="0" type="priority"/>
+</nodes>"""
+ZEBRA_EDGES = """<edges>
+  <edge id="WC" from="W" to="C" numLanes="1" speed="12.0"/><edge id="CE" from="C" to="E" numLanes="1" speed="12.0"/>
+  <edge id="EC" from="E" to="C" numLanes="1" speed="12.0"/><edge id="CW" from="C" to="W" numLanes="1" speed="12.0"/>
+</edges>"""
+ZEBRA_CONNECTIONS = """<connections><crossing node="C" edges="WC CW" priority="true"/></connections>"""
+WALKER = """<routes>
+  <person id="walker" depart="0" departPos="125"><walk edges="WC CW" arrivalPos="60"/></person>
+</routes>"""
+
+
+def test_a_waiting_pedestrian_stands_at_the_kerb_then_crosses(tmp_path):
+    for name, text in (
+        ("n.nod.xml", ZEBRA_NODES),
+        ("n.edg.xml", ZEBRA_EDGES),
+        ("n.con.xml", ZEBRA_CONNECTIONS),
+        ("r.rou.xml", WALKER),
+    ):
+        (tmp_path / name).write_text(text)
+    run_tool(
+        "netconvert",
+        ["-n", "n.nod.xml", "-e", "n.edg.xml", "-x", "n.con.xml", "-o", "n.net.xml", "--sidewalks.guess"]
+        + ["--sidewalks.guess.min-speed", "0", "--no-turnarounds"],
+        cwd=tmp_path,
+    )
+    config = IntentConfig(route_choice=0.0, **NO_TIMED, ped_wait=1.0, ped_wait_s=(5.0, 5.0))
+    sim = SimulationInput(tmp_path / "n.net.xml", (tmp_path / "r.rou.xml",), seed=1, duration_s=150.0, intents=config)
+    log = simulate(sim, tmp_path)
+    tracks = {t.sumo_id: t for t in build_tracks(log.tracks)}
+    waits = [d for d in log.decisions if d.decision == Decision.PED_WAIT]
+    assert [d.sumo_id for d in waits] == ["walker"] and waits[0].attributes["duration_s"] == 5.0
+    (event,) = decision_events(log.decisions, tracks, log.lane_names, log.lane_changes)
+    assert event.attributes["executed"] and event.attributes["decision"] == "ped_wait"
+    stood = (event.end - event.attributes["stopped_step"]) / 10
+    assert 4.0 <= stood <= 6.5  # it stands about as long as it decided, then walks on over the crossing
+    walker = tracks["walker"]
+    assert walker.speed[walker.local(event.end) :].max() > 0.5

@@ -22,7 +22,7 @@ Every event is a `BehaviorEvent(kind, track_id, start, end, other_id, attributes
   conflict area first while the foe was at most `FOE_HORIZON_S` from it; `other_id` the foe. Attributes:
   `junction`, `gap_s`, `foe_dist`, `entry_step`, `bold`, `ego_lane`, `foe_lane`, `roundabout`.
 - `decision`: a driver's decision made after its departure (`langtraj.synth.intents`): `decision`
-  (route_choice, lane_change, pull_over, stop, speed_change), `decision_step`, what was chosen and
+  (route_choice, lane_change, pull_over, stop, speed_change, ped_wait), `decision_step`, what was chosen and
   `executed`; it spans the decision and what it led to.
 - `junction_pass`: a vehicle or cyclist on the internal lanes of one junction, entry to exit. Attributes:
   `junction`, `direction` (SUMO link direction: s, l, r, t, L, R), `control` (SUMO junction type),

@@ -12,6 +12,7 @@ with what happened after them. Pure numpy below the controller, so the events ar
 
 from __future__ import annotations
 
+import re
 import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -31,6 +32,10 @@ STEPS_PER_SECOND = 10
 KERB_MARGIN_M = 0.2
 """A pulled-over vehicle keeps this much room to the lane's outer edge (SUMO ignores a stop right on it)."""
 
+WALKING_AREA = re.compile(r"^:.+_w\d+$")
+CROSSING = re.compile(r"^:.+_c\d+$")
+"""SUMO's ids of walking areas and crossings (internal edges of a junction: ':J_w0', ':J_c0')."""
+
 COMFORTABLE_DECEL = 2.5
 """m/s^2: a decision must leave room to brake this hard (route choices, stops)."""
 
@@ -44,6 +49,7 @@ class Decision(StrEnum):
     STOP = "stop"  # stop in the lane (drop-off), go on
     SPEED_CHANGE = "speed_change"  # a new desired speed
     BOLD = "bold"  # accepts gaps it should leave: goes before foes it has to yield to
+    PED_WAIT = "ped_wait"  # a pedestrian stands at the kerb a while before a crossing it could take
 
 
 TIMED = (Decision.LANE_CHANGE, Decision.PULL_OVER, Decision.STOP, Decision.SPEED_CHANGE)
@@ -68,6 +74,9 @@ class IntentConfig:
     stop: float = 0.03
     speed_change: float = 0.12
     bold: float = 0.15
+    ped_wait: float = 0.3
+    """Chance that a pedestrian reaching a crossing stands `ped_wait_s` at the kerb before taking it."""
+    ped_wait_s: tuple[float, float] = (2.0, 10.0)
     delay_s: tuple[float, float] = (3.0, 45.0)
     retry_s: float = 30.0
     stop_duration_s: tuple[float, float] = (4.0, 20.0)
@@ -82,7 +91,15 @@ class IntentConfig:
     """No stop or pull-over on lanes with at least this speed limit (m/s): motorways have no kerb."""
 
     def __post_init__(self) -> None:
-        shares = (self.route_choice, self.lane_change, self.pull_over, self.stop, self.speed_change, self.bold)
+        shares = (
+            self.route_choice,
+            self.lane_change,
+            self.pull_over,
+            self.stop,
+            self.speed_change,
+            self.bold,
+            self.ped_wait,
+        )
         if any(not 0.0 <= s <= 1.0 for s in shares):
             raise ValueError(f"IntentConfig shares must lie in [0, 1], got {shares}")
         if self.lane_change + self.pull_over + self.stop + self.speed_change > 1.0:
@@ -152,6 +169,8 @@ class IntentController:
         self.sinks = {k: tuple(v) for k, v in sinks.items()}
         self.plans: dict[str, DriverPlan] = {}
         self.applied: list[AppliedDecision] = []
+        self.walkers: dict[str, tuple[np.random.Generator, set[str]]] = {}  # rng, walking areas decided on
+        self.resume: dict[str, int] = {}  # pedestrian -> step to walk on
 
     def step(self, step: int) -> None:
         v = self.ls.vehicle
@@ -174,6 +193,33 @@ class IntentController:
                     plan.done = True
                 else:
                     plan.done = self._timed(step, vid, lane, plan)
+        if self.config.ped_wait > 0:
+            self._pedestrians(step)
+
+    def _pedestrians(self, step: int) -> None:
+        """Pedestrians on a walking area whose next edge is a crossing may stand a while first."""
+        p = self.ls.person
+        for pid in p.getIDList():
+            if self.resume.get(pid) == step:
+                p.setSpeed(pid, -1.0)  # back to its type's speed
+                del self.resume[pid]
+                continue
+            area = p.getRoadID(pid)
+            if pid in self.resume or not WALKING_AREA.match(area):
+                continue
+            rng, decided = self.walkers.setdefault(pid, (driver_rng(self.seed, pid), set()))
+            if area in decided:
+                continue
+            crossing = p.getNextEdge(pid)
+            if not CROSSING.match(crossing):
+                continue
+            decided.add(area)
+            if rng.random() >= self.config.ped_wait:
+                continue
+            seconds = round(float(rng.uniform(*self.config.ped_wait_s)), 1)
+            p.setSpeed(pid, 0.0)
+            self.resume[pid] = step + round(seconds * STEPS_PER_SECOND)
+            self._record(step, pid, Decision.PED_WAIT, {"crosswalk": crossing, "duration_s": seconds})
 
     def _record(self, step: int, vid: str, decision: Decision, attributes: dict[str, Any]) -> None:
         self.applied.append(AppliedDecision(step, vid, decision, attributes))
@@ -339,7 +385,7 @@ def _outcome(
             if record.tag == "change" and step <= record.step <= horizon and "traci" in record.reason:
                 return record.step + 1, {"executed": True, "change_step": record.step, "to_lane": record.to_lane}
         return step + 1, {"executed": False}
-    if d in (Decision.STOP, Decision.PULL_OVER):
+    if d in (Decision.STOP, Decision.PULL_OVER, Decision.PED_WAIT):
         horizon = here + round(STOP_HORIZON_S * STEPS_PER_SECOND)
         standing = track.speed[here:horizon] <= STOPPED_SPEED
         stopped = _first(standing)
