@@ -30,7 +30,7 @@ from langtraj.interdrive.adherence import AdherenceChecker, prompt_facts
 from langtraj.interdrive.counterfactual import Alternative, Behaviour, feasible_alternatives
 from langtraj.interdrive.dataset import BuildConfig, PromptEntry, label_file, load_window
 from langtraj.interdrive.mapindex import MapIndex
-from langtraj.metrics.instruction_following import judge_rollouts, rollout_scenario
+from langtraj.metrics.instruction_following import rollout_scenario
 from langtraj.rollouts import Rollouts
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
@@ -112,16 +112,18 @@ def choose_counterfactual(
         if not a.logged and a.other_id in (None, other)
     ]
     options.sort(key=lambda a: COUNTERFACTUAL_ORDER.index(a.behaviour))
-    for option in options:
-        if not any(j.followed for j in judge_rollouts(scenario, unconditioned, [option], checker=checker)):
-            return option, checker
-    return None, checker
+    found = rollout_facts(scenario, unconditioned, checker)  # one labelling per rollout for every option
+    return next((o for o in options if not any(o.facts <= f for f in found)), None), checker
+
+
+def rollout_facts(scenario: Scenario, rollouts: Rollouts, checker: AdherenceChecker) -> list[frozenset]:
+    """The facts the labelers find in each rollout."""
+    return [checker.facts(rollout_scenario(scenario, rollouts, r)) for r in range(rollouts.num_rollouts)]
 
 
 def followed_share(scenario: Scenario, rollouts: Rollouts, facts: frozenset, checker: AdherenceChecker) -> float:
     """The share of rollouts in which the labelers find every one of a prompt's `facts`."""
-    found = [facts <= checker.facts(rollout_scenario(scenario, rollouts, r)) for r in range(rollouts.num_rollouts)]
-    return float(np.mean(found))
+    return float(np.mean([facts <= found for found in rollout_facts(scenario, rollouts, checker)]))
 
 
 def synthesize_scene(folder: Path, seed: int, driven: int | None = None) -> DemoScene:

@@ -172,10 +172,14 @@ def in_free_text(prompt: Alternative, free_text: Sequence[FreeTextPrompt], pick:
 
 
 def _run_prompts(
-    loaded: LoadedModel, case: IFRCase, settings: IFRSettings, prompts: Sequence[Alternative], weight: float
+    loaded: LoadedModel,
+    case: IFRCase,
+    settings: IFRSettings,
+    scene_map: SceneMap,
+    prompts: Sequence[Alternative],
+    weight: float,
 ) -> dict:
     config = SimConfig(rollouts=settings.rollouts, seed=settings.seed)
-    scene_map = SceneMap.from_scenario(case.scenario)
     row: dict = {"judgements": [], "realism": [], "minade": [], "seconds": 0.0}
     for prompt in prompts:
         start = time.perf_counter()
@@ -203,12 +207,14 @@ def run_case(loaded: LoadedModel, case: IFRCase, settings: IFRSettings, pick: in
         "seconds": time.perf_counter() - start,
     }
     for weight in settings.cfg:
-        out[f"w = {weight:g}"] = _run_prompts(loaded, case, settings, case.prompts, weight)
+        out[f"w = {weight:g}"] = _run_prompts(loaded, case, settings, scene_map, case.prompts, weight)
     if settings.free_text:
         worded = [in_free_text(p, settings.free_text, pick + i) for i, p in enumerate(case.prompts)]
         covered = [p for p in worded if p is not None]
         if covered:
-            out[f"w = {settings.cfg[0]:g}, free text"] = _run_prompts(loaded, case, settings, covered, settings.cfg[0])
+            out[f"w = {settings.cfg[0]:g}, free text"] = _run_prompts(
+                loaded, case, settings, scene_map, covered, settings.cfg[0]
+            )
     return out
 
 

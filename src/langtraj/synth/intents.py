@@ -21,13 +21,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from langtraj.scenario.model import BehaviorEvent
+from langtraj.scenario.model import STEP_SECONDS, BehaviorEvent
 
 if TYPE_CHECKING:  # the runner imports this module to drive the controller
     from langtraj.synth.runner import LaneChangeRecord
     from langtraj.synth.tracks import Track
 
-STEPS_PER_SECOND = 10
 
 KERB_MARGIN_M = 0.2
 """A pulled-over vehicle keeps this much room to the lane's outer edge (SUMO ignores a stop right on it)."""
@@ -137,8 +136,8 @@ def plan_driver(sumo_id: str, depart_step: int, seed: int, config: IntentConfig)
     if pick < len(TIMED):
         plan.timed = TIMED[pick]
         lo, hi = config.delay_s
-        plan.due = depart_step + round((lo + draws[2] * (hi - lo)) * STEPS_PER_SECOND)
-        plan.give_up = plan.due + round(config.retry_s * STEPS_PER_SECOND)
+        plan.due = depart_step + round((lo + draws[2] * (hi - lo)) / STEP_SECONDS)
+        plan.give_up = plan.due + round(config.retry_s / STEP_SECONDS)
     return plan
 
 
@@ -218,7 +217,7 @@ class IntentController:
                 continue
             seconds = round(float(rng.uniform(*self.config.ped_wait_s)), 1)
             p.setSpeed(pid, 0.0)
-            self.resume[pid] = step + round(seconds * STEPS_PER_SECOND)
+            self.resume[pid] = step + round(seconds / STEP_SECONDS)
             self._record(step, pid, Decision.PED_WAIT, {"crosswalk": crossing, "duration_s": seconds})
 
     def _record(self, step: int, vid: str, decision: Decision, attributes: dict[str, Any]) -> None:
@@ -372,7 +371,7 @@ def _outcome(
     step, d = applied.step, applied.decision
     here = track.local(step)
     if d == Decision.ROUTE_CHOICE:
-        horizon = here + round(ROUTE_HORIZON_S * STEPS_PER_SECOND)
+        horizon = here + round(ROUTE_HORIZON_S / STEP_SECONDS)
         lanes = track.lane[here:horizon]
         edges = np.array([lane_names[i].rsplit("_", 1)[0] if i >= 0 else "" for i in lanes])
         reached = _first(edges == applied.attributes["next_edge"])
@@ -380,13 +379,13 @@ def _outcome(
             return step + 1, {"executed": False}
         return step + reached + 1, {"executed": True, "junction_exit_step": step + reached}
     if d == Decision.LANE_CHANGE:
-        horizon = step + round(LANE_CHANGE_HORIZON_S * STEPS_PER_SECOND)
+        horizon = step + round(LANE_CHANGE_HORIZON_S / STEP_SECONDS)
         for record in changes:
             if record.tag == "change" and step <= record.step <= horizon and "traci" in record.reason:
                 return record.step + 1, {"executed": True, "change_step": record.step, "to_lane": record.to_lane}
         return step + 1, {"executed": False}
     if d in (Decision.STOP, Decision.PULL_OVER, Decision.PED_WAIT):
-        horizon = here + round(STOP_HORIZON_S * STEPS_PER_SECOND)
+        horizon = here + round(STOP_HORIZON_S / STEP_SECONDS)
         standing = track.speed[here:horizon] <= STOPPED_SPEED
         stopped = _first(standing)
         if stopped is None:
@@ -395,7 +394,7 @@ def _outcome(
         end = track.stop if moving is None else step + stopped + moving
         return end, {"executed": True, "stopped_step": step + stopped}
     if d == Decision.SPEED_CHANGE:
-        return min(track.stop, step + round(SPEED_CHANGE_SPAN_S * STEPS_PER_SECOND)), {"executed": True}
+        return min(track.stop, step + round(SPEED_CHANGE_SPAN_S / STEP_SECONDS)), {"executed": True}
     return step + 1, {"executed": True}
 
 
