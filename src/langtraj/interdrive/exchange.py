@@ -61,21 +61,31 @@ def _pair(record: WindowRecord) -> tuple[int, int] | None:
     return best.track_id, best.other_id
 
 
+def agent_entry(track_id: int, subtype: Subtype, text: str = "") -> dict[str, Any]:
+    """One agent's entry of an InterDrive JSON document: what `track_id` does towards the other agent."""
+    return {
+        "track_id": track_id,
+        "interact_with_other_agent": subtype.type is not InteractionType.OTHER,
+        "interaction_type": subtype.type.title,
+        "interaction_subtype": subtype.name,
+        "no_behavior_description": text,
+    }
+
+
 def _agent_entry(record: WindowRecord, agent: int, other: int) -> dict[str, Any]:
     towards = [i for i in record.labels.interactions if i.track_id == agent and i.other_id == other]
     if not towards:
-        sub, text, interacts = NO_INTERACTION, "", False
-    else:
-        best = min(towards, key=lambda i: (_rank(i), i.start))
-        sub, text = best.subtype, best.text
-        interacts = sub.type is not InteractionType.OTHER
-    return {
-        "track_id": agent,
-        "interact_with_other_agent": interacts,
-        "interaction_type": sub.type.title,
-        "interaction_subtype": sub.name,
-        "no_behavior_description": text,
-    }
+        return agent_entry(agent, NO_INTERACTION)
+    best = min(towards, key=lambda i: (_rank(i), i.start))
+    return agent_entry(agent, best.subtype, best.text)
+
+
+def write_scene(out: Path, scenario_id: str, first: dict[str, Any], second: dict[str, Any]) -> Path:
+    """Write one window's InterDrive JSON document `{scenario_id}.json` into `out`, atomically."""
+    path = Path(out) / f"{scenario_id}.json"
+    with atomic_open(path, "w") as fh:
+        json.dump({"scenario_id": scenario_id, AGENT_KEYS[0]: first, AGENT_KEYS[1]: second}, fh, indent=1)
+    return path
 
 
 def export_json(dataset: Path, out: Path) -> ExportSummary:
@@ -88,13 +98,7 @@ def export_json(dataset: Path, out: Path) -> ExportSummary:
                 skipped += 1
                 continue
             a, b = pair
-            doc = {
-                "scenario_id": record.scenario_id,
-                "agent_0": _agent_entry(record, a, b),
-                "agent_1": _agent_entry(record, b, a),
-            }
-            with atomic_open(Path(out) / f"{record.scenario_id}.json", "w") as fh:
-                json.dump(doc, fh, indent=1)
+            write_scene(out, record.scenario_id, _agent_entry(record, a, b), _agent_entry(record, b, a))
             written += 1
     return ExportSummary(written, skipped)
 
