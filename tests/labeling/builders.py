@@ -45,11 +45,13 @@ def add_user(db: Database, name: str, role: Role = Role.ANNOTATOR) -> Identity:
 
 
 def labels_body(subtype_a: str = "passing/intersection_with_yielding", subtype_b: str = SUGGESTED, text: str = ""):
-    """A submission's labels for the pair (7, 17): 7 towards 17, then 17 towards 7."""
+    """A submission's labels for the pair (7, 17): 7 towards 17, then 17 towards 7; `text` goes to the choice
+    that is Other / Undefined behavior."""
+    undefined = "other/undefined"
     return {
         "pair": [7, 17],
         "choices": [
-            {"track_id": 7, "other_id": 17, "subtype": subtype_a, "text": text},
-            {"track_id": 17, "other_id": 7, "subtype": subtype_b, "text": ""},
+            {"track_id": 7, "other_id": 17, "subtype": subtype_a, "text": text if subtype_a == undefined else ""},
+            {"track_id": 17, "other_id": 7, "subtype": subtype_b, "text": text if subtype_b == undefined else ""},
         ],
     }

@@ -23,6 +23,14 @@ DEFAULT_DB_NAME = "labeling.sqlite"
 """The embedded database's file, inside the dataset folder."""
 
 
+SQLITE_PRAGMAS = (
+    "PRAGMA journal_mode=WAL",
+    "PRAGMA synchronous=FULL",
+    "PRAGMA busy_timeout=30000",
+    "PRAGMA foreign_keys=ON",
+)
+
+
 def utcnow() -> datetime:
     """Now, as the naive UTC datetime every table stores."""
     return datetime.now(UTC).replace(tzinfo=None)
@@ -36,8 +44,8 @@ def _sqlite_pragmas(dbapi_connection, _record) -> None:  # type: ignore[no-untyp
     """WAL lets readers run beside the one writer; a busy writer waits instead of failing; FULL sync makes
     every acknowledged commit durable; SQLite enforces foreign keys only when asked."""
     cursor = dbapi_connection.cursor()
-    for pragma in ("journal_mode=WAL", "synchronous=FULL", "busy_timeout=30000", "foreign_keys=ON"):
-        cursor.execute(f"PRAGMA {pragma}")
+    for statement in SQLITE_PRAGMAS:
+        cursor.execute(statement)
     cursor.close()
 
 
