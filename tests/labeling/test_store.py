@@ -19,6 +19,7 @@ from langtraj.interdrive.dataset import iter_records
 from langtraj.interdrive.labels import LabelSource
 from langtraj.labeling import review, tasks
 from langtraj.labeling.db import Database
+from langtraj.labeling.errors import Conflict, Forbidden
 from langtraj.labeling.export import export_accepted
 from langtraj.labeling.models import Annotation, Base, Role, Slot, SlotState, Task
 from langtraj.labeling.protocol import parse_labels
@@ -96,7 +97,7 @@ def test_expired_lock_goes_to_another_and_the_first_cannot_submit(db: Database, 
     a, b = add_user(db, "a"), add_user(db, "b")
     claim = tasks.claim_next(db, a, lock=timedelta(seconds=-1))  # expired at once
     assert tasks.claim_next(db, b).slot_id == claim.slot_id
-    with pytest.raises(tasks.Forbidden):
+    with pytest.raises(Forbidden):
         tasks.submit(db, a, claim.slot_id, "sub-late-a", labels(), 10, {})
     tasks.submit(db, b, claim.slot_id, "sub-b", labels(), 10, {})
 
@@ -138,12 +139,12 @@ def test_submit_is_idempotent_and_only_for_the_holder(db: Database, dataset: Pat
     tasks.add_tasks(db, dataset, ["win-0"], overlap=2)
     a, b = add_user(db, "a"), add_user(db, "b")
     claim = tasks.claim_next(db, a)
-    with pytest.raises(tasks.Forbidden):
+    with pytest.raises(Forbidden):
         tasks.submit(db, b, claim.slot_id, "sub-b-steal", labels(), 10, {})
     first = tasks.submit(db, a, claim.slot_id, "sub-a-1", labels(), 10, {"pair": 3})
     assert first[1] is True
     assert tasks.submit(db, a, claim.slot_id, "sub-a-1", labels(), 10, {}) == (first[0], False)
-    with pytest.raises(tasks.Conflict):
+    with pytest.raises(Conflict):
         tasks.submit(db, a, claim.slot_id, "sub-a-2", labels(), 10, {})
     with db.session() as session:
         assert session.scalar(select(func.count()).select_from(Annotation)) == 1
@@ -176,11 +177,11 @@ def test_owner_edits_until_accepted_and_nobody_else_can(db: Database, dataset: P
     tasks.add_tasks(db, dataset, ["win-0"], overlap=2)
     a, b = add_user(db, "a"), add_user(db, "b")
     aid, _ = tasks.submit(db, a, tasks.claim_next(db, a).slot_id, "sub-a-1", labels(), 10, {})
-    with pytest.raises(tasks.Forbidden):
+    with pytest.raises(Forbidden):
         tasks.edit(db, b, aid, labels(b="other/unknown"))
     tasks.edit(db, a, aid, labels(b="other/unknown"))
     tasks.submit(db, b, tasks.claim_next(db, b).slot_id, "sub-b-1", labels(b="other/unknown"), 10, {})
-    with pytest.raises(tasks.Conflict, match="accepted"):
+    with pytest.raises(Conflict, match="accepted"):
         tasks.edit(db, a, aid, labels())
 
 

@@ -24,6 +24,7 @@ from langtraj.interdrive.taxonomy import SINGLE_AGENT_LABELS, SUBTYPES, Interact
 from langtraj.labeling import auth, review, tasks
 from langtraj.labeling.auth import Identity
 from langtraj.labeling.db import Database, default_url
+from langtraj.labeling.errors import Conflict, Forbidden, NotFound
 from langtraj.labeling.export import export_accepted
 from langtraj.labeling.media import MediaConfig, agent_positions, window_video
 from langtraj.labeling.models import Role
@@ -71,7 +72,7 @@ class State:
     def scene(self, scenario_id: str):  # type: ignore[no-untyped-def]
         record = self.records.get(scenario_id)
         if record is None:
-            raise tasks.NotFound(f"window {scenario_id!r} is not in the dataset any more")
+            raise NotFound(f"window {scenario_id!r} is not in the dataset any more")
         return load_window(record)
 
     @property
@@ -133,7 +134,7 @@ def create_app(config: ServerConfig, db: Database | None = None) -> FastAPI:
             request.state.identity = identity
         return _headers(await call_next(request))
 
-    for error, status in ((InputError, 422), (tasks.NotFound, 404), (tasks.Forbidden, 403), (tasks.Conflict, 409)):
+    for error, status in ((InputError, 422), (NotFound, 404), (Forbidden, 403), (Conflict, 409)):
         app.add_exception_handler(error, _handler(status))
 
     _routes(app, state)
@@ -168,7 +169,7 @@ def role(*roles: Role):  # type: ignore[no-untyped-def]
     def check(request: Request) -> Identity:
         identity = me(request)
         if not identity.may(*roles):
-            raise tasks.Forbidden(f"needs role {' or '.join(r.value for r in roles)}")
+            raise Forbidden(f"needs role {' or '.join(r.value for r in roles)}")
         return identity
 
     return check

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from langtraj.errors import InputError
-from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID, InteractionType, Subtype
+from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID, Subtype
 
 MAX_TEXT = 2000
 UNDEFINED = SUBTYPES_BY_ID["other/undefined"]
@@ -98,7 +98,3 @@ def suggestion_for(suggestions: Sequence[Mapping[str, Any]], track_id: int, othe
         if s["track_id"] == track_id and s["other_id"] == other_id:
             return str(s["subtype"])
     return None
-
-
-def interacts(subtype: Subtype) -> bool:
-    return subtype.type is not InteractionType.OTHER

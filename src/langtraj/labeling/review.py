@@ -15,9 +15,9 @@ from sqlalchemy.orm import Session, selectinload
 
 from langtraj.labeling.auth import Identity
 from langtraj.labeling.db import Database, utcnow
+from langtraj.labeling.errors import Conflict, NotFound
 from langtraj.labeling.models import Accepted, Annotation, SlotState, Task, User
-from langtraj.labeling.protocol import AgentChoice, PairLabels, parse_subtype_id
-from langtraj.labeling.tasks import Conflict, NotFound
+from langtraj.labeling.protocol import AgentChoice, PairLabels, parse_labels, parse_subtype_id
 
 
 def labels_of(annotation: Annotation) -> PairLabels:
@@ -139,8 +139,6 @@ def _status(task: Task, accepted: Accepted | None) -> str:
 
 
 def _accepted_labels(accepted: Accepted) -> PairLabels:
-    from langtraj.labeling.protocol import parse_labels
-
     pair = accepted.labels["pair"]
     return parse_labels(pair, accepted.labels["choices"], set(pair))
 

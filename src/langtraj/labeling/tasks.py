@@ -15,28 +15,18 @@ from sqlalchemy import and_, exists, func, or_, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from langtraj.errors import InputError, LangTrajError
+from langtraj.errors import InputError
 from langtraj.interdrive.dataset import WindowRecord, iter_records, load_window
 from langtraj.interdrive.labels import LabelSource
 from langtraj.labeling.auth import Identity
 from langtraj.labeling.db import Database, utcnow
+from langtraj.labeling.errors import Conflict, Forbidden, NotFound
 from langtraj.labeling.models import Accepted, Annotation, Choice, Slot, SlotState, Task, User
 from langtraj.labeling.protocol import PairLabels, suggestion_for
+from langtraj.labeling.review import settle
 from langtraj.scenario.types import AgentType
 
 DEFAULT_LOCK = timedelta(minutes=30)
-
-
-class Conflict(LangTrajError):
-    """The request is well formed but the task's state forbids it (lock lost, already submitted)."""
-
-
-class Forbidden(LangTrajError):
-    """The request touches another annotator's slot or labels."""
-
-
-class NotFound(LangTrajError):
-    """No such task, slot or annotation."""
 
 
 # ---------------------------------------------------------------- adding tasks
@@ -247,8 +237,6 @@ def submit(
 ) -> tuple[int, bool]:
     """Store the labels of the slot `user` holds and mark it done, in one transaction; returns (annotation id,
     created). A retry with the same `submission_id` returns the first copy (created False)."""
-    from langtraj.labeling.review import settle  # review reads annotations; tasks writes them
-
     with db.session() as session:
         first = session.scalar(select(Annotation).where(Annotation.submission_id == submission_id))
         if first is not None:
