@@ -7,9 +7,12 @@ export accepted labels; or start a ready-made demo.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 from langtraj.errors import InputError
 
@@ -66,7 +69,9 @@ def _serve_options(q: argparse.ArgumentParser) -> None:
     q.add_argument("--lock-minutes", type=float, default=30.0, help="how long a claimed window stays locked")
 
 
-def _database(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+@contextlib.contextmanager
+def _database(args: argparse.Namespace) -> Iterator[Any]:
+    """The dataset's labeling database (checked, migrated), disposed of after the block."""
     try:
         from langtraj.labeling.db import Database, default_url
     except ImportError as exc:
@@ -75,7 +80,11 @@ def _database(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         raise InputError(
             "not an InterDrive dataset folder (no manifest.json; run langtraj interdrive build)", path=args.dataset
         )
-    return Database(args.db or default_url(args.dataset))
+    db = Database(args.db or default_url(args.dataset))
+    try:
+        yield db
+    finally:
+        db.dispose()
 
 
 def _serve(dataset: Path, db_url: str | None, args: argparse.Namespace) -> int:
@@ -94,7 +103,8 @@ def _serve(dataset: Path, db_url: str | None, args: argparse.Namespace) -> int:
 
 
 def run_serve(args: argparse.Namespace) -> int:
-    _database(args).dispose()  # checks the dataset and the URL, migrates
+    with _database(args):  # checks the dataset and the URL, migrates
+        pass
     return _serve(args.dataset, args.db, args)
 
 
@@ -117,52 +127,40 @@ def run_demo(args: argparse.Namespace) -> int:
 
 
 def run_user(args: argparse.Namespace) -> int:
-    db = _database(args)
-    from langtraj.labeling.auth import create_user, parse_role
+    with _database(args) as db:
+        from langtraj.labeling.auth import create_user, parse_role
 
-    role = parse_role(args.role)
-    password = sys.stdin.readline().rstrip("\r\n")
-    try:
+        role = parse_role(args.role)
+        password = sys.stdin.readline().rstrip("\r\n")
         with db.session() as session:
             create_user(session, args.name, password, role)
-    finally:
-        db.dispose()
     print(f"added {role.value} {args.name}")
     return 0
 
 
 def run_tasks(args: argparse.Namespace) -> int:
-    db = _database(args)
-    from langtraj.labeling.tasks import add_tasks
+    with _database(args) as db:
+        from langtraj.labeling.tasks import add_tasks
 
-    try:
         added, present = add_tasks(db, args.dataset, args.scenario, args.overlap, args.quorum)
-    finally:
-        db.dispose()
     print(f"added {added} tasks ({present} were there already)")
     return 0
 
 
 def run_progress(args: argparse.Namespace) -> int:
-    db = _database(args)
-    from langtraj.labeling.review import agreement
-    from langtraj.labeling.tasks import progress
+    with _database(args) as db:
+        from langtraj.labeling.review import agreement
+        from langtraj.labeling.tasks import progress
 
-    try:
         print(json.dumps({"progress": progress(db), "agreement": agreement(db)}, indent=1))
-    finally:
-        db.dispose()
     return 0
 
 
 def run_export(args: argparse.Namespace) -> int:
-    db = _database(args)
-    from langtraj.labeling.export import export_accepted
+    with _database(args) as db:
+        from langtraj.labeling.export import export_accepted
 
-    try:
         result = export_accepted(db, args.out, args.audit, args.dataset if args.into else None)
-    finally:
-        db.dispose()
     print(
         f"wrote {result.written} InterDrive files to {args.out} ({result.pending} windows not accepted yet)"
         + (f"; {result.imported} windows updated in {args.dataset}" if args.into else "")

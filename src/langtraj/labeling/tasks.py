@@ -168,36 +168,26 @@ def release(db: Database, user: Identity, slot_id: int) -> None:
         slot = _own_slot(session, user, slot_id)
         if slot.state != SlotState.LOCKED.value:
             raise Conflict(f"slot {slot_id} is {slot.state}, not held")
-        session.execute(
-            update(Slot)
-            .where(Slot.id == slot_id, Slot.version == slot.version)
-            .values(
-                state=SlotState.OPEN.value,
-                annotator_id=None,
-                locked_at=None,
-                locked_until=None,
-                version=Slot.version + 1,
-            )
-            .execution_options(synchronize_session=False)
-        )
+        session.execute(_reopen(Slot.id == slot_id, Slot.version == slot.version))
 
 
 def release_expired(db: Database) -> int:
     """Return every slot whose lock expired to the queue (at server start); returns how many."""
     with db.session() as session:
-        result = session.execute(
-            update(Slot)
-            .where(Slot.state == SlotState.LOCKED.value, Slot.locked_until < utcnow())
-            .values(
-                state=SlotState.OPEN.value,
-                annotator_id=None,
-                locked_at=None,
-                locked_until=None,
-                version=Slot.version + 1,
-            )
-            .execution_options(synchronize_session=False)
-        )
+        result = session.execute(_reopen(Slot.state == SlotState.LOCKED.value, Slot.locked_until < utcnow()))
         return int(result.rowcount)
+
+
+def _reopen(*where: Any) -> Any:
+    """The update that puts the slots matching `where` back in the queue, unheld."""
+    return (
+        update(Slot)
+        .where(*where)
+        .values(
+            state=SlotState.OPEN.value, annotator_id=None, locked_at=None, locked_until=None, version=Slot.version + 1
+        )
+        .execution_options(synchronize_session=False)
+    )
 
 
 def _own_slot(session: Session, user: Identity, slot_id: int) -> Slot:
