@@ -181,8 +181,12 @@ def test_taxonomy_endpoint_is_the_taxonomy_module(server) -> None:  # type: igno
     assert [s["id"] for s in ann.get("/api/taxonomy").json()["subtypes"]] == [s.id for s in SUBTYPES]
 
 
-def test_video_and_positions_of_a_task(server) -> None:  # type: ignore[no-untyped-def]
+def test_video_and_positions_only_for_windows_routed_to_the_annotator(server) -> None:  # type: ignore[no-untyped-def]
     ann = login(server[0], "ann1")
+    assert ann.get("/api/tasks/1/video").status_code == 403  # not claimed yet
+    assert ann.post("/api/tasks/next").json()["task"]["task_id"] == 1
+    assert login(server[0], "ann2").get("/api/tasks/2").status_code == 403
+    assert login(server[0], "rev").get("/api/tasks/2").status_code == 200
     video = ann.get("/api/tasks/1/video")
     assert video.status_code == 200 and video.headers["content-type"] == "video/mp4" and video.content[4:8] == b"ftyp"
     positions = ann.get("/api/tasks/1/positions").json()
@@ -207,3 +211,29 @@ def test_no_sql_is_built_by_string_formatting() -> None:
                     ):
                         offenders.append(f"{path.name}:{node.lineno}")
     assert offenders == []
+
+
+def test_annotators_see_only_their_own_progress(server) -> None:  # type: ignore[no-untyped-def]
+    app, _ = server
+    ann1, ann2 = login(app, "ann1"), login(app, "ann2")
+    for client, sid in ((ann1, "prog-0001"), (ann2, "prog-0002")):
+        assert submit(client, client.post("/api/tasks/next").json()["slot_id"], sid, labels_body()).status_code == 201
+    assert ann1.get("/api/progress").json()["per_annotator"] == {"ann1": 1}
+    assert login(app, "rev").get("/api/progress").json()["per_annotator"] == {"ann1": 1, "ann2": 1}
+    assert ann1.get("/api/progress").json()["tasks_accepted"] == 1
+
+
+@pytest.mark.parametrize("steps", [{"pair": -5}, {"pair": 1, "coffee": 10}])
+def test_step_times_are_the_protocols_steps_and_not_negative(server, steps) -> None:  # type: ignore[no-untyped-def]
+    app, db = server
+    ann = login(app, "ann1")
+    slot = ann.post("/api/tasks/next").json()["slot_id"]
+    body = {**labels_body(), "submission_id": "steps-0001", "lead_time_ms": 10, "step_times_ms": steps}
+    assert ann.post(f"/api/slots/{slot}/submit", json=body).status_code == 422
+    assert count(db, Annotation) == 0
+
+
+def test_the_page_and_api_are_not_cached_stale(server) -> None:  # type: ignore[no-untyped-def]
+    client = TestClient(server[0])
+    assert client.get("/").headers["cache-control"] == "no-cache"
+    assert client.get("/static/app.js").headers["cache-control"] == "no-cache"

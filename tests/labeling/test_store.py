@@ -224,3 +224,24 @@ def test_export_round_trips_into_the_dataset_with_an_audit(db: Database, tmp_pat
         and first["lead_time_ms"] == 500
         and by_window["win-0"]["accepted"]["method"] == "consensus"
     )
+
+
+def test_concurrent_last_submits_still_reach_consensus(db: Database, dataset: Path) -> None:
+    """The last two submits of a window racing each other: the task row lock makes the second see the first."""
+    tasks.add_tasks(db, dataset, overlap=2)
+    users = [add_user(db, f"r{n}") for n in range(6)]
+    claims = [(u, tasks.claim_next(db, u)) for u in users]
+    barrier = threading.Barrier(len(claims))
+
+    def go(user, claim) -> None:  # type: ignore[no-untyped-def]
+        barrier.wait()
+        tasks.submit(db, user, claim.slot_id, f"race-{user.name}", labels(), 10, {})
+
+    threads = [threading.Thread(target=go, args=pair) for pair in claims]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    with db.session() as session:
+        assert session.scalar(select(func.count()).select_from(Annotation)) == 6
+    assert [w["status"] for w in review.agreement(db)["windows"]] == ["accepted (consensus)"] * 3

@@ -100,10 +100,20 @@ class LabelsBody(BaseModel):
     choices: list[ChoiceBody] = Field(max_length=2)
 
 
+class StepTimes(BaseModel):
+    """Milliseconds the annotator spent in each step of the protocol, as the page timed them."""
+
+    model_config = {"extra": "forbid"}
+
+    pair: int | None = Field(default=None, ge=0)
+    type: int | None = Field(default=None, ge=0)
+    subtype: int | None = Field(default=None, ge=0)
+
+
 class SubmitBody(LabelsBody):
     submission_id: str = Field(min_length=8, max_length=64, pattern=r"^[A-Za-z0-9_-]+$")
     lead_time_ms: int = Field(ge=0, le=7 * 24 * 3600 * 1000)
-    step_times_ms: dict[str, int] = Field(default_factory=dict, max_length=8)
+    step_times_ms: StepTimes = Field(default_factory=lambda: StepTimes())
 
 
 class AcceptBody(BaseModel):
@@ -119,7 +129,7 @@ def create_app(config: ServerConfig, db: Database | None = None) -> FastAPI:
     db = db or Database(config.url)
     tasks.release_expired(db)
     state = State(config, db)
-    app = FastAPI(title="LangTraj InterDrive labeling", version="1", docs_url="/docs", redoc_url=None)
+    app = FastAPI(title="LangTraj InterDrive labeling", version="1", docs_url=None, redoc_url=None)
     app.state.labeling = state
 
     @app.middleware("http")
@@ -149,6 +159,7 @@ def _identify(db: Database, token: str | None) -> Identity | None:
 
 def _headers(response: Response) -> Response:
     response.headers.update(SECURITY_HEADERS)
+    response.headers.setdefault("Cache-Control", "no-cache")  # a new release's page, not a stale one
     return response
 
 
@@ -244,17 +255,20 @@ def _routes(app: FastAPI, state: State) -> None:
         }
 
     @app.get("/api/tasks/{task_id}")
-    def task(task_id: int, _: User) -> dict[str, Any]:
+    def task(task_id: int, user: User) -> dict[str, Any]:
+        tasks.may_view(db, user, task_id)
         return tasks.task_view(db, task_id)
 
     @app.get("/api/tasks/{task_id}/video")
-    def video(task_id: int, _: User) -> FileResponse:
+    def video(task_id: int, user: User) -> FileResponse:
+        tasks.may_view(db, user, task_id)
         view = tasks.task_view(db, task_id)
         path = window_video(state.scene(view["scenario_id"]), tuple(view["pair"]), state.cache, config.media)
         return FileResponse(path, media_type="video/mp4")
 
     @app.get("/api/tasks/{task_id}/positions")
-    def positions(task_id: int, _: User) -> dict[str, Any]:
+    def positions(task_id: int, user: User) -> dict[str, Any]:
+        tasks.may_view(db, user, task_id)
         return agent_positions(state.scene(tasks.task_view(db, task_id)["scenario_id"]), config.media)
 
     @app.post("/api/slots/{slot_id}/submit", status_code=201)
@@ -262,7 +276,13 @@ def _routes(app: FastAPI, state: State) -> None:
         task_id = tasks.slot_task(db, slot_id)
         labels = parse_labels(body.pair, [c.model_dump() for c in body.choices], _task_agents(state, task_id))
         annotation_id, created = tasks.submit(
-            db, user, slot_id, body.submission_id, labels, body.lead_time_ms, body.step_times_ms
+            db,
+            user,
+            slot_id,
+            body.submission_id,
+            labels,
+            body.lead_time_ms,
+            body.step_times_ms.model_dump(exclude_none=True),
         )
         if not created:
             response.status_code = 200
@@ -281,8 +301,12 @@ def _routes(app: FastAPI, state: State) -> None:
         return {"status": "updated"}
 
     @app.get("/api/progress")
-    def progress(_: User) -> dict[str, Any]:
-        return tasks.progress(db)
+    def progress(user: User) -> dict[str, Any]:
+        """Overall progress; annotators see their own count only, reviewers and admins everyone's."""
+        figures = tasks.progress(db)
+        if not user.may(Role.REVIEWER, Role.ADMIN):
+            figures["per_annotator"] = {user.name: figures["per_annotator"].get(user.name, 0)}
+        return figures
 
     @app.get("/api/review/agreement")
     def agreement(_: Reviewer) -> dict[str, Any]:

@@ -19,7 +19,6 @@ from langtraj.interdrive.exchange import agent_entry, import_json, write_scene
 from langtraj.labeling.db import Database
 from langtraj.labeling.models import Accepted, Annotation, Task, User
 from langtraj.labeling.protocol import parse_subtype_id
-from langtraj.labeling.review import queue
 
 AUDIT_VERSION = 1
 
@@ -37,7 +36,6 @@ def export_accepted(db: Database, out: Path, audit: Path | None = None, into: Pa
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a folder", path=out)
-    queue(db)  # settles complete tasks whose consensus came in concurrently
     written, records = 0, []
     with db.session() as session:
         names = dict(session.execute(select(User.id, User.name)).all())

@@ -9,8 +9,7 @@ from collections import Counter
 from itertools import combinations
 from typing import Any
 
-from sqlalchemy import select
-from sqlalchemy.exc import IntegrityError
+from sqlalchemy import exists, select
 from sqlalchemy.orm import Session, selectinload
 
 from langtraj.labeling.auth import Identity
@@ -44,36 +43,28 @@ def _annotations(session: Session, task_id: int) -> list[Annotation]:
     )
 
 
-def settle(db: Database, task_id: int) -> bool:
-    """Accept a task by consensus when `quorum` of its annotations match; True when it is accepted now."""
-    with db.session() as session:
-        if session.get(Accepted, task_id) is not None:
-            return True
-        task = session.get(Task, task_id)
-        if task is None:
-            raise NotFound(f"no task {task_id}")
-        annotations = _annotations(session, task_id)
-        groups: dict[frozenset, list[Annotation]] = {}
-        for a in annotations:
-            groups.setdefault(labels_of(a).key(), []).append(a)
-        best = max(groups.values(), key=len, default=[])
-        if len(best) < task.quorum:
-            return False
-        chosen = best[0]
-        try:
-            with session.begin_nested():
-                session.add(
-                    Accepted(
-                        task_id=task_id,
-                        method="consensus",
-                        reviewer_id=None,
-                        annotation_id=chosen.id,
-                        labels=labels_of(chosen).to_json(),
-                        accepted_at=utcnow(),
-                    )
-                )
-        except IntegrityError:
-            pass  # a concurrent submit accepted it first
+def settle(session: Session, task: Task) -> bool:
+    """Accept `task` by consensus when `quorum` of its annotations match; True when it is accepted (now or
+    before). Runs inside the transaction that changed the annotations, with the task row locked."""
+    if session.get(Accepted, task.id) is not None:
+        return True
+    groups: dict[frozenset, list[Annotation]] = {}
+    for a in _annotations(session, task.id):
+        groups.setdefault(labels_of(a).key(), []).append(a)
+    best = max(groups.values(), key=len, default=[])
+    if len(best) < task.quorum:
+        return False
+    chosen = best[0]
+    session.add(
+        Accepted(
+            task_id=task.id,
+            method="consensus",
+            reviewer_id=None,
+            annotation_id=chosen.id,
+            labels=labels_of(chosen).to_json(),
+            accepted_at=utcnow(),
+        )
+    )
     return True
 
 
@@ -145,21 +136,19 @@ def _accepted_labels(accepted: Accepted) -> PairLabels:
 
 def queue(db: Database) -> list[dict[str, Any]]:
     """Windows whose every slot is done but no quorum agrees: each with its annotations, for a reviewer."""
-    with db.session() as session:
-        pending = [t.id for t in session.scalars(select(Task).order_by(Task.id)) if _complete(t)]
     out = []
-    for task_id in pending:
-        if settle(db, task_id):
-            continue
-        with db.session() as session:
-            names = dict(session.execute(select(User.id, User.name)).all())
+    with db.session() as session:
+        names = dict(session.execute(select(User.id, User.name)).all())
+        for task in session.scalars(select(Task).where(~exists().where(Accepted.task_id == Task.id)).order_by(Task.id)):
+            if not _complete(task):
+                continue
             out.append(
                 {
-                    "task_id": task_id,
-                    "scenario_id": session.get(Task, task_id).scenario_id,  # type: ignore[union-attr]
+                    "task_id": task.id,
+                    "scenario_id": task.scenario_id,
                     "annotations": [
                         {"annotation_id": a.id, "annotator": names[a.annotator_id], **labels_of(a).to_json()}
-                        for a in _annotations(session, task_id)
+                        for a in _annotations(session, task.id)
                     ],
                 }
             )

@@ -21,7 +21,7 @@ from langtraj.interdrive.labels import LabelSource
 from langtraj.labeling.auth import Identity
 from langtraj.labeling.db import Database, utcnow
 from langtraj.labeling.errors import Conflict, Forbidden, NotFound
-from langtraj.labeling.models import Accepted, Annotation, Choice, Slot, SlotState, Task, User
+from langtraj.labeling.models import Accepted, Annotation, Choice, Role, Slot, SlotState, Task, User
 from langtraj.labeling.protocol import PairLabels, suggestion_for
 from langtraj.labeling.review import settle
 from langtraj.scenario.types import AgentType
@@ -227,12 +227,37 @@ def submit(
 ) -> tuple[int, bool]:
     """Store the labels of the slot `user` holds and mark it done, in one transaction; returns (annotation id,
     created). A retry with the same `submission_id` returns the first copy (created False)."""
+    try:
+        return _submit(db, user, slot_id, submission_id, labels, lead_time_ms, step_times_ms)
+    except (Conflict, IntegrityError):
+        earlier = _earlier_copy(db, user, submission_id)  # a retry that raced its first copy
+        if earlier is None:
+            raise
+        return earlier, False
+
+
+def _earlier_copy(db: Database, user: Identity, submission_id: str) -> int | None:
+    """The id of the annotation `submission_id` already stored for `user`, if any."""
     with db.session() as session:
         first = session.scalar(select(Annotation).where(Annotation.submission_id == submission_id))
-        if first is not None:
-            if first.annotator_id != user.id:
-                raise Conflict("submission id used by another annotator")
-            return first.id, False
+    if first is not None and first.annotator_id != user.id:
+        raise Conflict("submission id used by another annotator")
+    return None if first is None else first.id
+
+
+def _submit(
+    db: Database,
+    user: Identity,
+    slot_id: int,
+    submission_id: str,
+    labels: PairLabels,
+    lead_time_ms: int,
+    step_times_ms: dict[str, int],
+) -> tuple[int, bool]:
+    earlier = _earlier_copy(db, user, submission_id)
+    if earlier is not None:
+        return earlier, False
+    with db.session() as session:
         slot = _own_slot(session, user, slot_id)
         if slot.state != SlotState.LOCKED.value:
             raise Conflict(f"slot {slot_id} is {slot.state}: submitted already")
@@ -244,8 +269,7 @@ def submit(
         )
         if done.rowcount != 1:
             raise Conflict(f"slot {slot_id} changed hands; claim a new task")
-        task = session.get(Task, slot.task_id)
-        assert task is not None
+        task = _locked_task(session, slot.task_id)
         annotation = Annotation(
             submission_id=submission_id,
             slot_id=slot_id,
@@ -260,9 +284,17 @@ def submit(
         )
         session.add(annotation)
         session.flush()
-        annotation_id = annotation.id
-    settle(db, task.id)
-    return annotation_id, True
+        settle(session, task)
+        return annotation.id, True
+
+
+def _locked_task(session: Session, task_id: int) -> Task:
+    """The task row, locked until the transaction ends (PostgreSQL; SQLite has one writer at a time), so
+    that concurrent submits of one window settle its consensus one after the other."""
+    task = session.get(Task, task_id, with_for_update=True)
+    if task is None:
+        raise NotFound(f"no task {task_id}")
+    return task
 
 
 def edit(db: Database, user: Identity, annotation_id: int, labels: PairLabels) -> None:
@@ -275,13 +307,12 @@ def edit(db: Database, user: Identity, annotation_id: int, labels: PairLabels) -
             raise Forbidden(f"annotation {annotation_id} is another annotator's")
         if session.get(Accepted, annotation.task_id) is not None:
             raise Conflict(f"task {annotation.task_id} is accepted; its labels are final")
-        task = session.get(Task, annotation.task_id)
-        assert task is not None
-        if any(t not in {a["id"] for a in task.agents} for t in labels.pair):
-            raise NotFound("agent not in this window")
+        task = _locked_task(session, annotation.task_id)
         annotation.agent_a, annotation.agent_b = labels.pair
         annotation.choices = _choices(labels, task.suggestions)
         annotation.updated_at = utcnow()
+        session.flush()
+        settle(session, task)
 
 
 # ---------------------------------------------------------------- reading
@@ -320,6 +351,18 @@ def task_view(db: Database, task_id: int) -> dict[str, Any]:
             "suggestions": task.suggestions,
             "overlap": task.overlap,
         }
+
+
+def may_view(db: Database, user: Identity, task_id: int) -> None:
+    """Raise Forbidden unless `user` reviews (reviewer, admin) or holds or held a slot of the task: an
+    annotator sees only the windows routed to them."""
+    if user.may(Role.REVIEWER, Role.ADMIN):
+        return
+    with db.session() as session:
+        if session.get(Task, task_id) is None:
+            raise NotFound(f"no task {task_id}")
+        if session.scalar(select(Slot.id).where(Slot.task_id == task_id, Slot.annotator_id == user.id)) is None:
+            raise Forbidden(f"task {task_id} is not routed to you")
 
 
 def progress(db: Database) -> dict[str, Any]:
