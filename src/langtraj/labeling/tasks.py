@@ -5,6 +5,7 @@ version, so no slot is ever held twice, on SQLite as on PostgreSQL. See docs/lab
 
 from __future__ import annotations
 
+import random
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import timedelta
@@ -27,6 +28,8 @@ from langtraj.labeling.review import settle
 from langtraj.scenario.types import AgentType
 
 DEFAULT_LOCK = timedelta(minutes=30)
+CLAIM_WINDOW = 32
+"""How many of the next free slots a claim considers (see `claim_next`)."""
 
 
 # ---------------------------------------------------------------- adding tasks
@@ -124,7 +127,11 @@ def _lock(session: Session, slot: Slot, user: Identity, lock: timedelta) -> bool
 
 def claim_next(db: Database, user: Identity, lock: timedelta = DEFAULT_LOCK, attempts: int = 50) -> Claim | None:
     """Lock the next slot for `user`: the one it holds already, else the first free or expired slot of a task
-    it has not labelled and that is not accepted; None when nothing is left."""
+    it has not labelled and that is not accepted; None when nothing is left.
+
+    Should the first be taken meanwhile, the next CLAIM_WINDOW - 1 are tried in random order: concurrent
+    claimers then spread over them instead of all racing for the same next slot (on PostgreSQL each lost
+    race waits for the winner's commit)."""
     for _ in range(attempts):
         with db.session() as session:
             now = utcnow()
@@ -145,11 +152,14 @@ def claim_next(db: Database, user: Identity, lock: timedelta = DEFAULT_LOCK, att
                             ~exists().where(Accepted.task_id == Slot.task_id),
                         )
                         .order_by(Slot.task_id, Slot.number)
-                        .limit(8)
+                        .limit(CLAIM_WINDOW)
                     )
                 )
             if not candidates:
                 return None
+            rest = candidates[1:]
+            random.shuffle(rest)
+            candidates[1:] = rest
         for slot in candidates:
             try:
                 with db.session() as session:
