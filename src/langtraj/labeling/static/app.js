@@ -2,7 +2,7 @@
  * shortcut for every choice, the reviewer's disagreement queue and agreement tables, and the admin's export.
  * Vanilla JS without a build step, served under a strict CSP (no inline code or style); all text coming from
  * users or the server is inserted with textContent / createElement, never as markup.
- * See docs/labeling.md ('Web page'); the API is in src/langtraj/labeling/app.py.
+ * See docs/labeling.md ('Protocol'); the API is in src/langtraj/labeling/app.py.
  */
 // ------------------------------------------------------------------ constants and state
 
