@@ -34,10 +34,13 @@ class MediaConfig:
     size_px: width and height of the square video in pixels; even, because H.264 with 4:2:0 chroma
         needs even sides (an odd size would be padded by a pixel and no longer match `agent_positions`).
     fps: frames per second of the video; one frame per scenario step.
+    text_scale: text and lines relative to the renderer's default (dpi size_px / 8): larger, so that
+        every agent's id stays legible in a busy intersection; the same proportions at any size.
     """
 
     size_px: int = 640
     fps: float = 10.0
+    text_scale: float = 1.6
 
     def __post_init__(self) -> None:
         problems = []
@@ -45,6 +48,8 @@ class MediaConfig:
             problems.append(f"size_px must be an even integer >= 16, got {self.size_px!r}")
         if not (math.isfinite(self.fps) and self.fps > 0):
             problems.append(f"fps must be positive, got {self.fps!r}")
+        if not (math.isfinite(self.text_scale) and self.text_scale > 0):
+            problems.append(f"text_scale must be positive, got {self.text_scale!r}")
         if problems:
             raise InputError("; ".join(problems), where="media config")
         object.__setattr__(self, "size_px", int(self.size_px))
@@ -56,6 +61,7 @@ def render_config(config: MediaConfig, pair: tuple[int, ...] = (), caption: str 
     over every step, RenderConfig's default margin), so its pixels match the video's."""
     return RenderConfig(
         size_px=config.size_px,
+        dpi=config.size_px / 8.0 * config.text_scale,
         fps=config.fps,
         follow_track_id=None,
         show_ids=True,
