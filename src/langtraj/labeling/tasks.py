@@ -236,9 +236,41 @@ def submit(
     step_times_ms: dict[str, int],
 ) -> tuple[int, bool]:
     """Store the labels of the slot `user` holds and mark it done, in one transaction; returns (annotation id,
-    created). A retry with the same `submission_id` returns the first copy (created False)."""
+    created). A retry with the same `submission_id` returns the first copy (created False), even when it
+    races the first copy."""
+    earlier = _earlier_copy(db, user, submission_id)
+    if earlier is not None:
+        return earlier, False
     try:
-        return _submit(db, user, slot_id, submission_id, labels, lead_time_ms, step_times_ms)
+        with db.session() as session:
+            slot = _own_slot(session, user, slot_id)
+            if slot.state != SlotState.LOCKED.value:
+                raise Conflict(f"slot {slot_id} is {slot.state}: submitted already")
+            done = session.execute(
+                update(Slot)
+                .where(Slot.id == slot_id, Slot.version == slot.version, Slot.annotator_id == user.id)
+                .values(state=SlotState.DONE.value, locked_until=None, version=Slot.version + 1)
+                .execution_options(synchronize_session=False)
+            )
+            if done.rowcount != 1:
+                raise Conflict(f"slot {slot_id} changed hands; claim a new task")
+            task = _locked_task(session, slot.task_id)
+            annotation = Annotation(
+                submission_id=submission_id,
+                slot_id=slot_id,
+                task_id=task.id,
+                annotator_id=user.id,
+                agent_a=labels.pair[0],
+                agent_b=labels.pair[1],
+                lead_time_ms=lead_time_ms,
+                step_times_ms=step_times_ms,
+                submitted_at=utcnow(),
+                choices=_choices(labels, task.suggestions),
+            )
+            session.add(annotation)
+            session.flush()
+            settle(session, task)
+            return annotation.id, True
     except (Conflict, IntegrityError):
         earlier = _earlier_copy(db, user, submission_id)  # a retry that raced its first copy
         if earlier is None:
@@ -253,49 +285,6 @@ def _earlier_copy(db: Database, user: Identity, submission_id: str) -> int | Non
     if first is not None and first.annotator_id != user.id:
         raise Conflict("submission id used by another annotator")
     return None if first is None else first.id
-
-
-def _submit(
-    db: Database,
-    user: Identity,
-    slot_id: int,
-    submission_id: str,
-    labels: PairLabels,
-    lead_time_ms: int,
-    step_times_ms: dict[str, int],
-) -> tuple[int, bool]:
-    earlier = _earlier_copy(db, user, submission_id)
-    if earlier is not None:
-        return earlier, False
-    with db.session() as session:
-        slot = _own_slot(session, user, slot_id)
-        if slot.state != SlotState.LOCKED.value:
-            raise Conflict(f"slot {slot_id} is {slot.state}: submitted already")
-        done = session.execute(
-            update(Slot)
-            .where(Slot.id == slot_id, Slot.version == slot.version, Slot.annotator_id == user.id)
-            .values(state=SlotState.DONE.value, locked_until=None, version=Slot.version + 1)
-            .execution_options(synchronize_session=False)
-        )
-        if done.rowcount != 1:
-            raise Conflict(f"slot {slot_id} changed hands; claim a new task")
-        task = _locked_task(session, slot.task_id)
-        annotation = Annotation(
-            submission_id=submission_id,
-            slot_id=slot_id,
-            task_id=task.id,
-            annotator_id=user.id,
-            agent_a=labels.pair[0],
-            agent_b=labels.pair[1],
-            lead_time_ms=lead_time_ms,
-            step_times_ms=step_times_ms,
-            submitted_at=utcnow(),
-            choices=_choices(labels, task.suggestions),
-        )
-        session.add(annotation)
-        session.flush()
-        settle(session, task)
-        return annotation.id, True
 
 
 def _locked_task(session: Session, task_id: int) -> Task:
