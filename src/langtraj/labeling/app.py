@@ -29,6 +29,7 @@ from langtraj.labeling.export import export_accepted
 from langtraj.labeling.media import MediaConfig, agent_positions, window_video
 from langtraj.labeling.models import Role
 from langtraj.labeling.protocol import parse_labels
+from langtraj.scenario.model import Scenario
 
 COOKIE = "langtraj_session"
 CSRF_HEADER = "X-CSRF-Token"
@@ -69,7 +70,8 @@ class State:
     def records(self) -> dict[str, WindowRecord]:
         return {r.scenario_id: r for _, recs in iter_records(self.config.dataset) for r in recs}
 
-    def scene(self, scenario_id: str):  # type: ignore[no-untyped-def]
+    def scene(self, scenario_id: str) -> Scenario:
+        """The window of a task, read from the dataset's scenario file."""
         record = self.records.get(scenario_id)
         if record is None:
             raise NotFound(f"window {scenario_id!r} is not in the dataset any more")
