@@ -137,7 +137,17 @@ def test_an_annotator_cannot_write_another_annotators_labels(server) -> None:  #
     [
         (labels_body(subtype_b="yielding/on_the_moon"), 422, "not a subtype of the InterDrive taxonomy"),
         (labels_body(subtype_b="made_up"), 422, "not a subtype"),
-        ({**labels_body(), "pair": [7, 99]}, 422, "agent 99 is not in this window"),
+        (
+            {
+                "pair": [7, 99],
+                "choices": [
+                    {"track_id": 7, "other_id": 99, "subtype": "other/unknown"},
+                    {"track_id": 99, "other_id": 7, "subtype": "other/unknown"},
+                ],
+            },
+            422,
+            "agent 99 is not in this window",
+        ),
         ({**labels_body(), "pair": [7, 7]}, 422, "cannot interact with itself"),
         (labels_body(subtype_b="other/undefined"), 422, "needs a description"),
         (labels_body(text="x" * 3000, subtype_b="other/undefined"), 422, ""),

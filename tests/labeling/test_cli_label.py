@@ -36,9 +36,7 @@ def test_users_tasks_progress_and_export(tmp_path: Path, monkeypatch: pytest.Mon
     body = labels_body()
     for n in range(2):
         claim = tasks.claim_next(db, who)
-        tasks.submit(
-            db, who, claim.slot_id, f"cli-sub-{n}", parse_labels(body["pair"], body["choices"], {7, 17}), 5, {}
-        )
+        tasks.submit(db, who, claim.slot_id, f"cli-sub-{n}", parse_labels(body["pair"], body["choices"]), 5, {})
     db.dispose()
     assert run(monkeypatch, "progress", str(dataset)) == 0
     report = json.loads(capsys.readouterr().out)

@@ -46,7 +46,7 @@ def db(request: pytest.FixtureRequest, tmp_path: Path) -> Database:
 
 def labels(a: str = "passing/intersection_with_yielding", b: str = SUGGESTED, text: str = ""):
     body = labels_body(a, b, text)
-    return parse_labels(body["pair"], body["choices"], AGENTS)
+    return parse_labels(body["pair"], body["choices"])
 
 
 def test_migrations_create_exactly_the_models_schema(db: Database) -> None:
@@ -245,3 +245,24 @@ def test_concurrent_last_submits_still_reach_consensus(db: Database, dataset: Pa
     with db.session() as session:
         assert session.scalar(select(func.count()).select_from(Annotation)) == 6
     assert [w["status"] for w in review.agreement(db)["windows"]] == ["accepted (consensus)"] * 3
+
+
+def test_labels_naming_an_agent_outside_the_window_are_refused_and_write_nothing(db: Database, dataset: Path) -> None:
+    tasks.add_tasks(db, dataset, ["win-0"], overlap=2)
+    a, rev = add_user(db, "a"), add_user(db, "rev", Role.REVIEWER)
+    body = {**labels_body(), "pair": [7, 99]}
+    body["choices"][1] = {**body["choices"][1], "track_id": 99}
+    body["choices"][0] = {**body["choices"][0], "other_id": 99}
+    stranger = parse_labels(body["pair"], body["choices"])
+    claim = tasks.claim_next(db, a)
+    with pytest.raises(InputError, match="agent 99 is not in this window"):
+        tasks.submit(db, a, claim.slot_id, "sub-stranger", stranger, 10, {})
+    with db.session() as session:
+        assert session.scalar(select(func.count()).select_from(Annotation)) == 0
+        assert session.get(Slot, claim.slot_id).state == SlotState.LOCKED.value  # still held
+    aid, _ = tasks.submit(db, a, claim.slot_id, "sub-a", labels(), 10, {})
+    with pytest.raises(InputError, match="agent 99"):
+        tasks.edit(db, a, aid, stranger)
+    with pytest.raises(InputError, match="agent 99"):
+        review.accept(db, rev, 1, None, stranger)
+    assert review.agreement(db)["windows"][0]["status"] == "in progress"

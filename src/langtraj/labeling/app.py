@@ -193,10 +193,6 @@ Reviewer = Annotated[Identity, Depends(role(Role.REVIEWER, Role.ADMIN))]
 Admin = Annotated[Identity, Depends(role(Role.ADMIN))]
 
 
-def _task_agents(state: State, task_id: int) -> set[int]:
-    return {a["id"] for a in tasks.task_view(state.db, task_id)["agents"]}
-
-
 def _routes(app: FastAPI, state: State) -> None:
     db, config = state.db, state.config
 
@@ -275,8 +271,7 @@ def _routes(app: FastAPI, state: State) -> None:
 
     @app.post("/api/slots/{slot_id}/submit", status_code=201)
     def submit(slot_id: int, body: SubmitBody, user: User, response: Response) -> dict[str, Any]:
-        task_id = tasks.slot_task(db, slot_id)
-        labels = parse_labels(body.pair, [c.model_dump() for c in body.choices], _task_agents(state, task_id))
+        labels = parse_labels(body.pair, [c.model_dump() for c in body.choices])
         annotation_id, created = tasks.submit(
             db,
             user,
@@ -297,8 +292,7 @@ def _routes(app: FastAPI, state: State) -> None:
 
     @app.put("/api/annotations/{annotation_id}")
     def edit(annotation_id: int, body: LabelsBody, user: User) -> dict[str, str]:
-        task_id = tasks.annotation_task(db, annotation_id)
-        labels = parse_labels(body.pair, [c.model_dump() for c in body.choices], _task_agents(state, task_id))
+        labels = parse_labels(body.pair, [c.model_dump() for c in body.choices])
         tasks.edit(db, user, annotation_id, labels)
         return {"status": "updated"}
 
@@ -323,7 +317,7 @@ def _routes(app: FastAPI, state: State) -> None:
         labels = None
         if body.labels is not None:
             choices = [c.model_dump() for c in body.labels.choices]
-            labels = parse_labels(body.labels.pair, choices, _task_agents(state, task_id))
+            labels = parse_labels(body.labels.pair, choices)
         review.accept(db, reviewer, task_id, body.annotation_id, labels)
         return {"status": "accepted"}
 

@@ -79,6 +79,11 @@ class Task(Base):
 
     slots: Mapped[list[Slot]] = relationship(back_populates="task", order_by="Slot.number")
 
+    @property
+    def agent_ids(self) -> set[int]:
+        """The track ids of the window."""
+        return {int(a["id"]) for a in self.agents}
+
 
 class Slot(Base):
     """One of a task's `overlap` annotator places. Claimed by compare-and-set on `version`, so no two

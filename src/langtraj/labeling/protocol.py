@@ -43,6 +43,12 @@ class PairLabels:
         """What agreement compares: each agent's type and subtype towards the other (not the free text)."""
         return frozenset((c.track_id, c.other_id, c.subtype.id) for c in self.choices)
 
+    def check_window(self, agents: Collection[int]) -> None:
+        """Raise InputError unless both agents of the pair are among the window's `agents`."""
+        for track in self.pair:
+            if track not in agents:
+                raise InputError(f"agent {track} is not in this window", where="pair")
+
     def to_json(self) -> dict[str, Any]:
         return {"pair": list(self.pair), "choices": [c.to_json() for c in self.choices]}
 
@@ -73,16 +79,14 @@ def parse_choice(obj: Mapping[str, Any], where: str) -> AgentChoice:
     return AgentChoice(int(track), int(other), subtype, text)  # type: ignore[arg-type]
 
 
-def parse_labels(pair: Sequence[Any], choices: Sequence[Mapping[str, Any]], agents: Collection[int]) -> PairLabels:
-    """Labels from a submission; anything outside the taxonomy or the window raises InputError naming it."""
+def parse_labels(pair: Sequence[Any], choices: Sequence[Mapping[str, Any]]) -> PairLabels:
+    """Labels from a submission; anything outside the taxonomy or the protocol raises InputError naming it.
+    Whether the agents are in the window is checked where the window is at hand (`PairLabels.check_window`)."""
     if len(pair) != 2 or any(isinstance(t, bool) or not isinstance(t, int) for t in pair):
         raise InputError("must be two track ids", where="pair")
     a, b = int(pair[0]), int(pair[1])
     if a == b:
         raise InputError("an agent cannot interact with itself", where="pair")
-    for track in (a, b):
-        if track not in agents:
-            raise InputError(f"agent {track} is not in this window", where="pair")
     if len(choices) != 2:
         raise InputError("must hold one choice per agent of the pair", where="choices")
     parsed = [parse_choice(c, f"choices[{i}]") for i, c in enumerate(choices)]

@@ -131,7 +131,7 @@ def _status(task: Task, accepted: Accepted | None) -> str:
 
 def _accepted_labels(accepted: Accepted) -> PairLabels:
     pair = accepted.labels["pair"]
-    return parse_labels(pair, accepted.labels["choices"], set(pair))
+    return parse_labels(pair, accepted.labels["choices"])
 
 
 def queue(db: Database) -> list[dict[str, Any]]:
@@ -171,6 +171,7 @@ def accept(
                 raise NotFound(f"no annotation {annotation_id} of task {task_id}")
             labels = labels_of(annotation)
         assert labels is not None
+        labels.check_window(task.agent_ids)
         row = session.get(Accepted, task_id) or Accepted(task_id=task_id)
         row.method, row.reviewer_id, row.annotation_id = "review", reviewer.id, annotation_id
         row.labels, row.accepted_at = labels.to_json(), utcnow()

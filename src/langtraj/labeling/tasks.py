@@ -255,6 +255,7 @@ def submit(
             if done.rowcount != 1:
                 raise Conflict(f"slot {slot_id} changed hands; claim a new task")
             task = _locked_task(session, slot.task_id)
+            labels.check_window(task.agent_ids)  # refused: the transaction rolls back, the slot stays held
             annotation = Annotation(
                 submission_id=submission_id,
                 slot_id=slot_id,
@@ -307,6 +308,7 @@ def edit(db: Database, user: Identity, annotation_id: int, labels: PairLabels) -
         if session.get(Accepted, annotation.task_id) is not None:
             raise Conflict(f"task {annotation.task_id} is accepted; its labels are final")
         task = _locked_task(session, annotation.task_id)
+        labels.check_window(task.agent_ids)
         annotation.agent_a, annotation.agent_b = labels.pair
         annotation.choices = _choices(labels, task.suggestions)
         annotation.updated_at = utcnow()
@@ -315,24 +317,6 @@ def edit(db: Database, user: Identity, annotation_id: int, labels: PairLabels) -
 
 
 # ---------------------------------------------------------------- reading
-
-
-def slot_task(db: Database, slot_id: int) -> int:
-    """The task a slot belongs to."""
-    with db.session() as session:
-        slot = session.get(Slot, slot_id)
-        if slot is None:
-            raise NotFound(f"no slot {slot_id}")
-        return slot.task_id
-
-
-def annotation_task(db: Database, annotation_id: int) -> int:
-    """The task an annotation belongs to."""
-    with db.session() as session:
-        annotation = session.get(Annotation, annotation_id)
-        if annotation is None:
-            raise NotFound(f"no annotation {annotation_id}")
-        return annotation.task_id
 
 
 def task_view(db: Database, task_id: int) -> dict[str, Any]:
