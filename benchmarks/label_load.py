@@ -342,9 +342,15 @@ def labels_for(task: dict[str, Any], rng: random.Random) -> tuple[tuple[int, int
 
 
 async def login(load: Load, client: httpx.AsyncClient, name: str) -> dict[str, str]:
+    """Log in, count this client as ready (the last one to log in releases the start), and wait for the start;
+    returns the CSRF header of every write."""
     r, _ = await load.call(client, "/api/login", json={"name": name, "password": PASSWORD})
     if r.status_code != 200:
         raise RuntimeError(f"login of {name} failed: {r.status_code} {r.text}")
+    load.ready += 1
+    if load.ready == load.annotators + len(load.ghosts):
+        load.logged_in.set()
+    await load.go.wait()
     return {"X-CSRF-Token": r.json()["csrf"]}
 
 
@@ -377,10 +383,6 @@ async def labeling(load: Load, name: str, seed: int) -> None:
     rng = random.Random(seed)
     async with httpx.AsyncClient(base_url=load.base, timeout=REQUEST_TIMEOUT) as client:
         headers = await login(load, client, name)
-        load.ready += 1
-        if load.ready == load.annotators + len(load.ghosts):
-            load.logged_in.set()
-        await load.go.wait()
         number = 0
         while not load.stopping():
             body = await claim(load, client, name, headers)
@@ -444,10 +446,6 @@ async def ghost(load: Load, name: str, claim_at: float) -> None:
     back to the queue."""
     async with httpx.AsyncClient(base_url=load.base, timeout=REQUEST_TIMEOUT) as client:
         headers = await login(load, client, name)
-        load.ready += 1
-        if load.ready == load.annotators + len(load.ghosts):
-            load.logged_in.set()
-        await load.go.wait()
         await sleep_until(load.t0 + claim_at)
         body = await claim(load, client, name, headers)
         if body is None or body["task"] is None:
