@@ -26,10 +26,10 @@ from langtraj.guidance.base import (
     in_window,
     window,
 )
+from langtraj.guidance.disks import DiskLayout, box_gap, window_boxes, window_steps
 from langtraj.guidance.geometry import CHUNK_ELEMENTS, offset_to_segments
 from langtraj.guidance.scene import GuidanceScene
 
-_WINDOW = 8  # steps per window of NoCollisionCost's coarse search
 _EPS = 1e-6  # inside square roots: keeps distances differentiable at 0
 
 
@@ -125,63 +125,43 @@ class NoCollisionCost(GuidanceCost):
         if not pairs.any():
             return _zero(states)
         involved = int((steered | others).sum())
-        size = scene.agent_size.to(states)
-        radius = (size[:, 1] / 2).clamp(min=1e-3)
-        reach = (size[:, 0] / 2 - radius).clamp(min=0.0)  # farthest disk centre from the agent's centre
-        offsets = torch.linspace(-1.0, 1.0, self.num_disks, device=states.device) * reach[:, None]
-        if self.num_disks == 1:
-            offsets = torch.zeros_like(offsets)
+        layout = DiskLayout.of(scene, self.num_disks, states)
         # J_pair is symmetric: each unordered pair is computed once and counted as often as it is asked for.
         unordered = (pairs | pairs.T).triu(diagonal=1)
         first, second = unordered.nonzero(as_tuple=True)  # Q pairs
         multiplicity = (pairs[first, second].to(states) + pairs[second, first].to(states))[None, :]
         num_pairs = first.shape[0]
-        limit = reach[first] + radius[first] + reach[second] + radius[second] + self.buffer
+        limit = layout.limit(first, second, self.buffer)
 
-        # Candidates (sample, pair, step) whose centres are close enough for disks to overlap, found
-        # without autograd in chunks of pairs: first the windows of `_WINDOW` steps in which the two
-        # paths' boxes come that close (most pairs of a large scene never do), then their steps. Only
-        # the candidates get disk distances (with autograd); the others cost nothing.
+        # Candidates (sample, pair, step) whose disks can overlap, found without autograd in chunks of
+        # pairs: first the windows of steps in which the two paths' boxes come close enough (most pairs of
+        # a large scene never do), then their steps at which the disks can overlap
+        # (`DiskLayout.may_overlap`). Only the candidates get disk distances (with autograd); the others
+        # cost nothing.
         xy = states[..., :2].detach()
-        windows = -(-num_steps // _WINDOW)
-        padded = torch.cat([xy, xy[:, :, -1:].expand(-1, -1, windows * _WINDOW - num_steps, -1)], dim=2)
-        boxes = padded.view(num_samples, num_agents, windows, _WINDOW, 2)
-        low, high = boxes.amin(dim=3), boxes.amax(dim=3)  # [S, A, W, 2]
-        offsets_t = torch.arange(_WINDOW, device=states.device)
+        low, high = window_boxes(xy)  # [S, A, W, 2]
         found = []
-        chunk = max(1, CHUNK_ELEMENTS // (num_samples * windows * 2))
+        chunk = max(1, CHUNK_ELEMENTS // (num_samples * low.shape[2] * 2))
         with torch.no_grad():
             for lo in range(0, num_pairs, chunk):
                 i, j = first[lo : lo + chunk], second[lo : lo + chunk]
-                gap = torch.maximum(low[:, j] - high[:, i], low[:, i] - high[:, j]).clamp(min=0.0)
-                s, q, w = (torch.linalg.vector_norm(gap, dim=-1) <= limit[lo : lo + chunk, None]).nonzero(as_tuple=True)
-                t = (w[:, None] * _WINDOW + offsets_t).flatten()
-                s, q = s.repeat_interleave(_WINDOW), q.repeat_interleave(_WINDOW) + lo
-                inside = t < num_steps
-                s, q, t = s[inside], q[inside], t[inside]
-                centre = torch.linalg.vector_norm(xy[s, first[q], t] - xy[s, second[q], t], dim=-1)
-                close = centre <= limit[q]
+                gap = box_gap(low[:, i], high[:, i], low[:, j], high[:, j])
+                s, q, w = (gap <= limit[lo : lo + chunk, None]).nonzero(as_tuple=True)
+                t, s, q = window_steps(w, num_steps, s, q + lo)
+                close = layout.may_overlap(
+                    states[s, first[q], t], states[s, second[q], t], first[q], second[q], self.buffer
+                )
                 found.append((s[close], q[close], t[close]))
         s, q, t = (torch.cat(parts) for parts in zip(*found, strict=True))
         if s.numel() == 0:
             return _zero(states)
         i, j = first[q], second[q]
-        disks_i = _disks(states[s, i, t], offsets[i])
-        disks_j = _disks(states[s, j, t], offsets[j])
-        gap2 = ((disks_i[:, :, None] - disks_j[:, None]) ** 2).sum(-1).flatten(1)
-        distance = torch.sqrt(gap2.min(-1).values + _EPS)
-        penalty = torch.relu(1.0 - distance / (radius[i] + radius[j] + self.buffer))
+        penalty = layout.penalty(states[s, i, t], states[s, j, t], i, j, self.buffer)
         row = s * num_pairs + q
         total = states.new_zeros(num_samples * num_pairs).index_add(0, row, penalty)
         overlapping = states.new_zeros(num_samples * num_pairs).index_add(0, row, (penalty.detach() > 0).to(states))
         per_pair = (total / overlapping.clamp(min=1.0)).view(num_samples, num_pairs)
         return (per_pair * multiplicity).sum(-1) / involved**2
-
-
-def _disks(state: Tensor, offsets: Tensor) -> Tensor:
-    """Disk centres [K, D, 2] of agents at `state` [K, 4] with offsets [K, D] along their heading."""
-    heading = torch.stack([torch.cos(state[:, 2]), torch.sin(state[:, 2])], dim=-1)
-    return state[:, None, :2] + offsets[..., None] * heading[:, None, :]
 
 
 @GUIDANCE.register
@@ -250,7 +230,10 @@ class OnRoadCost(GuidanceCost):
     edges keep the road on their left, as in WOMD and WOSAC) and negative on its left; the cost is
     relu(signed + margin)^2, averaged over time and summed over the agents (None: all valid). A point's
     side follows its nearest segment only, so near a sharp corner of an edge the sign may be wrong over a
-    small area. A scene without road edges costs nothing.
+    small area. A scene without road edges costs nothing. A scene with a road field
+    (`GuidanceScene.with_road_field`, what simulations use) samples the signed distance from it instead,
+    exact where the nearest edge is straight and within centimetres elsewhere (`guidance.road_field`);
+    points outside the field are searched exactly.
     """
 
     name = "on_road"
@@ -270,16 +253,27 @@ class OnRoadCost(GuidanceCost):
         out = states.new_zeros(states.shape[:2])
         if scene.road_edges.shape[0] == 0 or not steered.any():
             return out + _zero(states)[:, None]
-        edges = scene.road_edges.to(states)
         xy = states[:, steered, :, :2]
-        offset, index = offset_to_segments(xy, edges[:, 0], edges[:, 1])
-        start, end = edges[index, 0], edges[index, 1]
-        direction, relative = end - start, xy.detach() - start
-        left = direction[..., 0] * relative[..., 1] - direction[..., 1] * relative[..., 0] > 0
-        distance = torch.sqrt((offset**2).sum(-1) + _EPS)
-        signed = torch.where(left, -distance, distance)
+        edges = scene.road_edges.to(states)
+        if scene.road_field is None:
+            signed = signed_edge_distance(xy, edges)
+        else:
+            signed, inside = scene.road_field.sample(xy)
+            if not inside.all():
+                signed = signed.masked_scatter(~inside, signed_edge_distance(xy[~inside], edges))
         cost = (torch.relu(signed + self.margin) ** 2).mean(-1)  # [S, steered]
         return out.index_add(1, steered.nonzero()[:, 0], cost)
+
+
+def signed_edge_distance(xy: Tensor, edges: Tensor) -> Tensor:
+    """Signed distance [...] of points `xy` [..., 2] to their nearest road-edge segment (`edges` [E, 2, 2],
+    E > 0), searched exactly: positive on the segment's right (off the road), differentiable in `xy`."""
+    offset, index = offset_to_segments(xy, edges[:, 0], edges[:, 1])
+    start, end = edges[index, 0], edges[index, 1]
+    direction, relative = end - start, xy.detach() - start
+    left = direction[..., 0] * relative[..., 1] - direction[..., 1] * relative[..., 0] > 0
+    distance = torch.sqrt((offset**2).sum(-1) + _EPS)
+    return torch.where(left, -distance, distance)
 
 
 @GUIDANCE.register

@@ -2,7 +2,8 @@
 
 Everything is in one scene frame (the frame of the model's `SceneBatch` row), so costs compare it
 directly with the rolled-out states. Build it from a Scenario (`from_scenario`, the whole map) or from
-one row of a SceneBatch (`from_batch`, the polylines the model sees).
+one row of a SceneBatch (`from_batch`, the polylines the model sees); a scene that many cost calls will
+share (a simulation's) gets its road edges' signed distance field once with `with_road_field`.
 
 See docs/simulation.md.
 """
@@ -18,6 +19,7 @@ from torch import Tensor
 
 from langtraj.errors import InputError
 from langtraj.frames import points_to_frame
+from langtraj.guidance.road_field import RoadField
 from langtraj.model.batch import SceneBatch
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import MapFeatureType, StateField
@@ -30,7 +32,8 @@ class GuidanceScene:
     `road_edges[e]` is one road-edge segment (start, end); edges keep the road on their left (the WOMD
     and WOSAC convention). `lanes[l, p]` are lane-centre polylines padded to a common length,
     `lane_valid` marks real points. `agent_size[a]` is (length, width) of model slot `a`; `agent_valid`
-    is False for padding slots.
+    is False for padding slots. `road_field`, when present, is the signed distance field of
+    `road_edges` (`with_road_field`) that the on-road cost samples instead of searching the segments.
     """
 
     road_edges: Tensor  # float [E, 2, 2]
@@ -38,6 +41,7 @@ class GuidanceScene:
     lane_valid: Tensor  # bool [L, P]
     agent_size: Tensor  # float [A, 2]
     agent_valid: Tensor  # bool [A]
+    road_field: RoadField | None = None
 
     def __post_init__(self) -> None:
         edges, lanes, lane_valid = self.road_edges, self.lanes, self.lane_valid
@@ -59,8 +63,18 @@ class GuidanceScene:
         return self.lanes[:, :-1][keep], self.lanes[:, 1:][keep]
 
     def to(self, device: torch.device | str) -> GuidanceScene:
-        """The scene with every tensor on `device`."""
-        return replace(self, **{f.name: getattr(self, f.name).to(device) for f in fields(self)})
+        """The scene with every tensor (and the road grid) on `device`."""
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        return replace(self, **{name: v.to(device) for name, v in values.items() if v is not None})
+
+    def with_road_field(self, cover: Tensor | None = None, **options: float) -> GuidanceScene:
+        """The scene with the signed distance field of its road edges over them and the points `cover` [N, 2]
+        (`RoadField.build(**options)`), built once so that every on-road cost on it samples the field
+        instead of searching segments; a scene without road edges is returned as it is."""
+        if self.road_edges.shape[0] == 0:
+            return self
+        edges = self.road_edges
+        return replace(self, road_field=RoadField.build(edges[:, 0], edges[:, 1], cover=cover, **options))
 
     @classmethod
     def from_scenario(

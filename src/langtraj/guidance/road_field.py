@@ -1,0 +1,190 @@
+"""The signed distance to the road edge on a grid, built once per simulation, for the on-road cost.
+
+A guided simulation asks for the signed road-edge distance of every candidate agent state at every
+denoising step of every replan: hundreds of thousands of points each time, on a map that never
+changes. Searching the nearest segment for each took most of a guided simulation's time
+(docs/benchmarks.md, 'Guided simulation'). The field stores the signed distance at the nodes of a
+regular grid over the map, computed exactly as `OnRoadCost` defines it (distance to the nearest
+road-edge segment, negative on its left); a point's value is the bilinear interpolation of its four
+surrounding nodes, differentiable in the point. Where the nearest edge is a straight line the signed
+distance is linear and the interpolation is exact; near an edge's vertices it is within a few
+centimetres at the default spacing (`tests/guidance/test_road_field.py` measures both). Points
+outside the grid are not interpolated: the caller computes them exactly.
+
+Node values are exact distances to candidate segments: those of the points sampled densely along the
+segments that lie nearest to the node (scipy's k-d tree within a few metres of an edge, its Euclidean
+distance transform of the rasterized samples farther out) and their neighbours along their polylines.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+import torch
+from scipy import ndimage
+from scipy.spatial import cKDTree
+from torch import Tensor
+
+from langtraj.errors import InputError
+
+RESOLUTION = 0.5
+"""Grid spacing in metres."""
+MARGIN = 30.0
+"""Metres of grid around the segments' bounding box; points farther out are left to the exact search."""
+MAX_NODES = 4_000_000
+"""Largest grid (nodes, 16 MB of float32); a larger map gets a coarser spacing."""
+_SAMPLE = 0.1  # metres between the samples along each segment that the k-d tree indexes
+_NEAREST = 2  # nearest samples whose segments (and their polyline neighbours) a node within _BAND compares
+_BAND = 4.0  # metres from an edge within which nodes search their nearest samples exactly
+_CHUNK = 1 << 18  # nodes per chunk of the exact refinement
+
+
+@dataclass(frozen=True, eq=False)
+class RoadField:
+    """Signed road-edge distance `values[iy, ix]` at the node `origin + (ix, iy) * resolution` (m;
+    positive off the road, i.e. on an edge's right)."""
+
+    origin: Tensor  # float64 [2]: x, y of node (0, 0)
+    resolution: float
+    values: Tensor  # float32 [H, W]
+
+    @classmethod
+    def build(
+        cls,
+        start: Tensor,
+        end: Tensor,
+        *,
+        cover: Tensor | None = None,
+        resolution: float = RESOLUTION,
+        margin: float = MARGIN,
+        max_nodes: int = MAX_NODES,
+    ) -> RoadField:
+        """The field of the road-edge segments start, end [K, 2] (K > 0; edges keep the road on their left)
+        over their bounding box and the points `cover` [N, 2] (the agents, say), `margin` m around."""
+        if start.ndim != 2 or start.shape[-1] != 2 or start.shape != end.shape or start.shape[0] == 0:
+            raise InputError(f"segments must be two non-empty [K, 2] tensors, got {tuple(start.shape)}, {end.shape}")
+        if not (resolution > 0 and margin >= 0 and max_nodes >= 4):
+            raise InputError(
+                f"need resolution > 0, margin >= 0, max_nodes >= 4; got {resolution}, {margin}, {max_nodes}"
+            )
+        a = start.detach().double().cpu().numpy()
+        b = end.detach().double().cpu().numpy()
+        if not (np.isfinite(a).all() and np.isfinite(b).all()):
+            raise InputError("road-edge segment end points must be finite")
+        corners = [a, b]
+        if cover is not None and cover.numel():
+            extra = cover.detach().double().cpu().numpy().reshape(-1, 2)
+            corners.append(extra[np.isfinite(extra).all(-1)])
+        low = np.min([c.min(0) for c in corners if len(c)], axis=0) - margin
+        extent = np.max([c.max(0) for c in corners if len(c)], axis=0) + margin - low
+        spacing = max(float(resolution), float(np.sqrt(extent[0] * extent[1] / max_nodes)))
+        while np.prod(_grid_shape(extent, spacing)) > max_nodes:
+            spacing *= 1.05
+        height, width = _grid_shape(extent, spacing)
+
+        # Samples every _SAMPLE m along each segment (both ends included), each knowing its segment.
+        length = np.linalg.norm(b - a, axis=-1)
+        count = np.ceil(length / _SAMPLE).astype(np.int64) + 1
+        owner = np.repeat(np.arange(len(a)), count)
+        first = np.cumsum(count) - count
+        fraction = (np.arange(owner.size) - first[owner]) / np.maximum(count[owner] - 1, 1)
+        samples = a[owner] + fraction[:, None] * (b - a)[owner]
+        # Every node's nearest rasterized sample (exact Euclidean distance transform; within about a
+        # spacing of its nearest edge point) ...
+        cell = np.rint((samples - low) / spacing).astype(np.int64)
+        raster = np.full((height, width), -1, np.int64)
+        raster[cell[:, 1], cell[:, 0]] = np.arange(len(samples))
+        _, (iy, ix) = ndimage.distance_transform_edt(raster < 0, return_indices=True)
+        nearest = raster[iy, ix].reshape(-1, 1)
+        # ... and, for the nodes within _BAND m of an edge, where the cost is decided, the exactly nearest
+        # samples (a k-d tree search, quick at short range).
+        tree = cKDTree(samples)
+        k = min(_NEAREST, len(samples))
+        neighbours = polyline_neighbours(a, b)
+        values = np.empty(height * width, np.float32)
+        for lo in range(0, values.size, _CHUNK):
+            node = np.arange(lo, min(lo + _CHUNK, values.size))
+            xy = np.stack([node % width, node // width], -1) * spacing + low
+            _, close = tree.query(xy, k=k, distance_upper_bound=_BAND)
+            close = close.reshape(len(node), k)
+            near = close[:, 0] < len(samples)
+            far = ~near
+            values[node[far]] = signed_distance(xy[far], a, b, neighbours[owner[nearest[node[far], 0]]])
+            found = np.concatenate([nearest[node[near]], close[near]], -1)
+            found = np.where(found < len(samples), found, found[:, :1])  # a missing second sample: the first
+            options = neighbours[owner[found]].reshape(len(found), 3 * found.shape[1])  # + polyline neighbours
+            values[node[near]] = signed_distance(xy[near], a, b, options)
+        return cls(
+            origin=torch.as_tensor(low, dtype=torch.float64),
+            resolution=spacing,
+            values=torch.as_tensor(values.reshape(height, width)),
+        )
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(H, W): nodes along y and along x."""
+        return (self.values.shape[0], self.values.shape[1])
+
+    def sample(self, points: Tensor) -> tuple[Tensor, Tensor]:
+        """Bilinear signed distance at `points` [..., 2] (differentiable in them; 0 outside the grid), and
+        bool [...]: which points lie inside the grid."""
+        height, width = self.shape
+        local = (points - self.origin.to(points)) / self.resolution
+        corner = torch.floor(local.detach())
+        inside = (
+            torch.isfinite(local.detach()).all(-1)
+            & (corner[..., 0] >= 0)
+            & (corner[..., 1] >= 0)
+            & (corner[..., 0] <= width - 2)
+            & (corner[..., 1] <= height - 2)
+        )
+        corner = torch.where(inside[..., None], corner, torch.zeros_like(corner))
+        t = torch.where(inside[..., None], local - corner, torch.zeros_like(local))  # in [0, 1]
+        x, y = corner[..., 0].long(), corner[..., 1].long()
+        flat = self.values.to(points.dtype).reshape(-1)
+        base = y * width + x
+        v00, v01 = flat[base], flat[base + 1]
+        v10, v11 = flat[base + width], flat[base + width + 1]
+        tx, ty = t[..., 0], t[..., 1]
+        value = (v00 * (1 - tx) + v01 * tx) * (1 - ty) + (v10 * (1 - tx) + v11 * tx) * ty
+        return torch.where(inside, value, torch.zeros_like(value)), inside
+
+    def to(self, device: torch.device | str) -> RoadField:
+        """The field with its tensors on `device`."""
+        return replace(
+            self, **{f.name: getattr(self, f.name).to(device) for f in fields(self) if f.name != "resolution"}
+        )
+
+
+def _grid_shape(extent: np.ndarray, spacing: float) -> tuple[int, int]:
+    """(H, W): the nodes `spacing` apart that span `extent` (x, y metres)."""
+    return int(np.ceil(extent[1] / spacing)) + 1, int(np.ceil(extent[0] / spacing)) + 1
+
+
+def polyline_neighbours(start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """[K, 3]: each segment, the one before it and the one after it where consecutive segments join (the
+    end of one is the start of the next, as `GuidanceScene` lays polylines out), else itself."""
+    index = np.arange(len(start))
+    joined = np.zeros(len(start), bool)
+    joined[:-1] = np.all(end[:-1] == start[1:], axis=-1)  # segment s continues into s + 1
+    before = np.where(np.concatenate([[False], joined[:-1]]), index - 1, index)
+    after = np.where(joined, index + 1, index)
+    return np.stack([index, before, after], -1)
+
+
+def signed_distance(points: np.ndarray, start: np.ndarray, end: np.ndarray, options: np.ndarray) -> np.ndarray:
+    """Signed distance of points [n, 2] to the nearest of their candidate segments `options` (long [n, c]
+    into start, end [K, 2]): negative on the segment's left (the road side), as `OnRoadCost`."""
+    if len(points) == 0:
+        return np.zeros(0)
+    a, b = start[options], end[options]  # [n, c, 2]
+    direction = b - a
+    relative = points[:, None] - a
+    along = np.clip((relative * direction).sum(-1) / np.maximum((direction**2).sum(-1), 1e-12), 0.0, 1.0)
+    distance = np.linalg.norm(relative - along[..., None] * direction, axis=-1)
+    pick = distance.argmin(-1)
+    rows = np.arange(len(points))
+    d, rel = direction[rows, pick], relative[rows, pick]
+    left = d[:, 0] * rel[:, 1] - d[:, 1] * rel[:, 0] > 0
+    return np.where(left, -distance[rows, pick], distance[rows, pick])
