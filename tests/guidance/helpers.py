@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import torch
@@ -60,3 +61,35 @@ def displacement_rollout(start: Tensor) -> Callable[[Tensor], Tensor]:
         return torch.cat([xy, torch.zeros_like(x[..., :1]), x[..., :1]], dim=-1)
 
     return rollout
+
+
+def crowd(
+    num_agents: int, candidates: int, rollouts: int, steps: int, seed: int, road_edges: Tensor | None = None
+) -> tuple[Tensor, GuidanceScene]:
+    """Candidates [M, R, A, T, 4] of agents of mixed sizes crowded into 40 x 20 m, turning and jittering
+    (many near misses and overlaps), and their scene with `road_edges` [E, 2, 2] (the last agent is
+    padding)."""
+    g = torch.Generator().manual_seed(seed)
+    start = torch.rand(num_agents, 2, generator=g) * torch.tensor([40.0, 20.0])
+    heading = torch.rand(candidates, rollouts, num_agents, 1, generator=g) * 2 * math.pi
+    turn = torch.randn(candidates, rollouts, num_agents, 1, generator=g) * 0.05
+    headings = heading + turn * torch.arange(steps)
+    speed = torch.rand(candidates, rollouts, num_agents, 1, generator=g) * 3.0
+    step = torch.stack([torch.cos(headings), torch.sin(headings)], -1) * speed[..., None] * 0.1
+    xy = (
+        start[None, None, :, None]
+        + step.cumsum(3)
+        + torch.randn(candidates, rollouts, num_agents, steps, 2, generator=g) * 0.05
+    )
+    states = torch.cat([xy, headings[..., None], speed[..., None].expand(-1, -1, -1, steps, 1)], -1)
+    valid = torch.ones(num_agents, dtype=torch.bool)
+    valid[-1] = False
+    size = torch.rand(num_agents, 2, generator=g) * torch.tensor([4.0, 1.2]) + torch.tensor([0.6, 0.6])
+    scene = GuidanceScene(
+        road_edges=torch.zeros(0, 2, 2) if road_edges is None else road_edges,
+        lanes=torch.zeros(0, 2, 2),
+        lane_valid=torch.zeros(0, 2, dtype=torch.bool),
+        agent_size=size,
+        agent_valid=valid,
+    )
+    return states, scene

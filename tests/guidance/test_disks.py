@@ -1,0 +1,43 @@
+"""The disk geometry behind the no-collision cost: the pruning test never drops an overlap, and the
+table of every two agents' candidates holds what `NoCollisionCost` gives each combination."""
+
+from __future__ import annotations
+
+import torch
+
+from langtraj.guidance import NoCollisionCost
+from langtraj.guidance.disks import DiskLayout, candidate_overlaps
+
+from .helpers import crowd
+
+
+def test_may_overlap_never_drops_a_pair_whose_disks_overlap_and_drops_most_that_do_not():
+    states, scene = crowd(30, 1, 1, 40, seed=0)
+    layout = DiskLayout.of(scene, 5, states)
+    i, j = torch.triu(torch.ones(30, 30, dtype=torch.bool), diagonal=1).nonzero(as_tuple=True)
+    t = torch.arange(40)
+    i, j, t = i.repeat_interleave(40), j.repeat_interleave(40), t.repeat(len(i))
+    state_i, state_j = states[0, 0, i, t], states[0, 0, j, t]
+    penalty = layout.penalty(state_i, state_j, i, j, 0.0)
+    kept = layout.may_overlap(state_i, state_j, i, j, 0.0)
+    assert (penalty > 0).sum() > 100
+    assert kept[penalty > 0].all()
+    assert (~kept[penalty == 0]).float().mean() > 0.9
+
+
+def test_the_candidate_table_holds_each_combinations_no_collision_pair_cost():
+    m, r, a = 3, 2, 12
+    states, scene = crowd(a, m, r, 30, seed=1)
+    overlaps = candidate_overlaps(states, scene)
+    assert overlaps.table.shape == (r, len(overlaps.first), m, m) and (overlaps.table > 0).sum() > 10
+    listed = {(int(i), int(j)): q for q, (i, j) in enumerate(zip(overlaps.first, overlaps.second, strict=True))}
+    for i in range(a - 1):  # the padding agent is never listed
+        for j in range(i + 1, a - 1):
+            for mi in range(m):
+                for mj in range(m):
+                    joint = states[mi].clone()
+                    joint[:, j] = states[mj, :, j]
+                    # One ordered pair among N = 2 agents: the pair's cost divided by 4.
+                    expected = NoCollisionCost(i, others=[j])(joint, scene) * 4
+                    got = overlaps.table[:, listed[(i, j)], mi, mj] if (i, j) in listed else torch.zeros(r)
+                    assert torch.allclose(got, expected, atol=1e-6), (i, j, mi, mj)
