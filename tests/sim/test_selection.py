@@ -66,3 +66,35 @@ def test_per_agent_keeps_the_joint_choice_when_nothing_is_gained():
     joint = SELECTORS.create("min_collision").select(states, _scene(), ())
     choice = SELECTORS.create("per_agent").select(states, _scene(), ())
     assert choice.tolist() == [[int(joint[0])] * 2]
+
+
+def _per_agent_by_trials(states: torch.Tensor, scene: GuidanceScene, weight: float) -> torch.Tensor:
+    """The per-agent selection as first written: each agent's step scores every candidate by the on-road
+    and no-collision costs of a whole assembled trial scene (the reference the table-based one must meet)."""
+    from langtraj.guidance import NoCollisionCost, OnRoadCost
+
+    m, r, a = states.shape[:3]
+    joint = NoCollisionCost()(states.reshape(m * r, *states.shape[2:]), scene).reshape(m, r).argmin(0)
+    choice = joint[:, None].expand(r, a).clone()
+    road = OnRoadCost().per_agent(states.reshape(m * r, *states.shape[2:]), scene).reshape(m, r, a)
+    agents = scene.agent_valid.nonzero()[:, 0].tolist()
+    for agent in agents:
+        trial = chosen_states(states, choice)[None].repeat(m, 1, 1, 1, 1)
+        trial[:, :, agent] = states[:, :, agent]
+        overlap = NoCollisionCost(agent)(trial.reshape(m * r, *states.shape[2:]), scene).reshape(m, r)
+        cost = road[:, :, agent] + weight * overlap * len(agents) ** 2
+        cost = cost + 1e-6 * (torch.arange(m)[:, None] != choice[None, :, agent])
+        choice[:, agent] = cost.argmin(dim=0)
+    return choice
+
+
+def test_per_agent_chooses_as_scoring_every_assembled_trial_scene_would():
+    from guidance.helpers import crowd
+
+    edges = torch.tensor([[[-10.0, 2.0], [50.0, 2.0]], [[50.0, 18.0], [-10.0, 18.0]]])  # a road across the crowd
+    for seed in range(3):
+        states, scene = crowd(16, 4, 3, 30, seed=seed, road_edges=edges)
+        selector = SELECTORS.create("per_agent")
+        expected = _per_agent_by_trials(states, scene, selector.collision_weight)
+        assert torch.equal(selector.select(states, scene, ()), expected)
+        assert torch.equal(selector.select(states, scene.with_road_field(), ()), expected)

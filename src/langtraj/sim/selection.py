@@ -17,6 +17,7 @@ import torch
 from torch import Tensor
 
 from langtraj.guidance import GuidanceScene, GuidanceTerm, NoCollisionCost, OnRoadCost
+from langtraj.guidance.disks import candidate_overlaps
 from langtraj.registry import Registry
 
 
@@ -25,6 +26,8 @@ class CandidateSelector(ABC):
     the planning horizon)."""
 
     name: ClassVar[str]
+    uses_road: ClassVar[bool] = False
+    """Whether it compares candidates by the on-road cost (a simulation then gives its scene a road field)."""
 
     @abstractmethod
     def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
@@ -67,6 +70,7 @@ class MinCollisionOffroad(CandidateSelector):
     (squared distance of the driven agents' centres past the road edge, 1 m margin, `OnRoadCost`)."""
 
     name = "min_collision_offroad"
+    uses_road = True
 
     def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
         with torch.no_grad():
@@ -80,26 +84,32 @@ class PerAgent(CandidateSelector):
     in slot order (most important first) takes the candidate with the least on-road cost (`OnRoadCost`,
     its own share) plus `collision_weight` x its disk overlap with the others as assembled so far; ties
     keep the joint choice. Agents no longer share one joint sample, but the overlap term keeps the
-    assembled scene apart (docs/simulation.md, 'Candidate selection')."""
+    assembled scene apart (docs/simulation.md, 'Candidate selection').
+
+    The overlaps of every two agents' candidates are tabulated once (`guidance.disks.candidate_overlaps`,
+    the pair terms of `NoCollisionCost`), so both the joint choice and each agent's step read the table."""
 
     name = "per_agent"
+    uses_road = True
     collision_weight = 10.0  # an agent's summed pair overlaps (each in [0, 1]) against m^2 of road cost
 
     def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
         m, r, a = states.shape[:3]
         with torch.no_grad():
-            choice = MinCollision().select(states, scene, terms)[:, None].expand(r, a).clone()
-            flat = states.reshape(m * r, *states.shape[2:])
-            road = OnRoadCost().per_agent(flat, scene).reshape(m, r, a)
-            agents = scene.agent_valid.nonzero()[:, 0].tolist()
-            involved = len(agents) ** 2  # NoCollisionCost's normaliser: undone to sum the pair overlaps
-            candidates = torch.arange(m, device=states.device)[:, None]
-            for agent in agents:
-                trial = chosen_states(states, choice)[None].repeat(m, 1, 1, 1, 1)  # [M, R, A, T, 4]
-                trial[:, :, agent] = states[:, :, agent]
-                overlap = _per_candidate(NoCollisionCost(agent), trial, scene) * involved
-                cost = road[:, :, agent] + self.collision_weight * overlap
-                cost = cost + 1e-6 * (candidates != choice[None, :, agent])  # ties keep the current choice
+            overlaps = candidate_overlaps(states, scene)
+            first, second, table = overlaps.first, overlaps.second, overlaps.table  # table [R, Q, M, M]
+            # The joint choice: NoCollisionCost of each joint candidate is its pairs' diagonal entries.
+            joint = table.diagonal(dim1=2, dim2=3).sum(1)  # [R, M]
+            choice = joint.argmin(dim=1)[:, None].expand(r, a).clone()
+            road = OnRoadCost().per_agent(states.reshape(m * r, *states.shape[2:]), scene).reshape(m, r, a)
+            rows = torch.arange(r, device=states.device)
+            for agent in scene.agent_valid.nonzero()[:, 0].tolist():
+                as_first, as_second = (first == agent).nonzero()[:, 0], (second == agent).nonzero()[:, 0]
+                # This agent's overlap per own candidate [R, M] with the others at their current choice.
+                overlap = table[rows[:, None], as_first[None], :, choice[:, second[as_first]]].sum(1)
+                overlap = overlap + table[rows[:, None], as_second[None], choice[:, first[as_second]], :].sum(1)
+                cost = road[:, :, agent] + self.collision_weight * overlap.T
+                cost = cost + 1e-6 * (torch.arange(m, device=states.device)[:, None] != choice[None, :, agent])
                 choice[:, agent] = cost.argmin(dim=0)
             return choice
 
