@@ -145,3 +145,35 @@ def test_guided_sampling_with_the_model():
     plain, _ = model.sample(batch, num_samples, steps=4, generator=torch.Generator().manual_seed(1))
     guided, _ = model.sample(batch, num_samples, steps=4, guidance=guide, generator=torch.Generator().manual_seed(1))
     assert (goal(guided[:, 0], scene) < goal(plain[:, 0], scene)).all()
+
+
+def test_one_backward_pass_gives_each_term_its_own_agents_gradient():
+    # Reference: each term's gradient on its own, masked to the agents it steers, summed.
+    start = torch.tensor([[0.0, 0.0], [0.0, 1.0], [0.0, 2.5]])
+    rollout = displacement_rollout(start)
+    scene = make_scene(3)
+    terms = [
+        GuidanceTerm(NoCollisionCost([0, 1], others=[0, 1, 2]), 3.0),
+        GuidanceTerm(GoalCost(2, (5.0, 5.0)), 0.5),
+        GuidanceTerm(CollisionCost(adversary=1, target=2), 0.2),
+    ]
+    x0 = _x0()
+    x = x0.clone().requires_grad_(True)
+    states = rollout(x)
+    expected = torch.zeros_like(x0)
+    for term in terms:
+        (g,) = torch.autograd.grad(term.cost(states, scene).sum() * term.weight, x, retain_graph=True)
+        expected += g * term.cost.agents(3)[None, :, None, None]
+    guide = reconstruction_guidance(terms, scene, rollout, num_steps=100, scale=1.0)
+    assert torch.allclose(x0 - guide(x0, 50, x0), expected, atol=1e-6)
+
+
+def test_final_steps_are_the_last_timesteps_the_sampler_visits():
+    from langtraj.guidance.base import FinalSteps
+
+    k = torch.tensor([99, 79, 59, 39, 19])
+    assert FinalSteps(2, 5)(k, 100).tolist() == [False, False, False, True, True]
+    assert FinalSteps(5, 5)(k, 100).all()
+    assert FinalSteps(1, 10)(torch.arange(100), 100).nonzero()[:, 0].tolist() == [9]  # 99, 89, ..., 9
+    with pytest.raises(InputError, match=r"guided steps must be in \[1, 5\], got 6"):
+        FinalSteps(6, 5)

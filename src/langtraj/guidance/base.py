@@ -22,6 +22,7 @@ from torch import Tensor
 
 from langtraj.errors import InputError
 from langtraj.guidance.scene import GuidanceScene
+from langtraj.model.diffusion import timestep_sequence
 from langtraj.registry import Registry
 
 ScheduleFn = Callable[[Tensor, int], Tensor]
@@ -84,6 +85,25 @@ class GuidanceTerm:
         if self.schedule == "late":
             return 2 * k < num_steps
         return torch.ones_like(k, dtype=torch.bool)
+
+
+@dataclass(frozen=True)
+class FinalSteps:
+    """A schedule (`ScheduleFn`) active at the last `count` of the timesteps a sampler visits with
+    `sampler_steps` inference steps (`model.diffusion.timestep_sequence`): guidance where it shapes the
+    sample most directly, at a fraction of its cost (docs/simulation.md, 'Guidance')."""
+
+    count: int
+    sampler_steps: int
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.count <= self.sampler_steps:
+            raise InputError(f"guided steps must be in [1, {self.sampler_steps}], got {self.count}")
+
+    def __call__(self, k: Tensor, num_steps: int) -> Tensor:
+        visited = timestep_sequence(num_steps, num_inference_steps=min(self.sampler_steps, num_steps))
+        chosen = torch.tensor(visited[-self.count :], device=k.device)
+        return torch.isin(k, chosen)
 
 
 # ---------------------------------------------------------------- parameter checks shared by the costs

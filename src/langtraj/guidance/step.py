@@ -33,14 +33,16 @@ def reconstruction_guidance(
 ) -> Guidance:
     """The sampler hook (x0 [S, A, N, 2], k, x_k) -> guided x0 for `terms` on `scene`.
 
-    `rollout` maps network-unit actions [S, A, N, 2] to states [S, A, T, 4] (e.g.
-    `lambda x: model.rollout(batch, x)`); every row is a candidate of `scene`. `num_steps` is K, the
-    number of diffusion steps of the schedule (`model.schedule.num_steps`), which the terms' schedules
-    compare k with; k may be an int or one step per row. Each term's gradient is kept only for the
-    agents it steers (`cost.agents`) that are valid in the scene, and only for rows where its schedule
-    is active. With `max_grad_norm`, each agent's summed gradient (over its N x 2 actions) is scaled
-    down to at most that norm. `iterations` gradient steps of size `scale` are taken, each from a fresh
-    rollout. Gradients are computed even when sampling runs under `torch.no_grad`.
+    `rollout` maps network-unit actions [S, A, N, 2] to states [S, A, T, 4] (e.g. `lambda x:
+    model.rollout(batch, x)`); every row is a candidate of `scene`. `num_steps` is K, the number of
+    diffusion steps of the schedule (`model.schedule.num_steps`), which the terms' schedules compare k
+    with; k may be an int or one step per row. Each term's gradient is kept only for the agents it
+    steers (`cost.agents`) that are valid in the scene (the term sees the other agents' states detached,
+    so `rollout` must map each agent's actions to its own states alone, as the dynamics do), and only
+    for rows where its schedule is active; one backward pass serves every term. With `max_grad_norm`,
+    each agent's summed gradient (over its N x 2 actions) is scaled down to at most that norm.
+    `iterations` gradient steps of size `scale` are taken, each from a fresh rollout. Gradients are
+    computed even when sampling runs under `torch.no_grad`.
     """
     if num_steps < 1:
         raise InputError(f"num_steps must be >= 1, got {num_steps}")
@@ -61,7 +63,7 @@ def reconstruction_guidance(
             on_rows = term.active(steps, num_steps).to(x0.device)
             if on_rows.any() and term.weight > 0:
                 steered = term.cost.agents(agents).to(x0.device) & here.agent_valid
-                active.append((term, on_rows.to(x0.dtype), steered.to(x0.dtype)[None, :, None, None]))
+                active.append((term, on_rows.to(x0.dtype), steered[None, :, None, None]))
         if not active or scale == 0:
             return x0
         x = x0.detach()
@@ -69,14 +71,18 @@ def reconstruction_guidance(
             for _ in range(iterations):
                 x = x.detach().requires_grad_(True)
                 states = rollout(x)
-                grad = torch.zeros_like(x)
+                # One backward pass for all terms: each term sees the states of the agents it does not
+                # steer detached, so its gradient reaches only its own agents' actions.
+                total = None
                 for term, on_rows, steered in active:
-                    cost = (term.cost(states, here) * on_rows).sum() * term.weight
-                    if not cost.requires_grad:  # a cost that does not depend on the states
-                        continue
-                    (g,) = torch.autograd.grad(cost, x, retain_graph=True, allow_unused=True)
+                    cost = (term.cost(torch.where(steered, states, states.detach()), here) * on_rows).sum()
+                    if cost.requires_grad:  # not a cost that does not depend on the states
+                        total = cost * term.weight if total is None else total + cost * term.weight
+                grad = torch.zeros_like(x)
+                if total is not None:
+                    (g,) = torch.autograd.grad(total, x, allow_unused=True)
                     if g is not None:
-                        grad = grad + g * steered
+                        grad = g
                 if max_grad_norm is not None:
                     norm = torch.linalg.vector_norm(grad, dim=(-2, -1), keepdim=True)
                     grad = grad * (max_grad_norm / norm.clamp(min=max_grad_norm))
