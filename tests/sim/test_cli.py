@@ -52,6 +52,7 @@ def test_a_capped_model_leaves_the_rest_to_constant_velocity_and_says_so(tiny_ru
     assert summary["attention"] == "dense"
     assert summary["agents_by_policy"] == {"langtraj": [7, 17], "constant_velocity": [37, 47]}
     assert summary["on_road"] == 1.0 and summary["selector"] == "per_agent"  # the defaults without guidance
+    assert summary["guided_steps"] in (1, 2)  # of --steps 2: the defaults' guidance at the last ones
     assert not Rollouts.load(out / "rollouts.npz").reads_future_log
 
 
@@ -102,6 +103,8 @@ def test_baseline_policies_need_no_checkpoint(tiny_run, tmp_path):
         (["--policy", "constant_velocity", "--max-driven", "2"], "need a model policy"),
         (["--max-driven", "0"], "must be >= 1"),
         (["--on-road", "-1"], "must be finite and >= 0"),
+        (["--guided-steps", "6"], "--guided-steps: must be in [1, 5]"),
+        (["--policy", "constant_velocity", "--guided-steps", "1"], "need a model policy"),
         (["--selector", "best"], "best"),
         (["--policy", "constant_velocity", "--selector", "per_agent"], "need a model policy"),
         (["--policy", "constant_velocity", "--dense-attention"], "need a model policy"),

@@ -61,6 +61,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "measurement; 0: off; an --adversary and its --target are left out)",
     )
     p.add_argument(
+        "--guided-steps",
+        type=int,
+        metavar="N",
+        help="the on-road and no-collision guidance apply at the last N denoising steps (default: chosen by "
+        "measurement, docs/experiments.md; --steps: every step)",
+    )
+    p.add_argument(
         "--selector",
         help="candidate selection: per_agent (default without guidance), min_guidance (default with it), "
         "min_collision (the paper's), min_collision_offroad, first",
@@ -127,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
         on_road=args.on_road,
         no_collision=args.no_collision,
         dense_attention=args.dense_attention,
+        guided_steps=args.guided_steps,
     )
     policy, described = build_policy(scenario, request)  # every check happens here, before any write
     warnings = prompt_warnings(scenario, request.prompts)

@@ -59,6 +59,7 @@ class SimRequest:
     on_road: float | None = None  # weight of the on-road guidance on every driven agent; None: the policy's default
     no_collision: float | None = None  # weight per pair of the no-collision guidance; None: the policy's default
     dense_attention: bool = False  # every agent attends to every token, however large the scene (slower)
+    guided_steps: int | None = None  # the last N denoising steps get on-road / no-collision guidance; None: default
 
     def __post_init__(self) -> None:
         if self.max_driven is not None and self.max_driven < 1:
@@ -81,4 +82,5 @@ class SimRequest:
             or self.on_road is not None
             or self.no_collision is not None
             or self.dense_attention
+            or self.guided_steps is not None
         )

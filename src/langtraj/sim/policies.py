@@ -27,6 +27,7 @@ from torch import Tensor
 from langtraj.errors import InputError
 from langtraj.frames import Origin, poses_to_frame, poses_to_world
 from langtraj.guidance import GuidanceScene, GuidanceTerm, NoCollisionCost, OnRoadCost, reconstruction_guidance
+from langtraj.guidance.base import FinalSteps
 from langtraj.guidance.library import terms_for_prompt
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import Prompt
@@ -54,6 +55,10 @@ realism, every agent driven'), not in the paper."""
 DEFAULT_NO_COLLISION = 1.0
 """Weight per agent pair of the no-collision guidance a LangTraj simulation applies between its driven
 agents unless told otherwise (`--no-collision`; 0 turns it off), chosen like `DEFAULT_ON_ROAD`."""
+DEFAULT_GUIDED_STEPS: int | None = None
+"""The last denoising steps of each sample at which the on-road and no-collision guidance apply unless
+told otherwise (`--guided-steps`; None: every step), chosen by measurement like `DEFAULT_ON_ROAD`
+(docs/experiments.md, 'Guidance on fewer steps')."""
 DEFAULT_SELECTOR = "per_agent"
 """Candidate selection without steering guidance (prompts' costs, collision or `--guidance` terms, which
 use `min_guidance`): chosen by measurement like `DEFAULT_ON_ROAD`; the paper's is `min_collision`."""
@@ -75,8 +80,8 @@ class Policy(ABC):
         if request.needs_model:
             model_policies = ", ".join(c.name for c in POLICIES.classes() if c.uses_model)
             raise InputError(
-                "prompts, guidance, --selector, --on-road, --no-collision, --dense-attention, --max-driven and "
-                f"--undriven need a model policy ({model_policies}), not {cls.name}"
+                "prompts, guidance, --selector, --on-road, --no-collision, --guided-steps, --dense-attention, "
+                f"--max-driven and --undriven need a model policy ({model_policies}), not {cls.name}"
             )
         return cls()
 
@@ -185,7 +190,9 @@ class LangTrajPolicy(Policy):
     its noise from its own generator seeded by (seed, rollout), so rollouts batched `rollout_batch` at a
     time give what they give one by one. With `local_attention`, in a scene larger than the model's
     training scenes each agent attends to as many nearest agents and map pieces as those scenes held
-    (`SampleConfig.local_attention`); otherwise to all of them.
+    (`SampleConfig.local_attention`); otherwise to all of them. The realism guidance (`on_road`,
+    `no_collision`) applies at the last `guided_steps` of the `steps` denoising steps (None: the default,
+    `DEFAULT_GUIDED_STEPS`), on a road field built once per simulation (`GuidanceScene.with_road_field`).
     """
 
     name = "langtraj"
@@ -213,6 +220,7 @@ class LangTrajPolicy(Policy):
         no_collision: float = DEFAULT_NO_COLLISION,
         free: Sequence[int] = (),
         local_attention: bool = True,
+        guided_steps: int | None = None,
     ):
         if candidates < 1 or steps < 1 or rollout_batch < 0:
             raise InputError(
@@ -244,6 +252,9 @@ class LangTrajPolicy(Policy):
         self.no_collision = float(no_collision)
         self.free = tuple(int(slot) for slot in free)
         self.local_attention = local_attention
+        if guided_steps is not None and not 1 <= guided_steps <= steps:
+            raise InputError(f"must be in [1, {steps}] (the DDIM steps), got {guided_steps}", where="--guided-steps")
+        self.guided_steps = guided_steps or min(DEFAULT_GUIDED_STEPS or steps, steps)
 
     @classmethod
     def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> LangTrajPolicy:
@@ -271,6 +282,7 @@ class LangTrajPolicy(Policy):
             "on_road": DEFAULT_ON_ROAD if request.on_road is None else request.on_road,
             "no_collision": DEFAULT_NO_COLLISION if request.no_collision is None else request.no_collision,
             "local_attention": not request.dense_attention,
+            "guided_steps": request.guided_steps,
         }
 
     # ------------------------------------------------------------------ which agents
@@ -289,6 +301,7 @@ class LangTrajPolicy(Policy):
             "map_selection": self.data.map_selection,
             "on_road": self.on_road,
             "no_collision": self.no_collision,
+            "guided_steps": self.guided_steps,
             "selector": self.selector_name or self.default_selector(),
             "attention": "local" if self.local_attention else "dense",
         }
@@ -305,6 +318,10 @@ class LangTrajPolicy(Policy):
         scene = GuidanceScene.from_scenario(start, origin, world.driven, num_agents=data.max_agents)
         terms = self.terms + self.prompt_terms(world, slots, origin, data.max_agents)
         terms += self.realism_terms(len(world.driven))
+        selector = SELECTORS.create(self.selector_name or self.default_selector(), where="selector")
+        if selector.uses_road or any(isinstance(term.cost, OnRoadCost) for term in terms):
+            here = torch.as_tensor(poses_to_frame(world.current(world.start)[0], origin)[:, :2])
+            scene = scene.with_road_field(cover=here)  # built once: every replan's costs sample it
         map_arrays = sample_map(start, world.driven, origin, data)
         first = collate_scenes([scene_sample(start, data, agents=world.driven, origin=origin, map_arrays=map_arrays)])
         with torch.no_grad():
@@ -316,7 +333,7 @@ class LangTrajPolicy(Policy):
             map_context=map_context,
             scene=scene.to(device),
             terms=terms,
-            selector=SELECTORS.create(self.selector_name or self.default_selector(), where="selector"),
+            selector=selector,
             generators=[torch.Generator().manual_seed(seed * 1_000_003 + r) for r in range(world.num_rollouts)],
         )
 
@@ -329,13 +346,15 @@ class LangTrajPolicy(Policy):
         """The default guidance on every driven agent: on-road, and no-collision between every pair except
         the agents in `free` (an adversary and its target). The paper's no-collision cost divides by the
         square of the agents involved, so its weight is `no_collision` x that square: a fixed weight per
-        pair, whatever the scene's size."""
+        pair, whatever the scene's size. Both apply at the last `guided_steps` denoising steps."""
+        when = "all" if self.guided_steps == self.steps else FinalSteps(self.guided_steps, self.steps)
         terms = []
         if self.on_road > 0:
-            terms.append(GuidanceTerm(OnRoadCost(), self.on_road))
+            terms.append(GuidanceTerm(OnRoadCost(), self.on_road, when))
         kept = [slot for slot in range(num_driven) if slot not in self.free]
         if self.no_collision > 0 and len(kept) > 1:
-            terms.append(GuidanceTerm(NoCollisionCost(kept, others=kept), self.no_collision * len(kept) ** 2))
+            cost = NoCollisionCost(kept, others=kept)
+            terms.append(GuidanceTerm(cost, self.no_collision * len(kept) ** 2, when))
         return tuple(terms)
 
     def report(self, world: SimWorld, state: LangTrajRun) -> dict[str, Any]:

@@ -8,12 +8,13 @@ with and without teacher forcing) beside the baselines, and the selection and gu
         [--windows N] [--candidates M] [--seed S] [--json OUT]
 
 SPEC is `constant_velocity`, `stationary`, `log_replay` (a labelled baseline that reads the future), or
-a checkpoint, optionally followed by `|selector=NAME`, `|guidance=COST:WEIGHT[+COST:WEIGHT]` and
-`|defaults` and `|dense`. A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its
-spec says otherwise; `|defaults` adds `langtraj simulate`'s default guidance and selection (on-road
-guidance, no-collision guidance per agent pair, `per_agent` selection; `sim.policies`). Every model row
-attends locally in scenes larger than its training scenes (docs/model.md, 'Local attention') unless
-`|dense` asks for dense attention.
+a checkpoint, optionally followed by `|selector=NAME`, `|guidance=COST:WEIGHT[+COST:WEIGHT]`,
+`|guided_steps=N` (the defaults' guidance at the last N denoising steps only), `|defaults` and `|dense`.
+A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says otherwise;
+`|defaults` adds `langtraj simulate`'s default guidance and selection (on-road guidance, no-collision
+guidance per agent pair, `per_agent` selection; `sim.policies`). Every model row attends locally in
+scenes larger than its training scenes (docs/model.md, 'Local attention') unless `|dense` asks for dense
+attention.
 """
 
 from __future__ import annotations
@@ -60,6 +61,7 @@ class Method:
     guidance: tuple[str, ...] = ()
     defaults: bool = False  # `langtraj simulate`'s default guidance and selection besides the spec's
     dense: bool = False  # dense attention in scenes larger than the training scenes (default: local)
+    guided_steps: int | None = None  # the last N denoising steps get the defaults' guidance (None: the default)
     loaded: LoadedModel | None = field(default=None, compare=False, repr=False)
 
     @classmethod
@@ -77,9 +79,10 @@ class Method:
         flags = {"defaults", "dense"}
         for option in (o for o in options if o not in flags):
             key, eq, value = option.partition("=")
-            if not eq or key not in ("selector", "guidance"):
+            if not eq or key not in ("selector", "guidance", "guided_steps"):
                 raise InputError(
-                    f"expected selector=NAME, guidance=COST:WEIGHT, defaults or dense, got {option!r}", where="--method"
+                    f"expected selector=NAME, guidance=COST:WEIGHT, guided_steps=N, defaults or dense, got {option!r}",
+                    where="--method",
                 )
             settings[key] = value
         guidance = tuple(g.replace(":", "=") for g in settings.get("guidance", "").split("+") if g)
@@ -91,6 +94,7 @@ class Method:
             guidance=guidance,
             defaults="defaults" in options,
             dense="dense" in options,
+            guided_steps=_int_option(settings, "guided_steps"),
         )
 
     def load(self) -> Method:
@@ -111,6 +115,8 @@ class Method:
             paper = {} if self.defaults else {"selector": "min_collision", "on_road": 0.0, "no_collision": 0.0}
             if self.selector:
                 paper["selector"] = self.selector
+            if self.guided_steps is not None:
+                paper["guided_steps"] = self.guided_steps
             policy = LangTrajPolicy(
                 model,
                 data,
@@ -121,6 +127,16 @@ class Method:
                 **paper,
             )
         return simulate(scenario, policy, config).rollouts
+
+
+def _int_option(settings: dict[str, str], key: str) -> int | None:
+    """`settings[key]` as an integer (None when absent), or a one-line InputError."""
+    if key not in settings:
+        return None
+    try:
+        return int(settings[key])
+    except ValueError:
+        raise InputError(f"{key} must be an integer, got {settings[key]!r}", where="--method") from None
 
 
 def windows_of(labels_dir: str, split: str, limit: int | None) -> list[Scenario]:
