@@ -1,5 +1,7 @@
 """Seconds for 32 closed-loop rollouts of 8 s (K = 5 DDIM steps, replanning at 1 Hz) of a 64-agent and a
-128-agent scene, on this machine's CPU (or a GPU when one is present).
+128-agent scene and a whole real WOMD scene, in the paper's setting (no guidance), with `langtraj
+simulate`'s defaults (on-road and no-collision guidance, per-agent selection) and with a prompt, and the
+ratios, on this machine's CPU (or a GPU when one is present).
 
 The scenes come from the real WOMD scene 2a1e44d405a6833f (ScenarioNet pickle in ../shared/data/real,
 211 tracks, 66 of them valid at the current step). Its 64 most important sim agents make the 64-agent
@@ -7,11 +9,12 @@ scene; no real file here has 128 sim agents, so the 128-agent scene is the 64-ag
 its agents and its map 1 km east (new track and map feature ids; until 2026-11-25 the copy had no map,
 which left the copied agents nowhere near a road edge for the on-road guidance). The model drives every
 sim agent (samples sized for them, `SampleConfig.for_agents`), as in every scored simulation, attending
-locally unless --dense-attention. Medians over --repeats runs.
+locally unless --dense-attention. The real scene is 2a1e44d405a6833f whole (66 sim agents, all driven).
+Medians over --repeats runs.
 
-    python benchmarks/simulate_speed.py [--checkpoint CKPT] [--candidates 4] [--repeats 3] [--rollouts 32]
-        [--on-road W] [--no-collision W] [--selector NAME] [--dense-attention]
-    (default: langtraj simulate's; the paper's: --on-road 0 --no-collision 0 --selector min_collision)
+    python benchmarks/simulate_speed.py [--scenes 64 128 real] [--settings paper defaults prompt]
+        [--checkpoint CKPT] [--candidates 4] [--repeats 3] [--rollouts 32] [--guided-steps N]
+        [--prompt "@{id} slows down"] [--dense-attention]
 """
 
 from __future__ import annotations
@@ -116,16 +119,33 @@ def doubled(scenario, offset: float = 1000.0):
     return replace(scenario, agents=both, road_map=_shifted_map(scenario.road_map, offset, id_shift))
 
 
+SETTINGS = ("paper", "defaults", "prompt")
+"""The paper's setting (no guidance, `min_collision`), `langtraj simulate`'s defaults (on-road and
+no-collision guidance, `per_agent` selection), and the defaults with a prompt on the most important agent."""
+
+
+def scenes(full, counts):
+    """(name, scene) of each benchmark scene: the real scene cut to 16-64 agents, doubled for 128, and the
+    whole real scene."""
+    for count in counts:
+        if count == "real":
+            yield f"real WOMD {full.scenario_id}", full
+        elif int(count) <= 64:
+            yield f"{count} agents", cut_scene(full, int(count))
+        else:
+            yield f"{count} agents", doubled(cut_scene(full, int(count) // 2))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--checkpoint", help="default: the shipped checkpoint")
     parser.add_argument("--candidates", type=int, default=4, help="candidates per replan (paper: 64 on a GPU)")
     parser.add_argument("--rollouts", type=int, default=32)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--agents", type=int, nargs="+", default=[64, 128], choices=[16, 32, 64, 128])
-    parser.add_argument("--on-road", type=float, help="on-road guidance weight (default: langtraj simulate's)")
-    parser.add_argument("--no-collision", type=float, help="no-collision weight per pair (default: simulate's)")
-    parser.add_argument("--selector", help="candidate selection (default: langtraj simulate's)")
+    parser.add_argument("--scenes", nargs="+", default=["64", "128", "real"], choices=["16", "32", "64", "128", "real"])
+    parser.add_argument("--settings", nargs="+", default=list(SETTINGS), choices=SETTINGS)
+    parser.add_argument("--guided-steps", type=int, help="the defaults' guided denoising steps (default: simulate's)")
+    parser.add_argument("--prompt", default="@{id} slows down", help="the prompt ({id}: the most important agent)")
     parser.add_argument("--dense-attention", action="store_true", help="dense attention (default: local, as simulate)")
     args = parser.parse_args()
     if not SCENE.is_file():
@@ -135,46 +155,56 @@ def main() -> None:
     from langtraj.scenario.io import read_scenario
     from langtraj.sim.checkpoints import shipped_checkpoint
     from langtraj.sim.engine import SimConfig, simulate
-    from langtraj.sim.policies import DEFAULT_NO_COLLISION, DEFAULT_ON_ROAD, DEFAULT_SELECTOR, LangTrajPolicy
+    from langtraj.sim.policies import LangTrajPolicy, model_agents
+    from langtraj.sim.prompts import merged_prompt
 
     device = "cuda" if torch.cuda.is_available() else "cpu"
     checkpoint = args.checkpoint or shipped_checkpoint()
     model, data = load_model(checkpoint)
     model.to(device)
+    guided = LangTrajPolicy(model, data, steps=5, guided_steps=args.guided_steps).guided_steps
     print(
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, torch threads "
         f"{torch.get_num_threads()}, device {device}; checkpoint {Path(checkpoint).name} "
-        f"(trained on {data.max_agents}-agent scenes; drives every sim agent)"
+        f"(trained on {data.max_agents}-agent scenes; drives every sim agent); {args.rollouts} rollouts x 8 s, "
+        f"K = 5, replanning at 1 Hz, {args.candidates} candidates per replan, "
+        f"{'dense' if args.dense_attention else 'local'} attention; defaults guided at the last "
+        f"{guided} of 5 denoising steps; medians of {args.repeats} runs"
     )
-    on_road = DEFAULT_ON_ROAD if args.on_road is None else args.on_road
-    no_collision = DEFAULT_NO_COLLISION if args.no_collision is None else args.no_collision
-    selector = args.selector or DEFAULT_SELECTOR
-    print(
-        f"{args.rollouts} rollouts x 8 s, K = 5, replanning at 1 Hz, {args.candidates} candidates per replan, "
-        f"on-road guidance {on_road:g}, no-collision {no_collision:g} per pair, selector {selector}, "
-        f"{'dense' if args.dense_attention else 'local'} attention"
-    )
-    full = read_scenario(SCENE)
-    for count in args.agents:
-        scene = cut_scene(full, count) if count <= 64 else doubled(cut_scene(full, count // 2))
-        times = []
-        for repeat in range(args.repeats):
-            policy = LangTrajPolicy(
-                model,
-                data,
-                candidates=args.candidates,
-                steps=5,
-                on_road=on_road,
-                no_collision=no_collision,
-                selector=selector,
-                local_attention=not args.dense_attention,
-            )
-            result = simulate(scene, policy, SimConfig(rollouts=args.rollouts, replan_s=1.0, seed=repeat))
-            times.append(result.seconds)
-        print(
-            f"{count:4d} agents ({len(result.driven_ids)} driven): median {statistics.median(times):.2f} s "
-            f"(runs: {', '.join(f'{t:.2f}' for t in times)})"
-        )
+
+    def policy(setting: str, scene) -> LangTrajPolicy:
+        options = {"candidates": args.candidates, "steps": 5, "local_attention": not args.dense_attention}
+        if setting == "paper":
+            options |= {"on_road": 0.0, "no_collision": 0.0, "selector": "min_collision"}
+        else:
+            options["guided_steps"] = guided
+        if setting == "prompt":
+            first = int(scene.agents.ids[model_agents(scene)[0]])
+            options["prompt"] = merged_prompt(scene, [args.prompt.format(id=first)])
+        return LangTrajPolicy(model, data, **options)
+
+    rows = []
+    for name, scene in scenes(read_scenario(SCENE), args.scenes):
+        medians = {}
+        for setting in args.settings:
+            times = []
+            for repeat in range(args.repeats):
+                result = simulate(scene, policy(setting, scene), SimConfig(rollouts=args.rollouts, seed=repeat))
+                times.append(result.seconds)
+            medians[setting] = statistics.median(times)
+            runs = ", ".join(f"{t:.2f}" for t in times)
+            print(f"{name} ({len(result.driven_ids)} driven), {setting}: median {medians[setting]:.2f} s ({runs})")
+        rows.append((name, medians))
+    print("\n| scene | " + " | ".join(args.settings) + " | defaults / paper | prompt / defaults |")
+    print("|" + " --- |" * (len(args.settings) + 3))
+    for name, medians in rows:
+        cells = [f"{medians[s]:.1f} s" for s in args.settings]
+        ratios = [_ratio(medians, "defaults", "paper"), _ratio(medians, "prompt", "defaults")]
+        print(f"| {name} | " + " | ".join(cells + ratios) + " |")
+
+
+def _ratio(medians: dict[str, float], top: str, bottom: str) -> str:
+    return f"{medians[top] / medians[bottom]:.2f}" if top in medians and bottom in medians else "-"
 
 
 if __name__ == "__main__":
