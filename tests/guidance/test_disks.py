@@ -41,3 +41,12 @@ def test_the_candidate_table_holds_each_combinations_no_collision_pair_cost():
                     expected = NoCollisionCost(i, others=[j])(joint, scene) * 4
                     got = overlaps.table[:, listed[(i, j)], mi, mj] if (i, j) in listed else torch.zeros(r)
                     assert torch.allclose(got, expected, atol=1e-6), (i, j, mi, mj)
+
+
+def test_agents_that_never_come_close_leave_the_table_empty_and_cost_nothing():
+    states, scene = crowd(4, 2, 2, 20, seed=3)
+    states[..., :2] = states[..., :2] + torch.arange(4)[None, None, :, None, None] * 100.0  # 100 m apart
+    overlaps = candidate_overlaps(states, scene)
+    assert overlaps.table.shape == (2, 0, 2, 2) and overlaps.first.numel() == 0
+    value = NoCollisionCost()(states[0], scene)
+    assert torch.equal(value, torch.zeros(2))

@@ -26,7 +26,7 @@ from langtraj.guidance.base import (
     in_window,
     window,
 )
-from langtraj.guidance.disks import DiskLayout, box_gap, window_boxes, window_steps
+from langtraj.guidance.disks import DiskLayout, box_gap, near_pairs, window_boxes, window_steps
 from langtraj.guidance.geometry import CHUNK_ELEMENTS, offset_to_segments
 from langtraj.guidance.scene import GuidanceScene
 
@@ -128,18 +128,23 @@ class NoCollisionCost(GuidanceCost):
         layout = DiskLayout.of(scene, self.num_disks, states)
         # J_pair is symmetric: each unordered pair is computed once and counted as often as it is asked for.
         unordered = (pairs | pairs.T).triu(diagonal=1)
-        first, second = unordered.nonzero(as_tuple=True)  # Q pairs
+        first, second = unordered.nonzero(as_tuple=True)
+        xy = states[..., :2].detach()
+        low, high = window_boxes(xy)  # [S, A, W, 2]
+        near = near_pairs(low, high, first, second, layout.limit(first, second, self.buffer))
+        first, second = first[near], second[near]  # Q pairs that may overlap somewhere
+        if first.numel() == 0:
+            return _zero(states)
         multiplicity = (pairs[first, second].to(states) + pairs[second, first].to(states))[None, :]
         num_pairs = first.shape[0]
         limit = layout.limit(first, second, self.buffer)
 
         # Candidates (sample, pair, step) whose disks can overlap, found without autograd in chunks of
-        # pairs: first the windows of steps in which the two paths' boxes come close enough (most pairs of
-        # a large scene never do), then their steps at which the disks can overlap
+        # pairs: among the pairs whose boxes over all samples and steps come close enough (most pairs of a
+        # large scene never do), first the windows of steps in which the two paths' boxes do, then their
+        # steps at which the disks can overlap
         # (`DiskLayout.may_overlap`). Only the candidates get disk distances (with autograd); the others
         # cost nothing.
-        xy = states[..., :2].detach()
-        low, high = window_boxes(xy)  # [S, A, W, 2]
         found = []
         chunk = max(1, CHUNK_ELEMENTS // (num_samples * low.shape[2] * 2))
         with torch.no_grad():

@@ -96,6 +96,15 @@ def box_gap(low_a: Tensor, high_a: Tensor, low_b: Tensor, high_b: Tensor) -> Ten
     return torch.linalg.vector_norm(gap, dim=-1)
 
 
+def near_pairs(low: Tensor, high: Tensor, first: Tensor, second: Tensor, limit: Tensor) -> Tensor:
+    """bool [Q]: the pairs (first[q], second[q]) whose boxes over every row and window of `low`, `high`
+    ([..., A, W, 2], the agent dimension third from last) come within `limit` [Q]; no other pair can
+    overlap anywhere."""
+    rows = tuple(range(low.ndim - 3)) + (low.ndim - 2,)
+    all_low, all_high = low.amin(dim=rows), high.amax(dim=rows)  # [A, 2]
+    return box_gap(all_low[first], all_high[first], all_low[second], all_high[second]) <= limit
+
+
 def window_steps(window: Tensor, num_steps: int, *others: Tensor) -> tuple[Tensor, ...]:
     """The steps of each window index (long [H]) below `num_steps`, with `others` (long [H]) repeated
     alongside: (steps [H'], *others [H'])."""
@@ -123,7 +132,8 @@ def candidate_overlaps(
     states: Tensor, scene: GuidanceScene, *, num_disks: int = 5, buffer: float = 0.0
 ) -> CandidateOverlaps:
     """The overlaps of candidates states [M, R, A, T, 4] (M candidates of R rollouts) between every two
-    valid agents of `scene`: pairs whose path boxes over all candidates never come close are skipped, then
+    valid agents of `scene`: pairs whose boxes over everything never come close are skipped, then those
+    whose boxes over all candidates in a window do not, then
     window by window the combinations of candidates whose boxes do, then the steps at which their disks
     can overlap (`DiskLayout.may_overlap`)."""
     m, r, _, t, _ = states.shape
@@ -133,6 +143,8 @@ def candidate_overlaps(
     first, second = (torch.triu(valid[:, None] & valid[None, :], diagonal=1)).nonzero(as_tuple=True)
     xy = states[..., :2]
     low, high = window_boxes(xy)  # [M, R, A, W, 2]
+    near = near_pairs(low, high, first, second, layout.limit(first, second, buffer))
+    first, second = first[near], second[near]
     any_low, any_high = low.amin(0), high.amax(0)  # [R, A, W, 2]: over every candidate
     limit = layout.limit(first, second, buffer)
 
