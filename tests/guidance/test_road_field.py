@@ -69,8 +69,10 @@ def test_on_a_curved_road_of_short_segments_values_and_gradients_agree_within_ce
     exact, exact_grad, value, grad, inside = _exact_and_field(RING, points)
     assert inside.all()
     away = (radius - 24.0).abs() > 0.75  # not on the mid-line, where the nearest edge changes
-    error = (value - exact).abs()[away]
-    assert error.quantile(0.99) < 0.05 and error.max() < 0.3
+    close = exact.abs() < 3.5  # every surrounding node within 4 m of an edge: exact node values
+    error = (value - exact).abs()
+    assert error[away & close].quantile(0.99) < 0.05 and error[away & close].max() < 0.3
+    assert error[away & ~close].max() < 0.5  # farther: the segment the distance transform finds
     cosine = (grad * exact_grad).sum(-1) / (grad.norm(dim=-1) * exact_grad.norm(dim=-1))
     assert (cosine[away] > 0.99).float().mean() > 0.98
     # Off the road (beyond either edge) it is positive, on it negative, as the exact distance.
@@ -102,11 +104,13 @@ def test_the_on_road_cost_with_the_field_matches_the_exact_cost_and_searches_poi
 def test_the_field_covers_the_given_points_and_refuses_bad_segments():
     segments = torch.tensor(STRAIGHT)
     plain = RoadField.build(segments[:, 0], segments[:, 1])
-    far = torch.tensor([[300.0, 0.0]])
+    far = torch.tensor([[90.0, 0.0]])  # 40 m past the road's end, outside the grid's 30 m margin
     assert not plain.sample(far)[1].item()
     covering = RoadField.build(segments[:, 0], segments[:, 1], cover=far)
     value, inside = covering.sample(far)
-    assert inside.item() and value.item() == pytest.approx(signed_edge_distance(far, segments).item(), abs=1e-3)
+    assert inside.item() and value.item() == pytest.approx(signed_edge_distance(far, segments).item(), abs=0.5)
+    farther = RoadField.build(segments[:, 0], segments[:, 1], cover=torch.tensor([[300.0, 0.0]]))
+    assert not farther.sample(torch.tensor([[300.0, 0.0]]))[1].item()  # 250 m from every edge: no value
     coarse = RoadField.build(segments[:, 0], segments[:, 1], cover=far, max_nodes=10_000)
     assert coarse.values.numel() <= 10_000 and coarse.resolution > 0.5
     with pytest.raises(InputError, match="non-empty"):

@@ -258,7 +258,7 @@ class OnRoadCost(GuidanceCost):
         out = states.new_zeros(states.shape[:2])
         if scene.road_edges.shape[0] == 0 or not steered.any():
             return out + _zero(states)[:, None]
-        xy = states[:, steered, :, :2]
+        xy = states[..., :2] if steered.all() else states[:, steered, :, :2]
         edges = scene.road_edges.to(states)
         if scene.road_field is None:
             signed = signed_edge_distance(xy, edges)
@@ -267,7 +267,7 @@ class OnRoadCost(GuidanceCost):
             if not inside.all():
                 signed = signed.masked_scatter(~inside, signed_edge_distance(xy[~inside], edges))
         cost = (torch.relu(signed + self.margin) ** 2).mean(-1)  # [S, steered]
-        return out.index_add(1, steered.nonzero()[:, 0], cost)
+        return cost if steered.all() else out.index_add(1, steered.nonzero()[:, 0], cost)
 
 
 def signed_edge_distance(xy: Tensor, edges: Tensor) -> Tensor:

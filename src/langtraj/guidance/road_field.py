@@ -11,9 +11,12 @@ distance is linear and the interpolation is exact; near an edge's vertices it is
 centimetres at the default spacing (`tests/guidance/test_road_field.py` measures both). Points
 outside the grid are not interpolated: the caller computes them exactly.
 
-Node values are exact distances to candidate segments: those of the points sampled densely along the
-segments that lie nearest to the node (scipy's k-d tree within a few metres of an edge, its Euclidean
-distance transform of the rasterized samples farther out) and their neighbours along their polylines.
+Within a few metres of an edge, where the cost is decided, node values are exact distances to candidate
+segments: those of the points sampled densely along the segments that lie nearest to the node (scipy's
+k-d tree) and their neighbours along their polylines. Farther out they are the exact distance to the
+segment of the nearest rasterized sample (scipy's Euclidean distance transform), which is the nearest
+segment or within about a grid spacing of it; beyond 60 m from every edge the field holds nothing, and the
+rare point there is searched exactly like a point outside the grid.
 """
 
 from __future__ import annotations
@@ -36,14 +39,15 @@ MAX_NODES = 4_000_000
 """Largest grid (nodes, 16 MB of float32); a larger map gets a coarser spacing."""
 _SAMPLE = 0.1  # metres between the samples along each segment that the k-d tree indexes
 _NEAREST = 2  # nearest samples whose segments (and their polyline neighbours) a node within _BAND compares
-_BAND = 4.0  # metres from an edge within which nodes search their nearest samples exactly
+_BAND = 4.0  # metres from an edge within which node values are exact
+_FAR = 60.0  # metres from every edge beyond which nodes hold no value (points there are searched exactly)
 _CHUNK = 1 << 18  # nodes per chunk of the exact refinement
 
 
 @dataclass(frozen=True, eq=False)
 class RoadField:
     """Signed road-edge distance `values[iy, ix]` at the node `origin + (ix, iy) * resolution` (m;
-    positive off the road, i.e. on an edge's right)."""
+    positive off the road, i.e. on an edge's right; NaN farther than `_FAR` m from every edge)."""
 
     origin: Tensor  # float64 [2]: x, y of node (0, 0)
     resolution: float
@@ -90,31 +94,32 @@ class RoadField:
         first = np.cumsum(count) - count
         fraction = (np.arange(owner.size) - first[owner]) / np.maximum(count[owner] - 1, 1)
         samples = a[owner] + fraction[:, None] * (b - a)[owner]
-        # Every node's nearest rasterized sample (exact Euclidean distance transform; within about a
-        # spacing of its nearest edge point) ...
+        # Every node's distance to the nearest rasterized sample and that sample (scipy's exact Euclidean
+        # distance transform; within about a spacing of the true distance to the edges) ...
         cell = np.rint((samples - low) / spacing).astype(np.int64)
         raster = np.full((height, width), -1, np.int64)
         raster[cell[:, 1], cell[:, 0]] = np.arange(len(samples))
-        _, (iy, ix) = ndimage.distance_transform_edt(raster < 0, return_indices=True)
-        nearest = raster[iy, ix].reshape(-1, 1)
-        # ... and, for the nodes within _BAND m of an edge, where the cost is decided, the exactly nearest
-        # samples (a k-d tree search, quick at short range).
+        rough, (iy, ix) = ndimage.distance_transform_edt(raster < 0, sampling=spacing, return_indices=True)
+        nearest = raster[iy, ix].reshape(-1)
+        rough = rough.reshape(-1)
+        # ... whose segment gives the value of the nodes farther than _BAND m from every edge; the nodes
+        # within _BAND m, where the cost is decided, get exact distances to the nearest of the segments of
+        # their nearest samples (a k-d tree search) and those segments' polyline neighbours.
+        neighbours = polyline_neighbours(a, b)
+        values = np.full(height * width, np.nan, np.float32)  # beyond _FAR m: left to the exact search
+        far = np.flatnonzero((rough >= _BAND) & (rough < _FAR))
+        xy = np.stack([far % width, far // width], -1) * spacing + low
+        values[far] = signed_distance(xy, a, b, owner[nearest[far], None])
+        near = np.flatnonzero(rough < _BAND)
         tree = cKDTree(samples)
         k = min(_NEAREST, len(samples))
-        neighbours = polyline_neighbours(a, b)
-        values = np.empty(height * width, np.float32)
-        for lo in range(0, values.size, _CHUNK):
-            node = np.arange(lo, min(lo + _CHUNK, values.size))
+        for lo in range(0, len(near), _CHUNK):
+            node = near[lo : lo + _CHUNK]
             xy = np.stack([node % width, node // width], -1) * spacing + low
-            _, close = tree.query(xy, k=k, distance_upper_bound=_BAND)
-            close = close.reshape(len(node), k)
-            near = close[:, 0] < len(samples)
-            far = ~near
-            values[node[far]] = signed_distance(xy[far], a, b, neighbours[owner[nearest[node[far], 0]]])
-            found = np.concatenate([nearest[node[near]], close[near]], -1)
-            found = np.where(found < len(samples), found, found[:, :1])  # a missing second sample: the first
-            options = neighbours[owner[found]].reshape(len(found), 3 * found.shape[1])  # + polyline neighbours
-            values[node[near]] = signed_distance(xy[near], a, b, options)
+            _, close = tree.query(xy, k=k)
+            found = np.concatenate([nearest[node, None], close.reshape(len(node), k)], -1)
+            options = neighbours[owner[found]].reshape(len(node), -1)  # their segments and polyline neighbours
+            values[node] = signed_distance(xy, a, b, options)
         return cls(
             origin=torch.as_tensor(low, dtype=torch.float64),
             resolution=spacing,
@@ -127,8 +132,9 @@ class RoadField:
         return (self.values.shape[0], self.values.shape[1])
 
     def sample(self, points: Tensor) -> tuple[Tensor, Tensor]:
-        """Bilinear signed distance at `points` [..., 2] (differentiable in them; 0 outside the grid), and
-        bool [...]: which points lie inside the grid."""
+        """Bilinear signed distance at `points` [..., 2] (differentiable in them; 0 where the field has no
+        value), and bool [...]: where it has one (inside the grid, not farther than `_FAR` m from every
+        edge)."""
         height, width = self.shape
         local = (points - self.origin.to(points)) / self.resolution
         corner = torch.floor(local.detach())
@@ -139,16 +145,23 @@ class RoadField:
             & (corner[..., 0] <= width - 2)
             & (corner[..., 1] <= height - 2)
         )
-        corner = torch.where(inside[..., None], corner, torch.zeros_like(corner))
-        t = torch.where(inside[..., None], local - corner, torch.zeros_like(local))  # in [0, 1]
-        x, y = corner[..., 0].long(), corner[..., 1].long()
-        flat = self.values.to(points.dtype).reshape(-1)
-        base = y * width + x
-        v00, v01 = flat[base], flat[base + 1]
-        v10, v11 = flat[base + width], flat[base + width + 1]
-        tx, ty = t[..., 0], t[..., 1]
-        value = (v00 * (1 - tx) + v01 * tx) * (1 - ty) + (v10 * (1 - tx) + v11 * tx) * ty
-        return torch.where(inside, value, torch.zeros_like(value)), inside
+        everywhere = bool(inside.all())
+        if not everywhere:
+            corner = torch.where(inside[..., None], corner, torch.zeros_like(corner))
+        t = local - corner  # in [0, 1] inside the grid
+        if not everywhere:
+            t = torch.where(inside[..., None], t, torch.zeros_like(t))
+        base = (corner[..., 1] * width + corner[..., 0]).long().reshape(-1)
+        corners = torch.stack([base, base + 1, base + width, base + width + 1], -1).reshape(-1)
+        nodes = self.values.to(points.dtype).reshape(-1).index_select(0, corners).view(-1, 4)
+        valued = torch.isfinite(nodes).all(-1).view(inside.shape)  # not beyond the field's reach
+        if not bool(valued.all()):
+            inside, everywhere = inside & valued, False
+            nodes = torch.nan_to_num(nodes)
+        v00, v01, v10, v11 = nodes.unbind(-1)
+        tx, ty = t[..., 0].reshape(-1), t[..., 1].reshape(-1)
+        value = ((v00 + (v01 - v00) * tx) * (1 - ty) + (v10 + (v11 - v10) * tx) * ty).view(inside.shape)
+        return (value if everywhere else torch.where(inside, value, torch.zeros_like(value))), inside
 
     def to(self, device: torch.device | str) -> RoadField:
         """The field with its tensors on `device`."""
@@ -185,6 +198,11 @@ def signed_distance(points: np.ndarray, start: np.ndarray, end: np.ndarray, opti
     distance = np.linalg.norm(relative - along[..., None] * direction, axis=-1)
     pick = distance.argmin(-1)
     rows = np.arange(len(points))
-    d, rel = direction[rows, pick], relative[rows, pick]
-    left = d[:, 0] * rel[:, 1] - d[:, 1] * rel[:, 0] > 0
+    left = _left_of(points, a[rows, pick], b[rows, pick])
     return np.where(left, -distance[rows, pick], distance[rows, pick])
+
+
+def _left_of(points: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """bool [n]: whether points [n, 2] lie left of the lines through start -> end [n, 2] (the road side)."""
+    d, rel = end - start, points - start
+    return d[:, 0] * rel[:, 1] - d[:, 1] * rel[:, 0] > 0
