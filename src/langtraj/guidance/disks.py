@@ -66,18 +66,24 @@ class DiskLayout:
 
     def penalty(self, state_i: Tensor, state_j: Tensor, i: Tensor, j: Tensor, buffer: float) -> Tensor:
         """J_pair = relu(1 - d / (r_i + r_j + buffer)) [K] of agents i, j (long [K]) at states [K, 4], d the
-        least distance between their disk centres; differentiable in both states."""
-        disks_i = _centres(state_i, self.offsets[i])
-        disks_j = _centres(state_j, self.offsets[j])
-        gap2 = ((disks_i[:, :, None] - disks_j[:, None]) ** 2).sum(-1).flatten(1)
-        distance = torch.sqrt(gap2.min(-1).values + _EPS)
+        least distance between their disk centres; differentiable in both states.
+
+        With g the gap between the centres, h the unit headings and o the disks' offsets, the squared
+        distance between disk k of i and disk l of j is |g|^2 + o_k^2 + o_l^2 + 2 o_k g.h_i - 2 o_l g.h_j
+        - 2 o_k o_l h_i.h_j: four numbers per pair instead of D x D difference vectors."""
+        gap = state_i[:, :2] - state_j[:, :2]
+        heading_i = torch.stack([torch.cos(state_i[:, 2]), torch.sin(state_i[:, 2])], -1)
+        heading_j = torch.stack([torch.cos(state_j[:, 2]), torch.sin(state_j[:, 2])], -1)
+        along_i, along_j = (gap * heading_i).sum(-1, keepdim=True), (gap * heading_j).sum(-1, keepdim=True)
+        offsets_i, offsets_j = self.offsets[i], self.offsets[j]  # [K, D]
+        square = (
+            (gap * gap).sum(-1)[:, None, None]
+            + (offsets_i * (offsets_i + 2 * along_i))[:, :, None]
+            + (offsets_j * (offsets_j - 2 * along_j))[:, None, :]
+            - 2 * (heading_i * heading_j).sum(-1)[:, None, None] * offsets_i[:, :, None] * offsets_j[:, None, :]
+        )
+        distance = torch.sqrt(square.flatten(1).min(-1).values.clamp(min=0.0) + _EPS)
         return torch.relu(1.0 - distance / (self.radius[i] + self.radius[j] + buffer))
-
-
-def _centres(state: Tensor, offsets: Tensor) -> Tensor:
-    """Disk centres [K, D, 2] of agents at `state` [K, 4] with offsets [K, D] along their heading."""
-    heading = torch.stack([torch.cos(state[:, 2]), torch.sin(state[:, 2])], dim=-1)
-    return state[:, None, :2] + offsets[..., None] * heading[:, None, :]
 
 
 def window_boxes(xy: Tensor) -> tuple[Tensor, Tensor]:
