@@ -139,12 +139,11 @@ class NoCollisionCost(GuidanceCost):
         num_pairs = first.shape[0]
         limit = layout.limit(first, second, self.buffer)
 
-        # Candidates (sample, pair, step) whose disks can overlap, found without autograd in chunks of
-        # pairs: among the pairs whose boxes over all samples and steps come close enough (most pairs of a
-        # large scene never do), first the windows of steps in which the two paths' boxes do, then their
-        # steps at which the disks can overlap
-        # (`DiskLayout.may_overlap`). Only the candidates get disk distances (with autograd); the others
-        # cost nothing.
+        # Candidates (sample, pair, step) whose disks can overlap: among the pairs whose boxes over all
+        # samples and steps come close enough (most pairs of a large scene never do), the steps of the
+        # windows in which the two paths' boxes do (found without autograd, in chunks of pairs), then of
+        # those the steps at which the disks can overlap (`DiskLayout.may_overlap`). Only the candidates
+        # get disk distances; the others cost nothing.
         found = []
         chunk = max(1, CHUNK_ELEMENTS // (num_samples * low.shape[2] * 2))
         with torch.no_grad():
@@ -152,16 +151,18 @@ class NoCollisionCost(GuidanceCost):
                 i, j = first[lo : lo + chunk], second[lo : lo + chunk]
                 gap = box_gap(low[:, i], high[:, i], low[:, j], high[:, j])
                 s, q, w = (gap <= limit[lo : lo + chunk, None]).nonzero(as_tuple=True)
-                t, s, q = window_steps(w, num_steps, s, q + lo)
-                close = layout.may_overlap(
-                    states[s, first[q], t], states[s, second[q], t], first[q], second[q], self.buffer
-                )
-                found.append((s[close], q[close], t[close]))
-        s, q, t = (torch.cat(parts) for parts in zip(*found, strict=True))
-        if s.numel() == 0:
-            return _zero(states)
+                found.append(window_steps(w, num_steps, s, q + lo))
+        t, s, q = (torch.cat(parts) for parts in zip(*found, strict=True))
         i, j = first[q], second[q]
-        penalty = layout.penalty(states[s, i, t], states[s, j, t], i, j, self.buffer)
+        flat = states.reshape(-1, states.shape[-1])
+        state_i = flat.index_select(0, (s * num_agents + i) * num_steps + t)
+        state_j = flat.index_select(0, (s * num_agents + j) * num_steps + t)
+        with torch.no_grad():
+            close = layout.may_overlap(state_i, state_j, i, j, self.buffer).nonzero()[:, 0]
+        if close.numel() == 0:
+            return _zero(states)
+        s, q, i, j = s[close], q[close], i[close], j[close]
+        penalty = layout.penalty(state_i[close], state_j[close], i, j, self.buffer)
         row = s * num_pairs + q
         total = states.new_zeros(num_samples * num_pairs).index_add(0, row, penalty)
         overlapping = states.new_zeros(num_samples * num_pairs).index_add(0, row, (penalty.detach() > 0).to(states))
@@ -266,7 +267,8 @@ class OnRoadCost(GuidanceCost):
             signed, inside = scene.road_field.sample(xy)
             if not inside.all():
                 signed = signed.masked_scatter(~inside, signed_edge_distance(xy[~inside], edges))
-        cost = (torch.relu(signed + self.margin) ** 2).mean(-1)  # [S, steered]
+        past = torch.relu(signed + self.margin)
+        cost = (past * past).mean(-1)  # [S, steered]
         return cost if steered.all() else out.index_add(1, steered.nonzero()[:, 0], cost)
 
 

@@ -139,10 +139,9 @@ def candidate_overlaps(
 ) -> CandidateOverlaps:
     """The overlaps of candidates states [M, R, A, T, 4] (M candidates of R rollouts) between every two
     valid agents of `scene`: pairs whose boxes over everything never come close are skipped, then those
-    whose boxes over all candidates in a window do not, then
-    window by window the combinations of candidates whose boxes do, then the steps at which their disks
-    can overlap (`DiskLayout.may_overlap`)."""
-    m, r, _, t, _ = states.shape
+    whose boxes over all candidates in a window do not, then window by window the combinations of
+    candidates whose boxes do, then the steps at which their disks can overlap (`DiskLayout.may_overlap`)."""
+    m, r, a, t, _ = states.shape
     device = states.device
     layout = DiskLayout.of(scene, num_disks, states)
     valid = scene.agent_valid.to(device)
@@ -170,6 +169,7 @@ def candidate_overlaps(
     table_sum = states.new_zeros(r, len(kept), m, m)
     table_count = states.new_zeros(r, len(kept), m, m)
 
+    flat = states.reshape(-1, states.shape[-1])
     combos = torch.cartesian_prod(torch.arange(m, device=device), torch.arange(m, device=device))  # [M*M, 2]
     step = max(1, CHUNK_ELEMENTS // (len(combos) * WINDOW * 8))
     for lo in range(0, len(q), step):
@@ -186,7 +186,8 @@ def candidate_overlaps(
         steps, c, h = window_steps(h_w[h], t, c, h)
         mi, mj, rows, qq = combos[c, 0], combos[c, 1], h_r[h], h_q[h]
         pi, pj = first[qq], second[qq]
-        state_i, state_j = states[mi, rows, pi, steps], states[mj, rows, pj, steps]
+        state_i = flat.index_select(0, ((mi * r + rows) * a + pi) * t + steps)
+        state_j = flat.index_select(0, ((mj * r + rows) * a + pj) * t + steps)
         close = layout.may_overlap(state_i, state_j, pi, pj, buffer)
         mi, mj, rows, qq, pi, pj = (x[close] for x in (mi, mj, rows, qq, pi, pj))
         penalty = layout.penalty(state_i[close], state_j[close], pi, pj, buffer)

@@ -47,11 +47,15 @@ _CHUNK = 1 << 18  # nodes per chunk of the exact refinement
 @dataclass(frozen=True, eq=False)
 class RoadField:
     """Signed road-edge distance `values[iy, ix]` at the node `origin + (ix, iy) * resolution` (m;
-    positive off the road, i.e. on an edge's right; NaN farther than `_FAR` m from every edge)."""
+    positive off the road, i.e. on an edge's right; NaN farther than `_FAR` m from every edge). `cells`
+    holds each grid cell's four corner values (v00, v01, v10, v11; cell (ix, iy) at row iy * (W - 1) +
+    ix) and `valued` whether all four are numbers, so a point reads its cell in one gather."""
 
     origin: Tensor  # float64 [2]: x, y of node (0, 0)
     resolution: float
     values: Tensor  # float32 [H, W]
+    cells: Tensor  # float32 [(H - 1) * (W - 1), 4]
+    valued: Tensor  # bool [(H - 1) * (W - 1)]
 
     @classmethod
     def build(
@@ -120,10 +124,16 @@ class RoadField:
             found = np.concatenate([nearest[node, None], close.reshape(len(node), k)], -1)
             options = neighbours[owner[found]].reshape(len(node), -1)  # their segments and polyline neighbours
             values[node] = signed_distance(xy, a, b, options)
+        grid = values.reshape(height, width)
+        corners = [grid[:-1, :-1], grid[:-1, 1:], grid[1:, :-1], grid[1:, 1:]]
+        cells = np.stack([c.reshape(-1) for c in corners], -1)
+        valued = np.isfinite(cells).all(-1)
         return cls(
             origin=torch.as_tensor(low, dtype=torch.float64),
             resolution=spacing,
-            values=torch.as_tensor(values.reshape(height, width)),
+            values=torch.as_tensor(grid),
+            cells=torch.as_tensor(np.nan_to_num(cells, nan=0.0)),
+            valued=torch.as_tensor(valued),
         )
 
     @property
@@ -138,9 +148,9 @@ class RoadField:
         height, width = self.shape
         local = (points - self.origin.to(points)) / self.resolution
         corner = torch.floor(local.detach())
+        # NaN and infinite coordinates fail the bounds themselves.
         inside = (
-            torch.isfinite(local.detach()).all(-1)
-            & (corner[..., 0] >= 0)
+            (corner[..., 0] >= 0)
             & (corner[..., 1] >= 0)
             & (corner[..., 0] <= width - 2)
             & (corner[..., 1] <= height - 2)
@@ -148,17 +158,14 @@ class RoadField:
         everywhere = bool(inside.all())
         if not everywhere:
             corner = torch.where(inside[..., None], corner, torch.zeros_like(corner))
+        cell = (corner[..., 1] * (width - 1) + corner[..., 0]).long().reshape(-1)
+        valued = self.valued.index_select(0, cell).view(inside.shape)
+        if not bool(valued.all()):
+            inside, everywhere = inside & valued, False
         t = local - corner  # in [0, 1] inside the grid
         if not everywhere:
             t = torch.where(inside[..., None], t, torch.zeros_like(t))
-        base = (corner[..., 1] * width + corner[..., 0]).long().reshape(-1)
-        corners = torch.stack([base, base + 1, base + width, base + width + 1], -1).reshape(-1)
-        nodes = self.values.to(points.dtype).reshape(-1).index_select(0, corners).view(-1, 4)
-        valued = torch.isfinite(nodes).all(-1).view(inside.shape)  # not beyond the field's reach
-        if not bool(valued.all()):
-            inside, everywhere = inside & valued, False
-            nodes = torch.nan_to_num(nodes)
-        v00, v01, v10, v11 = nodes.unbind(-1)
+        v00, v01, v10, v11 = self.cells.to(points.dtype).index_select(0, cell).unbind(-1)
         tx, ty = t[..., 0].reshape(-1), t[..., 1].reshape(-1)
         value = ((v00 + (v01 - v00) * tx) * (1 - ty) + (v10 + (v11 - v10) * tx) * ty).view(inside.shape)
         return (value if everywhere else torch.where(inside, value, torch.zeros_like(value))), inside
