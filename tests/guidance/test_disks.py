@@ -50,3 +50,31 @@ def test_agents_that_never_come_close_leave_the_table_empty_and_cost_nothing():
     assert overlaps.table.shape == (2, 0, 2, 2) and overlaps.first.numel() == 0
     value = NoCollisionCost()(states[0], scene)
     assert torch.equal(value, torch.zeros(2))
+
+
+def test_the_penalty_equals_the_least_distance_between_disk_centres_in_value_and_gradient():
+    states, scene = crowd(30, 1, 1, 20, seed=4)
+    layout = DiskLayout.of(scene, 5, states)
+    i, j = torch.triu(torch.ones(30, 30, dtype=torch.bool), diagonal=1).nonzero(as_tuple=True)
+    t = torch.arange(20).repeat(len(i))
+    i, j = i.repeat_interleave(20), j.repeat_interleave(20)
+
+    def reference(state_i, state_j):  # every disk centre, every difference vector
+        def centres(state, offsets):
+            heading = torch.stack([torch.cos(state[:, 2]), torch.sin(state[:, 2])], -1)
+            return state[:, None, :2] + offsets[..., None] * heading[:, None]
+
+        gap = centres(state_i, layout.offsets[i])[:, :, None] - centres(state_j, layout.offsets[j])[:, None]
+        distance = torch.sqrt((gap**2).sum(-1).flatten(1).min(-1).values + 1e-6)
+        return torch.relu(1.0 - distance / (layout.radius[i] + layout.radius[j]))
+
+    outputs = []
+    for function in (reference, lambda a, b: layout.penalty(a, b, i, j, 0.0)):
+        x = states[0, 0, i, t].clone().requires_grad_(True)
+        value = function(x, states[0, 0, j, t])
+        (grad,) = torch.autograd.grad(value.sum(), x)
+        outputs.append((value.detach(), grad))
+    (expected, expected_grad), (value, grad) = outputs
+    assert (expected > 0).sum() > 50
+    assert torch.allclose(value, expected, atol=1e-4)
+    assert torch.allclose(grad, expected_grad, atol=1e-3)
