@@ -55,10 +55,10 @@ realism, every agent driven'), not in the paper."""
 DEFAULT_NO_COLLISION = 1.0
 """Weight per agent pair of the no-collision guidance a LangTraj simulation applies between its driven
 agents unless told otherwise (`--no-collision`; 0 turns it off), chosen like `DEFAULT_ON_ROAD`."""
-DEFAULT_GUIDED_STEPS: int | None = 2
+DEFAULT_GUIDED_STEPS: int | None = 3
 """The last denoising steps of each sample at which the on-road and no-collision guidance apply unless
 told otherwise (`--guided-steps`; None: every step): chosen on validation windows like `DEFAULT_ON_ROAD`,
-at about two thirds of the cost of guiding all five (docs/experiments.md, 'Guidance on fewer steps')."""
+at less cost than guiding all five (docs/experiments.md, 'Guidance on fewer steps')."""
 DEFAULT_SELECTOR = "per_agent"
 """Candidate selection without steering guidance (prompts' costs, collision or `--guidance` terms, which
 use `min_guidance`): chosen by measurement like `DEFAULT_ON_ROAD`; the paper's is `min_collision`."""
