@@ -17,9 +17,12 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import importlib
+import inspect
 import pstats
 import sys
 import time
+import types
 from pathlib import Path
 
 import torch
@@ -28,42 +31,50 @@ REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 SCENE = REAL / "sd_training.tfrecord-00000-of-01000_2a1e44d405a6833f.pkl"
 
 ROWS = {
-    "network (scene encoder, denoiser, pose terms)": [("scene_encoder.py", "forward"), ("denoiser.py", "forward"),
-                                                      ("denoiser.py", "pose_cache")],
-    "guidance gradient (backward pass)": [("autograd/__init__.py", "grad")],
-    "road distance (on-road cost)": [("costs.py", "per_agent")],
-    "pair costs (no-collision, candidate overlaps)": [("costs.py", "__call__:NoCollisionCost"),
-                                                      ("disks.py", "candidate_overlaps")],
-    "candidate selection (all of it)": [("selection.py", "select")],
-    "road field build": [("road_field.py", "build")],
-    "guidance step (all of it)": [("step.py", "guide")],
-}  # fmt: skip
+    "network (scene encoder, denoiser, pose terms)": (
+        "langtraj.model.scene_encoder:SceneEncoder.forward",
+        "langtraj.model.denoiser:Denoiser.forward",
+        "langtraj.model.denoiser:Denoiser.pose_cache",
+    ),
+    "guidance gradient (backward pass)": ("torch.autograd:grad",),
+    "road distance (on-road cost)": ("langtraj.guidance.costs:OnRoadCost.per_agent",),
+    "pair costs (no-collision, candidate overlaps)": (
+        "langtraj.guidance.costs:NoCollisionCost.__call__",
+        "langtraj.guidance.disks:candidate_overlaps",
+    ),
+    "candidate selection (all of it)": ("selectors",),
+    "road field build": ("langtraj.guidance.road_field:RoadField.build",),
+    "guidance step (all of it)": ("langtraj.guidance.step:reconstruction_guidance.guide",),
+}
+"""Each row's functions as `module:qualified.name` (a closure: its parent's name then its own; `selectors`:
+the `select` of every registered candidate selector). Functions the code at hand lacks count nothing."""
 
 
-def cumulative(stats: pstats.Stats, file: str, name: str) -> float:
-    """Cumulative seconds of the functions called `name` in files ending in `file` (`NAME:Class` picks the
-    function of that name defined on the line of the class's method in the file)."""
-    name, _, owner = name.partition(":")
-    total = 0.0
-    for (path, line, function), (_, _, _, ct, _) in stats.stats.items():  # type: ignore[attr-defined]
-        if not path.endswith(file) or function != name:
-            continue
-        if owner and owner not in _defining_class(path, line):
-            continue
-        total += ct
-    return total
+def code_objects(target: str) -> list[types.CodeType]:
+    """The code objects a `ROWS` entry names (none where the module or function does not exist)."""
+    if target == "selectors":
+        from langtraj.sim.selection import SELECTORS
 
-
-def _defining_class(path: str, line: int) -> str:
-    """The name of the class whose body holds `line` of the file at `path` ('' when none)."""
+        return [cls.select.__code__ for cls in SELECTORS.classes()]
+    module_name, _, path = target.partition(":")
     try:
-        lines = Path(path).read_text().splitlines()[:line]
-    except OSError:
-        return ""
-    for text in reversed(lines):
-        if text.startswith("class "):
-            return text[6:].split("(")[0].split(":")[0]
-    return ""
+        found: object = importlib.import_module(module_name)
+        *parents, last = path.split(".")
+        for part in parents:
+            found = getattr(found, part)
+    except (ImportError, AttributeError):
+        return []
+    function = getattr(found, last, None)
+    if function is not None:
+        return [inspect.unwrap(getattr(function, "__func__", function)).__code__]
+    code = getattr(found, "__code__", None)  # a closure defined inside `found`
+    return [c for c in (code.co_consts if code else ()) if isinstance(c, types.CodeType) and c.co_name == last]
+
+
+def cumulative(stats: pstats.Stats, targets: tuple[str, ...]) -> float:
+    """Cumulative seconds of the functions `targets` name."""
+    keys = {(c.co_filename, c.co_firstlineno, c.co_name) for t in targets for c in code_objects(t)}
+    return sum(ct for key, (_, _, _, ct, _) in stats.stats.items() if key in keys)  # type: ignore[attr-defined]
 
 
 def main() -> None:
@@ -103,8 +114,8 @@ def main() -> None:
         f"{getattr(policy, 'guided_steps', '-')}), {args.threads} torch thread(s): {wall:.1f} s under cProfile\n"
     )
     print("| part | seconds | share of the simulation |\n| --- | --- | --- |")
-    for label, functions in ROWS.items():
-        seconds = sum(cumulative(stats, file, name) for file, name in functions)
+    for label, targets in ROWS.items():
+        seconds = cumulative(stats, targets)
         print(f"| {label} | {seconds:.2f} | {seconds / wall:.0%} |")
 
 
