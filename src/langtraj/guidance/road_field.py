@@ -21,7 +21,7 @@ rare point there is searched exactly like a point outside the grid.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
@@ -46,14 +46,15 @@ _CHUNK = 1 << 18  # nodes per chunk of the exact refinement
 
 @dataclass(frozen=True, eq=False)
 class RoadField:
-    """Signed road-edge distance `values[iy, ix]` at the node `origin + (ix, iy) * resolution` (m;
-    positive off the road, i.e. on an edge's right; NaN farther than `_FAR` m from every edge). `cells`
-    holds each grid cell's four corner values (v00, v01, v10, v11; cell (ix, iy) at row iy * (W - 1) +
-    ix) and `valued` whether all four are numbers, so a point reads its cell in one gather."""
+    """Signed road-edge distance (m; positive off the road, i.e. on an edge's right) at the `shape` = (H, W)
+    nodes `origin + (ix, iy) * resolution`, stored per grid cell so that a point reads its cell in one
+    gather: `cells[iy * (W - 1) + ix]` holds the values at the cell's four corners (ix, iy), (ix + 1,
+    iy), (ix, iy + 1), (ix + 1, iy + 1), and `valued` whether all four have one (nodes farther than
+    `_FAR` m from every edge have none)."""
 
     origin: Tensor  # float64 [2]: x, y of node (0, 0)
     resolution: float
-    values: Tensor  # float32 [H, W]
+    shape: tuple[int, int]  # (H, W): nodes along y and along x
     cells: Tensor  # float32 [(H - 1) * (W - 1), 4]
     valued: Tensor  # bool [(H - 1) * (W - 1)]
 
@@ -131,15 +132,10 @@ class RoadField:
         return cls(
             origin=torch.as_tensor(low, dtype=torch.float64),
             resolution=spacing,
-            values=torch.as_tensor(grid),
+            shape=(height, width),
             cells=torch.as_tensor(np.nan_to_num(cells, nan=0.0)),
             valued=torch.as_tensor(valued),
         )
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        """(H, W): nodes along y and along x."""
-        return (self.values.shape[0], self.values.shape[1])
 
     def sample(self, points: Tensor) -> tuple[Tensor, Tensor]:
         """Bilinear signed distance at `points` [..., 2] (differentiable in them; 0 where the field has no
@@ -172,9 +168,7 @@ class RoadField:
 
     def to(self, device: torch.device | str) -> RoadField:
         """The field with its tensors on `device`."""
-        return replace(
-            self, **{f.name: getattr(self, f.name).to(device) for f in fields(self) if f.name != "resolution"}
-        )
+        return replace(self, origin=self.origin.to(device), cells=self.cells.to(device), valued=self.valued.to(device))
 
 
 def _grid_shape(extent: np.ndarray, spacing: float) -> tuple[int, int]:
