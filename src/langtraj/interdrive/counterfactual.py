@@ -1,11 +1,10 @@
 """Counterfactual prompts: the behaviours the map lets an agent do instead of what it did in the log.
 
-Every behaviour kind (`Behaviour`) is one entry of `BEHAVIOURS`: the facts that judge it (a single-agent label
-key of the taxonomy, a lane change with its side, or an interaction subtype toward another agent, in the fact
-form of `adherence`) and a templated `@id` sentence. For one agent of a scene, `behaviour_feasibility` decides
-from the map which single-agent behaviours it can do (turns: the directions its lane reaches through lane
-connectivity at the next junction; lane changes: a neighbour lane on that side; slowing down: it moves), and
-says "undecided" where the map lacks what that needs (no lane connectivity, no neighbour lists), never guessing.
+The behaviour kinds are those of `interdrive.behaviour`. For one agent of a scene, `behaviour_feasibility`
+decides from the map which single-agent behaviours it can do (turns: the directions its lane reaches through
+lane connectivity at the next junction; lane changes: a neighbour lane on that side; pulling over: a kerb on
+its right; slowing down: it moves), and says "undecided" where the map lacks what that needs (no lane
+connectivity, no neighbour lists), never guessing.
 `feasible_alternatives` turns the feasible behaviours, and going first or yielding in each interaction pair the
 log shows, into prompts, marking those the log itself shows (ground-truth prompts). `infeasible_manoeuvres`
 warns about a typed prompt asking for a turn or lane change the map does not allow.
@@ -21,7 +20,6 @@ import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from enum import StrEnum
 from pathlib import Path
 from typing import Literal
 
@@ -30,179 +28,25 @@ import yaml
 
 from langtraj.angles import wrap_angle
 from langtraj.errors import InputError
-from langtraj.interdrive.adherence import AdherenceChecker, Fact, lane_change_key, lane_change_side
+from langtraj.interdrive.adherence import AdherenceChecker, Fact, lane_change_side
+from langtraj.interdrive.behaviour import (
+    BEHAVIOURS,
+    Behaviour,
+    Side,
+    behaviour_facts,
+    opposite_subtype,
+)
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.detector import DetectorConfig
 from langtraj.interdrive.heuristics import HeuristicConfig
 from langtraj.interdrive.mapindex import SEGMENT_SPACING_M, MapIndex
 from langtraj.interdrive.prompts import Prompt, label_phrases, label_variants, mentions_in, parse_user_prompt
 from langtraj.interdrive.prompts.user import recognize_prompt
-from langtraj.interdrive.taxonomy import LABELS_BY_KEY, SUBTYPES_BY_ID, InteractionType
+from langtraj.interdrive.taxonomy import LABELS_BY_KEY
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
 
 Status = Literal["feasible", "infeasible", "undecided"]
-Side = Literal["left", "right"]
-
-
-class Behaviour(StrEnum):
-    """The behaviour kinds a counterfactual prompt asks for."""
-
-    TURN_LEFT = "turn_left"
-    TURN_RIGHT = "turn_right"
-    GO_STRAIGHT = "go_straight"
-    LANE_CHANGE_LEFT = "lane_change_left"
-    LANE_CHANGE_RIGHT = "lane_change_right"
-    STOP = "stop"
-    SPEED_UP = "speed_up"
-    SLOW_DOWN = "slow_down"
-    GO_FIRST = "go_first"
-    YIELD = "yield"
-
-
-@dataclass(frozen=True)
-class BehaviourSpec:
-    """How one behaviour is asked for and judged: `template` is the `@id` sentence (`{agent}`, and `{other}`
-    for pair behaviours); `label` the taxonomy label key judging it (with `side` for a lane change, judged by
-    `adherence.lane_change_key`), and `also` further label keys that must hold with it; `interaction` the
-    interaction type toward the other agent judging a pair behaviour; `manoeuvre` the words of a warning
-    ("@12 cannot turn left")."""
-
-    behaviour: Behaviour
-    template: str
-    manoeuvre: str
-    label: str | None = None
-    side: Side | None = None
-    interaction: InteractionType | None = None
-    also: tuple[str, ...] = ()
-
-    @property
-    def is_pair(self) -> bool:
-        return self.interaction is not None
-
-    @property
-    def is_turn(self) -> bool:
-        return self.label in _TURN_LABELS
-
-    @property
-    def is_lane_change(self) -> bool:
-        return self.label == "changing_lanes"
-
-    @property
-    def label_keys(self) -> tuple[str, ...]:
-        """The taxonomy label keys a prompt for this behaviour states (none for a pair behaviour)."""
-        return () if self.label is None else (self.label, *self.also)
-
-    @property
-    def fact_key(self) -> str | None:
-        """The label fact key judging a single-agent behaviour."""
-        if self.label is None:
-            return None
-        return lane_change_key(self.side) if self.is_lane_change and self.side else self.label
-
-    def text(self, agent: int, other: int | None = None) -> str:
-        """The behaviour's `@id` sentence for `agent` (and `other`)."""
-        if self.is_pair and other is None:
-            raise InputError(f"behaviour {self.behaviour.value!r} needs another agent")
-        return self.template.format(agent=agent, other=other)
-
-
-_TURN_LABELS = ("turning_left", "turning_right", "going_straight")
-_AT_JUNCTION = ("crossing_intersection",)
-"""A turn or going straight is asked for at a junction: the labeler must also see the agent cross one."""
-
-BEHAVIOURS: Mapping[Behaviour, BehaviourSpec] = {
-    spec.behaviour: spec
-    for spec in (
-        BehaviourSpec(
-            Behaviour.TURN_LEFT,
-            "@{agent} turns left at the next intersection",
-            "turn left",
-            "turning_left",
-            also=_AT_JUNCTION,
-        ),
-        BehaviourSpec(
-            Behaviour.TURN_RIGHT,
-            "@{agent} turns right at the next intersection",
-            "turn right",
-            "turning_right",
-            also=_AT_JUNCTION,
-        ),
-        BehaviourSpec(
-            Behaviour.GO_STRAIGHT,
-            "@{agent} goes straight through the next intersection",
-            "go straight",
-            "going_straight",
-            also=_AT_JUNCTION,
-        ),
-        BehaviourSpec(
-            Behaviour.LANE_CHANGE_LEFT,
-            "@{agent} changes lanes to the left",
-            "change lanes to the left",
-            "changing_lanes",
-            "left",
-        ),
-        BehaviourSpec(
-            Behaviour.LANE_CHANGE_RIGHT,
-            "@{agent} changes lanes to the right",
-            "change lanes to the right",
-            "changing_lanes",
-            "right",
-        ),
-        BehaviourSpec(Behaviour.STOP, "@{agent} comes to a stop and stands still", "stop", "static"),
-        BehaviourSpec(Behaviour.SPEED_UP, "@{agent} speeds up", "speed up", "speeding_up"),
-        BehaviourSpec(Behaviour.SLOW_DOWN, "@{agent} slows down", "slow down", "slowing_down"),
-        BehaviourSpec(
-            Behaviour.GO_FIRST,
-            "@{agent} takes the right of way over @{other}",
-            "go first",
-            interaction=InteractionType.PASSING,
-        ),
-        BehaviourSpec(Behaviour.YIELD, "@{agent} yields to @{other}", "yield", interaction=InteractionType.YIELDING),
-    )
-}
-"""Every behaviour kind, in the order alternatives are listed."""
-
-PAIR_SUBTYPES: tuple[tuple[str, str], ...] = (
-    ("yielding/intersection", "passing/intersection_with_yielding"),
-    ("yielding/to_merging_or_lane_change", "passing/intersection_with_yielding"),
-    ("yielding/roundabout", "passing/roundabout"),
-    ("yielding/to_pedestrian", "passing/pedestrian"),
-    ("yielding/pedestrian_to_vehicle", "passing/vru_crossing"),
-)
-"""(yield subtype, go-first subtype) of an agent toward the same other agent, as the detector writes each side of a
-yield: a car yielding at a junction or going through it first, a car waiting for a pedestrian or passing it, a
-pedestrian waiting for a car or crossing in front of it. The first row of a go-first subtype is its yield."""
-
-_YIELD_OF = {go: stay for stay, go in reversed(PAIR_SUBTYPES)}
-_GO_FIRST_OF = dict(PAIR_SUBTYPES)
-
-
-def opposite_subtype(subtype: str, agent_type: AgentType) -> str | None:
-    """The go-first subtype of an agent whose yield is `subtype`, or its yield subtype when `subtype` is a go-first
-    one (`PAIR_SUBTYPES`); None for other subtypes. A cyclist crossing in front of a car (`passing/vru_crossing`)
-    would yield as a vehicle does at a junction."""
-    if subtype in _GO_FIRST_OF:
-        return _GO_FIRST_OF[subtype]
-    if subtype == "passing/vru_crossing" and agent_type != AgentType.PEDESTRIAN:
-        return "yielding/intersection"
-    return _YIELD_OF.get(subtype)
-
-
-def behaviour_facts(
-    behaviour: Behaviour, track_id: int, other_id: int | None = None, subtype: str | None = None
-) -> frozenset[Fact]:
-    """The facts that judge `behaviour` of `track_id`: its label facts, or for a pair behaviour the interaction
-    `subtype` (by default the junction one of `PAIR_SUBTYPES`) toward `other_id`."""
-    spec = BEHAVIOURS[behaviour]
-    if not spec.is_pair:
-        return frozenset({("label", track_id, key) for key in (str(spec.fact_key), *spec.also)})
-    if other_id is None:
-        raise InputError(f"behaviour {behaviour.value!r} needs another agent")
-    subtype = subtype or (PAIR_SUBTYPES[0][0] if spec.interaction is InteractionType.YIELDING else PAIR_SUBTYPES[0][1])
-    if SUBTYPES_BY_ID[subtype].type is not spec.interaction:
-        raise InputError(f"subtype {subtype!r} does not judge behaviour {behaviour.value!r}")
-    return frozenset({("interaction", track_id, other_id, subtype)})
 
 
 # ---------------------------------------------------------------------------------------------- feasibility
@@ -241,7 +85,7 @@ class Feasibility:
 
 
 @dataclass(frozen=True)
-class _Here:
+class AgentOnLane:
     """Where an agent is at the current step: its lane (index into the map index, -1 if none), station, speed."""
 
     lane: int
@@ -249,7 +93,7 @@ class _Here:
     speed: float
 
     @classmethod
-    def of(cls, scenario: Scenario, agent: int, index: MapIndex, cfg: HeuristicConfig) -> _Here:
+    def of(cls, scenario: Scenario, agent: int, index: MapIndex, cfg: HeuristicConfig) -> AgentOnLane:
         """Agent row `agent` matched to a lane as the heuristic labeler matches vehicles."""
         agents, c = scenario.agents, scenario.current_index
         speed = float(np.hypot(*agents.velocity[agent, c]))
@@ -280,7 +124,7 @@ def behaviour_feasibility(
     single = [b for b, spec in BEHAVIOURS.items() if not spec.is_pair]
     if not scenario.agents.valid[agent, scenario.current_index]:
         return {b: Feasibility(track_id, b, "undecided", "it is not valid at the current step") for b in single}
-    here = _Here.of(scenario, agent, map_index, config.heuristics)
+    here = AgentOnLane.of(scenario, agent, map_index, config.heuristics)
     reach = max(config.lookahead_m, here.speed * config.lookahead_s)
     out: dict[Behaviour, Feasibility] = {}
     for behaviour in single:
@@ -296,6 +140,8 @@ def behaviour_feasibility(
         status, reason = _lane_change_feasibility(map_index, here, reach, BEHAVIOURS[behaviour].side, config)
         out.setdefault(behaviour, Feasibility(track_id, behaviour, status, reason))
     moving = here.speed > config.heuristics.static_speed + config.heuristics.min_speed_change
+    status, reason = _pull_over_feasibility(map_index, here, moving, config)
+    out.setdefault(Behaviour.PULL_OVER, Feasibility(track_id, Behaviour.PULL_OVER, status, reason))
     out.setdefault(
         Behaviour.SLOW_DOWN,
         Feasibility(track_id, Behaviour.SLOW_DOWN, "feasible")
@@ -307,7 +153,39 @@ def behaviour_feasibility(
     return {b: out[b] for b in single}
 
 
-def _no_lane(index: MapIndex, here: _Here, what: str) -> tuple[Status, str] | None:
+PULL_OVER_DECELERATION = 2.0
+"""Comfortable braking (m/s^2): a pull-over needs room to stop this way before the next junction."""
+
+
+def _pull_over_feasibility(
+    index: MapIndex, here: AgentOnLane, moving: bool, config: CounterfactualConfig
+) -> tuple[Status, str]:
+    """Pulling over: the agent moves, drives in the lane next to the kerb on its right (the rightmost or only
+    lane), and the next junction is far enough ahead to stop before it comfortably (the labeler does not call
+    a stop at a junction a pull-over)."""
+    if not moving:
+        return "infeasible", "it is (nearly) stopped at the current step"
+    missing = _no_lane(index, here, "lane position")
+    if missing is not None:
+        return missing
+    position = index.lane_position(here.lane, here.station)
+    if position == "unknown":
+        reason = (
+            "the map has no lane neighbour information"
+            if index.neighbor_source == "none"
+            else "it is inside a junction, where lanes have no neighbours"
+        )
+        return "undecided", reason
+    if position not in ("rightmost", "single"):
+        return "infeasible", "a lane lies on its right: it is not in the lane next to the kerb"
+    room = here.speed**2 / (2 * PULL_OVER_DECELERATION) + config.heuristics.pull_over_junction_distance
+    ahead = index.distance_to_junction(here.lane, here.station) if index.has_connectivity else math.inf
+    if ahead < room:
+        return "infeasible", f"the next junction is {ahead:.0f} m ahead, too close to stop at the kerb before it"
+    return "feasible", ""
+
+
+def _no_lane(index: MapIndex, here: AgentOnLane, what: str) -> tuple[Status, str] | None:
     """Undecided when the map has no lanes or the agent is on none."""
     if not index.has_lanes:
         return "undecided", "the map has no lanes"
@@ -317,7 +195,7 @@ def _no_lane(index: MapIndex, here: _Here, what: str) -> tuple[Status, str] | No
 
 
 def _turn_feasibility(
-    index: MapIndex, here: _Here, reach: float, config: CounterfactualConfig
+    index: MapIndex, here: AgentOnLane, reach: float, config: CounterfactualConfig
 ) -> dict[Behaviour, tuple[Status, str]]:
     """Turns and going straight: the directions of the junction branches the agent's lane reaches."""
     turns = (Behaviour.TURN_LEFT, Behaviour.GO_STRAIGHT, Behaviour.TURN_RIGHT)
@@ -337,7 +215,7 @@ def _turn_feasibility(
             Behaviour.TURN_RIGHT: none,
             Behaviour.GO_STRAIGHT: ("undecided", f"no junction within {reach:.0f} m: going straight is its road"),
         }
-    found = {_direction(turn, config) for turn in turns_found}
+    found = {branch_direction(turn, config) for turn in turns_found}
     words = {Behaviour.TURN_LEFT: "left turn", Behaviour.GO_STRAIGHT: "straight on", Behaviour.TURN_RIGHT: "right turn"}
     allowed = ", ".join(words[b] for b in turns if b in found) or "only U-turns or bends"
     return {
@@ -364,14 +242,14 @@ def _junction_turns(
         return _next_junction_turns(index, [(lane, -station)], reach)
     if station <= _JUNCTION_ENTRY_M:
         siblings = {x for e in index.entries[lane] for x in index.exits[e] if index.is_junction[x]} | {lane}
-        return [_branch_turn(index, c) for x in sorted(siblings) for c in _chains(index, x)], False
+        return [branch_turn(index, c) for x in sorted(siblings) for c in junction_chains(index, x)], False
     turns: list[float] = []
     onward: list[tuple[int, float]] = []
     ends = False
-    for chain in _chains(index, lane):
-        left, whole = _branch_turn(index, chain, station), _branch_turn(index, chain)
-        direction = _direction(left, config)
-        if direction in (Behaviour.TURN_LEFT, Behaviour.TURN_RIGHT) or _direction(whole, config) == direction:
+    for chain in junction_chains(index, lane):
+        left, whole = branch_turn(index, chain, station), branch_turn(index, chain)
+        direction = branch_direction(left, config)
+        if direction in (Behaviour.TURN_LEFT, Behaviour.TURN_RIGHT) or branch_direction(whole, config) == direction:
             turns.append(left)  # the turn is under way (or the branch is straight): this junction decides
             continue
         done = float(sum(index.lane_lengths[x] for x in chain)) - station
@@ -401,21 +279,21 @@ def _next_junction_turns(index: MapIndex, seeds: list[tuple[int, float]], reach:
                 continue
             seen.add(nxt)
             if index.is_junction[nxt]:
-                turns += [_branch_turn(index, c) for c in _chains(index, nxt)]
+                turns += [branch_turn(index, c) for c in junction_chains(index, nxt)]
             else:
                 frontier.append((nxt, end))
     return turns, ends
 
 
-def _chains(index: MapIndex, lane: int, depth: int = 0) -> list[list[int]]:
+def junction_chains(index: MapIndex, lane: int, depth: int = 0) -> list[list[int]]:
     """Every chain of junction lanes that starts with junction lane `lane` (a junction lane may split further)."""
     inner = [e for e in index.exits[lane] if index.is_junction[e]]
     if not inner or depth > 8:
         return [[lane]]
-    return [[lane, *rest] for e in inner for rest in _chains(index, e, depth + 1)]
+    return [[lane, *rest] for e in inner for rest in junction_chains(index, e, depth + 1)]
 
 
-def _branch_turn(index: MapIndex, chain: list[int], station: float = 0.0) -> float:
+def branch_turn(index: MapIndex, chain: list[int], station: float = 0.0) -> float:
     """Net heading change along a chain of lanes from `station` on its first lane (rad, left positive; not wrapped,
     so a U-turn reads about pi)."""
     total, last = 0.0, None
@@ -433,7 +311,7 @@ def _branch_turn(index: MapIndex, chain: list[int], station: float = 0.0) -> flo
     return total
 
 
-def _direction(turn: float, config: CounterfactualConfig) -> Behaviour | None:
+def branch_direction(turn: float, config: CounterfactualConfig) -> Behaviour | None:
     """The behaviour a branch turning by `turn` makes, by the turn labeler's thresholds; None for a bend between
     them or a U-turn."""
     cfg = config.heuristics
@@ -445,14 +323,14 @@ def _direction(turn: float, config: CounterfactualConfig) -> Behaviour | None:
 
 
 def _lane_change_feasibility(
-    index: MapIndex, here: _Here, reach: float, side: Side | None, config: CounterfactualConfig
+    index: MapIndex, here: AgentOnLane, reach: float, side: Side | None, config: CounterfactualConfig
 ) -> tuple[Status, str]:
     """A lane change to `side`: a lane beside the agent's on that side somewhere along its lane and the lanes
     after it up to the next junction (within `reach`), by the lane positions the labeler gives."""
     missing = _no_lane(index, here, "neighbour lanes")
     if missing is not None:
         return missing
-    positions = {index.lane_position(lane, s) for lane, s in _stations_ahead(index, here, reach, config)}
+    positions = {index.lane_position(lane, s) for lane, s in stations_ahead(index, here, reach, config)}
     wanted = {"left": ("rightmost", "middle"), "right": ("leftmost", "middle")}[str(side)]
     if positions & set(wanted):
         return "feasible", ""
@@ -466,15 +344,15 @@ def _lane_change_feasibility(
     return "infeasible", f"no lane on its {side} along its road (within {reach:.0f} m)"
 
 
-def _stations_ahead(
-    index: MapIndex, here: _Here, reach: float, config: CounterfactualConfig
+def stations_ahead(
+    index: MapIndex, here: AgentOnLane, reach: float, config: CounterfactualConfig
 ) -> list[tuple[int, float]]:
     """(lane, station) every `neighbour_step_m` along the agent's lane and the non-junction lanes after it, up to
     the next junction or `reach`; from a junction lane, along the lanes it leads to."""
     out: list[tuple[int, float]] = []
     start_lanes = [(here.lane, here.station, 0.0)]
     if index.is_junction[here.lane]:
-        start_lanes = [(e, 0.0, 0.0) for chain in _chains(index, here.lane) for e in index.exits[chain[-1]]]
+        start_lanes = [(e, 0.0, 0.0) for chain in junction_chains(index, here.lane) for e in index.exits[chain[-1]]]
     frontier, seen = list(start_lanes), {lane for lane, _, _ in start_lanes}
     while frontier:
         lane, station, done = frontier.pop()

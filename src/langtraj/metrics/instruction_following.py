@@ -22,7 +22,8 @@ import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.interdrive.adherence import AdherenceChecker, Fact
-from langtraj.interdrive.counterfactual import BEHAVIOURS, Alternative, Behaviour
+from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
+from langtraj.interdrive.counterfactual import Alternative
 from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.model import Agents, Scenario
 from langtraj.scenario.types import StateField
