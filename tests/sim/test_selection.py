@@ -98,3 +98,17 @@ def test_per_agent_chooses_as_scoring_every_assembled_trial_scene_would():
         expected = _per_agent_by_trials(states, scene, selector.collision_weight)
         assert torch.equal(selector.select(states, scene, ()), expected)
         assert torch.equal(selector.select(states, scene.with_road_field(), ()), expected)
+
+
+def test_a_prompted_agents_adhering_candidate_comes_first_then_road_and_collisions():
+    # Agent 0's candidate 1 follows its prompt (first = 0) but runs nearer the road edge; candidate 0 does not.
+    # Agent 1 is not prompted (first = 0 for both) and keeps the road-and-collision choice.
+    a_keep, a_follow = _track(0.0, 0.0), _track(0.0, 3.5)
+    b_on, b_edge = _track(30.0, 0.0), _track(30.0, 4.5)
+    states = torch.stack([torch.stack([a_keep, b_on]), torch.stack([a_follow, b_edge])])[:, None]
+    first = torch.tensor([[[1.0, 0.0]], [[0.0, 0.0]]])  # [M, R, A]
+    scene = _scene()
+    assert SELECTORS.create("per_agent").select(states, scene, ()).tolist() == [[0, 0]]
+    assert SELECTORS.create("per_agent").select(states, scene, (), first).tolist() == [[1, 0]]
+    for joint in ("min_collision", "min_collision_offroad", "min_guidance"):  # a joint choice follows it too
+        assert SELECTORS.create(joint).select(states, scene, (), first).tolist() == [1]

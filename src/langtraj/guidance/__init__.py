@@ -11,6 +11,7 @@ from langtraj.guidance.library import (
     terms_for,
     terms_for_prompt,
 )
+from langtraj.guidance.route import RouteCost, StationCost
 from langtraj.guidance.scene import GuidanceScene
 from langtraj.guidance.step import reconstruction_guidance
 
@@ -27,7 +28,9 @@ __all__ = [
     "NoCollisionCost",
     "OnRoadCost",
     "PromptAgents",
+    "RouteCost",
     "Schedule",
+    "StationCost",
     "TargetSpeedCost",
     "reconstruction_guidance",
     "terms_for",

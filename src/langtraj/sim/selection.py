@@ -30,9 +30,13 @@ class CandidateSelector(ABC):
     """Whether it compares candidates by the on-road cost (a simulation then gives its scene a road field)."""
 
     @abstractmethod
-    def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
+    def select(
+        self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm], first: Tensor | None = None
+    ) -> Tensor:
         """Index of the chosen candidate of each rollout, long [R] (a joint choice), or of each agent of
-        each rollout, long [R, A] (agents assembled from different candidates)."""
+        each rollout, long [R, A] (agents assembled from different candidates). `first` [M, R, A] (lower is
+        better, zero for agents it does not concern) is compared before anything else: how far each agent's
+        candidate is from doing what its prompt asks (`sim.adherence`)."""
 
 
 def chosen_states(states: Tensor, choice: Tensor) -> Tensor:
@@ -47,6 +51,15 @@ def chosen_states(states: Tensor, choice: Tensor) -> Tensor:
 SELECTORS: Registry[CandidateSelector] = Registry("candidate selector")
 
 
+FIRST_WEIGHT = 1e4
+"""Scale of `first` against the other criteria: any difference in it outweighs them."""
+
+
+def _joint_first(first: Tensor | None) -> Tensor | float:
+    """`first` of joint candidates [M, R] (summed over the agents), scaled to come before anything else."""
+    return 0.0 if first is None else FIRST_WEIGHT * first.sum(-1)
+
+
 def _per_candidate(cost, states: Tensor, scene: GuidanceScene) -> Tensor:
     """A cost [M * R] of candidates flattened sample-major, reshaped to [M, R]."""
     m, r = states.shape[:2]
@@ -59,9 +72,11 @@ class MinCollision(CandidateSelector):
 
     name = "min_collision"
 
-    def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
+    def select(
+        self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm], first: Tensor | None = None
+    ) -> Tensor:
         with torch.no_grad():
-            return _per_candidate(NoCollisionCost(), states, scene).argmin(dim=0)
+            return (_joint_first(first) + _per_candidate(NoCollisionCost(), states, scene)).argmin(dim=0)
 
 
 @SELECTORS.register
@@ -72,10 +87,12 @@ class MinCollisionOffroad(CandidateSelector):
     name = "min_collision_offroad"
     uses_road = True
 
-    def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
+    def select(
+        self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm], first: Tensor | None = None
+    ) -> Tensor:
         with torch.no_grad():
             cost = _per_candidate(NoCollisionCost(), states, scene) + _per_candidate(OnRoadCost(), states, scene)
-            return cost.argmin(dim=0)
+            return (_joint_first(first) + cost).argmin(dim=0)
 
 
 @SELECTORS.register
@@ -93,22 +110,28 @@ class PerAgent(CandidateSelector):
     uses_road = True
     collision_weight = 10.0  # an agent's summed pair overlaps (each in [0, 1]) against m^2 of road cost
 
-    def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
+    def select(
+        self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm], first: Tensor | None = None
+    ) -> Tensor:
         m, r, a = states.shape[:3]
         with torch.no_grad():
             overlaps = candidate_overlaps(states, scene)
-            first, second, table = overlaps.first, overlaps.second, overlaps.table  # table [R, Q, M, M]
+            lead, follow, table = overlaps.first, overlaps.second, overlaps.table  # table [R, Q, M, M]
             # The joint choice: NoCollisionCost of each joint candidate is its pairs' diagonal entries.
             joint = table.diagonal(dim1=2, dim2=3).sum(1)  # [R, M]
+            if first is not None:
+                joint = joint + FIRST_WEIGHT * first.sum(-1).T
             choice = joint.argmin(dim=1)[:, None].expand(r, a).clone()
             road = OnRoadCost().per_agent(states.reshape(m * r, *states.shape[2:]), scene).reshape(m, r, a)
             rows = torch.arange(r, device=states.device)
             for agent in scene.agent_valid.nonzero()[:, 0].tolist():
-                as_first, as_second = (first == agent).nonzero()[:, 0], (second == agent).nonzero()[:, 0]
+                as_first, as_second = (lead == agent).nonzero()[:, 0], (follow == agent).nonzero()[:, 0]
                 # This agent's overlap per own candidate [R, M] with the others at their current choice.
-                overlap = table[rows[:, None], as_first[None], :, choice[:, second[as_first]]].sum(1)
-                overlap = overlap + table[rows[:, None], as_second[None], choice[:, first[as_second]], :].sum(1)
+                overlap = table[rows[:, None], as_first[None], :, choice[:, follow[as_first]]].sum(1)
+                overlap = overlap + table[rows[:, None], as_second[None], choice[:, lead[as_second]], :].sum(1)
                 cost = road[:, :, agent] + self.collision_weight * overlap.T
+                if first is not None:
+                    cost = cost + FIRST_WEIGHT * first[:, :, agent]
                 cost = cost + 1e-6 * (torch.arange(m, device=states.device)[:, None] != choice[None, :, agent])
                 choice[:, agent] = cost.argmin(dim=0)
             return choice
@@ -121,12 +144,14 @@ class MinGuidance(CandidateSelector):
 
     name = "min_guidance"
 
-    def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
+    def select(
+        self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm], first: Tensor | None = None
+    ) -> Tensor:
         if not terms:
-            return MinCollision().select(states, scene, terms)
+            return MinCollision().select(states, scene, terms, first)
         with torch.no_grad():
             total = sum(term.weight * _per_candidate(term.cost, states, scene) for term in terms)
-            return total.argmin(dim=0)
+            return (_joint_first(first) + total).argmin(dim=0)
 
 
 @SELECTORS.register
@@ -135,5 +160,7 @@ class FirstCandidate(CandidateSelector):
 
     name = "first"
 
-    def select(self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm]) -> Tensor:
+    def select(
+        self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm], first: Tensor | None = None
+    ) -> Tensor:
         return torch.zeros(states.shape[1], dtype=torch.long, device=states.device)

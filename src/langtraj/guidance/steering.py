@@ -1,0 +1,190 @@
+"""Guidance toward a prompted agent's target: the terms that steer it to do what its prompt asks.
+
+The extended CTG++-style library: where `guidance.library` maps a label to generic costs around the agent's
+current pose, this maps a behaviour's target derived from the map (`interdrive.targets`) to route, station,
+speed and spacing costs. Targets are timed in simulated steps from the start (1 ... 80); a replan that has
+already executed `elapsed` steps gets the terms for what is left, in its own plan steps.
+
+Common range, as in the library: a clear violation (1 m off the route, 5 m short of a goal, 2 m/s of speed
+error) costs about 1.
+
+See docs/simulation.md ('Prompts that steer').
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from langtraj.frames import Origin, points_to_frame
+from langtraj.guidance.base import GuidanceTerm
+from langtraj.guidance.costs import NoCollisionCost, TargetSpeedCost
+from langtraj.guidance.route import RouteCost, StationCost
+from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
+from langtraj.interdrive.targets import BehaviourTarget
+
+ROUTE_WEIGHT = 1.0  # per m^2 off the route
+REACH_WEIGHT = 1 / 5.0**2  # per m^2 short of a goal station
+HOLD_WEIGHT = 1 / 2.0**2  # per m^2 past a stop or conflict point
+SPEED_WEIGHT = 1 / 2.0**2  # per (m/s)^2 of speed error
+AVOID_WEIGHT = 4.0
+STEP_S = 0.1
+FUTURE = 80  # simulated steps after the start
+
+
+@dataclass(frozen=True)
+class Steering:
+    """A target in the scene frame with the model slots of its agent (and of the other agent, if simulated)."""
+
+    target: BehaviourTarget
+    slot: int
+    other_slot: int | None = None
+
+    @classmethod
+    def of(cls, target: BehaviourTarget, origin: Origin, slots: dict[int, int]) -> Steering:
+        """`target` (world frame) moved into the scene frame of `origin`; `slots` maps track ids to slots."""
+        moved = replace(
+            target,
+            path=points_to_frame(target.path, origin) if len(target.path) else target.path,
+            conflict=None if target.conflict is None else points_to_frame(target.conflict, origin),
+        )
+        other = None if target.other_id is None else slots.get(target.other_id)
+        return cls(moved, slots[target.track_id], other)
+
+    def terms(self, elapsed: int, horizon: int) -> list[GuidanceTerm]:
+        """The terms for a plan of `horizon` steps made after `elapsed` simulated steps."""
+        return _BUILDERS[self.target.behaviour](self, _Clock(elapsed, horizon))
+
+
+@dataclass(frozen=True)
+class _Clock:
+    """Simulated steps (1 = the first after the start) to plan steps of a replan after `elapsed` steps."""
+
+    elapsed: int
+    horizon: int
+
+    def window(self, first: int = 1, last: int = FUTURE) -> tuple[int, int] | None:
+        """Plan steps [start, end) covering simulated steps first ... last; None when none is left."""
+        start = max(first - self.elapsed - 1, 0)
+        end = min(last - self.elapsed, self.horizon)
+        return (start, end) if end > start else None
+
+
+def _route(s: Steering, clock: _Clock, first: int = 1, last: int = FUTURE, weight: float = ROUTE_WEIGHT) -> list:
+    span = clock.window(first, last)
+    if span is None or len(s.target.path) < 2:
+        return []
+    return [GuidanceTerm(RouteCost(s.slot, s.target.path, start=span[0], end=span[1]), weight)]
+
+
+def _station(s: Steering, clock: _Clock, station: float, mode: str, first: int, last: int, weight: float) -> list:
+    span = clock.window(first, last)
+    if span is None or len(s.target.path) < 2:
+        return []
+    cost = StationCost(s.slot, s.target.path, station, mode=mode, start=span[0], end=span[1])  # type: ignore[arg-type]
+    return [GuidanceTerm(cost, weight)]
+
+
+def _speed(s: Steering, clock: _Clock, speed: float, first: int, last: int = FUTURE) -> list:
+    span = clock.window(first, last)
+    if span is None:
+        return []
+    return [GuidanceTerm(TargetSpeedCost(s.slot, max(speed, 0.0), start=span[0], end=span[1]), SPEED_WEIGHT)]
+
+
+def _avoid(s: Steering, buffer: float) -> list:
+    if s.other_slot is None:
+        return []
+    return [GuidanceTerm(NoCollisionCost(s.slot, others=s.other_slot, buffer=buffer), AVOID_WEIGHT)]
+
+
+def _steps(seconds: float) -> int:
+    return round(seconds / STEP_S)
+
+
+def _turn(s: Steering, clock: _Clock) -> list:
+    """On the branch's lanes throughout; past the junction's exit by 7.5 s."""
+    goal = s.target.station_of_goal
+    terms = _route(s, clock)
+    if goal is not None:
+        terms += _station(s, clock, goal, "reach", _steps(7.5), FUTURE, REACH_WEIGHT)
+    return terms
+
+
+def _lane_change(s: Steering, clock: _Clock) -> list:
+    """In the neighbour lane from 4 s on (the change itself is the model's: 2 to 4 s is typical)."""
+    return _route(s, clock, first=_steps(4.0))
+
+
+def _stop_step(s: Steering) -> int:
+    """When braking evenly from the current speed to the goal station brings the agent to rest (at most 6 s)."""
+    goal, v = s.target.station_of_goal or 0.0, max(s.target.current_speed, 0.1)
+    return int(np.clip(_steps(2 * goal / v), 10, 60))
+
+
+def _stop(s: Steering, clock: _Clock) -> list:
+    """Never past the stop point; standing still from when even braking gets there."""
+    goal = s.target.station_of_goal or 0.0
+    terms = _station(s, clock, goal, "hold", 1, FUTURE, HOLD_WEIGHT)
+    return terms + _speed(s, clock, 0.0, _stop_step(s)) + _route(s, clock, weight=0.25 * ROUTE_WEIGHT)
+
+
+def _pull_over(s: Steering, clock: _Clock) -> list:
+    """On the kerb line from 2 s on, never past the stop point, standing still from when even braking gets
+    there (at most 5.5 s, so the stop lasts the 2 s the labeler asks)."""
+    goal = s.target.station_of_goal or 0.0
+    terms = _route(s, clock, first=_steps(2.0))
+    terms += _station(s, clock, goal, "hold", 1, FUTURE, HOLD_WEIGHT)
+    return terms + _speed(s, clock, 0.0, min(_stop_step(s), _steps(5.5)))
+
+
+def _speed_change(s: Steering, clock: _Clock) -> list:
+    """The target speed from 3 s on, along its lane."""
+    return _speed(s, clock, float(s.target.speed or 0.0), _steps(3.0)) + _route(s, clock, weight=0.25)
+
+
+def _go_first(s: Steering, clock: _Clock) -> list:
+    """Past the conflict point (by 5 m) a second before the other agent gets there, clear of it; with no conflict
+    point, at least its speed (3 m/s or more)."""
+    t = s.target
+    if t.station_of_goal is None or t.other_eta is None:  # keep going, clear of the other agent
+        return _speed(s, clock, max(t.current_speed, 3.0), 1) + _route(s, clock, weight=0.25) + _avoid(s, 1.0)
+    by = int(np.clip(_steps(t.other_eta - 1.0), 10, FUTURE))
+    goal = t.station_of_goal + 5.0
+    return _station(s, clock, goal, "reach", by, FUTURE, REACH_WEIGHT) + _route(s, clock, weight=0.25) + _avoid(s, 1.0)
+
+
+def _yield(s: Steering, clock: _Clock) -> list:
+    """Held before the conflict point until two seconds after the other agent gets there, slow meanwhile, and
+    clear of it; with no conflict point, at 30 % of its speed for 4 s."""
+    t = s.target
+    if t.station_of_goal is None or t.other_eta is None:  # slow in the first half, clear of the other agent
+        return _speed(s, clock, 0.3 * t.current_speed, 1, _steps(4.0)) + _avoid(s, 3.0)
+    until = int(np.clip(_steps(t.other_eta + 2.0), 20, FUTURE))
+    hold = max(t.station_of_goal - 4.0, 0.0)
+    terms = _station(s, clock, hold, "hold", 1, until, HOLD_WEIGHT)
+    return terms + _speed(s, clock, 0.0, _steps(1.0), until) + _avoid(s, 3.0)
+
+
+def _follow(s: Steering, clock: _Clock) -> list:
+    """Along the other agent's lane, at its speed, a gap behind it."""
+    other_speed = s.target.other_speed if s.target.other_speed is not None else s.target.current_speed
+    return _route(s, clock, weight=0.5) + _speed(s, clock, other_speed, 1) + _avoid(s, 2.0)
+
+
+_BUILDERS = {
+    Behaviour.TURN_LEFT: _turn,
+    Behaviour.TURN_RIGHT: _turn,
+    Behaviour.GO_STRAIGHT: _turn,
+    Behaviour.LANE_CHANGE_LEFT: _lane_change,
+    Behaviour.LANE_CHANGE_RIGHT: _lane_change,
+    Behaviour.STOP: _stop,
+    Behaviour.PULL_OVER: _pull_over,
+    Behaviour.SPEED_UP: _speed_change,
+    Behaviour.SLOW_DOWN: _speed_change,
+    Behaviour.GO_FIRST: _go_first,
+    Behaviour.YIELD: _yield,
+    Behaviour.FOLLOW: _follow,
+}
+assert set(_BUILDERS) == set(BEHAVIOURS), "every behaviour kind needs a builder"

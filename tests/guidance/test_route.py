@@ -1,0 +1,92 @@
+"""Route costs (`guidance.route`) and the terms toward a prompted agent's target (`guidance.steering`): gradient
+steps on the costs move a trajectory toward the target's path, past a goal station or back before a stop."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from langtraj.errors import InputError
+from langtraj.guidance import GuidanceTerm, RouteCost, StationCost, TargetSpeedCost
+from langtraj.guidance.steering import Steering
+from langtraj.interdrive.behaviour import Behaviour
+from langtraj.interdrive.targets import BehaviourTarget
+
+from .helpers import cost_gradient, make_scene
+
+PATH = [[0.0, 3.5], [100.0, 3.5]]  # a lane 3.5 m to the left of a car driving along y = 0
+
+
+def _driving(steps: int = 40, speed: float = 1.0, y: float = 0.0) -> torch.Tensor:
+    """States [1, 1, steps, 4]: x advancing `speed` m per step along y."""
+    x = torch.arange(1, steps + 1, dtype=torch.float32) * speed
+    return torch.stack([x, torch.full_like(x, y), torch.zeros_like(x), torch.full_like(x, 10 * speed)], -1)[None, None]
+
+
+def _descend(cost, states: torch.Tensor, scene, rate: float, steps: int = 60) -> torch.Tensor:
+    for _ in range(steps):
+        _, grad = cost_gradient(cost, states, scene)
+        states = states - rate * grad
+    return states
+
+
+def test_route_cost_pulls_a_trajectory_onto_the_path_only_inside_its_window():
+    scene = make_scene(1)
+    states = _driving()
+    cost = RouteCost(0, PATH, start=20)
+    value, grad = cost_gradient(cost, states, scene)
+    assert value.item() == pytest.approx(3.0 * (2 * 3.5 - 3.0))  # beyond the 3 m cap: linear (Huber)
+    assert (grad[0, 0, :20] == 0).all() and (grad[0, 0, 20:, 1] < 0).all()  # a step against it moves y up
+    moved = _descend(cost, states, scene, rate=2.0)
+    assert torch.allclose(moved[0, 0, 20:, 1], torch.tensor(3.5), atol=0.05)
+    assert torch.equal(moved[0, 0, :20], states[0, 0, :20])
+
+
+def test_station_cost_reaches_past_a_goal_or_holds_before_a_stop_point():
+    scene = make_scene(1)
+    states = _driving(steps=40, speed=1.0, y=3.5)  # along the path, x from 1 to 40
+    reach = StationCost(0, PATH, 60.0, mode="reach", start=35)
+    moved = _descend(reach, states, scene, rate=1.0)
+    assert (moved[0, 0, 35:, 0] >= 59.0).all() and torch.equal(moved[0, 0, :35], states[0, 0, :35])
+    hold = StationCost(0, PATH, 10.0, mode="hold")
+    value, _ = cost_gradient(hold, states, scene)
+    assert value.item() == pytest.approx(float(np.mean(np.maximum(np.arange(1, 41) - 10.0, 0) ** 2)))
+    held = _descend(hold, states, scene, rate=2.0)
+    assert (held[0, 0, :, 0] <= 10.1).all() and held[0, 0, -1, 0] < 11.0  # from 40 m past it
+
+
+def test_route_costs_refuse_bad_paths_and_modes():
+    with pytest.raises(InputError, match="route: path must be at least two finite"):
+        RouteCost(0, [[0.0, 0.0]])
+    with pytest.raises(InputError, match="station: mode must be"):
+        StationCost(0, PATH, 5.0, mode="past")  # type: ignore[arg-type]
+
+
+def _steering(behaviour: Behaviour, **fields) -> Steering:
+    path = np.stack([np.linspace(0, 100, 101), np.full(101, 3.5)], -1)
+    target = BehaviourTarget(1, behaviour, path, "test", current_speed=10.0, **fields)
+    return Steering(target, slot=0, other_slot=1 if target.other_id is not None else None)
+
+
+def test_steering_terms_are_timed_from_the_start_of_the_simulation():
+    change = _steering(Behaviour.LANE_CHANGE_LEFT)
+    (term,) = change.terms(elapsed=0, horizon=80)
+    assert isinstance(term.cost, RouteCost) and (term.cost.start, term.cost.end) == (39, 80)  # from 4 s on
+    (later,) = change.terms(elapsed=30, horizon=80)
+    assert (later.cost.start, later.cost.end) == (9, 50)  # the same simulated steps, 3 s later
+    stop = _steering(Behaviour.STOP, station_of_goal=20.0, stop=True, speed=0.0)
+    kinds = {type(t.cost) for t in stop.terms(elapsed=0, horizon=80)}
+    assert kinds == {StationCost, TargetSpeedCost, RouteCost}
+    speed = next(t.cost for t in stop.terms(0, 80) if isinstance(t.cost, TargetSpeedCost))
+    assert speed.speeds == (0.0,) and speed.start == 39  # even braking over 20 m from 10 m/s takes 4 s
+    assert _steering(Behaviour.LANE_CHANGE_LEFT).terms(elapsed=80, horizon=80) == []  # nothing left to steer
+
+
+def test_every_term_toward_a_target_is_weighted_in_the_common_range():
+    for behaviour in Behaviour:
+        pair = behaviour in (Behaviour.GO_FIRST, Behaviour.YIELD, Behaviour.FOLLOW)
+        fields = {"other_id": 2, "other_eta": 3.0, "other_speed": 8.0} if pair else {}
+        steering = _steering(behaviour, station_of_goal=30.0, speed=5.0, **fields)
+        terms = steering.terms(0, 80)
+        assert terms and all(isinstance(t, GuidanceTerm) and 0 < t.weight <= 4.0 for t in terms), behaviour
