@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from interdrive.test_counterfactual import two_lane_road, x_junction_yield
 from interdrive.test_ground_truth import VEH, straight
 from interdrive.test_ground_truth import scene as track_scene
 from interdrive.test_heuristics import TIME, scene
+
 from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.counterfactual import make_alternative

@@ -47,7 +47,7 @@ def test_the_guidance_baseline_refuses_a_missing_or_unreadable_prompt(real_data_
     assert "takes exactly one prompt" in capsys.readouterr().err
     assert _simulate(scene, tmp_path / "b", "--policy", "guidance_baseline", "--prompt", "@2320 dances") == 2
     err = capsys.readouterr().err
-    assert "needs a labelled prompt" in err and len(err.strip().splitlines()) == 1
+    assert "needs a prompt whose behaviour it can read" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 

@@ -74,24 +74,28 @@ def test_the_instruction_following_table_judges_ground_truth_and_counterfactual_
     out = tmp_path / "ifr.json"
     args = ["experiment", "instruction-following", "--checkpoint", str(checkpoint), "--data", f"toy={labels}:all",
             "--windows", "1", "--agents", "1", "--counterfactuals", "1", "--rollouts", "2", "--candidates", "2",
-            "--steps", "2", "--cfg", "0", "--cfg", "1", "--json", str(out),
+            "--steps", "2", "--cfg", "1", "--json", str(out),
             "--free-text", str(FREE_TEXT)]  # fmt: skip
     assert main(args) == 0
     printed = capsys.readouterr().out
-    assert "| no text |" in printed and "| w = 1 |" in printed and "GT-IFR" in printed
+    assert "| no prompt |" in printed and "| text + guidance |" in printed and "GT-IFR" in printed
     result = json.loads(out.read_text())["toy"]
     table = result["table"]
-    assert set(table) - {"w = 0, free text"} == {"no text", "w = 0", "w = 1"}
-    if "w = 0, free text" in table:  # the prompts of behaviours the hand-written file covers, in its words
-        assert 1 <= table["w = 0, free text"]["simulations"] <= result["prompts"]
+    assert set(table) - {"default, free text"} == {"no prompt", "text", "guidance", "text + guidance", "default"}
+    if "default, free text" in table:  # the prompts of behaviours the hand-written file covers, in its words
+        assert 1 <= table["default, free text"]["simulations"] <= result["prompts"]
     prompts = result["prompts"]
     assert prompts >= 1
-    assert table["no text"]["simulations"] == 1 and table["w = 1"]["simulations"] == prompts
+    assert table["no prompt"]["simulations"] == 1 and table["default"]["simulations"] == prompts
     for condition, judged in result["judgements"].items():
         assert len(judged) == prompts * 2  # every prompt on every rollout
         counterfactual = [j["followed"] for j in judged if not j["ground_truth"]]
         assert counterfactual and table[condition]["report"]["f_ifr"]["judgements"] == len(counterfactual)
         if table[condition]["f_ifr"] is not None:
             assert 0.0 <= table[condition]["f_ifr"] <= 1.0
-    assert main([*args[:5], f"toy={labels}:all", "--cfg", "-1"]) == 2
+        row = table[condition]
+        assert 0.0 <= row["prompted_collision"] <= 1.0 and row["seconds_per_simulation"] > 0
+    assert main([*args[:5], f"toy={labels}:all", "--conditions", "text,default"]) == 2  # 'no prompt' is the base
+    assert "--conditions" in capsys.readouterr().err
+    assert main([*args[:5], f"toy={labels}:all", "--cfg", "-2"]) == 2
     assert "--cfg" in capsys.readouterr().err

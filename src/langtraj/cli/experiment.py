@@ -76,25 +76,29 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
     i = sub.add_parser(
         "instruction-following",
-        help="closed-loop GT-IFR and F-IFR (feasible counterfactual prompts) with and without text, per weight",
+        help="closed-loop GT-IFR and F-IFR (feasible counterfactual prompts) without a prompt and with each of its "
+        "levers (text, guidance, adherence-first selection)",
     )
     i.add_argument("--checkpoint", required=True)
     i.add_argument("--data", action="append", required=True, help="NAME=LABELS_DIR[:SPLIT] (split default val)")
     i.add_argument("--windows", type=int, default=None, help="at most this many windows per dataset")
+    i.add_argument("--skip", type=int, default=0, help="pass over the first K windows of the split (default 0)")
     i.add_argument("--agents", type=int, default=2, help="prompted agents per window")
     i.add_argument("--counterfactuals", type=int, default=2, help="feasible counterfactual prompts per agent")
     i.add_argument("--rollouts", type=int, default=4)
     i.add_argument("--candidates", type=int, default=4)
     i.add_argument("--steps", type=int, default=5, help="DDIM steps (at most the model's K)")
     i.add_argument("--seed", type=int, default=0)
+    i.add_argument("--cfg", type=float, default=0.0, help="classifier-free guidance weight with text (default 0)")
     i.add_argument(
-        "--cfg", type=float, action="append", help="classifier-free guidance weight with text, repeatable (default 0)"
+        "--conditions",
+        help="comma-separated conditions to run (default all): 'no prompt', text, guidance, 'text + guidance', default",
     )
     i.add_argument("--on-road", type=float, default=None, help="on-road guidance weight (default: simulate's)")
     i.add_argument("--no-collision", type=float, default=None, help="no-collision weight (default: simulate's)")
     i.add_argument(
         "--free-text",
-        help="YAML/JSON of hand-written prompts per behaviour: each prompt is also run in their words (first weight)",
+        help="YAML/JSON of hand-written prompts per behaviour: each prompt is also run in their words (every lever)",
     )
     i.add_argument("--json", help="also write every figure and judgement here")
     i.set_defaults(func=run_instruction_following)
@@ -184,8 +188,11 @@ def run_instruction_following(args: argparse.Namespace) -> int:
         candidates=args.candidates,
         steps=args.steps,
         seed=args.seed,
-        cfg=tuple(args.cfg or (0.0,)),
+        cfg=args.cfg,
+        skip=args.skip,
     )
+    if args.conditions:
+        settings = replace(settings, conditions=tuple(c.strip() for c in args.conditions.split(",") if c.strip()))
     if args.on_road is not None:
         settings = replace(settings, on_road=args.on_road)
     if args.no_collision is not None:

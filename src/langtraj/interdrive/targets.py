@@ -89,12 +89,13 @@ class BehaviourTarget:
         return point_at_station(self.path, self.station_of_goal)
 
     def to_json(self) -> dict[str, Any]:
+        """JSON-ready: the path every 2 m and the points rounded to centimetres (world frame)."""
         goal = self.goal_point
         return {
             "track_id": self.track_id,
             "behaviour": self.behaviour.value,
             "reason": self.reason,
-            "path_points": len(self.path),
+            "path": np.round(self.path[:: max(1, round(2.0 / ROUTE_SPACING))], 2).tolist(),
             "goal": None if goal is None else [round(float(v), 2) for v in goal],
             "stop": self.stop,
             "speed": self.speed,

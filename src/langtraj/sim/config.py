@@ -38,6 +38,25 @@ class SimConfig:
 
 
 @dataclass(frozen=True)
+class PromptLevers:
+    """How a prompt steers a simulation (docs/simulation.md, 'Prompts that steer'): the model is conditioned on its
+    `text`; `guidance` adds terms toward the target the map gives the behaviour read from it; `selection` prefers,
+    per prompted agent, the candidates that do what it asks. All three by default; each can be switched off for
+    an ablation."""
+
+    text: bool = True
+    guidance: bool = True
+    selection: bool = True
+
+    def names(self) -> list[str]:
+        """The levers that are on, by name."""
+        return [name for name in ("text", "guidance", "selection") if getattr(self, name)]
+
+
+ALL_LEVERS = PromptLevers()
+
+
+@dataclass(frozen=True)
 class SimRequest:
     """A simulation as the command line states it (track ids, not model slots). Each policy's
     `from_request` reads the fields it understands and refuses the others."""
@@ -60,6 +79,7 @@ class SimRequest:
     no_collision: float | None = None  # weight per pair of the no-collision guidance; None: the policy's default
     dense_attention: bool = False  # every agent attends to every token, however large the scene (slower)
     guided_steps: int | None = None  # the last N denoising steps get on-road / no-collision guidance; None: default
+    levers: PromptLevers = ALL_LEVERS  # how prompts steer (text, guidance toward targets, adherence-first selection)
 
     def __post_init__(self) -> None:
         if self.max_driven is not None and self.max_driven < 1:
@@ -83,4 +103,5 @@ class SimRequest:
             or self.no_collision is not None
             or self.dense_attention
             or self.guided_steps is not None
+            or self.levers != ALL_LEVERS
         )

@@ -1,17 +1,19 @@
-"""Instruction following in closed loop (docs/experiments.md, 'Instruction following in closed loop').
+"""Instruction following in closed loop (docs/experiments.md, 'Prompts that steer').
 
     langtraj experiment instruction-following --checkpoint CKPT --data NAME=LABELS_DIR[:SPLIT] \
-        [--windows N] [--agents A] [--counterfactuals C] [--rollouts R] [--cfg W]... [--json OUT]
+        [--windows N] [--skip K] [--agents A] [--counterfactuals C] [--rollouts R] [--cfg W]
+        [--conditions NAME,...] [--json OUT]
 
 For each held-out window, up to `agents` driven vehicles (objects of interest first) get prompts from
 `interdrive.counterfactual.feasible_alternatives`: what the log shows (ground truth) and up to
 `counterfactuals` feasible behaviours it does not (turns the lane allows, lane changes into existing
-lanes, stopping, speeding up, slowing down, going first or yielding in a logged pair). Every agent of the
-window is driven by the model, closed loop, once without text and once per prompt and classifier-free
-guidance weight; the labelers judge each rollout (`metrics.instruction_following`). Without text the
-same rollouts are judged against every prompt: the rate at which the model does the asked thing anyway.
-Reported per weight: GT-IFR and F-IFR (macro over behaviour kinds, and per kind), the WOSAC 2025
-meta-metric and buckets, and the prompted agents' minADE under their ground-truth prompts.
+lanes, stopping, pulling over, speeding up, slowing down, going first or yielding in a logged pair). Every
+agent of the window is driven by the model, closed loop, once without a prompt and once per prompt and
+condition (`CONDITIONS`: which of the prompt's levers are on); the labelers judge each rollout
+(`metrics.instruction_following`). Without a prompt the same rollouts are judged against every prompt: the
+rate at which the model does the asked thing anyway. Reported per condition: GT-IFR and F-IFR (macro over
+behaviour kinds, and per kind), the WOSAC 2025 meta-metric and buckets, the prompted agents' collision and
+offroad rates and minADE under their ground-truth prompts, and seconds per simulation.
 """
 
 from __future__ import annotations
@@ -30,19 +32,37 @@ from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.counterfactual import Alternative, Behaviour, FreeTextPrompt, feasible_alternatives
 from langtraj.interdrive.dataset import load_window
 from langtraj.interdrive.mapindex import MapIndex
-from langtraj.metrics.controllability import min_ade
+from langtraj.metrics.controllability import collision_flags, min_ade, offroad_flags
 from langtraj.metrics.features import SceneMap
 from langtraj.metrics.instruction_following import Judgement, instruction_following, judge_rollouts
 from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.model.checkpoint import load_model
+from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
-from langtraj.sim.config import SimConfig
+from langtraj.sim.config import ALL_LEVERS, PromptLevers, SimConfig
 from langtraj.sim.engine import simulate
 from langtraj.sim.experiments import DatasetSpec, held_out_records
-from langtraj.sim.policies import DEFAULT_NO_COLLISION, DEFAULT_ON_ROAD, LangTrajPolicy, LoadedModel, model_agents
+from langtraj.sim.policies import (
+    DEFAULT_NO_COLLISION,
+    DEFAULT_ON_ROAD,
+    GUIDANCE_ONLY,
+    GuidanceBaselinePolicy,
+    LangTrajPolicy,
+    LoadedModel,
+    model_agents,
+)
 
-NO_TEXT = "no text"
+NO_PROMPT = "no prompt"
+CONDITIONS: dict[str, PromptLevers | None] = {
+    NO_PROMPT: None,
+    "text": PromptLevers(text=True, guidance=False, selection=False),
+    "guidance": GUIDANCE_ONLY,
+    "text + guidance": PromptLevers(text=True, guidance=True, selection=False),
+    "default": ALL_LEVERS,
+}
+"""The compared conditions: no prompt; its text alone; the CTG++-style baseline (guidance alone,
+`GuidanceBaselinePolicy`); text and guidance; and what `langtraj simulate` does with a prompt (every lever)."""
 REALISM = ("meta", "kinematic", "interactive", "map")
 
 
@@ -51,18 +71,22 @@ class IFRSettings:
     """What the experiment runs: prompts per window, closed-loop settings, the guidance weights to compare."""
 
     windows: int | None = None
+    skip: int = 0
+    """Windows of the split passed over first (settings are chosen on windows that the report leaves out)."""
     agents: int = 2
     counterfactuals: int = 2
     rollouts: int = 4
     candidates: int = 4
     steps: int = 5
     seed: int = 0
-    cfg: tuple[float, ...] = (0.0,)
+    cfg: float = 0.0
+    """Classifier-free guidance weight of the conditions with text."""
     on_road: float = DEFAULT_ON_ROAD
     no_collision: float = DEFAULT_NO_COLLISION
+    conditions: tuple[str, ...] = tuple(CONDITIONS)
     free_text: tuple[FreeTextPrompt, ...] = ()
-    """Hand-written prompts: each prompt of a behaviour they cover is also run in their words (the first
-    weight only), as the condition '..., free text'."""
+    """Hand-written prompts: each prompt of a behaviour they cover is also run in their words, with every
+    lever, as the condition 'default, free text'."""
 
     def __post_init__(self) -> None:
         for name in ("agents", "rollouts", "candidates", "steps"):
@@ -72,8 +96,16 @@ class IFRSettings:
             raise InputError(f"must be >= 0, got {self.counterfactuals}", where="--counterfactuals")
         if self.windows is not None and self.windows < 1:
             raise InputError(f"must be >= 1, got {self.windows}", where="--windows")
-        if not self.cfg or any(not math.isfinite(w) or w < 0 for w in self.cfg):
-            raise InputError(f"weights must be finite and >= 0 (no text is always run), got {self.cfg}", where="--cfg")
+        if not math.isfinite(self.cfg) or self.cfg < -1:
+            raise InputError(f"must be finite and >= -1, got {self.cfg}", where="--cfg")
+        if self.skip < 0:
+            raise InputError(f"must be >= 0, got {self.skip}", where="--skip")
+        unknown = [c for c in self.conditions if c not in CONDITIONS]
+        if unknown or NO_PROMPT not in self.conditions:
+            raise InputError(
+                f"conditions must include {NO_PROMPT!r} and be among {', '.join(CONDITIONS)}; got {self.conditions}",
+                where="--conditions",
+            )
 
 
 @dataclass(frozen=True)
@@ -119,7 +151,7 @@ def ifr_cases(spec: DatasetSpec, settings: IFRSettings) -> tuple[list[IFRCase], 
     """The windows of the dataset's split with prompts (at most `settings.windows`) and how many had none."""
     rng = np.random.default_rng(settings.seed)
     found, skipped = [], 0
-    for record in held_out_records(spec.folder, spec.split):
+    for record in held_out_records(spec.folder, spec.split)[settings.skip :]:
         if settings.windows is not None and len(found) >= settings.windows:
             break
         try:
@@ -137,18 +169,21 @@ def ifr_cases(spec: DatasetSpec, settings: IFRSettings) -> tuple[list[IFRCase], 
     return found, skipped
 
 
-def _policy(loaded: LoadedModel, settings: IFRSettings, prompt: Alternative | None, weight: float) -> LangTrajPolicy:
+def _policy(loaded: LoadedModel, settings: IFRSettings, prompt: Alternative | None, condition: str) -> LangTrajPolicy:
+    """The policy of `condition` for `prompt` (None: no prompt), as `langtraj simulate` builds it."""
     model, data = loaded
-    return LangTrajPolicy(
-        model,
-        data,
-        prompt=None if prompt is None else prompt.prompt,
-        candidates=settings.candidates,
-        steps=settings.steps,
-        guidance_weight=weight,
-        on_road=settings.on_road,
-        no_collision=settings.no_collision,
-    )
+    levers = CONDITIONS[condition]
+    options: dict = {
+        "candidates": settings.candidates,
+        "steps": settings.steps,
+        "on_road": settings.on_road,
+        "no_collision": settings.no_collision,
+    }
+    if prompt is None or levers is None:
+        return LangTrajPolicy(model, data, **options)
+    if levers == GUIDANCE_ONLY:
+        return GuidanceBaselinePolicy(model, data, prompt=prompt.prompt, **options)
+    return LangTrajPolicy(model, data, prompt=prompt.prompt, guidance_weight=settings.cfg, levers=levers, **options)
 
 
 def _realism(scenario: Scenario, rollouts, scene_map: SceneMap) -> dict[str, float]:
@@ -171,50 +206,66 @@ def in_free_text(prompt: Alternative, free_text: Sequence[FreeTextPrompt], pick:
     return Alternative(prompt.track_id, prompt.behaviour, entry, prompt.facts, prompt.logged, prompt.other_id)
 
 
+def _safety(case: IFRCase, rollouts: Rollouts, scene_map: SceneMap, tracks: Sequence[int]) -> dict[str, list]:
+    """Collision and offroad rates over the rollouts of each of `tracks` (offroad: None without road edges)."""
+    ids = [int(i) for i in rollouts.object_id]
+    collided = collision_flags(case.scenario, rollouts).mean(axis=0)
+    offroad: dict[int, float] = {}
+    if scene_map.road_edges is not None:
+        found, flags = offroad_flags(case.scenario, rollouts, scene_map=scene_map)
+        offroad = {int(i): float(f) for i, f in zip(found, flags.mean(axis=0), strict=True)}
+    return {
+        "collision": [float(collided[ids.index(t)]) for t in tracks],
+        "offroad": [offroad[t] for t in tracks if t in offroad],
+    }
+
+
 def _run_prompts(
     loaded: LoadedModel,
     case: IFRCase,
     settings: IFRSettings,
     scene_map: SceneMap,
     prompts: Sequence[Alternative],
-    weight: float,
+    condition: str,
 ) -> dict:
     config = SimConfig(rollouts=settings.rollouts, seed=settings.seed)
-    row: dict = {"judgements": [], "realism": [], "minade": [], "seconds": 0.0}
+    row: dict = {"judgements": [], "realism": [], "minade": [], "seconds": 0.0, "collision": [], "offroad": []}
     for prompt in prompts:
         start = time.perf_counter()
-        rollouts = simulate(case.scenario, _policy(loaded, settings, prompt, weight), config).rollouts
+        rollouts = simulate(case.scenario, _policy(loaded, settings, prompt, condition), config).rollouts
         row["seconds"] += time.perf_counter() - start
         row["judgements"] += judge_rollouts(case.scenario, rollouts, [prompt], checker=case.checker)
         row["realism"].append(_realism(case.scenario, rollouts, scene_map))
+        for key, values in _safety(case, rollouts, scene_map, [prompt.track_id]).items():
+            row[key] += values
         if prompt.logged:
             row["minade"].append(min_ade(case.scenario, rollouts, [prompt.track_id]).mean)
     return row
 
 
 def run_case(loaded: LoadedModel, case: IFRCase, settings: IFRSettings, pick: int = 0) -> dict[str, dict]:
-    """Per condition (no text, and each weight): judgements, realism rows (one per simulation) and minADE of the
-    ground-truth prompts' agents, and seconds spent simulating."""
+    """Per condition: judgements, realism rows (one per simulation), the prompted agents' collision and offroad
+    rates and the ground-truth prompts' agents' minADE, and seconds spent simulating."""
     config = SimConfig(rollouts=settings.rollouts, seed=settings.seed)
     scene_map = SceneMap.from_scenario(case.scenario)
     out: dict[str, dict] = {}
     start = time.perf_counter()
-    plain = simulate(case.scenario, _policy(loaded, settings, None, 0.0), config).rollouts
-    out[NO_TEXT] = {
+    plain = simulate(case.scenario, _policy(loaded, settings, None, NO_PROMPT), config).rollouts
+    out[NO_PROMPT] = {
         "judgements": list(judge_rollouts(case.scenario, plain, case.prompts, checker=case.checker)),
         "realism": [_realism(case.scenario, plain, scene_map)],
         "minade": [min_ade(case.scenario, plain, [p.track_id]).mean for p in case.prompts if p.logged],
         "seconds": time.perf_counter() - start,
+        **_safety(case, plain, scene_map, [p.track_id for p in case.prompts]),
     }
-    for weight in settings.cfg:
-        out[f"w = {weight:g}"] = _run_prompts(loaded, case, settings, scene_map, case.prompts, weight)
+    for condition in settings.conditions:
+        if condition != NO_PROMPT:
+            out[condition] = _run_prompts(loaded, case, settings, scene_map, case.prompts, condition)
     if settings.free_text:
         worded = [in_free_text(p, settings.free_text, pick + i) for i, p in enumerate(case.prompts)]
         covered = [p for p in worded if p is not None]
         if covered:
-            out[f"w = {settings.cfg[0]:g}, free text"] = _run_prompts(
-                loaded, case, settings, scene_map, covered, settings.cfg[0]
-            )
+            out["default, free text"] = _run_prompts(loaded, case, settings, scene_map, covered, "default")
     return out
 
 
@@ -228,14 +279,20 @@ def summarize(per_case: Sequence[dict[str, dict]]) -> dict[str, dict]:
         realism = [r for row in rows for r in row["realism"]]
         minade = [m for row in rows for m in row["minade"]]
         report = instruction_following(judgements)
+        collision = [c for row in rows for c in row["collision"]]
+        offroad = [o for row in rows for o in row["offroad"]]
+        seconds = sum(row["seconds"] for row in rows)
         table[condition] = {
             **{k: float(np.mean([r[k] for r in realism])) for k in REALISM},
             "minade": float(np.mean(minade)) if minade else math.nan,
             "gt_ifr": report.ground_truth.macro,
             "f_ifr": report.counterfactual.macro,
+            "prompted_collision": float(np.mean(collision)) if collision else math.nan,
+            "prompted_offroad": float(np.mean(offroad)) if offroad else math.nan,
             "report": report.to_json(),
             "simulations": len(realism),
-            "seconds": sum(row["seconds"] for row in rows),
+            "seconds": seconds,
+            "seconds_per_simulation": seconds / max(len(realism), 1),
         }
     return table
 
@@ -245,15 +302,17 @@ def _cell(value: float | None) -> str:
 
 
 def markdown(table: dict[str, dict]) -> str:
-    """The classifier-free guidance table (the paper's columns plus GT-IFR and F-IFR), then F-IFR and GT-IFR
-    per behaviour kind."""
+    """The conditions' table (the paper's realism columns, the prompted agents' safety, GT-IFR and F-IFR, seconds
+    per simulation), then F-IFR and GT-IFR per behaviour kind."""
+    columns = (*REALISM, "minade", "prompted_collision", "prompted_offroad", "gt_ifr", "f_ifr")
     lines = [
-        "| condition | meta | kinematic | interactive | map | minADE (m) | GT-IFR | F-IFR |",
-        "|" + " --- |" * 8,
+        "| condition | meta | kinematic | interactive | map | minADE (m) | prompted collision | prompted offroad "
+        "| GT-IFR | F-IFR | s / simulation |",
+        "|" + " --- |" * 11,
     ]
     for name, row in table.items():
-        cells = [row[k] for k in (*REALISM, "minade", "gt_ifr", "f_ifr")]
-        lines.append(f"| {name} | " + " | ".join(_cell(v) for v in cells) + " |")
+        cells = [_cell(row[k]) for k in columns] + [f"{row['seconds_per_simulation']:.1f}"]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
     lines += ["", "| behaviour | " + " | ".join(f"{name} F-IFR / GT-IFR" for name in table) + " |"]
     lines.append("|" + " --- |" * (len(table) + 1))
     for behaviour in Behaviour:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -30,8 +30,10 @@ from langtraj.guidance import GuidanceScene, GuidanceTerm, NoCollisionCost, OnRo
 from langtraj.guidance.base import FinalSteps
 from langtraj.guidance.library import terms_for_prompt
 from langtraj.interdrive.dataset import PromptEntry
+from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.prompts import Prompt
 from langtraj.interdrive.prompts.user import recognize_prompt
+from langtraj.interdrive.reader import read_prompt
 from langtraj.model.checkpoint import load_model
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import MapArrays, collate_scenes, map_coverage, sample_map, scene_frame, scene_sample
@@ -41,9 +43,10 @@ from langtraj.registry import Registry
 from langtraj.rollouts.baselines import BASELINES
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.selection import prioritized_agents
+from langtraj.sim.adherence import CandidateJudge
 from langtraj.sim.checkpoints import shipped_checkpoint
-from langtraj.sim.config import SimRequest
-from langtraj.sim.prompts import check_prompt_driven, merged_prompt
+from langtraj.sim.config import ALL_LEVERS, PromptLevers, SimRequest
+from langtraj.sim.prompts import PromptSteering, check_prompt_driven, merged_prompt, prompt_steering
 from langtraj.sim.selection import SELECTORS, CandidateSelector, chosen_states
 from langtraj.sim.terms import collision_terms, scene_wide_terms
 from langtraj.sim.world import SimWorld
@@ -62,6 +65,12 @@ at less cost than guiding all five (docs/experiments.md, 'Guidance on fewer step
 DEFAULT_SELECTOR = "per_agent"
 """Candidate selection without steering guidance (prompts' costs, collision or `--guidance` terms, which
 use `min_guidance`): chosen by measurement like `DEFAULT_ON_ROAD`; the paper's is `min_collision`."""
+
+NEAR_WEIGHT = 1e-4
+"""Weight of a prompted agent's distance from its target among candidates that follow its prompt (see
+`LangTrajPolicy._adherence`): times `selection.FIRST_WEIGHT`, 1 per unit of c / (1 + c)."""
+GUIDANCE_ONLY = PromptLevers(text=False, guidance=True, selection=False)
+"""The levers of the CTG++-style baseline (`GuidanceBaselinePolicy`)."""
 
 LoadedModel = tuple[LangTraj, SampleConfig]
 """A trained model and the sample configuration it was trained with (`langtraj.model.load_model`)."""
@@ -174,6 +183,8 @@ class LangTrajRun:
     terms: tuple[GuidanceTerm, ...]
     selector: CandidateSelector
     generators: list[torch.Generator]
+    steering: PromptSteering = field(default_factory=PromptSteering)
+    judge: CandidateJudge | None = None
 
 
 @POLICIES.register
@@ -221,18 +232,24 @@ class LangTrajPolicy(Policy):
         free: Sequence[int] = (),
         local_attention: bool = True,
         guided_steps: int | None = None,
+        levers: PromptLevers = ALL_LEVERS,
+        prompt_texts: Sequence[str] | None = None,
     ):
         if candidates < 1 or steps < 1 or rollout_batch < 0:
             raise InputError(
                 f"candidates and steps must be >= 1 and rollout_batch >= 0 (got {candidates}, {steps}, {rollout_batch})"
             )
-        if prompt is not None and model.text_encoder is None:
+        if prompt is not None and levers.text and model.text_encoder is None:
             raise InputError(
-                "this checkpoint has no text branch (a stage-1 model); it cannot follow a prompt", where="prompt"
+                "this checkpoint has no text branch (a stage-1 model); it cannot condition on a prompt's text "
+                "(switch the text lever off to steer by guidance and selection alone)",
+                where="prompt",
             )
         self.model = model.eval()
-        self.data = replace(data, text=prompt is not None, text_dropout=0.0, history_dropout=0.0)
+        self.levers = levers
+        self.data = replace(data, text=prompt is not None and levers.text, text_dropout=0.0, history_dropout=0.0)
         self.prompt = prompt
+        self.prompt_texts = tuple(prompt_texts) if prompt_texts is not None else (prompt.text,) if prompt else ()
         self.terms = tuple(terms)
         self.candidates, self.steps = candidates, steps
         self.guidance_weight, self.guidance_scale = guidance_weight, guidance_scale
@@ -283,6 +300,8 @@ class LangTrajPolicy(Policy):
             "no_collision": DEFAULT_NO_COLLISION if request.no_collision is None else request.no_collision,
             "local_attention": not request.dense_attention,
             "guided_steps": request.guided_steps,
+            "levers": request.levers,
+            "prompt_texts": request.prompts,
         }
 
     # ------------------------------------------------------------------ which agents
@@ -304,6 +323,7 @@ class LangTrajPolicy(Policy):
             "guided_steps": self.guided_steps,
             "selector": self.selector_name or self.default_selector(),
             "attention": "local" if self.local_attention else "dense",
+            "prompt_levers": self.levers.names() if self.prompt is not None else [],
         }
 
     # ------------------------------------------------------------------ simulation
@@ -316,8 +336,15 @@ class LangTrajPolicy(Policy):
         origin = scene_frame(start)
         device = next(self.model.parameters()).device
         scene = GuidanceScene.from_scenario(start, origin, world.driven, num_agents=data.max_agents)
-        terms = self.terms + self.prompt_terms(world, slots, origin, data.max_agents)
+        index = MapIndex.build(start.road_map) if self.prompt_texts else None
+        steering = (
+            prompt_steering(start, self.prompt_texts, world.driven, origin, self.levers, index)
+            if self.prompt_texts
+            else PromptSteering()
+        )
+        terms = self.terms + self.prompt_terms(world, slots, origin, data.max_agents, steering)
         terms += self.realism_terms(len(world.driven))
+        judge = CandidateJudge(world, list(steering.asks), index) if steering.asks and index is not None else None
         selector = SELECTORS.create(self.selector_name or self.default_selector(), where="selector")
         if selector.uses_road or any(isinstance(term.cost, OnRoadCost) for term in terms):
             here = torch.as_tensor(poses_to_frame(world.current(world.start)[0], origin)[:, :2])
@@ -335,12 +362,21 @@ class LangTrajPolicy(Policy):
             terms=terms,
             selector=selector,
             generators=[torch.Generator().manual_seed(seed * 1_000_003 + r) for r in range(world.num_rollouts)],
+            steering=steering,
+            judge=judge,
         )
 
     def default_selector(self) -> str:
-        """`min_guidance` when guidance steers the scene (terms given, or derived from the prompt), so
-        selection keeps what it asks for; otherwise `DEFAULT_SELECTOR`."""
-        return "min_guidance" if self.terms or self.steers_by_prompt else DEFAULT_SELECTOR
+        """`min_guidance` when explicit guidance steers the scene (collision guidance, `--guidance` terms), so that
+        selection keeps what it asks for (a per-agent choice would pull an adversary off its target); with a
+        prompt, `DEFAULT_SELECTOR` when the selection lever is on (adherence first, then each agent's road and
+        collisions), else `min_guidance` when its guidance lever is; otherwise `DEFAULT_SELECTOR`. Every selector
+        compares a prompted agent's adherence first when the selection lever is on."""
+        if self.terms or self.steers_by_prompt:
+            return "min_guidance"
+        if self.prompt is not None and not self.levers.selection and self.levers.guidance:
+            return "min_guidance"
+        return DEFAULT_SELECTOR
 
     def realism_terms(self, num_driven: int) -> tuple[GuidanceTerm, ...]:
         """The default guidance on every driven agent: on-road, and no-collision between every pair except
@@ -366,13 +402,17 @@ class LangTrajPolicy(Policy):
             poses = poses_to_frame(world.current(step), state.origin)  # [R, A_d, 4]
             covered = map_coverage(state.map_arrays, poses[..., :2], np.ones(poses.shape[:2], bool))
             coverage[name] = float(covered.mean()) if covered.size else None
-        return {"map_pieces": int(state.map_arrays[1].any(-1).sum()), "map_coverage": coverage}
+        out: dict[str, Any] = {"map_pieces": int(state.map_arrays[1].any(-1).sum()), "map_coverage": coverage}
+        if self.prompt is not None:
+            out["prompt"] = state.steering.to_json()
+        return out
 
     def prompt_terms(
-        self, world: SimWorld, slots: dict[int, int], origin: Origin, num_agents: int
+        self, world: SimWorld, slots: dict[int, int], origin: Origin, num_agents: int, steering: PromptSteering
     ) -> tuple[GuidanceTerm, ...]:
-        """Guidance terms derived from the scene at the start, over `num_agents` model slots (none here;
-        the baseline's come from labels)."""
+        """Fixed guidance terms derived from the scene at the start, over `num_agents` model slots (none here:
+        the terms toward a prompt's target change with each replan, `steering`; the baseline adds the label
+        library's for a prompt whose behaviour was not read)."""
         return ()
 
     def plan(self, world: SimWorld, state: LangTrajRun, step: int, horizon: int) -> np.ndarray:
@@ -408,13 +448,16 @@ class LangTrajPolicy(Policy):
             per_rollout = [torch.randn((m, *shape[1:]), generator=g) for g in generators]
             return torch.stack(per_rollout, dim=1).reshape(shape).to(device)
 
+        elapsed, horizon = step - world.start, self.data.future_steps
+        steered = [s.terms(elapsed, horizon) for s in state.steering.steerings]
+        terms = state.terms + tuple(t for group in steered for t in group)
         hook = None
-        if state.terms:
+        if terms:
             initial = batch.current_state.repeat(m, 1, 1)
             types = batch.agent_type.repeat(m, 1)
             model = self.model
             hook = reconstruction_guidance(
-                state.terms,
+                terms,
                 state.scene,
                 lambda x: model.integrate(initial, types, x),
                 scale=self.guidance_scale,
@@ -431,31 +474,67 @@ class LangTrajPolicy(Policy):
             map_context=state.map_context,
             local=self.data.local_attention() if self.local_attention else None,
         )
-        choice = state.selector.select(states, state.scene, state.terms)  # states [M, R, A, T, 4], scene frame
+        first = self._adherence(world, state, step, rollouts, states, steered)
+        choice = state.selector.select(states, state.scene, terms, first)  # states [M, R, A, T, 4], scene frame
         chosen = chosen_states(states, choice)[:, : len(world.driven)].double().cpu().numpy()
         return poses_to_world(chosen, state.origin)
+
+    def _adherence(
+        self,
+        world: SimWorld,
+        state: LangTrajRun,
+        step: int,
+        rollouts: list[int],
+        states: Tensor,
+        steered: list[list[GuidanceTerm]],
+    ) -> Tensor | None:
+        """`first` for selection [M, R, A]: 1 where a prompted agent's candidate does not follow its prompt
+        (`sim.adherence`), plus up to 0.5 by how far it is from its target (n, its guidance cost c as c / (1 + c)),
+        so that among candidates that all miss the nearest comes first; and `NEAR_WEIGHT` x n for every candidate,
+        so that among those that follow, one that does it now beats one that puts it off to a later replan (as
+        much as a tenth of a disk overlap weighs in `per_agent`); None without a judge."""
+        if state.judge is None:
+            return None
+        m, r = states.shape[:2]
+        plans = poses_to_world(states[:, :, : len(world.driven)].detach().double().cpu().numpy(), state.origin)
+        misses = torch.as_tensor(state.judge.misses(rollouts, step, plans), dtype=states.dtype)  # [K, M, R]
+        first = states.new_zeros(states.shape[:3])
+        by_slot = {s.slot: terms for s, terms in zip(state.steering.steerings, steered, strict=True)}
+        flat = states.reshape(m * r, *states.shape[2:])
+        with torch.no_grad():
+            for ask, miss in zip(state.judge.asks, misses, strict=True):
+                near = states.new_zeros(m, r)
+                for term in by_slot.get(ask.slot, []):
+                    near = near + term.weight * term.cost(flat, state.scene).reshape(m, r)
+                nearness = near / (1.0 + near)
+                first[:, :, ask.slot] += miss.to(states.device) * (1.0 + 0.5 * nearness) + NEAR_WEIGHT * nearness
+        return first
 
 
 @POLICIES.register
 class GuidanceBaselinePolicy(LangTrajPolicy):
-    """The CTG++-style baseline: the model without text, steered by the library's guidance terms for the
-    prompt's interaction subtype and single-agent labels (`langtraj.guidance.library`), in place of the
-    loss functions an LLM writes for each instruction in CTG++."""
+    """The CTG++-style baseline: the model without text, steered by guidance alone, in place of the loss functions
+    an LLM writes for each instruction in CTG++: toward the target the map gives the behaviour read from the
+    prompt (`guidance.steering`), or, for a prompt whose behaviour is not read, by the label library's terms for
+    its interaction subtype and single-agent labels (`guidance.library`). Selection keeps what guidance asks
+    (`min_guidance`), without judging adherence."""
 
     name = "guidance_baseline"
     steers_by_prompt = True
 
     def __init__(self, model: LangTraj, data: SampleConfig, *, prompt: PromptEntry, **kwargs):
+        texts = tuple(kwargs.pop("prompt_texts", None) or (prompt.text,))
+        kwargs.pop("levers", None)
         if prompt.subtype is None and not prompt.labels:  # a typed prompt: read its labels from its words
             read = recognize_prompt(Prompt(prompt.text, prompt.mentions, source=prompt.source))
             prompt = replace(prompt, subtype=read.subtype_id, labels=read.label_keys)
-        if prompt.subtype is None and not prompt.labels:
+        if not any(read_prompt(t).behaviour for t in texts) and prompt.subtype is None and not prompt.labels:
             raise InputError(
-                "the guidance baseline needs a labelled prompt (an InterDrive subtype or labels); "
-                f"no label was recognised in {prompt.text!r}",
+                "the guidance baseline needs a prompt whose behaviour it can read, or a labelled one (an InterDrive "
+                f"subtype or labels); neither was recognised in {prompt.text!r}",
                 where="prompt",
             )
-        super().__init__(model, data, **kwargs)
+        super().__init__(model, data, levers=GUIDANCE_ONLY, prompt_texts=texts, **kwargs)
         self.labelled = prompt
 
     @staticmethod
@@ -471,8 +550,10 @@ class GuidanceBaselinePolicy(LangTrajPolicy):
         return {**super().describe(), "prompted_ids": list(self.labelled.mentions), "prompt_read_as": read}
 
     def prompt_terms(
-        self, world: SimWorld, slots: dict[int, int], origin: Origin, num_agents: int
+        self, world: SimWorld, slots: dict[int, int], origin: Origin, num_agents: int, steering: PromptSteering
     ) -> tuple[GuidanceTerm, ...]:
+        if steering.steerings:  # the behaviour was read and the map gave its target: those terms steer
+            return ()
         mentions = {i: slots[t] for i, t in enumerate(self.labelled.mentions[:2]) if t in slots}
         if 0 not in mentions:
             raise InputError(

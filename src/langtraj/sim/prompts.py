@@ -1,17 +1,28 @@
 """Typed `@id` prompts in a simulation: parsed against the scene, merged into one prompt entry, checked
 against the agents the model drives and against the map (a turn or lane change it does not allow is warned
-about), and turned into each driven agent's sentence (docs/simulation.md)."""
+about), turned into each driven agent's sentence, and read into the behaviour, target and criteria that steer
+the simulation (`prompt_steering`; docs/simulation.md, 'Prompts that steer')."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
 
 from langtraj.errors import InputError
+from langtraj.frames import Origin
+from langtraj.guidance.steering import Steering
 from langtraj.interdrive.counterfactual import infeasible_manoeuvres
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.prompts import parse_user_prompt
+from langtraj.interdrive.reader import PromptReading, read_prompt
+from langtraj.interdrive.targets import BehaviourTarget, TargetUnavailable, derive_target
 from langtraj.scenario.model import Scenario
+from langtraj.sim.adherence import Ask
+from langtraj.sim.config import PromptLevers
 
 
 def user_prompt_entry(scenario: Scenario, text: str) -> PromptEntry:
@@ -65,3 +76,73 @@ def prompt_warnings(scenario: Scenario, prompts: Sequence[str]) -> list[str]:
         for text in prompts
         for warning in infeasible_manoeuvres(scenario, user_prompt_entry(scenario, text), index)
     ]
+
+
+@dataclass(frozen=True)
+class PromptSteering:
+    """What typed prompts steer in one simulation: what the reader made of each (`readings`), the guidance toward
+    each read behaviour's target (`steerings`, when the guidance lever is on), what selection judges
+    (`asks`, when the selection lever is on), and one line per prompt saying so (`notes`)."""
+
+    readings: tuple[PromptReading, ...] = ()
+    steerings: tuple[Steering, ...] = ()
+    asks: tuple[Ask, ...] = ()
+    notes: tuple[str, ...] = ()
+    targets: tuple[BehaviourTarget, ...] = ()
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "read": [r.to_json() for r in self.readings],
+            "targets": [t.to_json() for t in self.targets],
+            "steering": list(self.notes),
+        }
+
+
+def prompt_steering(
+    scenario: Scenario,
+    texts: Sequence[str],
+    rows: np.ndarray,
+    origin: Origin,
+    levers: PromptLevers,
+    index: MapIndex | None = None,
+) -> PromptSteering:
+    """Read each typed prompt (`interdrive.reader`), derive its behaviour's target from the map at the current
+    step (`interdrive.targets`) and turn it into guidance and selection criteria for the driven agents `rows`
+    (scenario rows in slot order). A prompt the reader cannot read, or whose target the map does not give,
+    steers by the levers it can (text; selection still judges a read behaviour), and its note says so."""
+    slots = {int(scenario.agents.ids[row]): slot for slot, row in enumerate(rows)}
+    readings = tuple(read_prompt(text) for text in texts)
+    steerings, asks, notes, targets = [], [], [], []
+    for reading in readings:
+        if reading.behaviour is None or reading.agent is None:
+            alone = "it steers by its text alone" if levers.text else "nothing steers it (the text lever is off)"
+            notes.append(f"{reading.describe()}; {alone}")
+            continue
+        if reading.agent not in slots:
+            raise InputError(f"@{reading.agent} is not among the agents the model drives", where="prompt")
+        other_row = None if reading.other is None else scenario.agents.index_of(reading.other)
+        ask = Ask(
+            reading.agent,
+            scenario.agents.index_of(reading.agent),
+            slots[reading.agent],
+            reading.behaviour,
+            reading.other,
+            other_row,
+            None if reading.other is None else slots.get(reading.other),
+        )
+        used = ["text"] if levers.text else []
+        if levers.guidance:
+            index = index or MapIndex.build(scenario.road_map)
+            try:
+                target = derive_target(scenario, reading.agent, reading.behaviour, index, other_id=reading.other)
+            except TargetUnavailable as exc:
+                notes.append(f"{reading.describe()}; no target: {exc.detail}")
+            else:
+                targets.append(target)
+                steerings.append(Steering.of(target, origin, slots))
+                used.append(f"guidance toward {target.reason}")
+        if levers.selection:
+            asks.append(ask)
+            used.append("adherence-first selection")
+        notes.append(f"{reading.describe()}; steered by {', '.join(used) or 'nothing'}")
+    return PromptSteering(readings, tuple(steerings), tuple(asks), tuple(notes), tuple(targets))

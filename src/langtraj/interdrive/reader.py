@@ -1,0 +1,730 @@
+"""Read which behaviour kind (`Behaviour`) a typed prompt asks of which agent: "@7, hang a left" -> @7 turn_left.
+
+The simulator steers an agent by the kind a prompt asks for, so a prompt in everyday words must be read without the
+phrase tables (`prompts.user.recognize_prompt` finds only their own phrases). The reader is rule-based: regular
+expressions over the lower-cased text, with each `@id` mention replaced by a placeholder. It favours precision over
+recall: a negated prompt, two different kinds, or a subject or other agent it cannot tell give no kind (and a
+reason), so that a prompt it cannot read steers by its text alone rather than by a wrong kind.
+`python -m langtraj.interdrive.reader FILE...` prints how it reads free-text prompt files.
+
+See docs/interdrive.md ('Reading a prompt').
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+from langtraj.errors import InputError
+from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
+from langtraj.interdrive.prompts.compose import MENTION, mentions_in
+
+_SLOT = r"<m\d+>"
+_VEHICLE = (
+    r"(?:car|truck|lorry|van|bus|coach|vehicle|cyclist|bike|bicycle|pedestrian|motorbike|motorcycle|scooter|taxi|cab"
+    r"|suv|sedan|person|walker|driver|agent|one|tractor|trailer)"
+)
+_APPOSITION = rf"(?:(?:the|a|an|that|this)\s+(?:[\w-]+\s+){{0,2}}?{_VEHICLE}\s*,?\s+)"
+"""A noun phrase naming the other agent before its mention: "follows the lorry, @7", "behind the truck @7"."""
+_OTHER = rf"{_APPOSITION}?(?P<other>{_SLOT})"
+_OBJ = rf"(?:\s+(?P<agent>{_SLOT}))?"
+"""The asked agent as the object of a request: "move @12 one lane to the left", "bring @12 to a halt"."""
+_PLACEHOLDER = re.compile(r"<m(\d+)>")
+
+# ---------------------------------------------------------------------------------------------- words
+
+_IRREGULAR: dict[str, tuple[str, ...]] = {
+    "go": ("goes", "going", "went", "gone"),
+    "take": ("takes", "taking", "took", "taken"),
+    "make": ("makes", "making", "made"),
+    "come": ("comes", "coming", "came"),
+    "get": ("gets", "getting", "got", "gotten"),
+    "hang": ("hangs", "hanging", "hung"),
+    "let": ("lets", "letting"),
+    "cut": ("cuts", "cutting"),
+    "put": ("puts", "putting"),
+    "hold": ("holds", "holding", "held"),
+    "keep": ("keeps", "keeping", "kept"),
+    "bring": ("brings", "bringing", "brought"),
+    "give": ("gives", "giving", "gave", "given"),
+    "lose": ("loses", "losing", "lost"),
+    "slide": ("slides", "sliding", "slid"),
+    "swing": ("swings", "swinging", "swung"),
+    "drive": ("drives", "driving", "drove", "driven"),
+    "ride": ("rides", "riding", "rode", "ridden"),
+    "run": ("runs", "running", "ran"),
+    "stand": ("stands", "standing", "stood"),
+    "sit": ("sits", "sitting", "sat"),
+    "beat": ("beats", "beating", "beaten"),
+    "bear": ("bears", "bearing", "bore", "borne"),
+    "freeze": ("freezes", "freezing", "froze", "frozen"),
+    "draw": ("draws", "drawing", "drew", "drawn"),
+    "speed": ("speeds", "speeding", "sped"),
+    "fall": ("falls", "falling", "fell", "fallen"),
+    "shoot": ("shoots", "shooting", "shot"),
+    "leave": ("leaves", "leaving"),  # not "left": that is a side
+    "grind": ("grinds", "grinding", "ground"),
+    "have": ("has", "having", "had"),
+    "shed": ("sheds", "shedding"),
+    "set": ("sets", "setting"),
+    "hit": ("hits", "hitting"),
+    "see": ("sees", "seeing", "saw", "seen"),
+}
+_DOUBLED = frozenset(
+    {"stop", "nip", "hop", "slip", "step", "drop", "pop", "swap", "slot", "tag", "tap", "gun", "permit", "submit"}
+)
+"""Verbs doubling their last consonant: stopping, stopped."""
+
+
+def _forms(base: str) -> tuple[str, ...]:
+    """The base, third-person, -ing and past forms of a regular or listed irregular verb."""
+    if base in _IRREGULAR:
+        return (base, *_IRREGULAR[base])
+    consonant_y = base.endswith("y") and base[-2] not in "aeiou"
+    if base.endswith(("s", "sh", "ch", "x", "z")):
+        third = base + "es"
+    else:
+        third = base[:-1] + "ies" if consonant_y else base + "s"
+    if base in _DOUBLED:
+        stem = base + base[-1]
+    else:
+        stem = base[:-1] if base.endswith("e") and not base.endswith("ee") else base
+    past = base + "d" if base.endswith("e") else (base[:-1] + "ied" if consonant_y else stem + "ed")
+    if base.endswith("el"):  # travel: British travelling, travelled beside traveling, traveled
+        return base, third, stem + "ing", past, base + "ling", base + "led"
+    return base, third, stem + "ing", past
+
+
+def _verb(*bases: str) -> str:
+    """A non-capturing group of every form of `bases` (a multi-word base inflects its first word)."""
+    forms: set[str] = set()
+    for base in bases:
+        head, _, tail = base.partition(" ")
+        forms.update(f"{form} {tail}".strip() for form in _forms(head))
+    return "(?:" + "|".join(sorted((re.escape(f).replace(r"\ ", r"\s+") for f in forms), key=len, reverse=True)) + ")"
+
+
+def _gap(words: int) -> str:
+    """Up to `words` words within one clause (not across 'and', 'then', 'but', 'or' or punctuation)."""
+    return rf"(?:\s+(?!(?:and|then|but|or)\b)[\w'<>-]+){{0,{words}}}?"
+
+
+_TIGHT_GAP = r"(?:(?!\b(?:and|then|but|or)\b)[^,;.!?]){0,40}?"
+"""Up to 40 characters within one clause."""
+
+_POSSESSIVE = r"(?:the|its|your|their|his|her|one's)"
+
+
+# ---------------------------------------------------------------------------------------------- rules
+
+
+@dataclass(frozen=True)
+class _Rule:
+    behaviour: Behaviour
+    pattern: re.Pattern[str]
+
+
+_NOT_LANE = r"(?![ -]?(?:hand\s+)?(?:lanes?|side|kerb|curb|shoulder|verge|edge|of\s+way|-of-way)\b)"
+"""Not "the left lane", "the right side", "the right of way": a side word that names no turn."""
+_NOT_ADVERB = r"(?!\s+(?:ahead|away|now|there|here|behind|where|after|before|back|up|through|past|across|on)\b)"
+"""Not "go right ahead", "turn right away"."""
+_TURN_VERBS = _verb("turn", "swing", "steer", "bear", "head", "go", "hook", "hang", "branch", "fork", "peel", "wheel")
+_TURN_TAKE = _verb("hang", "take", "make", "hook", "do", "pull", "throw", "swing", "bang", "hit", "execute", "perform")
+_TURN_DET = (
+    r"(?:a|an|the)"
+    r"(?:\s+(?:next|first|second|third|upcoming|coming|following|sharp|quick|hard|tight|wide|gentle|slight))*"
+)
+_TURN_NOUN = r"(?:road|street|turning|turn|exit|branch|arm|fork|avenue|way)"
+_JUNCTION = r"(?:junction|intersection|crossroads|roundabout|lights|crossing)"
+
+
+def _turn(side: str) -> list[str]:
+    s = rf"(?:{side}(?:-hand)?|{side}wards?)"
+    exit_verbs = _verb("exit", "leave", "turn out of", "come out of")
+    return [
+        rf"\b{_TURN_VERBS}(?:\s+(?:off|away|round|around|out|sharply|hard))?"
+        rf"(?:\s+to(?:wards)?\s+{_POSSESSIVE}\s+|\s+){s}\b{_NOT_LANE}{_NOT_ADVERB}",
+        rf"\b{_TURN_TAKE}\s+{_TURN_DET}\s+{side}(?:-hand)?(?:[ -](?:turn|turning|hander))?\b{_NOT_LANE}",
+        rf"\b{side}(?:-hand)?[ -]turn(?:ing)?\b(?![ -]lanes?\b)",
+        rf"\b{_TURN_NOUN}\s+(?:on|to)\s+{_POSSESSIVE}\s+{side}\b{_NOT_LANE}",
+        rf"\b(?:onto|into|down|up|along|via)\s+{_TURN_DET}\s+{side}(?:-hand)?\s+{_TURN_NOUN}\b",
+        rf"\b{exit_verbs}(?:\s+(?:the|a)\s+{_JUNCTION})?\s+(?:(?:to(?:wards)?|on|by|via)\s+{_POSSESSIVE}\s+)?{s}\b"
+        rf"{_NOT_LANE}{_NOT_ADVERB}",
+        rf"\b{_verb('make')}\s+{_POSSESSIVE}\s+way\s+(?:to(?:wards)?\s+the\s+|over\s+to\s+the\s+)?{s}\b{_NOT_LANE}",
+    ]
+
+
+_GO_ON = _verb(
+    "go", "keep", "continue", "carry", "head", "proceed", "drive", "travel", "move", "ride", "cycle", "walk", "stay",
+    "run", "push", "press", "cruise", "roll",
+)  # fmt: skip
+_STRAIGHT = [
+    rf"\b{_GO_ON}(?:\s+(?:on|going|driving|right|dead|directly))?\s+straight\b(?!\s*(?:away|after|afterwards|off|back)\b)",
+    r"\bstraight\s+(?:on|ahead|through|over|across)\b",
+    r"\b(?:without\s+(?:turning|making\s+(?:a|any)\s+turns?)|no\s+turns?|no\s+turning|making\s+no\s+turns?)\b"
+    r"(?!\s+(?:left|right|off\s+to))",
+    r"\bin\s+a\s+straight\s+line\b|\bstraight\s+course\b",
+    r"\bin\s+the\s+same\s+direction\b(?!\s+as\b)",
+    rf"\b{_verb('stay', 'keep', 'remain')}\s+on\s+(?:this|the\s+same|its|your|their|the\s+current|the\s+main)"
+    r"\s+(?:road|street|route)\b",
+]
+
+_MOTION = _verb(
+    "change", "switch", "swap", "move", "shift", "get", "pull", "merge", "nip", "hop", "slide", "cut", "go", "head",
+    "drift", "slip", "slot", "jump", "steer", "ease", "edge", "pop", "duck", "tuck", "weave", "dart", "squeeze",
+    "cross", "step", "glide", "drop", "come",
+)  # fmt: skip
+_SIDESTEP = _verb(
+    "move", "shift", "get", "merge", "nip", "hop", "slide", "cut", "drift", "slip", "slot", "jump", "steer", "ease",
+    "edge", "pop", "duck", "tuck", "weave", "dart", "squeeze", "step", "glide",
+)  # fmt: skip
+"""Verbs of moving across to a side without naming a lane ("moves over to the left"); not "pulls over to the
+right", which is pulling over."""
+_POSITIONS = (
+    r"(?:left|leftmost|left-most|far-left|far\s+left|left-hand)",
+    r"(?:middle|center|centre|central)",
+    r"(?:right|rightmost|right-most|far-right|far\s+right|right-hand)",
+)
+"""Lane position words by order from left to right."""
+
+
+def _lane_np(side: str) -> str:
+    """A lane on `side`: "the left lane", "the lane on its left", "the neighbouring lane to the left"."""
+    words = r"(?:(?!(?:and|then|but|or)\b)[\w'-]+\s+){0,2}?"
+    side_word = rf"(?:{side}|{side}-hand|far-{side}|far\s+{side}|{side}most|{side}-most)"
+    det = r"(?:(?:the|a|an|its|your|their|one)\s+)?"
+    return (
+        rf"(?:{det}{words}{side_word}\s+lanes?\b"
+        rf"|{det}{words}lanes?\s+{words}(?:on|to|at)\s+{_POSSESSIVE}\s+(?:far\s+)?{side}\b(?!-hand\s+side|\s+side))"
+    )
+
+
+def _lane_change(side: str) -> list[str]:
+    to_side = rf"(?:to(?:wards)?\s+{_POSSESSIVE}\s+(?:far\s+)?{side}|{side}wards?|{side})\b"
+    not_place = r"(?![ -]?(?:hand\s+)?(?:side|kerb|curb|shoulder|verge|edge)\b)"
+    return [
+        rf"\b{_MOTION}{_OBJ}(?:\s+(?:over|across|back|out))?\s+(?:into|to|onto|towards?|in\s+to|across|over)\s+{_lane_np(side)}",
+        rf"\b{_verb('get')}{_OBJ}\s+in\s+{_lane_np(side)}",
+        rf"\b{_MOTION}{_OBJ}(?:\s+(?:over|across|back))?\s+(?:(?:one|a|1)\s+lane|lanes?)\s+(?:over\s+)?{to_side}{not_place}",
+        rf"\b{_MOTION}{_OBJ}\s+(?:over\s+)?(?:{side}|{side}wards?)\s+(?:one|a|1)\s+lane\b",
+        rf"\b{side}(?:-hand)?[ -]lane[ -]change\b|\blane[ -]change\s+(?:to(?:wards)?|on)\s+{_POSSESSIVE}\s+{side}\b",
+        rf"\b{_SIDESTEP}{_OBJ}\s+(?:over|across)\s+{to_side}{not_place}",
+    ]
+
+
+def _lane_from_to() -> list[tuple[Behaviour, str]]:
+    """Lane changes named by their lanes: "from the leftmost lane to the middle lane" is to the right."""
+    out = []
+    for i, src in enumerate(_POSITIONS):
+        for j, dst in enumerate(_POSITIONS):
+            if i != j:
+                out.append(
+                    (
+                        Behaviour.LANE_CHANGE_RIGHT if j > i else Behaviour.LANE_CHANGE_LEFT,
+                        rf"\b{_MOTION}{_OBJ}(?:\s+lanes?)?(?:\s+over)?\s+from\s+(?:the\s+)?{src}(?:\s+lane)?\s+"
+                        rf"(?:to|into|over\s+to|across\s+to)\s+(?:the\s+)?{dst}(?:\s+lane)?\b",
+                    )
+                )
+    return out
+
+
+_STOP_NOUN = r"(?:stop|halt|standstill)"
+_STOP = [
+    rf"(?<!non-)(?<!bus\s)\b{_verb('stop', 'halt')}\b(?!\s+(?:sign|line|lights?)\b|-)",
+    rf"\b(?:{_verb('come', 'draw', 'grind', 'roll', 'brake', 'slow', 'slow down', 'ease')}"
+    rf"|{_verb('bring')}\s+(?:it|(?P<agent>{_SLOT})))\s+(?:in)?to\s+a"
+    rf"(?:\s+(?:full|complete|dead|total|sudden|quick|gentle|smooth|controlled))?\s+{_STOP_NOUN}\b",
+    r"\b(?:at\s+a\s+)?standstill\b",
+    rf"\b(?:{_verb('stand', 'stay', 'remain', 'keep', 'sit', 'hold')}|is|are|be|being|been)\s+"
+    r"(?:completely\s+|perfectly\s+|totally\s+|absolutely\s+|dead\s+)?(?:still|stationary|motionless|static|put)\b"
+    r"(?!\s+\w+ing\b)",
+    rf"\b{_verb('stay', 'remain')}\s+in\s+place\b|\b{_verb('hold')}\s+{_POSSESSIVE}\s+position\b",
+    r"\b(?:stationary|motionless)\b",
+    r"\b(?:(?:does|do|is|are)\s+not|doesn't|don't|isn't|aren't|not)\s+(?:move|moving)\b"
+    r"(?!\s+(?:over|into|across|aside|out|left|right|to|onto|off|away|up)\b)",
+    rf"\b{_verb('freeze')}\b",
+    rf"\b{_verb('pull')}\s+up\b",
+]
+
+_PLACE = (
+    r"(?:side\s+of\s+the\s+(?:road|street)|roadside|road\s+side|kerb|curb|kerbside|curbside|hard\s+shoulder"
+    r"|shoulder|verge|edge\s+of\s+the\s+(?:road|street)|lay-by|layby)"
+)
+_TO_THE_SIDE = _verb(
+    "move", "steer", "head", "go", "get", "pull", "drive", "ease", "edge", "tuck", "draw", "swing", "park", "stop",
+    "halt", "come", "bring it", "roll", "coast", "nose", "bear",
+)  # fmt: skip
+_PULL_OVER = [
+    rf"\b{_verb('pull')}{_OBJ}\s+(?:over|in|off|aside)\b"
+    r"(?!\s+(?:behind|in\s+front|ahead|between|next\s+to|alongside)\b|[^,;.]{0,25}\blanes?\b)",
+    rf"\b{_TO_THE_SIDE}"
+    rf"{_gap(5)}\s+(?:at|by|on|onto|to|towards|against|beside|alongside|into|next\s+to|near)"
+    rf"\s+(?:the\s+|a\s+)?(?:near\s+|left\s+|right\s+|nearside\s+|left-hand\s+|right-hand\s+)?{_PLACE}\b",
+    rf"\b(?:onto|towards?)\s+(?:the\s+)?{_PLACE}\b",
+]
+
+_SPEED_UP = [
+    rf"\b{_verb('speed')}{_OBJ}\s+up\b",
+    rf"\b{_verb('accelerate')}\b(?!\s+(?:away\s+from|to\s+avoid)\b)",
+    rf"\b{_verb('pick')}\s+up\s+(?:the\s+|some\s+)?(?:speed|pace|tempo|momentum)\b",
+    rf"\b{_verb('gain', 'gather', 'build', 'build up')}\s+(?:some\s+|more\s+)?(?:speed|pace|momentum)\b",
+    rf"\b{_verb('hit', 'press', 'floor', 'stamp on', 'step on', 'push', 'mash', 'open up')}\s+(?:the|its|your|their)"
+    r"\s+(?:accelerator|gas(?:\s+pedal)?|throttle)\b",
+    rf"\b(?:{_verb('increase', 'raise')}|up(?:s|ped|ping)?)\s+(?:{_POSSESSIVE}\s+|some\s+)?(?:speed|pace)\b",
+    rf"\b{_verb('step')}\s+on\s+(?:it|the\s+(?:gas|accelerator|throttle))\b",
+    rf"\b{_verb('put')}\s+(?:{_POSSESSIVE}|the)\s+foot\s+down\b|\b{_verb('floor', 'gun')}\s+it\b",
+    rf"\b{_verb('hurry')}(?:\s+up)?\b|\b{_verb('get')}\s+a\s+move\s+on\b",
+    r"\b(?:faster|quicker|more\s+quickly)\b",
+    rf"\b{_verb('quicken')}\s+(?:{_POSSESSIVE}\s+)?pace\b",
+]
+
+_SLOW_DOWN = [
+    rf"\b{_verb('slow')}(?:{_OBJ}\s+(?:down|up))?\b",
+    rf"\b{_verb('decelerate', 'brake')}\b",
+    rf"\b{_verb('hit', 'tap', 'touch', 'use', 'apply', 'press', 'step on')}\s+(?:the|its|your|their)\s+brakes?\b",
+    rf"\b{_verb('ease', 'back')}\s+(?:off|up|back)\b"
+    r"(?:\s+(?:on\s+|off\s+)?(?:the\s+)?(?:throttle|gas|accelerator|pedal|pace|speed))?",
+    rf"\b{_verb('come', 'get', 'lift', 'back', 'let')}\s+off\s+(?:the\s+)?(?:throttle|gas|accelerator|pedal)\b",
+    rf"\b{_verb('lose', 'reduce', 'drop', 'cut', 'lower', 'decrease', 'shed', 'bleed off', 'bring down', 'lessen')}"
+    rf"\s+(?:{_POSSESSIVE}\s+|some\s+|a\s+bit\s+of\s+|a\s+little\s+|some\s+of\s+{_POSSESSIVE}\s+)?(?:speed|pace)\b",
+    rf"\b{_verb('take')}\s+it\s+(?:easy|slow|slower)\b",
+    r"\b(?:slower|more\s+slowly)\b",
+]
+
+_GO_FIRST_VERBS = _verb(
+    "go", "get", "pass", "cross", "proceed", "head", "enter", "clear", "claim", "make it", "squeeze", "nip", "slip",
+    "shoot", "dart", "race", "rush", "jump", "turn", "merge", "pull out", "take", "set off", "drive", "move", "travel",
+    "reach", "arrive", "cut",
+)  # fmt: skip
+_AHEAD_VERBS = _verb(
+    "go", "get", "pass", "cross", "proceed", "enter", "clear", "claim", "make it", "squeeze", "nip", "slip", "shoot",
+    "dart", "race", "rush", "jump", "turn", "merge", "pull out", "cut", "reach",
+)  # fmt: skip
+"""Verbs of going ahead of another agent in time (not "drives ahead of @7", which says where it is)."""
+_GO_FIRST = [
+    rf"\b{_GO_FIRST_VERBS}{_gap(5)}\s+(?:before|sooner\s+than|earlier\s+than)\s+{_OTHER}",
+    rf"\b{_AHEAD_VERBS}"
+    rf"{_gap(5)}\s+ahead\s+of\s+{_OTHER}",
+    rf"\b{_verb('cut', 'cross', 'pull out', 'nip', 'dart', 'jump', 'squeeze', 'slip', 'shoot', 'pass', 'go', 'turn')}"
+    rf"(?:\s+(?:in|out|across))?\s+in\s+front\s+of\s+{_OTHER}",
+    rf"\b{_verb('take', 'have', 'claim', 'keep', 'assert', 'use', 'exercise', 'get', 'seize')}"
+    rf"\s+(?:{_POSSESSIVE}\s+)?(?:right\s+of\s+way|right-of-way|priority|precedence)"
+    rf"(?:\s+(?:over|from|ahead\s+of|before|against)\s+{_OTHER})?",
+    rf"\b(?:{_GO_FIRST_VERBS}|be|is|are){_gap(3)}\s+first\b"
+    r"(?!\s+(?:junction|intersection|left|right|exit|turn|turning|lane|road|street|time|one|lights)\b)",
+    r"\bfirst\s+to\s+(?:go|cross|pass|enter|move|proceed|get\s+through|clear|drive)\b",
+    rf"\b{_verb('beat', 'outrun')}\s+{_OTHER}",
+    r"\b(?:do(?:es)?\s+not|do(?:es)?n't|never|won't|will\s+not|without|not)\s+(?:\w+\s+)?"
+    rf"{_verb('yield', 'give way', 'wait', 'stop', 'slow', 'slow down', 'brake', 'hold back')}\s+(?:to|for)\s+{_OTHER}",
+    rf"\b(?:while|whilst|as|with)\s+{_OTHER}\s+"
+    rf"{_verb('yield', 'give way', 'wait', 'hold back')}(?:\s+(?:to|for)\s+(?:it|them|him|her))?\b",
+    rf"\b{_verb('have', 'take', 'get')}\s+(?:its|your|their|his|her|the)\s+turn\s+(?:before|ahead\s+of)\s+{_OTHER}",
+]
+
+_YIELD = [
+    rf"\b{_verb('yield', 'give way', 'defer', 'cede', 'submit')}"
+    rf"(?:\s+(?:the\s+)?(?:right\s+of\s+way|right-of-way|priority|precedence|the\s+junction))?\s+(?:to|for)\s+{_OTHER}",
+    rf"\b{_verb('give up', 'hand over', 'surrender', 'concede')}\s+(?:the\s+|its\s+)?(?:right\s+of\s+way|right-of-way"
+    rf"|priority|precedence)\s+to\s+{_OTHER}",
+    rf"\b{_verb('give', 'grant', 'leave', 'offer')}\s+{_OTHER}\s+(?:the\s+|its\s+)?(?:right\s+of\s+way|right-of-way"
+    r"|priority|precedence|way|room|space|the\s+go-ahead|a\s+chance|the\s+gap)\b",
+    rf"\b{_verb('let', 'allow', 'permit', 'wave', 'invite')}\s+{_OTHER}\s+(?:to\s+)?"
+    r"(?:through|by|past|in|ahead|out|on|over|first|[a-z]+)\b"
+    r"(?:\s+(?:first|by|past|through|ahead(?!\s+of)|across|in\s+front|over|on|in|(?:the|its)\s+(?:right\s+of\s+way|turn)"
+    r"|priority))*",
+    rf"\b(?:{_verb('wait', 'stop', 'slow', 'brake', 'hold', 'pause', 'halt', 'hang', 'stay', 'sit', 'hover')}"
+    rf"(?:\s+(?:down|back|off|up|hard|\w+ly))?|{_verb('make', 'leave')}\s+(?:room|way|space|a\s+gap))"
+    rf"{_gap(4)}\s+(?:for|until|till)\s+{_OTHER}",
+    rf"\b{_verb('hang', 'hold', 'stay', 'keep', 'sit', 'wait', 'hover', 'drop')}\s+back\b(?:{_TIGHT_GAP}{_OTHER})?",
+    rf"\b(?:so|so\s+that|allowing|letting|to\s+let|and\s+let)\s+{_OTHER}\s+(?:can\s+|could\s+|may\s+|is\s+able\s+to\s+)?"
+    r"(?:go|pass|cross|proceed|get\s+(?:by|past|through|in)|merge|enter|clear|through|by|past)\w*"
+    r"(?:\s+(?:first|by|past|through|ahead(?!\s+of)|across|in))*",
+    rf"\b{_verb('wait')}\s+(?:{_POSSESSIVE})\s+turn\b(?:\s+(?:behind|after)\s+{_OTHER})?",
+    rf"\bafter\s+{_OTHER}\s+(?:has\s+|have\s+)?(?:passed|gone|crossed|cleared|gone\s+by|gone\s+through|got\s+through)\b",
+    rf"\b{_verb('yield', 'give way')}\b",
+]
+
+_BEHIND_VERBS = _verb(
+    "stay", "keep", "remain", "drive", "travel", "sit", "tuck", "fall", "slot", "hang", "queue", "ride", "drop",
+    "settle", "line", "tag", "creep", "cruise", "trundle",
+)  # fmt: skip
+_FOLLOW = [
+    rf"\b{_verb('follow', 'trail', 'tail', 'shadow')}\s+(?:(?:close(?:ly)?\s+)?(?:behind|after)\s+)?{_OTHER}",
+    rf"\b{_BEHIND_VERBS}"
+    rf"(?:\s+(?:in|back|up|right|directly|close|closely|just|along))*\s+behind\s+{_OTHER}",
+    rf"\b{_verb('keep', 'maintain', 'hold')}\s+(?:a\s+)?(?:safe\s+|steady\s+|constant\s+|good\s+)?(?:distance|gap)"
+    rf"\s+(?:behind|to)\s+{_OTHER}",
+    rf"\b(?:in\s+the\s+(?:wake|tracks|footsteps)\s+of|on\s+the\s+tail\s+of)\s+{_OTHER}",
+]
+
+
+def _build_rules() -> tuple[_Rule, ...]:
+    specs: list[tuple[Behaviour, str]] = []
+    for side, turn, change in (
+        ("left", Behaviour.TURN_LEFT, Behaviour.LANE_CHANGE_LEFT),
+        ("right", Behaviour.TURN_RIGHT, Behaviour.LANE_CHANGE_RIGHT),
+    ):
+        specs += [(turn, p) for p in _turn(side)]
+        specs += [(change, p) for p in _lane_change(side)]
+    specs += _lane_from_to()
+    for behaviour, patterns in (
+        (Behaviour.GO_STRAIGHT, _STRAIGHT),
+        (Behaviour.STOP, _STOP),
+        (Behaviour.PULL_OVER, _PULL_OVER),
+        (Behaviour.SPEED_UP, _SPEED_UP),
+        (Behaviour.SLOW_DOWN, _SLOW_DOWN),
+        (Behaviour.GO_FIRST, _GO_FIRST),
+        (Behaviour.YIELD, _YIELD),
+        (Behaviour.FOLLOW, _FOLLOW),
+    ):
+        specs += [(behaviour, p) for p in patterns]
+    return tuple(_Rule(b, re.compile(p)) for b, p in specs)
+
+
+_RULES = _build_rules()
+
+_SUBSUMES: dict[Behaviour, frozenset[Behaviour]] = {
+    Behaviour.PULL_OVER: frozenset({Behaviour.STOP, Behaviour.SLOW_DOWN}),
+    Behaviour.STOP: frozenset({Behaviour.SLOW_DOWN}),
+    Behaviour.YIELD: frozenset({Behaviour.STOP, Behaviour.SLOW_DOWN}),
+    Behaviour.GO_FIRST: frozenset({Behaviour.SPEED_UP}),
+    Behaviour.FOLLOW: frozenset({Behaviour.SLOW_DOWN, Behaviour.SPEED_UP}),
+}
+"""A kind that, asked with another, is part of it: "pulls over and stops", "brakes to let @7 pass"."""
+
+_NEGATION = re.compile(
+    r"\b(?:not|never|no\s+longer|without|neither|nor|cannot|no|refuses?\s+to|refusing\s+to|fails?\s+to"
+    r"|avoid(?:s|ing)?)\b|n't\b"
+)
+_CONTRAST = re.compile(r"\b(?:instead\s+of|rather\s+than)\b[^,;.!?]*")
+"""What follows 'instead of' in its clause is what the prompt does not ask ("goes straight instead of turning")."""
+_PASSIVE = re.compile(rf"\b(?:is|are|was|were|be|been|being|gets?|got)\b[^,;.!?]*?\bby\s+{_SLOT}")
+"""A passive clause naming an agent ("@7 is followed by @12"): who does what is not read."""
+_CLAUSE_BREAK = re.compile(r"[,;.!?:]|\b(?:and|but|then|or)\b")
+_SUBORDINATOR = re.compile(
+    r"\b(?:after|before|once|when|whenever|while|whilst|as\s+soon\s+as|until|till|if|unless|because|since|so|as)\b"
+)
+_FILLER = (
+    r"(?:can|could|should|must|will|would|may|might|shall|to|has\s+to|have\s+to|needs?\s+to|is|are|is\s+going\s+to"
+    r"|going\s+to|gonna|ought\s+to|had\s+better|please|then|just|also|now|simply|first|gently|quickly|slowly"
+    r"|carefully|immediately|safely|smoothly|soon|promptly|'ll|'d|really|definitely|only|still)"
+)
+_LOCAL_SUBJECT = re.compile(rf"(<m\d+>)\s*[,:]?\s*(?:{_FILLER}\s+)*$")
+_COORDINATED = re.compile(rf"{_SLOT}\s*(?:,|and|or|&)\s*(<m\d+>)\s*[,:]?\s*(?:{_FILLER}\s+)*$")
+_PRONOUN_SUBJECT = re.compile(rf"\b(?:it|he|she|they|you)\s+(?:{_FILLER}\s+)*$")
+_VOCATIVE = re.compile(
+    r"^(?:(?:hey|ok|okay|now|right|so|please|alright|and)\s*,?\s*)?(<m\d+>)\s*[,:;]|[,;:]\s*(<m\d+>)\s*[.!]?\s*$"
+)
+_REQUEST_VERBS = _verb(
+    "have", "get", "make", "tell", "ask", "want", "need", "like", "let", "allow", "order", "instruct", "force", "see",
+    "expect", "make sure", "ensure",
+)  # fmt: skip
+_CAUSATIVE = re.compile(rf"\b{_REQUEST_VERBS}\s+(?:that\s+)?(<m\d+>)")
+
+
+# ---------------------------------------------------------------------------------------------- the reading
+
+
+@dataclass(frozen=True)
+class PromptReading:
+    """What a prompt asks: `behaviour` of track `agent` (toward track `other` for a pair kind), decided by `words`
+    of the text; or `behaviour` None and the `reason` nothing was read (`agent` is still set where it was found)."""
+
+    behaviour: Behaviour | None
+    agent: int | None
+    other: int | None = None
+    words: str = ""
+    reason: str = ""
+
+    @property
+    def read(self) -> bool:
+        return self.behaviour is not None
+
+    def describe(self) -> str:
+        """One line: `read as: @12 turn_left ("hang a left")`, `read as: @12 yield @7 ("gives way to @7")` or
+        `not read: <reason>; the prompt steers by text alone`."""
+        if self.behaviour is None:
+            return f"not read: {self.reason}; the prompt steers by text alone"
+        toward = f" @{self.other}" if self.other is not None else ""
+        return f'read as: @{self.agent} {self.behaviour.value}{toward} ("{self.words}")'
+
+    def to_json(self) -> dict[str, object]:
+        return {
+            "behaviour": None if self.behaviour is None else self.behaviour.value,
+            "agent": self.agent,
+            "other": self.other,
+            "words": self.words,
+            "reason": self.reason,
+        }
+
+
+@dataclass(frozen=True)
+class _Match:
+    behaviour: Behaviour
+    start: int
+    end: int
+    other: int | None  # placeholder index of the other agent the phrase names
+    agent: int | None = None  # placeholder index of the agent it names as the object of a request
+
+
+@dataclass(frozen=True)
+class _Text:
+    """The prompt lower-cased, whitespace collapsed, mentions as `<m0>`, `<m1>`, ... (index into `ids`), with the
+    position in the typed text of every character."""
+
+    text: str
+    origin: tuple[int, ...]
+    ids: tuple[int, ...]
+
+    def span(self, typed: str, start: int, end: int) -> str:
+        return typed[self.origin[start] : self.origin[end - 1] + 1]
+
+
+def _normalise(typed: str) -> _Text:
+    ids = mentions_in(typed)
+    index = {track: i for i, track in enumerate(ids)}
+    chars: list[str] = []
+    origin: list[int] = []
+    pos = 0
+    for mention in [*MENTION.finditer(typed), None]:
+        stop = len(typed) if mention is None else mention.start()
+        for i in range(pos, stop):
+            char = typed[i].replace("\u2019", "'").replace("\u2018", "'")
+            if char.isspace():
+                if chars and chars[-1] != " ":
+                    chars.append(" ")
+                    origin.append(i)
+                continue
+            for lower in char.lower():
+                chars.append(lower)
+                origin.append(i)
+        if mention is not None:
+            slot = f"<m{index[int(mention.group(1))]}>"
+            chars.extend(slot)
+            origin.extend([mention.start()] * (len(slot) - 1) + [mention.end() - 1])
+            pos = mention.end()
+    return _Text("".join(chars), tuple(origin), ids)
+
+
+def _slot(placeholder: str | None) -> int | None:
+    return None if placeholder is None else int(placeholder[2:-1])
+
+
+def _candidates(text: str) -> list[_Match]:
+    """Every rule's matches, longest first (ties: the earlier rule)."""
+    found = []
+    for order, rule in enumerate(_RULES):
+        for m in rule.pattern.finditer(text):
+            if m.end() > m.start():
+                named = m.groupdict()
+                other, agent = _slot(named.get("other")), _slot(named.get("agent"))
+                found.append((-(m.end() - m.start()), order, _Match(rule.behaviour, m.start(), m.end(), other, agent)))
+    return [match for _, _, match in sorted(found, key=lambda item: (item[0], item[1], item[2].start))]
+
+
+def _select(candidates: Sequence[_Match], banned: Iterable[_Match] = ()) -> list[_Match]:
+    """The candidates not banned that no longer one overlaps, in order of start."""
+    kept: list[_Match] = []
+    for match in candidates:
+        if match not in banned and _outside(kept, match.start, match.end):
+            kept.append(match)
+    return sorted(kept, key=lambda m: m.start)
+
+
+def _outside(matches: Sequence[_Match], start: int, end: int) -> bool:
+    return all(end <= m.start or start >= m.end for m in matches)
+
+
+def _clause_start(text: str, pos: int) -> int:
+    breaks = [b.end() for b in _CLAUSE_BREAK.finditer(text, 0, pos)]
+    return breaks[-1] if breaks else 0
+
+
+def _local_subject(text: str, match: _Match, matches: Sequence[_Match]) -> int | str | None:
+    """The mention right before a phrase (its subject: "@7 can cross first"), "several" for "@12 and @7 stop",
+    "pronoun" for "it goes first", or None. A mention that is the object of an earlier phrase is the subject of an
+    infinitive only ("waits for @7 to turn left", not "waits for @7, then turns left")."""
+    if match.agent is not None:
+        return match.agent
+    before = text[: match.start]
+    if _COORDINATED.search(before):
+        return "several"
+    found = _LOCAL_SUBJECT.search(before)
+    if found:
+        infinitive = re.fullmatch(r"\s*to\s+", before[found.end(1) :]) is not None
+        return _slot(found.group(1)) if infinitive or _outside(matches, found.start(1), found.end(1)) else None
+    return "pronoun" if _PRONOUN_SUBJECT.search(before) else None
+
+
+def _is_subordinate(text: str, match: _Match, matches: Sequence[_Match]) -> bool:
+    """Whether a phrase is in a subordinate clause ("after @7 turns left, ...")."""
+    start = _clause_start(text, match.start)
+    return any(_outside(matches, s.start(), s.end()) for s in _SUBORDINATOR.finditer(text, start, match.start))
+
+
+def _main_subject(text: str, matches: Sequence[_Match], subjects: Sequence[int | str | None]) -> int | None:
+    """The agent asked: the one addressed ("@7, ..." or "..., @12"), the one a request names ("have @7 ...",
+    "I want @12 to ..."), the subject of the first main-clause phrase, or the first mention no phrase names as the
+    other agent."""
+    vocative = _VOCATIVE.search(text)
+    others = {m.other for m in matches}
+    if vocative and (vocative.group(1) or _slot(vocative.group(2)) not in others):
+        return _slot(vocative.group(1) or vocative.group(2))
+    causative = _CAUSATIVE.search(text)
+    if causative and "<m" not in text[: causative.start()]:
+        return _slot(causative.group(1))
+    for match, subject in zip(matches, subjects, strict=True):
+        if isinstance(subject, int) and not _is_subordinate(text, match, matches):
+            return subject
+    return next((int(i) for i in _PLACEHOLDER.findall(text) if int(i) not in others), None)
+
+
+def _not_read(reason: str, agent: int | None = None) -> PromptReading:
+    return PromptReading(None, agent, reason=reason)
+
+
+def _analyse(
+    text: str, candidates: Sequence[_Match], banned: Sequence[_Match] = ()
+) -> tuple[list[_Match], list[int | str | None], int | None]:
+    """The phrases read (less those in an 'instead of' clause), the subject of each and the agent asked."""
+    matches = _select(candidates, banned)
+    contrast = [(c.start(), c.end()) for c in _CONTRAST.finditer(text) if _outside(matches, c.start(), c.start() + 1)]
+    matches = [m for m in matches if not any(s <= m.start < e for s, e in contrast)]
+    subjects = [_local_subject(text, m, matches) for m in matches]
+    return matches, subjects, _main_subject(text, matches, subjects)
+
+
+def read_prompt(text: str) -> PromptReading:
+    """The behaviour kind `text` asks of which agent (mentions are `@<track id>`), or None and why. See the module."""
+    norm = _normalise(text)
+    if not norm.ids:
+        return _not_read("names no agent (@<track id>)")
+    low = norm.text
+    candidates = _candidates(low)
+    matches, subjects, subject_slot = _analyse(low, candidates)
+    requests = [m for m in matches if m.other is not None and m.other == subject_slot]
+    if requests:  # "Let @7 turn left": a request to the agent it names, not a yield to it
+        matches, subjects, subject_slot = _analyse(low, candidates, requests)
+    agent = None if subject_slot is None else norm.ids[subject_slot]
+    negations = [n for n in _NEGATION.finditer(low) if _outside(matches, n.start(), n.end())]
+    if negations:
+        return _not_read(f"negated ({norm.span(text, negations[0].start(), negations[0].end())!r})", agent)
+    passive = _PASSIVE.search(low)
+    if passive:
+        return _not_read("passive voice", agent)
+    if "several" in subjects:
+        return _not_read("asks several agents at once", agent)
+    if subject_slot is None:
+        return _not_read("cannot tell which agent is asked", agent)
+    matches = [m for m, s in zip(matches, subjects, strict=True) if not isinstance(s, int) or s == subject_slot]
+    kinds = {m.behaviour for m in matches}
+    kinds -= {k for kind in kinds for k in _SUBSUMES.get(kind, ())}
+    if not kinds:
+        return _not_read("no behaviour phrase found", agent)
+    if len(kinds) > 1:
+        named = ", ".join(b.value for b in Behaviour if b in kinds)
+        return _not_read(f"asks for more than one behaviour ({named})", agent)
+    (kind,) = kinds
+    decided = [m for m in matches if m.behaviour is kind]
+    if not BEHAVIOURS[kind].is_pair:
+        best = max(decided, key=lambda m: (m.end - m.start, -m.start))
+        return PromptReading(kind, agent, None, norm.span(text, best.start, best.end))
+    return _pair_reading(text, norm, kind, decided, subject_slot)
+
+
+def _pair_reading(text: str, norm: _Text, kind: Behaviour, decided: Sequence[_Match], subject: int) -> PromptReading:
+    agent = norm.ids[subject]
+    named = {m.other for m in decided if m.other is not None}
+    if len(named) > 1:
+        return _not_read(f"{kind.value} names more than one other agent", agent)
+    if not named:
+        rest = [i for i in range(len(norm.ids)) if i != subject]
+        if len(rest) != 1:
+            return _not_read(f"{kind.value} needs exactly one other agent", agent)
+        named = {rest[0]}
+    (other,) = named
+    if other == subject:
+        return _not_read(f"{kind.value} names one agent only; cannot tell which one is asked", agent)
+    best = max(decided, key=lambda m: (m.other is not None, m.end - m.start, -m.start))
+    return PromptReading(kind, agent, norm.ids[other], norm.span(text, best.start, best.end))
+
+
+# ---------------------------------------------------------------------------------------------- figures
+
+
+@dataclass(frozen=True)
+class ReadingFigures:
+    """How a set of prompts with known kinds reads: `right` as its kind, `misread` as another, `unread` as none."""
+
+    total: int
+    right: int
+    misread: tuple[tuple[str, PromptReading], ...]
+    unread: tuple[tuple[str, PromptReading], ...]
+
+    @property
+    def share_right(self) -> float:
+        return self.right / self.total if self.total else 0.0
+
+    def summary(self) -> str:
+        return (
+            f"{self.total} prompts: {self.right} read right ({100 * self.share_right:.1f} %), "
+            f"{len(self.misread)} misread (another behaviour or agent), {len(self.unread)} unread"
+        )
+
+
+def reading_figures(prompts: Iterable[tuple[str, Behaviour, int, int | None]]) -> ReadingFigures:
+    """Read each (text, kind asked, agent, other) and count the right, misread and unread ones."""
+    total = right = 0
+    misread: list[tuple[str, PromptReading]] = []
+    unread: list[tuple[str, PromptReading]] = []
+    for text, behaviour, agent, other in prompts:
+        total += 1
+        reading = read_prompt(text)
+        if reading.behaviour is None:
+            unread.append((text, reading))
+        elif (reading.behaviour, reading.agent, reading.other) == (behaviour, agent, other):
+            right += 1
+        else:
+            misread.append((text, reading))
+    return ReadingFigures(total, right, tuple(misread), tuple(unread))
+
+
+def file_figures(path: str, agent: int = 12, other: int = 7) -> ReadingFigures:
+    """`reading_figures` of a free-text prompt file (`counterfactual.load_free_text_prompts`), rendered for
+    `agent` (and `other` for pair kinds)."""
+    from langtraj.interdrive.counterfactual import load_free_text_prompts  # here: counterfactual may use the reader
+
+    rendered = []
+    for prompt in load_free_text_prompts(path):
+        pair = BEHAVIOURS[prompt.behaviour].is_pair
+        rendered.append((prompt.render(agent, other), prompt.behaviour, agent, other if pair else None))
+    return reading_figures(rendered)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m langtraj.interdrive.reader",
+        description="Read free-text prompt files ({text, behaviour} entries) and print how many read right.",
+    )
+    parser.add_argument("files", nargs="+", metavar="FILE")
+    parser.add_argument("-v", "--verbose", action="store_true", help="list the misread and unread prompts")
+    args = parser.parse_args(argv)
+    for path in args.files:
+        try:
+            figures = file_figures(path)
+        except InputError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        print(f"{path}: {figures.summary()}")
+        if args.verbose:
+            for label, rows in (("misread", figures.misread), ("unread", figures.unread)):
+                for prompt_text, reading in rows:
+                    print(f"  {label}: {prompt_text!r} -> {reading.describe()}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
