@@ -340,7 +340,8 @@ def test_lane_change_prompts_warn_only_for_a_side_without_a_lane():
     assert asked_behaviours(_entry("@2 changes lanes from the leftmost lane to the rightmost lane")) == (
         Behaviour.LANE_CHANGE_RIGHT,
     )
-    assert asked_behaviours(_entry("@2 speeds up")) == ()
+    assert asked_behaviours(_entry("@2 speeds up")) == (Behaviour.SPEED_UP,)  # read by the prompt reader
+    assert asked_behaviours(_entry("@1 yields to @2")) == ()  # a pair behaviour is not a map manoeuvre
     # a labelled prompt entry is read from its labels, not its words
     labelled = PromptEntry("@2 does it", (2,), {2: "the target agent does it"}, None, ("turning_left",), "user")
     assert asked_behaviours(labelled) == (Behaviour.TURN_LEFT,)
@@ -364,7 +365,8 @@ def test_fifty_free_text_prompts_parse_name_known_kinds_and_render_to_valid_prom
         # phrased outside the template grammar: no phrase of the phrase tables is found in it
         read = recognize_prompt(Prompt(text, parsed.mentions, source="user"))
         assert read.subtype_id is None and read.label_keys == (), text
-        assert asked_behaviours(PromptEntry.of(parsed)) == (), text
+        single = () if BEHAVIOURS[prompt.behaviour].is_pair else (prompt.behaviour,)
+        assert asked_behaviours(PromptEntry.of(parsed)) == single, text  # the prompt reader reads it
 
 
 @pytest.mark.parametrize(

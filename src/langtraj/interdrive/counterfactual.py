@@ -41,7 +41,7 @@ from langtraj.interdrive.detector import DetectorConfig
 from langtraj.interdrive.heuristics import HeuristicConfig
 from langtraj.interdrive.mapindex import SEGMENT_SPACING_M, MapIndex
 from langtraj.interdrive.prompts import Prompt, label_phrases, label_variants, mentions_in, parse_user_prompt
-from langtraj.interdrive.prompts.user import recognize_prompt
+from langtraj.interdrive.reader import read_prompt
 from langtraj.interdrive.taxonomy import LABELS_BY_KEY
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
@@ -472,16 +472,16 @@ _SIDE_WORDS = re.compile(r"\b(?:to|into|toward|towards) the (left|right)\b")
 
 
 def asked_behaviours(prompt: PromptEntry) -> tuple[Behaviour, ...]:
-    """The turns and lane changes `prompt` asks of its target (the first agent it mentions), from its labels, or
-    read from its words when it carries none (`recognize_prompt`, and any lane-change phrase of the phrase
-    tables). A lane change asks for a side when its words hold a directed lane-change phrase or say "to the
-    left/right"; otherwise for either side."""
+    """The single-agent behaviours `prompt` asks of its target (the first agent it mentions): from its labels
+    (turns, lane changes, stopping, pulling over, speed changes), or, for a typed prompt that carries none, the
+    behaviour the prompt reader reads in its words (`interdrive.reader`). A labelled lane change asks for a side
+    when its words hold a directed lane-change phrase or say "to the left/right"; otherwise for either side."""
     labels = prompt.labels
     if not labels and prompt.subtype is None:
-        labels = recognize_prompt(Prompt(prompt.text, prompt.mentions, source=prompt.source)).label_keys
-        if _lane_change_sides(prompt.text):
-            labels = (*labels, "changing_lanes")
-    out = [b for b, spec in BEHAVIOURS.items() if spec.is_turn and spec.label in labels]
+        reading = read_prompt(prompt.text)
+        single = reading.behaviour is not None and not BEHAVIOURS[reading.behaviour].is_pair
+        return (reading.behaviour,) if single and reading.agent == (prompt.mentions or (None,))[0] else ()
+    out = [b for b, spec in BEHAVIOURS.items() if spec.label in labels and not spec.is_lane_change]
     if "changing_lanes" in labels:
         sides = _lane_change_sides(prompt.text) or ("left", "right")
         out += [b for b, spec in BEHAVIOURS.items() if spec.is_lane_change and spec.side in sides]
@@ -516,9 +516,11 @@ def _lane_change_sides(text: str) -> tuple[Side, ...]:
 def infeasible_manoeuvres(
     scenario: Scenario, prompt: PromptEntry, map_index: MapIndex, config: CounterfactualConfig | None = None
 ) -> tuple[ManoeuvreWarning, ...]:
-    """A warning for each turn or lane change `prompt` asks of its target that the map does not allow from where
-    it is (`behaviour_feasibility`); an undecided one (no lane connectivity, no neighbour lists) is not warned
-    about. A lane change that asks for no side warns only when neither side has a lane."""
+    """A warning for each single-agent behaviour `prompt` asks of its target (`asked_behaviours`) that the map
+    does not allow from where it is (`behaviour_feasibility`: a turn or lane change with no lane for it, a pull-over
+    away from the kerb lane or too close to a junction, slowing down while stopped); an undecided one (no lane
+    connectivity, no neighbour lists) is not warned about. A lane change that asks for no side warns only when
+    neither side has a lane."""
     asked = asked_behaviours(prompt)
     if not asked or not prompt.mentions:
         return ()
