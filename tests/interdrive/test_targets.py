@@ -49,7 +49,7 @@ def test_a_left_lane_change_targets_the_left_neighbour_lane_and_a_right_one_is_u
     arc = stations(target.path)
     on_lane = target.path[arc > target.lateral_from + 1.0]
     assert np.allclose(on_lane[:, 1], 3.5, atol=0.05)  # the left lane's centreline
-    assert on_lane[0, 0] > 10.0  # from where a change can begin, ahead of the car
+    assert on_lane[0, 0] > s.agents.states[0, s.current_index, 0] + 4.0  # from where a change can begin
     with pytest.raises(TargetUnavailable, match="no lane on its right"):
         _target(s, 1, Behaviour.LANE_CHANGE_RIGHT)
 

@@ -2,11 +2,15 @@
 [--guidance NAME=WEIGHT]... [--rollouts R] [--seed S] --out DIR`.
 
 Closed-loop simulation of one scene. DIR receives `rollouts.npz` (for `langtraj evaluate` and the
-WOSAC submission writer), `rollout0.mp4` (rollout 0, prompted agents highlighted, the prompt as caption)
-and `summary.json` (per-agent collision, offroad and distance travelled; timing). Without `--checkpoint`
+WOSAC submission writer), `rollout0.mp4` (rollout 0, prompted agents highlighted, the prompt as caption,
+the target of each prompt marked on the map) and `summary.json` (per-agent collision, offroad and distance
+travelled; timing). Without `--checkpoint`
 the checkpoint shipped with LangTraj is used. Every input is checked before anything is written; a prompt
 asking for a turn or lane change the map does not allow is warned about on stderr (and in the summary's
-`prompt_warnings`) and simulated as typed.
+`prompt_warnings`) and simulated as typed. A prompt steers by its text, by guidance toward the target the map
+gives the behaviour read from it, and by adherence-first candidate selection (`--no-prompt-text`,
+`--no-prompt-guidance`, `--no-prompt-selection` switch each off); the summary's `prompt` says what was read and
+what steered.
 
 See README.md.
 """
@@ -37,6 +41,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--prompt", action="append", default=[], help='text naming agents by track id: "@12 yields to @7" (repeatable)'
     )
+    for lever, what in (
+        ("text", "conditioning the model on the prompt's text"),
+        ("guidance", "guidance toward the target the map gives the behaviour read from the prompt"),
+        ("selection", "preferring, per prompted agent, the candidates that do what it asks"),
+    ):
+        p.add_argument(
+            f"--no-prompt-{lever}",
+            dest=f"prompt_{lever}",
+            action="store_false",
+            help=f"a prompt steers without {what} (on by default; docs/simulation.md, 'Prompts that steer')",
+        )
     p.add_argument("--adversary", type=int, help="track id driven into --target by collision guidance")
     p.add_argument("--target", type=int, help="track id the adversary collides with")
     p.add_argument("--collision-weight", type=float, default=1.0, help="weight of the collision guidance (default 1)")
@@ -107,12 +122,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from langtraj.fileio import atomic_path
     from langtraj.scenario.io import read_scenario
-    from langtraj.sim.config import SimConfig, SimRequest
+    from langtraj.sim.config import PromptLevers, SimConfig, SimRequest
     from langtraj.sim.engine import simulate
     from langtraj.sim.prompts import prompt_warnings
     from langtraj.sim.setup import build_policy
     from langtraj.sim.summary import simulation_summary
-    from langtraj.viz import RenderConfig, save_video
+    from langtraj.viz import RenderConfig, marks_from_prompt, save_video
 
     config = SimConfig(rollouts=args.rollouts, replan_s=args.replan_s, seed=args.seed)
     scenario = read_scenario(args.scenario, args.index)
@@ -135,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
         no_collision=args.no_collision,
         dense_attention=args.dense_attention,
         guided_steps=args.guided_steps,
+        levers=PromptLevers(args.prompt_text, args.prompt_guidance, args.prompt_selection),
     )
     policy, described = build_policy(scenario, request)  # every check happens here, before any write
     warnings = prompt_warnings(scenario, request.prompts)
@@ -143,6 +159,8 @@ def run(args: argparse.Namespace) -> int:
     result = simulate(scenario, policy, config)
     summary = simulation_summary(result, policy=args.policy, **described) | {"prompt_warnings": warnings}
     print("; ".join(f"{len(ids)} agents moved by {name}" for name, ids in summary["agents_by_policy"].items()))
+    for line in summary.get("prompt", {}).get("steering", []):
+        print(f"prompt: {line}")
     if summary["reads_future_log"]:
         print("WARNING: some agents replayed their logged future: a baseline, not a valid WOSAC simulation")
     args.out.mkdir(parents=True, exist_ok=True)
@@ -152,7 +170,8 @@ def run(args: argparse.Namespace) -> int:
         highlight = tuple(described.get("prompted_ids", ())) + tuple(
             i for i in (args.adversary, args.target) if i is not None
         )
-        render = RenderConfig(highlight_ids=highlight, show_ids=True, caption=caption[:120])
+        marks = marks_from_prompt(summary.get("prompt") or {})
+        render = RenderConfig(highlight_ids=highlight, show_ids=True, caption=caption[:120], marks=marks)
         save_video(result.scenario(0), args.out / "rollout0.mp4", render, progress=False)
     with atomic_path(args.out / "summary.json") as tmp:
         tmp.write_text(json.dumps(summary, indent=2))

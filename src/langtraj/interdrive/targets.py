@@ -327,12 +327,12 @@ def _turn_target(agent: _Agent, behaviour: Behaviour, index: MapIndex, config: C
 
 def _lane_change_target(agent: _Agent, behaviour: Behaviour, index: MapIndex, side: str) -> BehaviourTarget:
     """The neighbour lane on `side`: the first lane parallel to the agent's, 2.5 to 4.5 m to that side, found
-    along its lane ahead from where a lane change can begin (1.5 s or 10 m ahead)."""
+    along its lane ahead from where a lane change can begin (1 s or 4 m ahead)."""
     _need_lane(agent, index, f"the lane on its {side}")
     ahead = _ahead(agent, index)
     arc = stations(ahead)
     sign = 1.0 if side == "left" else -1.0
-    begin = max(10.0, 1.5 * agent.here.speed)
+    begin = max(4.0, 1.0 * agent.here.speed)
     for s in np.arange(begin, min(arc[-1], begin + 40.0), 2.0):
         point = point_at_station(ahead, s)
         k = min(int(np.searchsorted(arc, s)), len(ahead) - 1)

@@ -6,8 +6,10 @@ InterDrive; the scene is a window with an interaction prompt between two vehicle
 other agent becomes the adversary and its target agent the target. The prompt is counterfactual: a
 feasible behaviour of the target agent that the log does not show and the unconditioned run does not do
 (going first instead of yielding to the adversary, or the other way round, before a turn the lane
-allows, a lane change, stopping, ...; `interdrive.counterfactual`), else the logged interaction prompt.
-The summary says, per panel, the share of rollouts in which the labelers find the prompt followed.
+allows, a lane change, stopping, ...; `interdrive.counterfactual`), preferring behaviours for which the map
+gives a target to steer toward (`interdrive.targets`), else the logged interaction prompt.
+The summary says, per panel, the share of rollouts in which the labelers find the prompt followed; the video
+marks the prompted agent's target (`viz.marks`).
 
 See docs/simulation.md.
 """
@@ -20,7 +22,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -30,6 +32,7 @@ from langtraj.interdrive.adherence import AdherenceChecker, prompt_facts
 from langtraj.interdrive.counterfactual import Alternative, Behaviour, feasible_alternatives
 from langtraj.interdrive.dataset import BuildConfig, PromptEntry, label_file, load_window
 from langtraj.interdrive.mapindex import MapIndex
+from langtraj.interdrive.targets import TargetUnavailable, derive_target
 from langtraj.metrics.instruction_following import rollout_scenario
 from langtraj.rollouts import Rollouts
 from langtraj.scenario.model import Scenario
@@ -38,6 +41,9 @@ from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.engine import SimResult, simulate
 from langtraj.sim.setup import build_policy
 from langtraj.sim.summary import simulation_summary
+
+if TYPE_CHECKING:
+    from langtraj.viz.marks import TargetMark
 
 PANEL_PX = 480
 PREFERRED_TYPES = ("yielding", "following", "merging", "passing", "overtaking", "lane_change")
@@ -55,7 +61,8 @@ COUNTERFACTUAL_ORDER = (
     Behaviour.SLOW_DOWN,
     Behaviour.SPEED_UP,
 )
-"""Counterfactual behaviours the demo prefers, first to last (pair behaviours toward the adversary first)."""
+"""Counterfactual behaviours the demo prefers, first to last (pair behaviours toward the adversary first); those
+for which the map gives no target come after every one for which it does, and behaviours not listed last."""
 
 
 @dataclass(frozen=True)
@@ -103,7 +110,13 @@ def choose_counterfactual(
     scenario: Scenario, target: int, other: int, unconditioned: Rollouts
 ) -> tuple[Alternative | None, AdherenceChecker]:
     """The first feasible behaviour of `target` (`COUNTERFACTUAL_ORDER`; pair behaviours only toward `other`)
-    that the log does not show and no unconditioned rollout does, judged by the labelers; None when none."""
+    that the log does not show and no unconditioned rollout does, judged by the labelers; None when none.
+
+    Behaviours for which the map gives a target (`has_target`) come first: a prompt steers by its text, by
+    guidance toward that target and by adherence-first selection, and without a target it loses the guidance.
+    Feasibility (`feasible_alternatives`) is looser than a target: a lane beside the agent's for a few metres
+    before a junction makes a lane change feasible, yet leaves no room to change into it, and the target
+    looks for the neighbour lane from 10 m ahead."""
     index = MapIndex.build(scenario.road_map)
     checker = AdherenceChecker.build(scenario, map_index=index)
     options = [
@@ -111,9 +124,19 @@ def choose_counterfactual(
         for a in feasible_alternatives(scenario, target, index, logged=checker.logged)
         if not a.logged and a.other_id in (None, other)
     ]
-    options.sort(key=lambda a: COUNTERFACTUAL_ORDER.index(a.behaviour))
+    rank = {b: i for i, b in enumerate(COUNTERFACTUAL_ORDER)}
+    options.sort(key=lambda a: (not has_target(scenario, a, index), rank.get(a.behaviour, len(rank))))
     found = rollout_facts(scenario, unconditioned, checker)  # one labelling per rollout for every option
     return next((o for o in options if not any(o.facts <= f for f in found)), None), checker
+
+
+def has_target(scenario: Scenario, alternative: Alternative, index: MapIndex) -> bool:
+    """Whether the map gives `alternative`'s behaviour a target at the current step (`derive_target`)."""
+    try:
+        derive_target(scenario, alternative.track_id, alternative.behaviour, index, other_id=alternative.other_id)
+    except TargetUnavailable:
+        return False
+    return True
 
 
 def rollout_facts(scenario: Scenario, rollouts: Rollouts, checker: AdherenceChecker) -> list[frozenset]:
@@ -135,27 +158,62 @@ def synthesize_scene(folder: Path, seed: int, driven: int | None = None) -> Demo
     return find_scene(sorted((folder / "shards").glob("*.tfrecord")), driven)
 
 
-def _panel(result: SimResult, caption: str, highlight: tuple[int, ...], follow: int):
+@dataclass(frozen=True)
+class Panel:
+    """One panel of the demo video: rollout 0 of `result`, its caption, the agents outlined and the targets
+    marked on the map."""
+
+    result: SimResult
+    caption: str
+    highlight: tuple[int, ...] = ()
+    marks: tuple[TargetMark, ...] = ()
+
+
+def _panel(panel: Panel, follow: int):
     from langtraj.viz import RenderConfig, TopDownRenderer
 
     config = RenderConfig(
-        size_px=PANEL_PX, follow_track_id=follow, view_extent_m=90.0, highlight_ids=highlight, caption=caption
-    )
-    scene = result.scenario(0)
+        size_px=PANEL_PX, follow_track_id=follow, view_extent_m=90.0, highlight_ids=panel.highlight,
+        caption=panel.caption, marks=panel.marks,
+    )  # fmt: skip
+    scene = panel.result.scenario(0)
     start = max(scene.current_index - 10, 0)
     return TopDownRenderer(scene, config, steps=range(start, start + 91)), range(start, start + 91)
 
 
-def write_side_by_side(path: Path, panels: list[tuple[SimResult, str, tuple[int, ...]]], follow: int) -> int:
+def write_side_by_side(path: Path, panels: list[Panel], follow: int) -> int:
     """One video of the panels next to each other; returns the number of frames."""
     from langtraj.viz.video import write_mp4
 
-    opened = [_panel(result, caption, highlight, follow) for result, caption, highlight in panels]
+    opened = [_panel(panel, follow) for panel in panels]
     with contextlib.ExitStack() as stack:
         renderers = [stack.enter_context(renderer) for renderer, _ in opened]
         frames = (np.concatenate([r.frame(t) for r in renderers], axis=1) for t in opened[0][1])
         with atomic_path(path) as tmp:
             return write_mp4(tmp, frames, 10.0)
+
+
+def demo_panels(results: dict[str, SimResult], text: str, adversary: int, target: int, prompted: tuple[int, ...]):
+    """The three panels, each marking the targets its own run steered toward (`report["prompt"]`).
+
+    The unconditioned panel marks the prompt panel's targets too, captioned so: a target is derived from the
+    scene at the current step, which the three runs share, so these are exactly where the prompt would take the
+    agent; drawn beside the run that was not asked, they show what it does instead (and what `followed` judges
+    its 0 against)."""
+    from langtraj.viz.marks import marks_from_prompt
+
+    marks = {name: marks_from_prompt(r.report.get("prompt")) for name, r in results.items()}
+    unconditioned = "unconditioned" + (f"; marked: where the prompt takes @{target}" if marks["prompt"] else "")
+    return [
+        Panel(results["unconditioned"], unconditioned, (), marks["prompt"]),
+        Panel(results["prompt"], text, prompted, marks["prompt"]),
+        Panel(
+            results["safety-critical"],
+            f"{text} + @{adversary} collides with @{target}",
+            prompted,
+            marks["safety-critical"],
+        ),
+    ]
 
 
 def run_demo(
@@ -203,13 +261,8 @@ def run_demo(
             from langtraj.scenario.io import write_scenarios
 
             write_scenarios(kept, [scene.scenario])
-        prompted = tuple(scene.prompt.mentions)
-        panels = [
-            (results["unconditioned"], "unconditioned", ()),
-            (results["prompt"], text, prompted),
-            (results["safety-critical"], f"{text} + @{adversary} collides with @{target}", prompted),
-        ]
         if video:
+            panels = demo_panels(results, text, adversary, target, tuple(scene.prompt.mentions))
             write_side_by_side(out / "demo.mp4", panels, follow=target)
     summary = {
         "scene": str(kept if scene_file is None else scene.source),

@@ -230,14 +230,30 @@ def _run_prompts(
 ) -> dict:
     config = SimConfig(rollouts=settings.rollouts, seed=settings.seed)
     row: dict = {"judgements": [], "realism": [], "minade": [], "seconds": 0.0, "collision": [], "offroad": []}
+    row["prompts"] = []
     for prompt in prompts:
         start = time.perf_counter()
-        rollouts = simulate(case.scenario, _policy(loaded, settings, prompt, condition), config).rollouts
+        result = simulate(case.scenario, _policy(loaded, settings, prompt, condition), config)
+        rollouts = result.rollouts
         row["seconds"] += time.perf_counter() - start
-        row["judgements"] += judge_rollouts(case.scenario, rollouts, [prompt], checker=case.checker)
+        judged = judge_rollouts(case.scenario, rollouts, [prompt], checker=case.checker)
+        row["judgements"] += judged
         row["realism"].append(_realism(case.scenario, rollouts, scene_map))
-        for key, values in _safety(case, rollouts, scene_map, [prompt.track_id]).items():
+        safety = _safety(case, rollouts, scene_map, [prompt.track_id])
+        for key, values in safety.items():
             row[key] += values
+        row["prompts"].append(
+            {
+                "scenario_id": case.scenario.scenario_id,
+                "text": prompt.prompt.text,
+                "behaviour": prompt.behaviour.value,
+                "ground_truth": prompt.logged,
+                "followed": float(np.mean([j.followed for j in judged])),
+                "collision": safety["collision"][0],
+                "offroad": safety["offroad"][0] if safety["offroad"] else None,
+                "steering": result.report.get("prompt", {}).get("steering", []),
+            }
+        )
         if prompt.logged:
             row["minade"].append(min_ade(case.scenario, rollouts, [prompt.track_id]).mean)
     return row
@@ -349,6 +365,9 @@ def instruction_following_experiment(
             "judgements": {
                 cond: [j.to_json() for case in per_case for j in case.get(cond, {}).get("judgements", [])]
                 for cond in table
+            },
+            "prompts_by_condition": {
+                cond: [p for case in per_case for p in case.get(cond, {}).get("prompts", [])] for cond in table
             },
         }
         print(

@@ -36,6 +36,7 @@ from langtraj.interdrive.prompts.user import recognize_prompt
 from langtraj.interdrive.reader import read_prompt
 from langtraj.model.checkpoint import load_model
 from langtraj.model.config import SampleConfig
+from langtraj.model.diffusion import Guidance
 from langtraj.model.features import MapArrays, collate_scenes, map_coverage, sample_map, scene_frame, scene_sample
 from langtraj.model.langtraj import LangTraj
 from langtraj.model.scene_encoder import MapContext
@@ -66,6 +67,11 @@ DEFAULT_SELECTOR = "per_agent"
 """Candidate selection without steering guidance (prompts' costs, collision or `--guidance` terms, which
 use `min_guidance`): chosen by measurement like `DEFAULT_ON_ROAD`; the paper's is `min_collision`."""
 
+PROMPT_MAX_GRAD_NORM = 2.0
+"""Largest gradient norm per agent of the guidance toward a prompt's target (the scene's realism guidance keeps
+its own, `max_grad_norm`): chosen on validation windows (docs/experiments.md, 'Prompts that steer')."""
+PROMPT_ITERATIONS = 2
+"""Gradient steps of the guidance toward a prompt's target at each guided denoising step."""
 NEAR_WEIGHT = 1e-4
 """Weight of a prompted agent's distance from its target among candidates that follow its prompt (see
 `LangTrajPolicy._adherence`): times `selection.FIRST_WEIGHT`, 1 per unit of c / (1 + c)."""
@@ -450,20 +456,28 @@ class LangTrajPolicy(Policy):
 
         elapsed, horizon = step - world.start, self.data.future_steps
         steered = [s.terms(elapsed, horizon) for s in state.steering.steerings]
-        terms = state.terms + tuple(t for group in steered for t in group)
+        prompt_terms = tuple(t for group in steered for t in group)
+        terms = state.terms + prompt_terms
         hook = None
         if terms:
             initial = batch.current_state.repeat(m, 1, 1)
             types = batch.agent_type.repeat(m, 1)
             model = self.model
-            hook = reconstruction_guidance(
-                terms,
-                state.scene,
-                lambda x: model.integrate(initial, types, x),
-                scale=self.guidance_scale,
-                num_steps=self.model.schedule.num_steps,
-                max_grad_norm=self.max_grad_norm,
-            )
+
+            def guidance(chosen: tuple[GuidanceTerm, ...], norm: float | None, iterations: int = 1):
+                return reconstruction_guidance(
+                    chosen,
+                    state.scene,
+                    lambda x: model.integrate(initial, types, x),
+                    scale=self.guidance_scale,
+                    num_steps=self.model.schedule.num_steps,
+                    max_grad_norm=norm,
+                    iterations=iterations,
+                )
+
+            hook = guidance(state.terms, self.max_grad_norm) if state.terms else None
+            if prompt_terms:  # toward the prompt's target: its own, larger step after the scene's guidance
+                hook = _then(hook, guidance(prompt_terms, PROMPT_MAX_GRAD_NORM, PROMPT_ITERATIONS))
         states, _ = self.model.sample(
             batch,
             m,
@@ -509,6 +523,13 @@ class LangTrajPolicy(Policy):
                 nearness = near / (1.0 + near)
                 first[:, :, ask.slot] += miss.to(states.device) * (1.0 + 0.5 * nearness) + NEAR_WEIGHT * nearness
         return first
+
+
+def _then(first: Guidance | None, second: Guidance) -> Guidance:
+    """The sampler hook applying `first` (if any), then `second`, to the clean prediction."""
+    if first is None:
+        return second
+    return lambda x0, k, x_k: second(first(x0, k, x_k), k, x_k)
 
 
 @POLICIES.register

@@ -3,7 +3,16 @@
 from __future__ import annotations
 
 from langtraj.viz.config import RenderConfig
+from langtraj.viz.marks import TargetMark, marks_from_prompt
 from langtraj.viz.topdown import TopDownRenderer, render_frame
 from langtraj.viz.video import save_png, save_video
 
-__all__ = ["RenderConfig", "TopDownRenderer", "render_frame", "save_png", "save_video"]
+__all__ = [
+    "RenderConfig",
+    "TargetMark",
+    "TopDownRenderer",
+    "marks_from_prompt",
+    "render_frame",
+    "save_png",
+    "save_video",
+]

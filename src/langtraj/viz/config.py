@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 from langtraj.errors import InputError
+from langtraj.viz.marks import TargetMark
 
 
 @dataclass(frozen=True)
@@ -25,6 +26,8 @@ class RenderConfig:
     caption: first line of the caption; None shows the scenario id. Step and time follow it.
     fps: frames per second of saved videos.
     show_legend: draw a small legend of agent colours.
+    marks: targets drawn on the map under the agents (`viz.marks.TargetMark`: a prompted agent's path, stop,
+        goal or conflict point, world frame), e.g. `marks_from_prompt(summary["prompt"])`.
     """
 
     size_px: int = 800
@@ -38,10 +41,21 @@ class RenderConfig:
     caption: str | None = None
     fps: float = 10.0
     show_legend: bool = False
+    marks: tuple[TargetMark, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "highlight_ids", tuple(int(i) for i in self.highlight_ids))
         problems = []
+        marks = self.marks if isinstance(self.marks, tuple | list) else None
+        if marks is None:
+            problems.append(f"marks must be a tuple of TargetMark, got {type(self.marks).__name__}")
+            marks = ()
+        problems += [
+            f"marks[{i}] must be a TargetMark, got {type(m).__name__}"
+            for i, m in enumerate(marks)
+            if not isinstance(m, TargetMark)
+        ]
+        object.__setattr__(self, "marks", tuple(marks))
         if int(self.size_px) != self.size_px or self.size_px < 16:
             problems.append(f"size_px must be an integer >= 16, got {self.size_px!r}")
         if self.dpi is not None and not (math.isfinite(self.dpi) and self.dpi > 0):

@@ -152,6 +152,30 @@ def light_color(state: int) -> str:
     return LIGHT_UNKNOWN
 
 
+# ----------------------------------------------------------------------------- target marks
+MARK_COLOR = HIGHLIGHT_EDGE
+"""A prompted agent's target path is drawn in the colour that outlines the prompted agents."""
+MARK_UNDERLAY = "#0d0f12"
+"""A dark halo under the target path, so it is not mistaken for a white lane marking."""
+MARK_PATH_WIDTH = 4.0
+MARK_PATH_UNDERLAY_WIDTH = 7.0
+MARK_PATH_DASHES = (1.2, 1.6)  # (on, off) in line widths: short round dashes, unlike the thin lane markings
+MARK_PATH_ALPHA = 0.85
+MARK_STOP_COLOR = "#ff453a"
+MARK_STOP_BAR_M = 3.5
+"""Length of the bar drawn across a target path where the agent must stand still (m)."""
+MARK_STOP_BAR_WIDTH = 5.0
+MARK_STOP_SIZE = 260.0  # marker area, points^2 (larger than a map stop sign, which it must not be taken for)
+MARK_GOAL_COLOR = MARK_COLOR
+MARK_GOAL_SIZE = 420.0
+MARK_CONFLICT_COLOR = "#ff9f0a"
+MARK_CONFLICT_SIZE = 260.0
+MARK_EDGE = "#0d0f12"
+MARK_EDGE_WIDTH = 0.8
+MARK_LABEL_SIZE = 7.0
+MARK_ZORDER = 6.5
+"""Over the map and signals' stop points, under trails and agents (marks are static: drawn with the map)."""
+
 # ----------------------------------------------------------------------------- dynamic layers
 TRAIL_ZORDER = 7.0
 AGENT_ZORDER = 8.0

@@ -1,10 +1,11 @@
 """TopDownRenderer: draws one scenario step as an RGB image, reusing one figure for every frame.
 
-The map is added once as grouped collections. Per frame only the agent boxes, heading ticks,
-trails, labels, signal markers and caption change. The rasterised map is cached and blitted while
-the camera holds still; a moving camera redraws it. Overlays (caption, scale bar, legend) go on top;
-the caption is wrapped to the width of the image. docs/benchmarks.md measures the renderer's speed and
-docs/simulation.md describes the demo video made of its frames.
+The map and the target marks (`RenderConfig.marks`) are added once as grouped collections. Per frame only
+the agent boxes, heading ticks, trails, labels, signal markers and caption change. The rasterised map is
+cached and blitted while the camera holds still; a moving camera redraws it, marks included, so they move
+with a following camera. Overlays (caption, scale bar, legend) go on top; the caption is wrapped to the
+width of the image. docs/benchmarks.md measures the renderer's speed and docs/simulation.md describes the
+demo video made of its frames.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from collections.abc import Sequence
 from types import TracebackType
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.colors import to_rgba, to_rgba_array
@@ -30,6 +32,7 @@ from langtraj.viz import style
 from langtraj.viz.camera import Camera, Limits
 from langtraj.viz.config import RenderConfig
 from langtraj.viz.maplayer import add_map
+from langtraj.viz.marks import TargetMark
 
 
 def box_corners(xy: np.ndarray, heading: np.ndarray, length: np.ndarray, width: np.ndarray) -> np.ndarray:
@@ -112,6 +115,7 @@ class TopDownRenderer:
         ax.set_axis_off()
         ax.set_autoscale_on(False)
         add_map(ax, scenario.road_map)
+        add_marks(ax, config.marks)
         self._overlays: list = []  # scale bar and legend: fixed, but drawn over the agents each frame
         self._add_dynamic_artists()
         self._add_scale_bar()
@@ -333,6 +337,57 @@ class TopDownRenderer:
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
         self.close()
+
+
+def add_marks(ax: Axes, marks: Sequence[TargetMark]) -> list:
+    """Draw target marks as static world-frame artists (cached with the map, under the agents): paths as dashed
+    polylines over a dark halo, stops as white-edged bars or octagons, goals as stars, conflict points as crosses,
+    and each label beside the mark's last point (a stop bar's middle). Returns the artists added."""
+    z = style.MARK_ZORDER
+    added: list = []
+    paths = [m.xy for m in marks if m.kind == "path"]
+    if paths:
+        for width, color, dashes, alpha, dz in (
+            (style.MARK_PATH_UNDERLAY_WIDTH, style.MARK_UNDERLAY, "solid", 0.5, 0.0),
+            (style.MARK_PATH_WIDTH, style.MARK_COLOR, (0.0, style.MARK_PATH_DASHES), style.MARK_PATH_ALPHA, 0.01),
+        ):
+            coll = LineCollection(
+                paths, colors=color, linewidths=width, linestyles=dashes, alpha=alpha, zorder=z + dz,
+                capstyle="round", joinstyle="round",
+            )  # fmt: skip
+            added.append(ax.add_collection(coll, autolim=False))
+    bars = [m.xy for m in marks if m.kind == "stop" and len(m.points) == 2]
+    if bars:
+        for width, color, dz in (
+            (style.MARK_STOP_BAR_WIDTH + 3 * style.MARK_EDGE_WIDTH, style.MARK_COLOR, 0.02),  # unlike a signal's bar
+            (style.MARK_STOP_BAR_WIDTH, style.MARK_STOP_COLOR, 0.03),
+        ):
+            coll = LineCollection(bars, colors=color, linewidths=width, capstyle="butt", zorder=z + dz)
+            added.append(ax.add_collection(coll, autolim=False))
+    dots = (
+        ("stop", "8", style.MARK_STOP_COLOR, style.MARK_STOP_SIZE, style.MARK_COLOR),
+        ("goal", "*", style.MARK_GOAL_COLOR, style.MARK_GOAL_SIZE, style.MARK_EDGE),
+        ("conflict", "X", style.MARK_CONFLICT_COLOR, style.MARK_CONFLICT_SIZE, style.MARK_EDGE),
+    )
+    for kind, marker, color, size, edge in dots:
+        points = [m.xy for m in marks if m.kind == kind and not (kind == "stop" and len(m.points) == 2)]
+        if points:
+            xy = np.concatenate(points)
+            dot = ax.scatter(
+                xy[:, 0], xy[:, 1], s=size, marker=marker, c=color, edgecolors=edge,
+                linewidths=style.MARK_EDGE_WIDTH, zorder=z + 0.04,
+            )  # fmt: skip
+            added.append(dot)
+    for mark in marks:
+        if mark.label:
+            x, y = mark.xy.mean(axis=0) if mark.kind == "stop" else mark.xy[-1]
+            text = ax.text(
+                x, y, f" {mark.label}", color=style.TEXT, fontsize=style.MARK_LABEL_SIZE, ha="left",
+                va="bottom", zorder=z + 0.05, clip_on=True,
+                bbox={"boxstyle": "round,pad=0.2", "facecolor": style.TEXT_BOX, "alpha": 0.45, "edgecolor": "none"},
+            )  # fmt: skip
+            added.append(text)
+    return added
 
 
 def _stop_bar_directions(scenario: Scenario) -> np.ndarray:
