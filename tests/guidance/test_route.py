@@ -8,8 +8,8 @@ import pytest
 import torch
 
 from langtraj.errors import InputError
-from langtraj.guidance import GuidanceTerm, RouteCost, StationCost, TargetSpeedCost
-from langtraj.guidance.steering import Steering
+from langtraj.guidance import GuidanceTerm, NoCollisionCost, RouteCost, StationCost, TargetSpeedCost
+from langtraj.guidance.steering import ClearOfOthersCost, Steering
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.targets import BehaviourTarget
 
@@ -71,16 +71,32 @@ def _steering(behaviour: Behaviour, **fields) -> Steering:
 
 def test_steering_terms_are_timed_from_the_start_of_the_simulation():
     change = _steering(Behaviour.LANE_CHANGE_LEFT)
-    (term,) = change.terms(elapsed=0, horizon=80)
+    term, clear = change.terms(elapsed=0, horizon=80)
     assert isinstance(term.cost, RouteCost) and (term.cost.start, term.cost.end) == (39, 80)  # from 4 s on
-    (later,) = change.terms(elapsed=30, horizon=80)
+    assert isinstance(clear.cost, ClearOfOthersCost)  # every step toward a target keeps clear of the others
+    later, _ = change.terms(elapsed=30, horizon=80)
     assert (later.cost.start, later.cost.end) == (9, 50)  # the same simulated steps, 3 s later
     stop = _steering(Behaviour.STOP, station_of_goal=20.0, stop=True, speed=0.0)
     kinds = {type(t.cost) for t in stop.terms(elapsed=0, horizon=80)}
-    assert kinds == {StationCost, TargetSpeedCost, RouteCost}
+    assert kinds == {StationCost, TargetSpeedCost, RouteCost, ClearOfOthersCost}
     speed = next(t.cost for t in stop.terms(0, 80) if isinstance(t.cost, TargetSpeedCost))
     assert speed.speeds == (0.0,) and speed.start == 39  # even braking over 20 m from 10 m/s takes 4 s
     assert _steering(Behaviour.LANE_CHANGE_LEFT).terms(elapsed=80, horizon=80) == []  # nothing left to steer
+
+
+def test_keeping_clear_of_others_is_an_agents_total_overlap_whatever_the_scenes_size():
+    values = []
+    for count in (2, 6):
+        scene = make_scene(count)
+        states = torch.zeros(1, count, 5, 4)
+        states[0, :, :, 0] = torch.arange(count, dtype=torch.float32)[:, None] * 50.0  # all far apart ...
+        states[0, 1, :, 0] = 1.0  # ... but agent 1 drives through agent 0
+        value, grad = cost_gradient(ClearOfOthersCost(0), states, scene)
+        pair = NoCollisionCost(0, others=1)(states, scene) * 2**2  # that one pair's mean overlap
+        assert value.item() == pytest.approx(pair.item()) and 0 < value.item() <= 1.0
+        assert grad[0, 0].abs().sum() > 0  # a gradient step moves the steered agent away
+        values.append(value.item())
+    assert values[0] == pytest.approx(values[1])
 
 
 def test_every_term_toward_a_target_is_weighted_in_the_common_range():

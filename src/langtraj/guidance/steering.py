@@ -29,8 +29,24 @@ REACH_WEIGHT = 1 / 5.0**2  # per m^2 short of a goal station
 HOLD_WEIGHT = 1 / 2.0**2  # per m^2 past a stop or conflict point
 SPEED_WEIGHT = 1 / 2.0**2  # per (m/s)^2 of speed error
 AVOID_WEIGHT = 4.0
+CLEAR_WEIGHT = 4.0  # per unit of summed disk overlap with the other agents (a full overlap of one pair costs 4)
+CLEAR_BUFFER = 0.5  # m kept beyond touching
 STEP_S = 0.1
 FUTURE = 80  # simulated steps after the start
+
+
+class ClearOfOthersCost(NoCollisionCost):
+    """`NoCollisionCost` of one agent against every other, summed over the pairs (not divided by the square of
+    the agents involved): the agent's total disk overlap, whatever the scene's size."""
+
+    name = "clear_of_others"
+
+    def __init__(self, slot: int, *, buffer: float = 0.0):
+        super().__init__(slot, buffer=buffer)
+
+    def __call__(self, states, scene):  # type: ignore[no-untyped-def]
+        involved = int(scene.agent_valid.sum())
+        return super().__call__(states, scene) * involved**2
 
 
 @dataclass(frozen=True)
@@ -53,8 +69,12 @@ class Steering:
         return cls(moved, slots[target.track_id], other)
 
     def terms(self, elapsed: int, horizon: int) -> list[GuidanceTerm]:
-        """The terms for a plan of `horizon` steps made after `elapsed` simulated steps."""
-        return _BUILDERS[self.target.behaviour](self, _Clock(elapsed, horizon))
+        """The terms for a plan of `horizon` steps made after `elapsed` simulated steps: toward the target, and
+        clear of every other agent (so that a step toward the target does not drive into someone)."""
+        terms = _BUILDERS[self.target.behaviour](self, _Clock(elapsed, horizon))
+        if not terms:
+            return terms
+        return [*terms, GuidanceTerm(ClearOfOthersCost(self.slot, buffer=CLEAR_BUFFER), CLEAR_WEIGHT)]
 
 
 @dataclass(frozen=True)

@@ -22,17 +22,20 @@ import numpy as np
 from langtraj.angles import wrap_angle
 from langtraj.interdrive.adherence import label_facts
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour, behaviour_facts
+from langtraj.interdrive.detector import DetectorConfig
 from langtraj.interdrive.heuristics import HeuristicConfig, label_agents
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.scenario.model import Agents, Scenario
-from langtraj.scenario.types import StateField
+from langtraj.scenario.types import AgentType, StateField
 from langtraj.sim.world import SimWorld
 
 CROSSING_RADIUS = 2.0
 """Two positions this close (m), at more than `CROSSING_ANGLE` to each other, are the same crossing point."""
 CROSSING_ANGLE = np.radians(20.0)
-HELD_SPEED = 2.0
-"""A yielding agent is held (at or below this speed, m/s) somewhere before the crossing point."""
+HELD_SPEED = DetectorConfig().held_speed
+"""A yielding vehicle is held (at or below this speed, m/s) somewhere before the crossing point."""
+STANDING_SPEED = DetectorConfig().stopped_speed
+"""A yielding pedestrian or cyclist stands (at or below this speed, m/s) somewhere before the crossing point."""
 WAIT_EXTENSION = 10.0
 """A yielding agent that never reaches the crossing is extended straight this far (m), as the detector does."""
 
@@ -120,9 +123,11 @@ class CandidateJudge:
         a = mine[:, :, start:end]
         b = theirs[:, :, start:end]
         out = np.ones(a.shape[:2], bool)
+        types = self.world.scenario.agents.types
+        held = [_held_speed(int(types[ask.row])), _held_speed(int(types[ask.other_row]))]  # type: ignore[index]
         for i in range(a.shape[0]):
             for j in range(a.shape[1]):
-                out[i, j] = not _follows(ask.behaviour, a[i, j], b[i, j])
+                out[i, j] = not _follows(ask.behaviour, a[i, j], b[i, j], held)
         return out
 
 
@@ -146,8 +151,13 @@ def _pose(track: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return xy, heading, speed
 
 
-def _follows(behaviour: Behaviour, mine: np.ndarray, theirs: np.ndarray) -> bool:
-    """Whether track `mine` [T, 9] does `behaviour` toward track `theirs` [T, 9] over the simulated steps."""
+def _held_speed(agent_type: int) -> float:
+    return HELD_SPEED if agent_type == AgentType.VEHICLE else STANDING_SPEED
+
+
+def _follows(behaviour: Behaviour, mine: np.ndarray, theirs: np.ndarray, held: list[float]) -> bool:
+    """Whether track `mine` [T, 9] does `behaviour` toward track `theirs` [T, 9] over the simulated steps; `held`
+    is the speed at or below which each of the two waits (`_held_speed` of its type)."""
     xa, ha, va = _pose(mine)
     xb, hb, _ = _pose(theirs)
     if behaviour is Behaviour.FOLLOW:
@@ -170,5 +180,5 @@ def _follows(behaviour: Behaviour, mine: np.ndarray, theirs: np.ndarray) -> bool
     j = int(np.flatnonzero(crossing[i])[0])  # when the other is there
     vb = np.hypot(theirs[:, StateField.VX], theirs[:, StateField.VY])
     if behaviour is Behaviour.GO_FIRST:  # first there, while the other is held back before it (it yields)
-        return i < j and bool((vb[:j] <= HELD_SPEED).any())
-    return i > j and bool((va[: min(i, len(va))] <= HELD_SPEED).any())
+        return i < j and bool((vb[:j] <= held[1]).any())
+    return i > j and bool((va[: min(i, len(va))] <= held[0]).any())

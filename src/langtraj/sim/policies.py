@@ -191,6 +191,9 @@ class LangTrajRun:
     generators: list[torch.Generator]
     steering: PromptSteering = field(default_factory=PromptSteering)
     judge: CandidateJudge | None = None
+    kept: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
+    """Per rollout: the step and the states [A, T, 4] (scene frame) of the plan executed from it, which the
+    next replan offers again as a candidate for the prompted agents (`LangTrajPolicy._with_kept_plans`)."""
 
 
 @POLICIES.register
@@ -488,10 +491,40 @@ class LangTrajPolicy(Policy):
             map_context=state.map_context,
             local=self.data.local_attention() if self.local_attention else None,
         )
+        if state.judge is not None:
+            states = self._with_kept_plans(state, step, rollouts, states)
         first = self._adherence(world, state, step, rollouts, states, steered)
         choice = state.selector.select(states, state.scene, terms, first)  # states [M, R, A, T, 4], scene frame
-        chosen = chosen_states(states, choice)[:, : len(world.driven)].double().cpu().numpy()
+        executed = chosen_states(states, choice)
+        if state.judge is not None:
+            state.kept.update({r: (step, executed[n].detach()) for n, r in enumerate(rollouts)})
+        chosen = executed[:, : len(world.driven)].double().cpu().numpy()
         return poses_to_world(chosen, state.origin)
+
+    def _with_kept_plans(self, state: LangTrajRun, step: int, rollouts: list[int], states: Tensor) -> Tensor:
+        """The candidates [M, R, A, T, 4] with one more: for each prompted agent (and the other agent of a pair
+        behaviour), what is left of the plan executed at the previous replan (continued at constant speed and
+        heading to the horizon), and candidate 0 for the other agents. A plan that did what the prompt asks stays
+        on offer, so a replan that samples no such candidate keeps to it instead of putting the behaviour off
+        (plan reuse in receding-horizon control)."""
+        if any(r not in state.kept for r in rollouts):
+            return states
+        extra = states[0].clone()  # [R, A, T, 4]
+        for n, r in enumerate(rollouts):
+            before, plan = state.kept[r]
+            left = plan[:, step - before :]
+            if left.shape[1] == 0:
+                return states
+            tail = left[:, -1:].repeat(1, states.shape[3] - left.shape[1], 1)
+            steps = torch.arange(1, tail.shape[1] + 1, dtype=tail.dtype, device=tail.device)[None, :]
+            travel = tail[..., 3] * STEP_SECONDS * steps
+            tail[..., 0] = tail[..., 0] + travel * torch.cos(tail[..., 2])
+            tail[..., 1] = tail[..., 1] + travel * torch.sin(tail[..., 2])
+            for ask in state.judge.asks if state.judge else ():
+                for slot in (ask.slot, ask.other_slot):  # a pair's other agent keeps its side of the plan too
+                    if slot is not None:
+                        extra[n, slot] = torch.cat([left[slot], tail[slot]])
+        return torch.cat([states, extra[None]])
 
     def _adherence(
         self,
@@ -506,7 +539,9 @@ class LangTrajPolicy(Policy):
         (`sim.adherence`), plus up to 0.5 by how far it is from its target (n, its guidance cost c as c / (1 + c)),
         so that among candidates that all miss the nearest comes first; and `NEAR_WEIGHT` x n for every candidate,
         so that among those that follow, one that does it now beats one that puts it off to a later replan (as
-        much as a tenth of a disk overlap weighs in `per_agent`); None without a judge."""
+        much as a tenth of a disk overlap weighs in `per_agent`). A pair behaviour's miss also counts for the other
+        agent's candidate (judged with the prompted agent's candidate of the same index): yielding to @7 or going
+        before it is something the two do together. None without a judge."""
         if state.judge is None:
             return None
         m, r = states.shape[:2]
@@ -521,7 +556,10 @@ class LangTrajPolicy(Policy):
                 for term in by_slot.get(ask.slot, []):
                     near = near + term.weight * term.cost(flat, state.scene).reshape(m, r)
                 nearness = near / (1.0 + near)
-                first[:, :, ask.slot] += miss.to(states.device) * (1.0 + 0.5 * nearness) + NEAR_WEIGHT * nearness
+                miss = miss.to(states.device)
+                first[:, :, ask.slot] += miss * (1.0 + 0.5 * nearness) + NEAR_WEIGHT * nearness
+                if ask.other_slot is not None:  # a pair behaviour is the pair's: the other makes way, or leads
+                    first[:, :, ask.other_slot] += miss
         return first
 
 

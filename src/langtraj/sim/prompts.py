@@ -14,6 +14,7 @@ import numpy as np
 from langtraj.errors import InputError
 from langtraj.frames import Origin
 from langtraj.guidance.steering import Steering
+from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.counterfactual import infeasible_manoeuvres
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.mapindex import MapIndex
@@ -81,7 +82,8 @@ def prompt_warnings(scenario: Scenario, prompts: Sequence[str]) -> list[str]:
 @dataclass(frozen=True)
 class PromptSteering:
     """What typed prompts steer in one simulation: what the reader made of each (`readings`), the guidance toward
-    each read behaviour's target (`steerings`, when the guidance lever is on), what selection judges
+    each read behaviour's target (`steerings`, when the guidance lever is on; for yielding or going first also the
+    other agent's side of it), what selection judges
     (`asks`, when the selection lever is on), and one line per prompt saying so (`notes`)."""
 
     readings: tuple[PromptReading, ...] = ()
@@ -141,8 +143,29 @@ def prompt_steering(
                 targets.append(target)
                 steerings.append(Steering.of(target, origin, slots))
                 used.append(f"guidance toward {target.reason}")
+                counterpart = _counterpart(scenario, reading, slots, index)
+                if counterpart is not None:
+                    steerings.append(Steering.of(counterpart, origin, slots))
+                    used.append(f"@{counterpart.track_id} toward {counterpart.reason}")
         if levers.selection:
             asks.append(ask)
             used.append("adherence-first selection")
         notes.append(f"{reading.describe()}; steered by {', '.join(used) or 'nothing'}")
     return PromptSteering(readings, tuple(steerings), tuple(asks), tuple(notes), tuple(targets))
+
+
+_OPPOSITE = {Behaviour.YIELD: Behaviour.GO_FIRST, Behaviour.GO_FIRST: Behaviour.YIELD}
+
+
+def _counterpart(
+    scenario: Scenario, reading: PromptReading, slots: dict[int, int], index: MapIndex
+) -> BehaviourTarget | None:
+    """For yielding or going first, the other agent's side of it (going first, or yielding) when the model drives
+    it and the map gives its target: a yield happens only if the other agent goes."""
+    opposite = _OPPOSITE.get(reading.behaviour)  # type: ignore[arg-type]
+    if opposite is None or reading.other not in slots or reading.agent is None:
+        return None
+    try:
+        return derive_target(scenario, reading.other, opposite, index, other_id=reading.agent)  # type: ignore[arg-type]
+    except TargetUnavailable:
+        return None

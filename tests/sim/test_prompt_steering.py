@@ -1,0 +1,72 @@
+"""What a typed prompt steers (`sim.prompts.prompt_steering`): the behaviour read, its target as guidance, the
+candidate judge's ask, and one line per prompt saying so; each lever can be switched off."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from interdrive.test_counterfactual import HALF, LEFT_LANE_STRAIGHT, RIGHT_LANE_STRAIGHT, drive, four_way
+from interdrive.test_heuristics import TIME, along, scene
+from interdrive.test_mapindex import line
+
+from langtraj.errors import InputError
+from langtraj.guidance import RouteCost
+from langtraj.interdrive.behaviour import Behaviour
+from langtraj.scenario import AgentType
+from langtraj.sim.config import ALL_LEVERS, PromptLevers
+from langtraj.sim.prompts import prompt_steering
+
+ORIGIN = (0.0, 0.0, 0.0)
+
+
+def _crossing_scene():
+    xy, heading = along(line(-80, -HALF, -10, -HALF), 40.0 + 8.0 * TIME)  # eastbound on lane 41
+    return scene(four_way(), drive(LEFT_LANE_STRAIGHT), drive(RIGHT_LANE_STRAIGHT), (AgentType.VEHICLE, xy, heading))
+
+
+def test_a_read_prompt_steers_by_its_target_and_is_judged_by_selection():
+    s = _crossing_scene()
+    rows = np.arange(3)
+    steering = prompt_steering(s, ["@2, take the next right"], rows, ORIGIN, ALL_LEVERS)
+    (reading,) = steering.readings
+    assert reading.behaviour is Behaviour.TURN_RIGHT and reading.agent == 2
+    (steer,) = steering.steerings
+    assert steer.slot == 1 and any(isinstance(t.cost, RouteCost) for t in steer.terms(0, 80))
+    (ask,) = steering.asks
+    assert (ask.track_id, ask.slot, ask.behaviour) == (2, 1, Behaviour.TURN_RIGHT)
+    (note,) = steering.notes
+    assert note.startswith('read as: @2 turn_right ("take the next right")') and "adherence-first selection" in note
+    assert steering.to_json()["targets"][0]["behaviour"] == "turn_right"
+
+
+def test_a_yield_also_steers_the_other_agent_through_first():
+    s = _crossing_scene()
+    steering = prompt_steering(s, ["@1 yields to @3"], np.arange(3), ORIGIN, ALL_LEVERS)
+    assert [x.target.behaviour for x in steering.steerings] == [Behaviour.YIELD, Behaviour.GO_FIRST]
+    assert [x.slot for x in steering.steerings] == [0, 2]
+    assert "@3 toward it passes the conflict point" in steering.notes[0]
+
+
+def test_unread_prompts_and_missing_targets_say_what_steers_them():
+    s = _crossing_scene()
+    unread = prompt_steering(s, ["@1 does a little dance"], np.arange(3), ORIGIN, ALL_LEVERS)
+    assert not unread.steerings and not unread.asks
+    assert unread.notes[0].startswith("not read:") and "it steers by its text alone" in unread.notes[0]
+    no_target = prompt_steering(s, ["@2 turns left at the next intersection"], np.arange(3), ORIGIN, ALL_LEVERS)
+    assert not no_target.steerings and len(no_target.asks) == 1  # the judge still asks; the map gives no target
+    assert any("no target: @2 cannot turn left" in n for n in no_target.notes)
+
+
+@pytest.mark.parametrize(
+    ("levers", "guided", "judged"),
+    [(PromptLevers(guidance=False), 0, 1), (PromptLevers(selection=False), 1, 0), (PromptLevers(text=False), 1, 1)],
+)
+def test_each_lever_can_be_switched_off(levers, guided, judged):
+    steering = prompt_steering(_crossing_scene(), ["@2 stops"], np.arange(3), ORIGIN, levers)
+    assert (len(steering.steerings), len(steering.asks)) == (guided, judged)
+    assert ("text" in steering.notes[0]) is levers.text
+
+
+def test_a_prompt_about_an_agent_the_model_does_not_drive_is_refused():
+    with pytest.raises(InputError, match="@3 is not among the agents the model drives"):
+        prompt_steering(_crossing_scene(), ["@3 stops"], np.arange(2), ORIGIN, ALL_LEVERS)
