@@ -1,4 +1,4 @@
-"""The prompt reader (`interdrive/reader.py`): which behaviour kind a typed prompt asks of which agent, read from
+"""The prompt reader (`interdrive/reader`): which behaviour kind a typed prompt asks of which agent, read from
 everyday words; a negated, mixed or unknown prompt reads as nothing, with a reason."""
 
 from __future__ import annotations

@@ -1,0 +1,19 @@
+"""Read which behaviour kind (`Behaviour`) a typed prompt asks of which agent: "@7, hang a left" -> @7 turn_left.
+
+The simulator steers an agent by the kind a prompt asks for, so a prompt in everyday words must be read without the
+phrase tables (`prompts.user.recognize_prompt` finds only their own phrases). The reader is rule-based: regular
+expressions over the lower-cased text, with each `@id` mention replaced by a placeholder. It favours precision over
+recall: a negated prompt, two different kinds, or a subject or other agent it cannot tell give no kind (and a
+reason), so that a prompt it cannot read steers by its text alone rather than by a wrong kind.
+`python -m langtraj.interdrive.reader FILE...` prints how it reads free-text prompt files.
+
+The package holds `rules.py` (verb forms and the regular-expression rule tables), `read.py` (normalisation,
+matching, subject finding and `read_prompt`) and `figures.py` (reading figures and the command line).
+
+See docs/interdrive.md ('Reading a prompt').
+"""
+
+from langtraj.interdrive.reader.figures import ReadingFigures, file_figures, main, reading_figures
+from langtraj.interdrive.reader.read import PromptReading, read_prompt
+
+__all__ = ["PromptReading", "ReadingFigures", "file_figures", "main", "read_prompt", "reading_figures"]

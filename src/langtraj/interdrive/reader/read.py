@@ -1,0 +1,277 @@
+"""Reading one prompt: `read_prompt` normalises the typed text (lower case, collapsed whitespace, each `@id` mention
+a placeholder), finds every rule's matches (`rules.py`), keeps the longest that do not overlap, drops those in an
+'instead of' clause, finds the subject of each and the agent asked (addressed, named by a request, or the subject of
+the first main-clause phrase), and gives a `PromptReading`: one kind (toward one other agent for a pair kind), or
+none and the reason (negated, passive, several agents or kinds, no subject or phrase found).
+
+See docs/interdrive.md ('Reading a prompt').
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
+from langtraj.interdrive.prompts.compose import MENTION, mentions_in
+from langtraj.interdrive.reader.rules import (
+    _CONTRAST,
+    _NEGATION,
+    _PASSIVE,
+    _PLACEHOLDER,
+    _RULES,
+    _SLOT,
+    _SUBSUMES,
+    _verb,
+)
+
+# ---------------------------------------------------------------------------------------------- clauses and subjects
+
+_CLAUSE_BREAK = re.compile(r"[,;.!?:]|\b(?:and|but|then|or)\b")
+_SUBORDINATOR = re.compile(
+    r"\b(?:after|before|once|when|whenever|while|whilst|as\s+soon\s+as|until|till|if|unless|because|since|so|as)\b"
+)
+_FILLER = (
+    r"(?:can|could|should|must|will|would|may|might|shall|to|has\s+to|have\s+to|needs?\s+to|is|are|is\s+going\s+to"
+    r"|going\s+to|gonna|ought\s+to|had\s+better|please|then|just|also|now|simply|first|gently|quickly|slowly"
+    r"|carefully|immediately|safely|smoothly|soon|promptly|'ll|'d|really|definitely|only|still)"
+)
+_LOCAL_SUBJECT = re.compile(rf"(<m\d+>)\s*[,:]?\s*(?:{_FILLER}\s+)*$")
+_COORDINATED = re.compile(rf"{_SLOT}\s*(?:,|and|or|&)\s*(<m\d+>)\s*[,:]?\s*(?:{_FILLER}\s+)*$")
+_PRONOUN_SUBJECT = re.compile(rf"\b(?:it|he|she|they|you)\s+(?:{_FILLER}\s+)*$")
+_VOCATIVE = re.compile(
+    r"^(?:(?:hey|ok|okay|now|right|so|please|alright|and)\s*,?\s*)?(<m\d+>)\s*[,:;]|[,;:]\s*(<m\d+>)\s*[.!]?\s*$"
+)
+_REQUEST_VERBS = _verb(
+    "have", "get", "make", "tell", "ask", "want", "need", "like", "let", "allow", "order", "instruct", "force", "see",
+    "expect", "make sure", "ensure",
+)  # fmt: skip
+_CAUSATIVE = re.compile(rf"\b{_REQUEST_VERBS}\s+(?:that\s+)?(<m\d+>)")
+
+
+# ---------------------------------------------------------------------------------------------- the reading
+
+
+@dataclass(frozen=True)
+class PromptReading:
+    """What a prompt asks: `behaviour` of track `agent` (toward track `other` for a pair kind), decided by `words`
+    of the text; or `behaviour` None and the `reason` nothing was read (`agent` is still set where it was found)."""
+
+    behaviour: Behaviour | None
+    agent: int | None
+    other: int | None = None
+    words: str = ""
+    reason: str = ""
+
+    @property
+    def read(self) -> bool:
+        return self.behaviour is not None
+
+    def describe(self) -> str:
+        """One line: `read as: @12 turn_left ("hang a left")`, `read as: @12 yield @7 ("gives way to @7")` or
+        `not read: <reason>; the prompt steers by text alone`."""
+        if self.behaviour is None:
+            return f"not read: {self.reason}; the prompt steers by text alone"
+        toward = f" @{self.other}" if self.other is not None else ""
+        return f'read as: @{self.agent} {self.behaviour.value}{toward} ("{self.words}")'
+
+    def to_json(self) -> dict[str, object]:
+        return {
+            "behaviour": None if self.behaviour is None else self.behaviour.value,
+            "agent": self.agent,
+            "other": self.other,
+            "words": self.words,
+            "reason": self.reason,
+        }
+
+
+@dataclass(frozen=True)
+class _Match:
+    behaviour: Behaviour
+    start: int
+    end: int
+    other: int | None  # placeholder index of the other agent the phrase names
+    agent: int | None = None  # placeholder index of the agent it names as the object of a request
+
+
+@dataclass(frozen=True)
+class _Text:
+    """The prompt lower-cased, whitespace collapsed, mentions as `<m0>`, `<m1>`, ... (index into `ids`), with the
+    position in the typed text of every character."""
+
+    text: str
+    origin: tuple[int, ...]
+    ids: tuple[int, ...]
+
+    def span(self, typed: str, start: int, end: int) -> str:
+        return typed[self.origin[start] : self.origin[end - 1] + 1]
+
+
+def _normalise(typed: str) -> _Text:
+    ids = mentions_in(typed)
+    index = {track: i for i, track in enumerate(ids)}
+    chars: list[str] = []
+    origin: list[int] = []
+    pos = 0
+    for mention in [*MENTION.finditer(typed), None]:
+        stop = len(typed) if mention is None else mention.start()
+        for i in range(pos, stop):
+            char = typed[i].replace("\u2019", "'").replace("\u2018", "'")
+            if char.isspace():
+                if chars and chars[-1] != " ":
+                    chars.append(" ")
+                    origin.append(i)
+                continue
+            for lower in char.lower():
+                chars.append(lower)
+                origin.append(i)
+        if mention is not None:
+            slot = f"<m{index[int(mention.group(1))]}>"
+            chars.extend(slot)
+            origin.extend([mention.start()] * (len(slot) - 1) + [mention.end() - 1])
+            pos = mention.end()
+    return _Text("".join(chars), tuple(origin), ids)
+
+
+def _slot(placeholder: str | None) -> int | None:
+    return None if placeholder is None else int(placeholder[2:-1])
+
+
+def _candidates(text: str) -> list[_Match]:
+    """Every rule's matches, longest first (ties: the earlier rule)."""
+    found = []
+    for order, rule in enumerate(_RULES):
+        for m in rule.pattern.finditer(text):
+            if m.end() > m.start():
+                named = m.groupdict()
+                other, agent = _slot(named.get("other")), _slot(named.get("agent"))
+                found.append((-(m.end() - m.start()), order, _Match(rule.behaviour, m.start(), m.end(), other, agent)))
+    return [match for _, _, match in sorted(found, key=lambda item: (item[0], item[1], item[2].start))]
+
+
+def _select(candidates: Sequence[_Match], banned: Iterable[_Match] = ()) -> list[_Match]:
+    """The candidates not banned that no longer one overlaps, in order of start."""
+    kept: list[_Match] = []
+    for match in candidates:
+        if match not in banned and _outside(kept, match.start, match.end):
+            kept.append(match)
+    return sorted(kept, key=lambda m: m.start)
+
+
+def _outside(matches: Sequence[_Match], start: int, end: int) -> bool:
+    return all(end <= m.start or start >= m.end for m in matches)
+
+
+def _clause_start(text: str, pos: int) -> int:
+    breaks = [b.end() for b in _CLAUSE_BREAK.finditer(text, 0, pos)]
+    return breaks[-1] if breaks else 0
+
+
+def _local_subject(text: str, match: _Match, matches: Sequence[_Match]) -> int | str | None:
+    """The mention right before a phrase (its subject: "@7 can cross first"), "several" for "@12 and @7 stop",
+    "pronoun" for "it goes first", or None. A mention that is the object of an earlier phrase is the subject of an
+    infinitive only ("waits for @7 to turn left", not "waits for @7, then turns left")."""
+    if match.agent is not None:
+        return match.agent
+    before = text[: match.start]
+    if _COORDINATED.search(before):
+        return "several"
+    found = _LOCAL_SUBJECT.search(before)
+    if found:
+        infinitive = re.fullmatch(r"\s*to\s+", before[found.end(1) :]) is not None
+        return _slot(found.group(1)) if infinitive or _outside(matches, found.start(1), found.end(1)) else None
+    return "pronoun" if _PRONOUN_SUBJECT.search(before) else None
+
+
+def _is_subordinate(text: str, match: _Match, matches: Sequence[_Match]) -> bool:
+    """Whether a phrase is in a subordinate clause ("after @7 turns left, ...")."""
+    start = _clause_start(text, match.start)
+    return any(_outside(matches, s.start(), s.end()) for s in _SUBORDINATOR.finditer(text, start, match.start))
+
+
+def _main_subject(text: str, matches: Sequence[_Match], subjects: Sequence[int | str | None]) -> int | None:
+    """The agent asked: the one addressed ("@7, ..." or "..., @12"), the one a request names ("have @7 ...",
+    "I want @12 to ..."), the subject of the first main-clause phrase, or the first mention no phrase names as the
+    other agent."""
+    vocative = _VOCATIVE.search(text)
+    others = {m.other for m in matches}
+    if vocative and (vocative.group(1) or _slot(vocative.group(2)) not in others):
+        return _slot(vocative.group(1) or vocative.group(2))
+    causative = _CAUSATIVE.search(text)
+    if causative and "<m" not in text[: causative.start()]:
+        return _slot(causative.group(1))
+    for match, subject in zip(matches, subjects, strict=True):
+        if isinstance(subject, int) and not _is_subordinate(text, match, matches):
+            return subject
+    return next((int(i) for i in _PLACEHOLDER.findall(text) if int(i) not in others), None)
+
+
+def _not_read(reason: str, agent: int | None = None) -> PromptReading:
+    return PromptReading(None, agent, reason=reason)
+
+
+def _analyse(
+    text: str, candidates: Sequence[_Match], banned: Sequence[_Match] = ()
+) -> tuple[list[_Match], list[int | str | None], int | None]:
+    """The phrases read (less those in an 'instead of' clause), the subject of each and the agent asked."""
+    matches = _select(candidates, banned)
+    contrast = [(c.start(), c.end()) for c in _CONTRAST.finditer(text) if _outside(matches, c.start(), c.start() + 1)]
+    matches = [m for m in matches if not any(s <= m.start < e for s, e in contrast)]
+    subjects = [_local_subject(text, m, matches) for m in matches]
+    return matches, subjects, _main_subject(text, matches, subjects)
+
+
+def read_prompt(text: str) -> PromptReading:
+    """The behaviour kind `text` asks of which agent (mentions are `@<track id>`), or None and why. See the module."""
+    norm = _normalise(text)
+    if not norm.ids:
+        return _not_read("names no agent (@<track id>)")
+    low = norm.text
+    candidates = _candidates(low)
+    matches, subjects, subject_slot = _analyse(low, candidates)
+    requests = [m for m in matches if m.other is not None and m.other == subject_slot]
+    if requests:  # "Let @7 turn left": a request to the agent it names, not a yield to it
+        matches, subjects, subject_slot = _analyse(low, candidates, requests)
+    agent = None if subject_slot is None else norm.ids[subject_slot]
+    negations = [n for n in _NEGATION.finditer(low) if _outside(matches, n.start(), n.end())]
+    if negations:
+        return _not_read(f"negated ({norm.span(text, negations[0].start(), negations[0].end())!r})", agent)
+    passive = _PASSIVE.search(low)
+    if passive:
+        return _not_read("passive voice", agent)
+    if "several" in subjects:
+        return _not_read("asks several agents at once", agent)
+    if subject_slot is None:
+        return _not_read("cannot tell which agent is asked", agent)
+    matches = [m for m, s in zip(matches, subjects, strict=True) if not isinstance(s, int) or s == subject_slot]
+    kinds = {m.behaviour for m in matches}
+    kinds -= {k for kind in kinds for k in _SUBSUMES.get(kind, ())}
+    if not kinds:
+        return _not_read("no behaviour phrase found", agent)
+    if len(kinds) > 1:
+        named = ", ".join(b.value for b in Behaviour if b in kinds)
+        return _not_read(f"asks for more than one behaviour ({named})", agent)
+    (kind,) = kinds
+    decided = [m for m in matches if m.behaviour is kind]
+    if not BEHAVIOURS[kind].is_pair:
+        best = max(decided, key=lambda m: (m.end - m.start, -m.start))
+        return PromptReading(kind, agent, None, norm.span(text, best.start, best.end))
+    return _pair_reading(text, norm, kind, decided, subject_slot)
+
+
+def _pair_reading(text: str, norm: _Text, kind: Behaviour, decided: Sequence[_Match], subject: int) -> PromptReading:
+    agent = norm.ids[subject]
+    named = {m.other for m in decided if m.other is not None}
+    if len(named) > 1:
+        return _not_read(f"{kind.value} names more than one other agent", agent)
+    if not named:
+        rest = [i for i in range(len(norm.ids)) if i != subject]
+        if len(rest) != 1:
+            return _not_read(f"{kind.value} needs exactly one other agent", agent)
+        named = {rest[0]}
+    (other,) = named
+    if other == subject:
+        return _not_read(f"{kind.value} names one agent only; cannot tell which one is asked", agent)
+    best = max(decided, key=lambda m: (m.other is not None, m.end - m.start, -m.start))
+    return PromptReading(kind, agent, norm.ids[other], norm.span(text, best.start, best.end))
