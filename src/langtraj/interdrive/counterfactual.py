@@ -424,8 +424,10 @@ def feasible_alternatives(
     """Every prompt `track_id` can follow here: each feasible single-agent behaviour (`behaviour_feasibility`),
     each single-agent behaviour the log shows (the log proves it feasible, also where the map cannot tell), and,
     for each interaction of `PAIR_SUBTYPES` the log shows between it and another agent, both going first and
-    yielding. `logged` is the log's facts (`logged_facts`, computed when not given; pass them to label the scene
-    once for all its agents, or add facts such as ground-truth interactions)."""
+    yielding, unless the order is out of reach (`targets.order_feasibility`: going first where the other agent
+    gets to the crossing first however the agent speeds up, or a pedestrian is already crossing there). `logged`
+    is the log's facts (`logged_facts`, computed when not given; pass them to label the scene once for all its
+    agents, or add facts such as ground-truth interactions)."""
     config = config or CounterfactualConfig()
     if logged is None:
         logged = logged_facts(scenario, map_index, config)
@@ -446,9 +448,15 @@ def feasible_alternatives(
         flipped = Behaviour.GO_FIRST if found is Behaviour.YIELD else Behaviour.YIELD
         pairs.setdefault(other, {}).setdefault(found, subtype)
         pairs[other].setdefault(flipped, opposite)
+    from langtraj.interdrive.targets import order_feasibility  # targets builds on this module's lane reading
+
     for other, chosen in pairs.items():
         for behaviour in (Behaviour.GO_FIRST, Behaviour.YIELD):
-            out.append(make_alternative(behaviour, track_id, logged, other, chosen[behaviour]))
+            alternative = make_alternative(behaviour, track_id, logged, other, chosen[behaviour])
+            if alternative.logged or order_feasibility(scenario, track_id, other, behaviour, map_index).status != (
+                "infeasible"
+            ):
+                out.append(alternative)
     return tuple(out)
 
 

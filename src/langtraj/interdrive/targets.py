@@ -31,13 +31,14 @@ from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.counterfactual import (
     AgentOnLane,
     CounterfactualConfig,
+    Feasibility,
     branch_direction,
     branch_turn,
     junction_chains,
 )
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.scenario.model import Scenario
-from langtraj.scenario.types import StateField
+from langtraj.scenario.types import AgentType, StateField
 
 COMFORT_DECELERATION = 2.0
 """Braking a stop is planned with (m/s^2)."""
@@ -276,20 +277,20 @@ def derive_target(
             track_id, behaviour, path, f"behind @{other_id} along its lane", other_id=other.track_id,
             current_speed=agent.here.speed, other_speed=other.here.speed,
         )  # fmt: skip
-    return _order_target(agent, other, behaviour, index)
+    return _order_target(agent, other, behaviour, index, config)
 
 
-def _turn_target(agent: _Agent, behaviour: Behaviour, index: MapIndex, config: CounterfactualConfig) -> BehaviourTarget:
-    """The branch of the next junction in the asked direction: the lanes to it, the junction lanes, and past the
-    exit; the goal station lies 5 m past the junction."""
-    _need_lane(agent, index, "the junction ahead")
-    if not index.has_connectivity:
-        raise TargetUnavailable("the map has no lane connectivity to follow to a junction", where="target")
+def _branches(
+    agent: _Agent, index: MapIndex, config: CounterfactualConfig, direction: Behaviour | None = None
+) -> list[tuple[float, list[int]]]:
+    """The branches of the next junction on the agent's lanes (in `direction` only, when given): for each, the
+    distance to its exit and its lanes from the agent's (feasibility's search, `counterfactual`)."""
     lane, station = agent.here.lane, agent.here.station
-    found: list[tuple[float, list[int]]] = []  # (distance to the junction's exit, lanes from the agent's)
+    wanted = (lambda turn: True) if direction is None else (lambda turn: branch_direction(turn, config) is direction)
+    found: list[tuple[float, list[int]]] = []
     if index.is_junction[lane]:  # inside the junction: what is left of its own branch decides
         for chain in junction_chains(index, lane):
-            if branch_direction(branch_turn(index, chain, station), config) is behaviour:
+            if wanted(branch_turn(index, chain, station)):
                 found.append((float(sum(index.lane_lengths[x] for x in chain)) - station, chain))
     frontier: list[tuple[int, float, list[int]]] = [] if index.is_junction[lane] else [(lane, -station, [lane])]
     seen = {lane}
@@ -302,10 +303,32 @@ def _turn_target(agent: _Agent, behaviour: Behaviour, index: MapIndex, config: C
             seen.add(nxt)
             if index.is_junction[nxt]:
                 for chain in junction_chains(index, nxt):
-                    if branch_direction(branch_turn(index, chain), config) is behaviour:
+                    if wanted(branch_turn(index, chain)):
                         found.append((max(end, 0.0) + float(sum(index.lane_lengths[x] for x in chain)), before + chain))
             else:
                 frontier.append((nxt, end, [*before, nxt]))
+    return found
+
+
+def _paths_ahead(agent: _Agent, index: MapIndex, config: CounterfactualConfig) -> list[np.ndarray]:
+    """Every way the agent may go: its lane ahead by the straightest exits first, then each branch of the next
+    junction; off lanes, the line along its heading."""
+    first = _ahead_or_straight(agent, index)
+    if not (index.has_lanes and index.has_connectivity and agent.here.lane >= 0):
+        return [first]
+    return [first] + [
+        _route(index, lanes, agent.here.station, max(agent.reach, exit_at + 25.0))
+        for exit_at, lanes in _branches(agent, index, config)
+    ]
+
+
+def _turn_target(agent: _Agent, behaviour: Behaviour, index: MapIndex, config: CounterfactualConfig) -> BehaviourTarget:
+    """The branch of the next junction in the asked direction: the lanes to it, the junction lanes, and past the
+    exit; the goal station lies 5 m past the junction."""
+    _need_lane(agent, index, "the junction ahead")
+    if not index.has_connectivity:
+        raise TargetUnavailable("the map has no lane connectivity to follow to a junction", where="target")
+    found = _branches(agent, index, config, behaviour)
     if not found:
         raise TargetUnavailable(
             f"@{agent.track_id} cannot {BEHAVIOURS[behaviour].manoeuvre}: no such branch at the next junction within "
@@ -314,7 +337,7 @@ def _turn_target(agent: _Agent, behaviour: Behaviour, index: MapIndex, config: C
         )
     exit_at, lanes = min(found, key=lambda item: item[0])
     goal = exit_at + 5.0
-    path = _route(index, lanes, station, max(agent.reach, goal + 25.0))
+    path = _route(index, lanes, agent.here.station, max(agent.reach, goal + 25.0))
     return BehaviourTarget(
         agent.track_id,
         behaviour,
@@ -440,31 +463,52 @@ def _pull_over_target(agent: _Agent, index: MapIndex) -> BehaviourTarget:
     )
 
 
-def _order_target(agent: _Agent, other: _Agent, behaviour: Behaviour, index: MapIndex) -> BehaviourTarget:
-    """Going first or yielding: the first point of the agent's lane ahead that the other agent's lane ahead (or,
-    off lanes, its heading) crosses at more than 20 degrees, and when the other gets there."""
-    mine = _ahead(agent, index)
-    if other.here.lane >= 0:
-        theirs = _route(index, [other.here.lane], other.here.station, other.reach)
-    else:
-        forward = np.array([math.cos(other.heading), math.sin(other.heading)])
-        theirs = other.xy[None] + np.arange(0.0, other.reach, ROUTE_SPACING)[:, None] * forward[None]
+def _crossing(mine: np.ndarray, theirs: np.ndarray) -> tuple[int, float] | None:
+    """The index of the first point of path `mine` within 2 m of path `theirs` at more than 20 degrees to it, and
+    the other's distance along `theirs` to there; None when they do not cross."""
+    if len(mine) < 2 or len(theirs) < 2:
+        return None
+    gaps = np.linalg.norm(mine[:, None] - theirs[None], axis=-1)
+    hm = np.arctan2(*np.gradient(mine, axis=0).T[::-1])
+    ht = np.arctan2(*np.gradient(theirs, axis=0).T[::-1])
+    crossing = (gaps < 2.0) & (np.abs(wrap_angle(hm[:, None] - ht[None, :])) > math.radians(20.0))
+    rows = np.flatnonzero(crossing.any(axis=1))
+    if not rows.size:
+        return None
+    i = int(rows[0])
+    j = int(np.argmin(np.where(crossing[i], gaps[i], np.inf)))
+    return i, float(stations(theirs)[j])
+
+
+def _ahead_or_straight(agent: _Agent, index: MapIndex) -> np.ndarray:
+    """The agent's lane ahead, or, off lanes (a pedestrian, a cyclist), the line along its heading."""
+    if index.has_lanes and agent.here.lane >= 0:
+        return _route(index, [agent.here.lane], agent.here.station, agent.reach)
+    forward = np.array([math.cos(agent.heading), math.sin(agent.heading)])
+    reach = max(20.0, agent.here.speed * HORIZON_S + 10.0)
+    return agent.xy[None] + np.arange(0.0, reach, ROUTE_SPACING)[:, None] * forward[None]
+
+
+def _order_target(
+    agent: _Agent, other: _Agent, behaviour: Behaviour, index: MapIndex, config: CounterfactualConfig
+) -> BehaviourTarget:
+    """Going first or yielding: the first point of the agent's path ahead that a path of the other agent crosses at
+    more than 20 degrees, and when the other gets there at its current speed. Paths are the lanes ahead by the
+    straightest exits and then each branch of the next junction (`_paths_ahead`): the agent's first path that any
+    of the other's crosses is taken, with its earliest crossing."""
     first = behaviour is Behaviour.GO_FIRST
+    mine = _ahead_or_straight(agent, index)
     conflict, eta, reason = None, None, f"no crossing of its lane with @{other.track_id}'s ahead"
-    if len(mine) > 1 and len(theirs) > 1:
-        gaps = np.linalg.norm(mine[:, None] - theirs[None], axis=-1)
-        hm = np.arctan2(*np.gradient(mine, axis=0).T[::-1])
-        ht = np.arctan2(*np.gradient(theirs, axis=0).T[::-1])
-        angle = np.abs(wrap_angle(hm[:, None] - ht[None, :]))
-        crossing = (gaps < 2.0) & (angle > math.radians(20.0))
-        rows = np.flatnonzero(crossing.any(axis=1))
-        if rows.size:
-            i = int(rows[0])
-            j = int(np.argmin(np.where(crossing[i], gaps[i], np.inf)))
-            conflict = mine[i]
-            eta = float(stations(theirs)[j]) / max(other.here.speed, 1.0)
+    theirs = _paths_ahead(other, index, config)
+    for path in _paths_ahead(agent, index, config):
+        crossings = [c for c in (_crossing(path, t) for t in theirs) if c is not None]
+        if crossings:
+            i, distance = min(crossings)
+            mine, conflict = path, path[i]
+            eta = distance / max(other.here.speed, 1.0)
             order = "before" if first else "after"
-            reason = f"it passes the conflict point {stations(mine)[i]:.0f} m ahead {order} @{other.track_id}"
+            reason = f"it passes the conflict point {stations(path)[i]:.0f} m ahead {order} @{other.track_id}"
+            break
     station = None if conflict is None else project_station(mine, conflict)[0]
     return BehaviourTarget(
         agent.track_id,
@@ -479,3 +523,55 @@ def _order_target(agent: _Agent, other: _Agent, behaviour: Behaviour, index: Map
         current_speed=agent.here.speed,
         other_speed=other.here.speed,
     )
+
+
+GO_FIRST_ACCELERATION = 2.5
+"""The most an agent asked to go first is assumed to speed up by (m/s^2), up to `GO_FIRST_TOP_SPEED`."""
+GO_FIRST_TOP_SPEED = 15.0
+GO_FIRST_MARGIN_S = 0.5
+"""Going first must get the agent to the crossing this much earlier than the other agent at its speed (s)."""
+
+
+def order_feasibility(
+    scenario: Scenario,
+    track_id: int,
+    other_id: int,
+    behaviour: Behaviour,
+    index: MapIndex,
+    config: CounterfactualConfig | None = None,
+) -> Feasibility:
+    """Whether `track_id` can go first at its crossing with `other_id` (yielding is always feasible: it can
+    wait). Infeasible when a pedestrian or cyclist other is already within 3 m of the crossing point (it is
+    crossing), or when the other agent, at its current speed, gets there before the agent can even speeding up at
+    2.5 m/s^2; undecided where the map gives no crossing point."""
+    if behaviour is not Behaviour.GO_FIRST:
+        return Feasibility(track_id, behaviour, "feasible")
+    try:
+        target = derive_target(scenario, track_id, behaviour, index, other_id=other_id, config=config)
+    except TargetUnavailable as exc:
+        return Feasibility(track_id, behaviour, "undecided", exc.detail)
+    if target.conflict is None or target.station_of_goal is None or target.other_eta is None:
+        return Feasibility(track_id, behaviour, "undecided", target.reason)
+    other = scenario.agents.index_of(other_id)
+    here = scenario.agents.states[other, scenario.current_index, [StateField.X, StateField.Y]].astype(np.float64)
+    if scenario.agents.types[other] != AgentType.VEHICLE and np.linalg.norm(here - target.conflict) < 3.0:
+        return Feasibility(track_id, behaviour, "infeasible", f"@{other_id} is already crossing its path")
+    need = _time_to_cover(target.station_of_goal, target.current_speed)
+    if need + GO_FIRST_MARGIN_S >= target.other_eta:
+        return Feasibility(
+            track_id,
+            behaviour,
+            "infeasible",
+            f"@{other_id} gets to the crossing in {target.other_eta:.1f} s; @{track_id} needs {need:.1f} s",
+        )
+    return Feasibility(track_id, behaviour, "feasible")
+
+
+def _time_to_cover(distance: float, speed: float) -> float:
+    """Seconds to cover `distance` m from `speed`, speeding up at `GO_FIRST_ACCELERATION` to the top speed."""
+    a, top = GO_FIRST_ACCELERATION, max(GO_FIRST_TOP_SPEED, speed)
+    ramp = (top - speed) / a
+    ramp_distance = speed * ramp + 0.5 * a * ramp**2
+    if distance <= ramp_distance:
+        return (-speed + math.sqrt(speed**2 + 2 * a * distance)) / a
+    return ramp + (distance - ramp_distance) / top

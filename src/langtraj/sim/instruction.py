@@ -250,6 +250,7 @@ def _run_prompts(
                 "ground_truth": prompt.logged,
                 "followed": float(np.mean([j.followed for j in judged])),
                 "collision": safety["collision"][0],
+                "meta": row["realism"][-1]["meta"],
                 "offroad": safety["offroad"][0] if safety["offroad"] else None,
                 "steering": result.report.get("prompt", {}).get("steering", []),
             }
@@ -270,6 +271,7 @@ def run_case(loaded: LoadedModel, case: IFRCase, settings: IFRSettings, pick: in
     out[NO_PROMPT] = {
         "judgements": list(judge_rollouts(case.scenario, plain, case.prompts, checker=case.checker)),
         "realism": [_realism(case.scenario, plain, scene_map)],
+        "realism_weight": len(case.prompts),  # judged against every prompt: it counts once per prompt
         "minade": [min_ade(case.scenario, plain, [p.track_id]).mean for p in case.prompts if p.logged],
         "seconds": time.perf_counter() - start,
         **_safety(case, plain, scene_map, [p.track_id for p in case.prompts]),
@@ -286,20 +288,23 @@ def run_case(loaded: LoadedModel, case: IFRCase, settings: IFRSettings, pick: in
 
 
 def summarize(per_case: Sequence[dict[str, dict]]) -> dict[str, dict]:
-    """The table: per condition, GT-IFR and F-IFR (macro and per kind), mean realism and minADE, counts."""
+    """The table: per condition, GT-IFR and F-IFR (macro and per kind), mean realism and minADE, counts. Realism is
+    the mean over a condition's simulations, each window's unprompted simulation counted once per prompt (it is
+    judged against each), so that every condition weighs the windows alike."""
     table: dict[str, dict] = {}
     conditions = list(dict.fromkeys(c for case in per_case for c in case))
     for condition in conditions:
         rows = [case[condition] for case in per_case if condition in case]
         judgements: list[Judgement] = [j for row in rows for j in row["judgements"]]
         realism = [r for row in rows for r in row["realism"]]
+        weights = [row.get("realism_weight", 1) for row in rows for _ in row["realism"]]
         minade = [m for row in rows for m in row["minade"]]
         report = instruction_following(judgements)
         collision = [c for row in rows for c in row["collision"]]
         offroad = [o for row in rows for o in row["offroad"]]
         seconds = sum(row["seconds"] for row in rows)
         table[condition] = {
-            **{k: float(np.mean([r[k] for r in realism])) for k in REALISM},
+            **{k: float(np.average([r[k] for r in realism], weights=weights)) for k in REALISM},
             "minade": float(np.mean(minade)) if minade else math.nan,
             "gt_ifr": report.ground_truth.macro,
             "f_ifr": report.counterfactual.macro,
