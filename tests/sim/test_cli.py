@@ -22,7 +22,9 @@ def test_simulate_writes_rollouts_video_and_summary(tiny_run, tmp_path, capsys):
                  "--adversary", "37", "--target", "7", "--rollouts", "2", "--candidates", "2", "--steps", "2",
                  "--replan-s", "4", "--out", str(out)])  # fmt: skip
     assert code == 0, capsys.readouterr().err
-    assert "4 agents moved by langtraj" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "4 agents moved by langtraj" in printed
+    assert 'prompt: read as: @7 yield @17 ("yields to @17")' in printed  # what was read, and what steered it
     rollouts = Rollouts.load(out / "rollouts.npz")
     check_rollouts(read_scenario(scenes), rollouts, num_rollouts=2)
     assert (out / "rollout0.mp4").stat().st_size > 0
@@ -30,6 +32,10 @@ def test_simulate_writes_rollouts_video_and_summary(tiny_run, tmp_path, capsys):
     assert summary["prompted_ids"] == [7, 17] and summary["guidance"] == ["collision=1"]
     assert summary["on_road"] == 1.0 and summary["selector"] == "min_guidance"  # the defaults with guidance
     assert summary["attention"] == "local"
+    assert summary["prompt_levers"] == ["text", "guidance", "selection"]
+    (read,) = summary["prompt"]["read"]
+    assert (read["behaviour"], read["agent"], read["other"]) == ("yield", 7, 17)
+    assert summary["prompt"]["steering"][0].endswith("adherence-first selection")
     assert summary["replans"] == [10, 50] and len(summary["seconds_per_replan"]) == 2
     agents = {a["id"]: a for a in summary["agents"]}
     assert set(agents) == {7, 17, 37, 47} and all(a["driven"] for a in agents.values())
@@ -38,6 +44,19 @@ def test_simulate_writes_rollouts_video_and_summary(tiny_run, tmp_path, capsys):
     assert all(0.0 <= a["collision_rate"] <= 1.0 and a["distance_m"] >= 0.0 for a in agents.values())
     # the rollouts score with `langtraj evaluate`
     assert main(["evaluate", str(scenes), str(out / "rollouts.npz"), "--json"]) == 0
+
+
+def test_each_lever_of_a_prompt_can_be_switched_off_and_an_unread_prompt_steers_by_text(tiny_run, tmp_path, capsys):
+    checkpoint, scenes = tiny_run
+    out = tmp_path / "levers"
+    code = main(["simulate", str(scenes), "--checkpoint", str(checkpoint), "--prompt", "@7 does a little dance",
+                 "--no-prompt-guidance", "--no-prompt-selection", "--rollouts", "1", "--candidates", "2",
+                 "--steps", "2", "--replan-s", "4", "--no-video", "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["prompt_levers"] == ["text"] and summary["selector"] == "per_agent"
+    assert summary["prompt"]["steering"][0].startswith("not read:")
+    assert "it steers by its text alone" in summary["prompt"]["steering"][0]
 
 
 def test_a_capped_model_leaves_the_rest_to_constant_velocity_and_says_so(tiny_run, tmp_path, capsys):
