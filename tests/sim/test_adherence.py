@@ -95,3 +95,14 @@ def test_waiting_for_a_crossing_car_and_going_before_it_are_judged_alike(behavio
     selection = [v[0][0] for v in verdicts]
     scoring = [v[1][0] for v in verdicts]
     assert selection == scoring == expected
+
+
+def test_the_copies_of_a_prompted_agent_form_a_valid_scene_whatever_its_self_driving_car():
+    from dataclasses import replace
+
+    s = replace(scene(two_lane_road(), _eastbound(np.full_like(TIME, 10.0)), _eastbound(np.full_like(TIME, 5.0), 3.5)))
+    s = replace(s, sdc_index=1)  # a WOMD scene names its self-driving car; the copies scene has other rows
+    world = SimWorld(s, np.array([0, 1]), 1)
+    plans = np.stack([np.stack([_future(s, 0), _future(s, 1)])[None]])
+    judge = CandidateJudge(world, [Ask(1, 0, 0, Behaviour.STOP)], MapIndex.build(s.road_map))
+    assert judge.misses([0], world.start, plans).tolist() == [[[True]]]

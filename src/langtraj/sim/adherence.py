@@ -106,7 +106,7 @@ class CandidateJudge:
             prediction_difficulty=None,
             objects_of_interest=np.zeros(0, np.int64),
         )
-        copies = replace(scenario, agents=agents, current_index=self.world.start)
+        copies = replace(scenario, agents=agents, current_index=self.world.start, sdc_index=-1)
         copies = _up_to(copies, self.world.end)
         labels, _ = label_agents(copies, self.config, self.index)
         found = label_facts(labels, ())
