@@ -56,3 +56,15 @@ def test_guidance_toward_a_right_turn_branch_turns_the_car_right(loaded, junctio
     free = heading_change(_run(loaded, junction, None))
     turned = heading_change(_run(loaded, junction, "@2 turns right at the next intersection"))
     assert turned < free - np.radians(30.0)  # right is negative
+
+
+def test_without_the_text_lever_the_model_sees_no_sentence(loaded, junction):
+    from langtraj.sim.world import SimWorld
+
+    model, data = loaded
+    prompt = PromptEntry.of(parse_user_prompt("@1 stops", [1, 2]))
+    for levers, seen in ((PromptLevers(), True), (GUIDANCE_ONLY, False)):
+        policy = LangTrajPolicy(model, data, prompt=prompt, levers=levers)
+        world = SimWorld(junction, policy.drives(junction, np.arange(2)), 1)
+        sample = policy._sample(world, policy.reset(world, 0), world.start, 0)
+        assert (sample["text"][0] is not None) is seen

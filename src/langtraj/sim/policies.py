@@ -441,7 +441,7 @@ class LangTrajPolicy(Policy):
             origin=state.origin,
             map_arrays=state.map_arrays,
         )
-        if self.prompt is not None:
+        if self.prompt is not None and self.levers.text:
             for slot, sentence in self.prompt.sentences(sample["agent_id"][: len(world.driven)].tolist()).items():
                 sample["text"][slot] = sentence
             sample["interaction_labelled"] = np.bool_(self.prompt.subtype is not None)
