@@ -24,8 +24,10 @@ ROAD = [[[-50.0, -2.0], [50.0, -2.0]], [[50.0, 6.0], [-50.0, 6.0]]]
 LANE = [[[-50.0, 0.0], [0.0, 0.0]], [[0.0, 0.0], [50.0, 0.0]]]
 
 
-def test_the_registry_lists_the_six_costs_and_returns_their_classes():
-    assert GUIDANCE.names() == ("collision", "no_collision", "goal", "target_speed", "on_road", "keep_lane")
+def test_the_registry_lists_the_eight_costs_and_returns_their_classes():
+    assert GUIDANCE.names() == (
+        "collision", "no_collision", "goal", "target_speed", "on_road", "keep_lane", "route", "station"
+    )  # fmt: skip
     assert GUIDANCE.get("goal") is GoalCost
     with pytest.raises(InputError, match="unknown guidance cost 'nope'"):
         GUIDANCE.get("nope")

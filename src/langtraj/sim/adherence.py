@@ -5,8 +5,8 @@ candidates that follow its prompt (`sim.selection`, `first`). A candidate's futu
 past followed by the candidate, up to the end of the simulated 8 s, exactly what the judge will read at the end
 (`metrics.instruction_following`). Single-agent behaviours are judged by the heuristic labelers themselves, on
 one scene holding a copy of the agent per candidate and rollout (one labelling per replan). Pair behaviours are
-judged by the order at the crossing point of the two agents' paths with the one that comes second held back
-before it, the interaction detector's criterion for yielding (and going first: the other yields), and by staying
+judged by the interaction detector's rule for a yield at the crossing point of the two agents' paths (the one
+that comes second held back before it while the other is near; going first: the other yields), and by staying
 behind for following.
 
 Only simulated states are read: the executed past and the candidates (never the logged future).
@@ -25,7 +25,7 @@ from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour, behaviour_facts
 from langtraj.interdrive.detector import DetectorConfig
 from langtraj.interdrive.heuristics import HeuristicConfig, label_agents
 from langtraj.interdrive.mapindex import MapIndex
-from langtraj.scenario.model import Agents, Scenario
+from langtraj.scenario.model import STEP_SECONDS, Agents, Scenario
 from langtraj.scenario.types import AgentType, StateField
 from langtraj.sim.world import SimWorld
 
@@ -36,6 +36,12 @@ HELD_SPEED = DetectorConfig().held_speed
 """A yielding vehicle is held (at or below this speed, m/s) somewhere before the crossing point."""
 STANDING_SPEED = DetectorConfig().stopped_speed
 """A yielding pedestrian or cyclist stands (at or below this speed, m/s) somewhere before the crossing point."""
+FOE_HORIZON_S = DetectorConfig().foe_horizon_s
+"""The passing agent counts while at most this far, in time at its speed, from the crossing point (s)."""
+YIELD_MIN_STEPS = DetectorConfig().min_event_steps
+"""A yield holds for at least this many steps."""
+PASSING_HALF_LENGTH = 2.25
+"""Half a car's length: the passing agent is at the crossing point while its centre is this much beyond the radius."""
 WAIT_EXTENSION = 10.0
 """A yielding agent that never reaches the crossing is extended straight this far (m), as the detector does."""
 
@@ -159,7 +165,7 @@ def _follows(behaviour: Behaviour, mine: np.ndarray, theirs: np.ndarray, held: l
     """Whether track `mine` [T, 9] does `behaviour` toward track `theirs` [T, 9] over the simulated steps; `held`
     is the speed at or below which each of the two waits (`_held_speed` of its type)."""
     xa, ha, va = _pose(mine)
-    xb, hb, _ = _pose(theirs)
+    xb, hb, vb = _pose(theirs)
     if behaviour is Behaviour.FOLLOW:
         gap = xb - xa
         ahead = gap[:, 0] * np.cos(ha) + gap[:, 1] * np.sin(ha)
@@ -176,9 +182,28 @@ def _follows(behaviour: Behaviour, mine: np.ndarray, theirs: np.ndarray, held: l
     rows = np.flatnonzero(crossing.any(axis=1))
     if not rows.size:
         return False
-    i = int(rows[0])  # the first point of my path that the other's path crosses
-    j = int(np.flatnonzero(crossing[i])[0])  # when the other is there
-    vb = np.hypot(theirs[:, StateField.VX], theirs[:, StateField.VY])
+    point = path[int(rows[0])]  # the first point of my path that the other's path crosses
     if behaviour is Behaviour.GO_FIRST:  # first there, while the other is held back before it (it yields)
-        return i < j and bool((vb[:j] <= held[1]).any())
-    return i > j and bool((va[: min(i, len(va))] <= held[0]).any())
+        return _waits_for(xb, vb, held[1], xa, va, point)
+    return _waits_for(xa, va, held[0], xb, vb, point)
+
+
+def _waits_for(
+    waiting: np.ndarray, wait_speed: np.ndarray, held: float, passing: np.ndarray, pass_speed: np.ndarray, point
+) -> bool:
+    """The detector's yield (`detector.yields.YieldGeometry._yield_mask`) on two tracks' positions [T, 2] and speeds
+    [T]: the passing agent gets to `point` first, and the waiting one is held back (at or below `held`, or braking)
+    for at least `YIELD_MIN_STEPS` steps before it gets there while the passing one is near it (inside, or moving
+    and at most `FOE_HORIZON_S` away at its speed)."""
+    steps = np.arange(len(waiting))
+    at_waiting = np.flatnonzero(np.linalg.norm(waiting - point, axis=1) < CROSSING_RADIUS)
+    reach = int(at_waiting[0]) if at_waiting.size else len(waiting)
+    distance = np.linalg.norm(passing - point, axis=1)
+    inside = distance < CROSSING_RADIUS + PASSING_HALF_LENGTH
+    if not inside.any() or int(np.flatnonzero(inside)[0]) > reach:
+        return False
+    last_in = int(np.flatnonzero(inside)[-1])
+    approaching = (distance / np.maximum(pass_speed, 1.0) <= FOE_HORIZON_S) & (pass_speed > held)
+    braking = np.gradient(wait_speed) / STEP_SECONDS < DetectorConfig().braking
+    holding = ((wait_speed <= held) | braking) & (steps <= last_in) & (approaching | inside) & (steps < reach)
+    return int(holding.sum()) >= YIELD_MIN_STEPS
