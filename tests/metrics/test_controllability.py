@@ -13,6 +13,7 @@ import pytest
 from langtraj.errors import InputError
 from langtraj.metrics.controllability import (
     ControllabilityResult,
+    agent_rates,
     average_displacement,
     collision_flags,
     collision_rate,
@@ -209,6 +210,19 @@ def test_offroad_default_needs_a_vehicle():
     sc = scene([track((0, 0), (0.1, 0), size=(0.5, 0.5, 1.8))], types=[AgentType.PEDESTRIAN], edges=[straight_edge(-2)])
     with pytest.raises(InputError, match="no vehicle"):
         offroad_rate(sc, log_rollouts(sc))
+
+
+def test_agent_rates_per_track_and_offroad_only_where_it_can_be_measured():
+    tracks = [track((0, 0), (1, 0)), track((0, 3), (1, 0)), track((0, -5), (0.1, 0), size=(0.5, 0.5, 1.8))]
+    sc = scene(tracks, types=[AgentType.VEHICLE, AgentType.VEHICLE, AgentType.PEDESTRIAN], edges=[straight_edge(-2)])
+    ro = log_rollouts(sc, 2)
+    ro.y[1, 1, 40:50] = -2.5
+    collided, offroad = agent_rates(sc, ro)
+    assert collided == dict(zip([101, 102, 103], collision_flags(sc, ro).mean(axis=0).tolist(), strict=True))
+    assert offroad == {101: 0.0, 102: 0.5}  # vehicles only
+    assert agent_rates(head_on(), log_rollouts(head_on()))[1] == {}  # no road edges: nothing to measure
+    walker = scene([tracks[2]], types=[AgentType.PEDESTRIAN], edges=[straight_edge(-2)])
+    assert agent_rates(walker, log_rollouts(walker)) == ({101: 0.0}, {})  # no vehicle: no offroad, no error
 
 
 def test_safety_result_to_json():

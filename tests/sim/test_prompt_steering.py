@@ -45,6 +45,9 @@ def test_a_yield_also_steers_the_other_agent_through_first():
     assert [x.target.behaviour for x in steering.steerings] == [Behaviour.YIELD, Behaviour.GO_FIRST]
     assert [x.slot for x in steering.steerings] == [0, 2]
     assert "@3 toward it passes the conflict point" in steering.notes[0]
+    undriven = prompt_steering(s, ["@1 yields to @3"], np.arange(2), ORIGIN, ALL_LEVERS)  # @3 is not driven
+    assert [x.slot for x in undriven.steerings] == [0]
+    assert "@3 unsteered (the model does not drive it)" in undriven.notes[0]
 
 
 def test_unread_prompts_and_missing_targets_say_what_steers_them():

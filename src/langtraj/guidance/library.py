@@ -28,6 +28,7 @@ from langtraj.errors import InputError
 from langtraj.guidance.base import GuidanceTerm
 from langtraj.guidance.costs import CollisionCost, GoalCost, KeepLaneCost, NoCollisionCost, OnRoadCost, TargetSpeedCost
 from langtraj.interdrive.prompts.compose import OTHER_PREFIX, TARGET, Prompt
+from langtraj.interdrive.targets import SPEED_CHANGE
 from langtraj.interdrive.taxonomy import LANE_POSITIONS, label_def
 
 SPEED_WEIGHT = 1 / 2.0**2
@@ -39,7 +40,6 @@ PULL_WEIGHT = 1 / 20.0  # collision (mean centre distance, m) used to close a ga
 
 WALKING_SPEED = 1.2  # m/s
 SLOW_SPEED = 2.0  # m/s, "moving slowly"
-SPEED_CHANGE = 3.0  # m/s gained or lost by "speeding up" / "slowing down" over the horizon
 TURN_RADIUS = 10.0  # m, of the quarter circle a turn goal lies on
 LANE_WIDTH = 3.5  # m, the lateral offset of a lane-change goal
 

@@ -10,6 +10,7 @@ See docs/simulation.md ('Prompts that steer').
 
 from __future__ import annotations
 
+from abc import abstractmethod
 from collections.abc import Sequence
 from typing import Literal
 
@@ -42,13 +43,16 @@ class _RouteCost(GuidanceCost):
         lengths = (self.path[1:] - self.path[:-1]).norm(dim=-1)
         self.arc = torch.cat([lengths.new_zeros(1), lengths.cumsum(0)])
 
-    def _window(self, states: Tensor, scene: GuidanceScene) -> Tensor | None:
-        """The slot's positions [S, W, 2] in the window, or None when it is empty or the slot is padding."""
+    def __call__(self, states: Tensor, scene: GuidanceScene) -> Tensor:
         check_states(self.name, states, scene)
         check_slots(self.name, self.slots, states.shape[1])
         if not bool(scene.agent_valid[self.slot]) or self.start >= states.shape[2]:
-            return None
-        return states[:, self.slot, self.start : self.end, :2]
+            return states.sum(dim=(1, 2, 3)) * 0.0  # padding, or a window past the horizon: no cost, in the graph
+        return self._cost(states[:, self.slot, self.start : self.end, :2])
+
+    @abstractmethod
+    def _cost(self, xy: Tensor) -> Tensor:
+        """The cost [S] of the slot's positions [S, W, 2] in the window."""
 
     def _offset_and_station(self, xy: Tensor) -> tuple[Tensor, Tensor]:
         """Offset vectors [..., 2] from the path and arc length [...] along it of points `xy` [..., 2]."""
@@ -83,10 +87,7 @@ class RouteCost(_RouteCost):
             raise InputError(f"{self.name}: cap must be > 0, got {cap}")
         self.cap = float(cap)
 
-    def __call__(self, states: Tensor, scene: GuidanceScene) -> Tensor:
-        xy = self._window(states, scene)
-        if xy is None:
-            return states.sum(dim=(1, 2, 3)) * 0.0
+    def _cost(self, xy: Tensor) -> Tensor:
         offset, _ = self._offset_and_station(xy)
         distance = torch.sqrt((offset**2).sum(-1) + _EPS)
         huber = torch.where(distance <= self.cap, distance**2, self.cap * (2 * distance - self.cap))
@@ -117,10 +118,7 @@ class StationCost(_RouteCost):
         self.mode = mode
         self.station = float(station)
 
-    def __call__(self, states: Tensor, scene: GuidanceScene) -> Tensor:
-        xy = self._window(states, scene)
-        if xy is None:
-            return states.sum(dim=(1, 2, 3)) * 0.0
+    def _cost(self, xy: Tensor) -> Tensor:
         _, along = self._offset_and_station(xy)
         miss = self.station - along if self.mode == "reach" else along - self.station
         return (torch.relu(miss) ** 2).mean(-1)

@@ -20,19 +20,19 @@ import numpy as np
 from langtraj.frames import Origin, points_to_frame
 from langtraj.guidance.base import GuidanceTerm
 from langtraj.guidance.costs import NoCollisionCost, TargetSpeedCost
+from langtraj.guidance.library import AVOID_WEIGHT, SPEED_WEIGHT
 from langtraj.guidance.route import RouteCost, StationCost
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.targets import BehaviourTarget
+from langtraj.scenario.model import STEP_SECONDS
+from langtraj.scenario.windowing import WindowSpec
 
 ROUTE_WEIGHT = 1.0  # per m^2 off the route
 REACH_WEIGHT = 1 / 5.0**2  # per m^2 short of a goal station
 HOLD_WEIGHT = 1 / 2.0**2  # per m^2 past a stop or conflict point
-SPEED_WEIGHT = 1 / 2.0**2  # per (m/s)^2 of speed error
-AVOID_WEIGHT = 4.0
-CLEAR_WEIGHT = 4.0  # per unit of summed disk overlap with the other agents (a full overlap of one pair costs 4)
+CLEAR_WEIGHT = AVOID_WEIGHT  # per unit of summed disk overlap with the other agents (as the library keeps clear)
 CLEAR_BUFFER = 0.5  # m kept beyond touching
-STEP_S = 0.1
-FUTURE = 80  # simulated steps after the start
+FUTURE = WindowSpec().future  # simulated steps after the start
 
 
 class ClearOfOthersCost(NoCollisionCost):
@@ -120,7 +120,7 @@ def _avoid(s: Steering, buffer: float) -> list:
 
 
 def _steps(seconds: float) -> int:
-    return round(seconds / STEP_S)
+    return round(seconds / STEP_SECONDS)
 
 
 def _turn(s: Steering, clock: _Clock) -> list:

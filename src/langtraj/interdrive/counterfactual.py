@@ -153,8 +153,9 @@ def behaviour_feasibility(
     return {b: out[b] for b in single}
 
 
-PULL_OVER_DECELERATION = 2.0
-"""Comfortable braking (m/s^2): a pull-over needs room to stop this way before the next junction."""
+COMFORT_DECELERATION = 2.0
+"""Comfortable braking (m/s^2): a pull-over needs room to stop this way before the next junction, and a stop
+target lies where it brings the agent to rest (`targets`)."""
 
 
 def _pull_over_feasibility(
@@ -178,7 +179,7 @@ def _pull_over_feasibility(
         return "undecided", reason
     if position not in ("rightmost", "single"):
         return "infeasible", "a lane lies on its right: it is not in the lane next to the kerb"
-    room = here.speed**2 / (2 * PULL_OVER_DECELERATION) + config.heuristics.pull_over_junction_distance
+    room = here.speed**2 / (2 * COMFORT_DECELERATION) + config.heuristics.pull_over_junction_distance
     ahead = index.distance_to_junction(here.lane, here.station) if index.has_connectivity else math.inf
     if ahead < room:
         return "infeasible", f"the next junction is {ahead:.0f} m ahead, too close to stop at the kerb before it"

@@ -70,7 +70,7 @@ def _resample(points: np.ndarray, spacing: float) -> np.ndarray:
     return np.stack([np.interp(s_new, s, xy[:, 0]), np.interp(s_new, s, xy[:, 1])], axis=1)
 
 
-def _stations(points: np.ndarray) -> np.ndarray:
+def arc_lengths(points: np.ndarray) -> np.ndarray:
     """Arc length at each point of a polyline."""
     steps = np.linalg.norm(np.diff(points[:, :2], axis=0), axis=1)
     return np.concatenate([[0.0], np.cumsum(steps)])
@@ -106,7 +106,7 @@ class SegmentSet:
                 starts.append(pts[:-1])
                 ends.append(pts[1:])
                 owners.append(np.full(len(pts) - 1, i, np.int64))
-                stations.append(_stations(pts)[:-1])
+                stations.append(arc_lengths(pts)[:-1])
                 count += len(pts) - 1
             stop[i] = count
         if count == 0:
@@ -255,7 +255,7 @@ class MapIndex:
         lane_feats = road_map.lanes
         index = {f.id: i for i, f in enumerate(lane_feats)}
         lanes = SegmentSet.build([f.points for f in lane_feats])
-        lengths = np.array([_stations(f.points)[-1] if len(f.points) > 1 else 0.0 for f in lane_feats])
+        lengths = np.array([arc_lengths(f.points)[-1] if len(f.points) > 1 else 0.0 for f in lane_feats])
         exits = tuple(tuple(index[e] for e in f.exit_lanes if e in index) for f in lane_feats)
         entries = tuple(tuple(index[e] for e in f.entry_lanes if e in index) for f in lane_feats)
         exits, entries = _symmetric_links(exits, entries)
@@ -604,7 +604,7 @@ def _neighbor_spans(
     """Left and right neighbour spans (in stations) of each lane, completed with the reverse relations."""
     left: list[list[_NeighborSpan]] = [[] for _ in lanes]
     right: list[list[_NeighborSpan]] = [[] for _ in lanes]
-    stations = [_stations(f.points) if len(f.points) else np.zeros(1) for f in lanes]
+    stations = [arc_lengths(f.points) if len(f.points) else np.zeros(1) for f in lanes]
     for i, feature in enumerate(lanes):
         for side, mirror, neighbors in ((left, right, feature.left_neighbors), (right, left, feature.right_neighbors)):
             for nb in neighbors:

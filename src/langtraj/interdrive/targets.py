@@ -20,7 +20,7 @@ See docs/interdrive.md ('Targets from the map').
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -29,6 +29,7 @@ from langtraj.angles import wrap_angle
 from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.counterfactual import (
+    COMFORT_DECELERATION,
     AgentOnLane,
     CounterfactualConfig,
     Feasibility,
@@ -36,17 +37,16 @@ from langtraj.interdrive.counterfactual import (
     branch_turn,
     junction_chains,
 )
-from langtraj.interdrive.mapindex import MapIndex
-from langtraj.scenario.model import Scenario
+from langtraj.interdrive.mapindex import MapIndex, arc_lengths
+from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.types import AgentType, StateField
+from langtraj.scenario.windowing import WindowSpec
 
-COMFORT_DECELERATION = 2.0
-"""Braking a stop is planned with (m/s^2)."""
 PULL_OVER_DECELERATION = 1.5
 """Braking a pull-over is planned with (m/s^2): gentler, as it also moves sideways."""
 SPEED_CHANGE = 3.0
 """Speed gained or lost by speeding up or slowing down (m/s; the labelers need at least 1 m/s)."""
-HORIZON_S = 8.0
+HORIZON_S = WindowSpec().future * STEP_SECONDS
 """The simulated future the target must fit in (s)."""
 ROUTE_SPACING = 1.0
 """Spacing of a target's path points (m)."""
@@ -80,7 +80,6 @@ class BehaviourTarget:
     first: bool | None = None
     current_speed: float = 0.0
     other_speed: float | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
 
     @property
     def goal_point(self) -> np.ndarray | None:
@@ -114,10 +113,8 @@ class TargetUnavailable(InputError):
 
 
 def stations(path: np.ndarray) -> np.ndarray:
-    """Arc length [N] at each point of a polyline [N, 2]."""
-    if len(path) == 0:
-        return np.zeros(0)
-    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    """Arc length [N] at each point of a polyline [N, 2] (`mapindex.arc_lengths`; empty for no points)."""
+    return arc_lengths(path) if len(path) else np.zeros(0)
 
 
 def point_at_station(path: np.ndarray, station: float) -> np.ndarray:
@@ -459,7 +456,6 @@ def _pull_over_target(agent: _Agent, index: MapIndex) -> BehaviourTarget:
         speed=0.0,
         lateral_from=float(begin),
         current_speed=v,
-        extra={"kerb_offset": offset},
     )
 
 

@@ -369,6 +369,22 @@ def offroad_flags(
     return rollouts.object_id[cols], (dist > OFFROAD_THRESHOLD).any(-1)
 
 
+def agent_rates(
+    scenario: Scenario, rollouts: Rollouts, *, scene_map: SceneMap | None = None
+) -> tuple[dict[int, float], dict[int, float]]:
+    """Per rollout agent (track id), the share of rollouts in which it collides (`collision_flags`), and per
+    vehicle the share in which it leaves the road (`offroad_flags`; empty where the map has no road edges or the
+    rollouts hold no vehicle)."""
+    ids = [int(i) for i in rollouts.object_id]
+    collided = dict(zip(ids, collision_flags(scenario, rollouts).mean(axis=0).tolist(), strict=True))
+    scene_map = scene_map or SceneMap.from_scenario(scenario)
+    types = scenario.agents.types[[scenario.agents.index_of(i) for i in ids]]
+    if scene_map.road_edges is None or not (types == AgentType.VEHICLE).any():
+        return collided, {}
+    found, flags = offroad_flags(scenario, rollouts, scene_map=scene_map)
+    return collided, {int(i): float(f) for i, f in zip(found, flags.mean(axis=0), strict=True)}
+
+
 def offroad_rate(
     scenario: Scenario,
     rollouts: Rollouts,

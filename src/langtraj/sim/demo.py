@@ -116,7 +116,7 @@ def choose_counterfactual(
     guidance toward that target and by adherence-first selection, and without a target it loses the guidance.
     Feasibility (`feasible_alternatives`) is looser than a target: a lane beside the agent's for a few metres
     before a junction makes a lane change feasible, yet leaves no room to change into it, and the target
-    looks for the neighbour lane from 10 m ahead."""
+    looks for the neighbour lane only from 1 s (at least 4 m) ahead."""
     index = MapIndex.build(scenario.road_map)
     checker = AdherenceChecker.build(scenario, map_index=index)
     options = [

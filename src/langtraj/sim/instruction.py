@@ -32,7 +32,7 @@ from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.counterfactual import Alternative, Behaviour, FreeTextPrompt, feasible_alternatives
 from langtraj.interdrive.dataset import load_window
 from langtraj.interdrive.mapindex import MapIndex
-from langtraj.metrics.controllability import collision_flags, min_ade, offroad_flags
+from langtraj.metrics.controllability import agent_rates, min_ade
 from langtraj.metrics.features import SceneMap
 from langtraj.metrics.instruction_following import Judgement, instruction_following, judge_rollouts
 from langtraj.metrics.wosac import evaluate_scenario
@@ -207,15 +207,10 @@ def in_free_text(prompt: Alternative, free_text: Sequence[FreeTextPrompt], pick:
 
 
 def _safety(case: IFRCase, rollouts: Rollouts, scene_map: SceneMap, tracks: Sequence[int]) -> dict[str, list]:
-    """Collision and offroad rates over the rollouts of each of `tracks` (offroad: None without road edges)."""
-    ids = [int(i) for i in rollouts.object_id]
-    collided = collision_flags(case.scenario, rollouts).mean(axis=0)
-    offroad: dict[int, float] = {}
-    if scene_map.road_edges is not None:
-        found, flags = offroad_flags(case.scenario, rollouts, scene_map=scene_map)
-        offroad = {int(i): float(f) for i, f in zip(found, flags.mean(axis=0), strict=True)}
+    """Collision and offroad rates over the rollouts of each of `tracks` (offroad: left out without road edges)."""
+    collided, offroad = agent_rates(case.scenario, rollouts, scene_map=scene_map)
     return {
-        "collision": [float(collided[ids.index(t)]) for t in tracks],
+        "collision": [collided[t] for t in tracks],
         "offroad": [offroad[t] for t in tracks if t in offroad],
     }
 

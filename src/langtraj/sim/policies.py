@@ -353,7 +353,7 @@ class LangTrajPolicy(Policy):
         )
         terms = self.terms + self.prompt_terms(world, slots, origin, data.max_agents, steering)
         terms += self.realism_terms(len(world.driven))
-        judge = CandidateJudge(world, list(steering.asks), index) if steering.asks and index is not None else None
+        judge = CandidateJudge(world, list(steering.asks), index) if index is not None and steering.asks else None
         selector = SELECTORS.create(self.selector_name or self.default_selector(), where="selector")
         if selector.uses_road or any(isinstance(term.cost, OnRoadCost) for term in terms):
             here = torch.as_tensor(poses_to_frame(world.current(world.start)[0], origin)[:, :2])

@@ -143,10 +143,12 @@ def prompt_steering(
                 targets.append(target)
                 steerings.append(Steering.of(target, origin, slots))
                 used.append(f"guidance toward {target.reason}")
-                counterpart = _counterpart(scenario, reading, slots, index)
+                counterpart, why = _counterpart(scenario, reading, slots, index)
                 if counterpart is not None:
                     steerings.append(Steering.of(counterpart, origin, slots))
                     used.append(f"@{counterpart.track_id} toward {counterpart.reason}")
+                elif why:
+                    used.append(f"@{reading.other} unsteered ({why})")
         if levers.selection:
             asks.append(ask)
             used.append("adherence-first selection")
@@ -159,13 +161,17 @@ _OPPOSITE = {Behaviour.YIELD: Behaviour.GO_FIRST, Behaviour.GO_FIRST: Behaviour.
 
 def _counterpart(
     scenario: Scenario, reading: PromptReading, slots: dict[int, int], index: MapIndex
-) -> BehaviourTarget | None:
+) -> tuple[BehaviourTarget | None, str]:
     """For yielding or going first, the other agent's side of it (going first, or yielding) when the model drives
-    it and the map gives its target: a yield happens only if the other agent goes."""
+    it and the map gives its target (a yield happens only if the other agent goes); else None and why (empty for
+    a behaviour without a side for the other agent)."""
     opposite = _OPPOSITE.get(reading.behaviour)  # type: ignore[arg-type]
-    if opposite is None or reading.other not in slots or reading.agent is None:
-        return None
+    if opposite is None or reading.agent is None:
+        return None, ""
+    if reading.other not in slots:
+        return None, "the model does not drive it"
     try:
-        return derive_target(scenario, reading.other, opposite, index, other_id=reading.agent)  # type: ignore[arg-type]
-    except TargetUnavailable:
-        return None
+        target = derive_target(scenario, reading.other, opposite, index, other_id=reading.agent)  # type: ignore[arg-type]
+    except TargetUnavailable as exc:
+        return None, f"no target: {exc.detail}"
+    return target, ""

@@ -56,7 +56,8 @@ FIRST_WEIGHT = 1e4
 
 
 def _joint_first(first: Tensor | None) -> Tensor | float:
-    """`first` of joint candidates [M, R] (summed over the agents), scaled to come before anything else."""
+    """`first` of joint candidates [M, R] (summed over the agents), scaled to come before anything else (0
+    without it)."""
     return 0.0 if first is None else FIRST_WEIGHT * first.sum(-1)
 
 
@@ -120,7 +121,7 @@ class PerAgent(CandidateSelector):
             # The joint choice: NoCollisionCost of each joint candidate is its pairs' diagonal entries.
             joint = table.diagonal(dim1=2, dim2=3).sum(1)  # [R, M]
             if first is not None:
-                joint = joint + FIRST_WEIGHT * first.sum(-1).T
+                joint = joint + _joint_first(first).T
             choice = joint.argmin(dim=1)[:, None].expand(r, a).clone()
             road = OnRoadCost().per_agent(states.reshape(m * r, *states.shape[2:]), scene).reshape(m, r, a)
             rows = torch.arange(r, device=states.device)

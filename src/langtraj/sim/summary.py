@@ -9,9 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from langtraj.metrics.controllability import collision_flags, offroad_flags
-from langtraj.metrics.features import SceneMap
-from langtraj.scenario.types import AgentType
+from langtraj.metrics.controllability import agent_rates
 from langtraj.sim.engine import SimResult
 
 
@@ -21,15 +19,7 @@ def simulation_summary(result: SimResult, policy: str, **settings: Any) -> dict[
     undriven rule for the others; `reads_future_log` when that is the log), and the timing; `settings`
     are echoed."""
     scenario, rollouts = result.world.scenario, result.rollouts
-    collided = collision_flags(scenario, rollouts).mean(axis=0)  # [A]
-    offroad: dict[int, float] = {}
-    scene_map = SceneMap.from_scenario(scenario)
-    is_vehicle = (
-        scenario.agents.types[[scenario.agents.index_of(int(i)) for i in rollouts.object_id]] == AgentType.VEHICLE
-    )
-    if scene_map.road_edges is not None and is_vehicle.any():
-        ids, flags = offroad_flags(scenario, rollouts, scene_map=scene_map)
-        offroad = {int(i): float(f) for i, f in zip(ids, flags.mean(axis=0), strict=True)}
+    collided, offroad = agent_rates(scenario, rollouts)
     steps = np.hypot(np.diff(rollouts.x, axis=-1), np.diff(rollouts.y, axis=-1)).sum(-1).mean(0)  # [A]
     driven = set(result.driven_ids.tolist())
     undriven = result.world.undriven
@@ -39,7 +29,7 @@ def simulation_summary(result: SimResult, policy: str, **settings: Any) -> dict[
             "id": int(track),
             "driven": int(track) in driven,
             "moved_by": moved_by[int(track)],
-            "collision_rate": float(collided[col]),
+            "collision_rate": collided[int(track)],
             "offroad_rate": offroad.get(int(track)),
             "distance_m": float(steps[col]),
         }
@@ -57,7 +47,7 @@ def simulation_summary(result: SimResult, policy: str, **settings: Any) -> dict[
         "replans": [step for step, _ in result.schedule],
         "seconds": result.seconds,
         "seconds_per_replan": result.plan_seconds,
-        "collision_rate": float(collided.mean()),
+        "collision_rate": float(np.mean(list(collided.values()))),
         "offroad_rate": float(np.mean(list(offroad.values()))) if offroad else None,
         **result.report,
         "agents": agents,

@@ -16,14 +16,14 @@ from dataclasses import dataclass
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.prompts.compose import MENTION, mentions_in
 from langtraj.interdrive.reader.rules import (
-    _CONTRAST,
-    _NEGATION,
-    _PASSIVE,
-    _PLACEHOLDER,
-    _RULES,
-    _SLOT,
-    _SUBSUMES,
-    _verb,
+    CONTRAST,
+    NEGATION,
+    PASSIVE,
+    PLACEHOLDER,
+    RULES,
+    SLOT,
+    SUBSUMES,
+    verb,
 )
 
 # ---------------------------------------------------------------------------------------------- clauses and subjects
@@ -38,12 +38,12 @@ _FILLER = (
     r"|carefully|immediately|safely|smoothly|soon|promptly|'ll|'d|really|definitely|only|still)"
 )
 _LOCAL_SUBJECT = re.compile(rf"(<m\d+>)\s*[,:]?\s*(?:{_FILLER}\s+)*$")
-_COORDINATED = re.compile(rf"{_SLOT}\s*(?:,|and|or|&)\s*(<m\d+>)\s*[,:]?\s*(?:{_FILLER}\s+)*$")
+_COORDINATED = re.compile(rf"{SLOT}\s*(?:,|and|or|&)\s*(<m\d+>)\s*[,:]?\s*(?:{_FILLER}\s+)*$")
 _PRONOUN_SUBJECT = re.compile(rf"\b(?:it|he|she|they|you)\s+(?:{_FILLER}\s+)*$")
 _VOCATIVE = re.compile(
     r"^(?:(?:hey|ok|okay|now|right|so|please|alright|and)\s*,?\s*)?(<m\d+>)\s*[,:;]|[,;:]\s*(<m\d+>)\s*[.!]?\s*$"
 )
-_REQUEST_VERBS = _verb(
+_REQUEST_VERBS = verb(
     "have", "get", "make", "tell", "ask", "want", "need", "like", "let", "allow", "order", "instruct", "force", "see",
     "expect", "make sure", "ensure",
 )  # fmt: skip
@@ -141,7 +141,7 @@ def _slot(placeholder: str | None) -> int | None:
 def _candidates(text: str) -> list[_Match]:
     """Every rule's matches, longest first (ties: the earlier rule)."""
     found = []
-    for order, rule in enumerate(_RULES):
+    for order, rule in enumerate(RULES):
         for m in rule.pattern.finditer(text):
             if m.end() > m.start():
                 named = m.groupdict()
@@ -204,7 +204,7 @@ def _main_subject(text: str, matches: Sequence[_Match], subjects: Sequence[int |
     for match, subject in zip(matches, subjects, strict=True):
         if isinstance(subject, int) and not _is_subordinate(text, match, matches):
             return subject
-    return next((int(i) for i in _PLACEHOLDER.findall(text) if int(i) not in others), None)
+    return next((int(i) for i in PLACEHOLDER.findall(text) if int(i) not in others), None)
 
 
 def _not_read(reason: str, agent: int | None = None) -> PromptReading:
@@ -216,7 +216,7 @@ def _analyse(
 ) -> tuple[list[_Match], list[int | str | None], int | None]:
     """The phrases read (less those in an 'instead of' clause), the subject of each and the agent asked."""
     matches = _select(candidates, banned)
-    contrast = [(c.start(), c.end()) for c in _CONTRAST.finditer(text) if _outside(matches, c.start(), c.start() + 1)]
+    contrast = [(c.start(), c.end()) for c in CONTRAST.finditer(text) if _outside(matches, c.start(), c.start() + 1)]
     matches = [m for m in matches if not any(s <= m.start < e for s, e in contrast)]
     subjects = [_local_subject(text, m, matches) for m in matches]
     return matches, subjects, _main_subject(text, matches, subjects)
@@ -234,10 +234,10 @@ def read_prompt(text: str) -> PromptReading:
     if requests:  # "Let @7 turn left": a request to the agent it names, not a yield to it
         matches, subjects, subject_slot = _analyse(low, candidates, requests)
     agent = None if subject_slot is None else norm.ids[subject_slot]
-    negations = [n for n in _NEGATION.finditer(low) if _outside(matches, n.start(), n.end())]
+    negations = [n for n in NEGATION.finditer(low) if _outside(matches, n.start(), n.end())]
     if negations:
         return _not_read(f"negated ({norm.span(text, negations[0].start(), negations[0].end())!r})", agent)
-    passive = _PASSIVE.search(low)
+    passive = PASSIVE.search(low)
     if passive:
         return _not_read("passive voice", agent)
     if "several" in subjects:
@@ -246,7 +246,7 @@ def read_prompt(text: str) -> PromptReading:
         return _not_read("cannot tell which agent is asked", agent)
     matches = [m for m, s in zip(matches, subjects, strict=True) if not isinstance(s, int) or s == subject_slot]
     kinds = {m.behaviour for m in matches}
-    kinds -= {k for kind in kinds for k in _SUBSUMES.get(kind, ())}
+    kinds -= {k for kind in kinds for k in SUBSUMES.get(kind, ())}
     if not kinds:
         return _not_read("no behaviour phrase found", agent)
     if len(kinds) > 1:

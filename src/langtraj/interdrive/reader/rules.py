@@ -1,6 +1,6 @@
-"""The prompt reader's rules: the verb forms (`_verb`: every inflection of a base verb), the word classes and the
-regular-expression rule tables, one list of patterns per behaviour kind, compiled into `_RULES`; with the kinds one
-kind subsumes (`_SUBSUMES`) and the negation, 'instead of' and passive patterns that stop a reading. The patterns run
+"""The prompt reader's rules: the verb forms (`verb`: every inflection of a base verb), the word classes and the
+regular-expression rule tables, one list of patterns per behaviour kind, compiled into `RULES`; with the kinds one
+kind subsumes (`SUBSUMES`) and the negation, 'instead of' and passive patterns that stop a reading. The patterns run
 over the normalised text of `read.py`, where each `@id` mention is a placeholder `<m0>`, `<m1>`, ...; a named group
 `other` marks the other agent of a pair kind and `agent` the agent a request names as its object.
 
@@ -14,17 +14,17 @@ from dataclasses import dataclass
 
 from langtraj.interdrive.behaviour import Behaviour
 
-_SLOT = r"<m\d+>"
+SLOT = r"<m\d+>"
 _VEHICLE = (
     r"(?:car|truck|lorry|van|bus|coach|vehicle|cyclist|bike|bicycle|pedestrian|motorbike|motorcycle|scooter|taxi|cab"
     r"|suv|sedan|person|walker|driver|agent|one|tractor|trailer)"
 )
 _APPOSITION = rf"(?:(?:the|a|an|that|this)\s+(?:[\w-]+\s+){{0,2}}?{_VEHICLE}\s*,?\s+)"
 """A noun phrase naming the other agent before its mention: "follows the lorry, @7", "behind the truck @7"."""
-_OTHER = rf"{_APPOSITION}?(?P<other>{_SLOT})"
-_OBJ = rf"(?:\s+(?P<agent>{_SLOT}))?"
+_OTHER = rf"{_APPOSITION}?(?P<other>{SLOT})"
+_OBJ = rf"(?:\s+(?P<agent>{SLOT}))?"
 """The asked agent as the object of a request: "move @12 one lane to the left", "bring @12 to a halt"."""
-_PLACEHOLDER = re.compile(r"<m(\d+)>")
+PLACEHOLDER = re.compile(r"<m(\d+)>")
 
 # ---------------------------------------------------------------------------------------------- words
 
@@ -90,7 +90,7 @@ def _forms(base: str) -> tuple[str, ...]:
     return base, third, stem + "ing", past
 
 
-def _verb(*bases: str) -> str:
+def verb(*bases: str) -> str:
     """A non-capturing group of every form of `bases` (a multi-word base inflects its first word)."""
     forms: set[str] = set()
     for base in bases:
@@ -123,8 +123,8 @@ _NOT_LANE = r"(?![ -]?(?:hand\s+)?(?:lanes?|side|kerb|curb|shoulder|verge|edge|o
 """Not "the left lane", "the right side", "the right of way": a side word that names no turn."""
 _NOT_ADVERB = r"(?!\s+(?:ahead|away|now|there|here|behind|where|after|before|back|up|through|past|across|on)\b)"
 """Not "go right ahead", "turn right away"."""
-_TURN_VERBS = _verb("turn", "swing", "steer", "bear", "head", "go", "hook", "hang", "branch", "fork", "peel", "wheel")
-_TURN_TAKE = _verb("hang", "take", "make", "hook", "do", "pull", "throw", "swing", "bang", "hit", "execute", "perform")
+_TURN_VERBS = verb("turn", "swing", "steer", "bear", "head", "go", "hook", "hang", "branch", "fork", "peel", "wheel")
+_TURN_TAKE = verb("hang", "take", "make", "hook", "do", "pull", "throw", "swing", "bang", "hit", "execute", "perform")
 _TURN_DET = (
     r"(?:a|an|the)"
     r"(?:\s+(?:next|first|second|third|upcoming|coming|following|sharp|quick|hard|tight|wide|gentle|slight))*"
@@ -135,7 +135,7 @@ _JUNCTION = r"(?:junction|intersection|crossroads|roundabout|lights|crossing)"
 
 def _turn(side: str) -> list[str]:
     s = rf"(?:{side}(?:-hand)?|{side}wards?)"
-    exit_verbs = _verb("exit", "leave", "turn out of", "come out of")
+    exit_verbs = verb("exit", "leave", "turn out of", "come out of")
     return [
         rf"\b{_TURN_VERBS}(?:\s+(?:off|away|round|around|out|sharply|hard))?"
         rf"(?:\s+to(?:wards)?\s+{_POSSESSIVE}\s+|\s+){s}\b{_NOT_LANE}{_NOT_ADVERB}",
@@ -145,11 +145,11 @@ def _turn(side: str) -> list[str]:
         rf"\b(?:onto|into|down|up|along|via)\s+{_TURN_DET}\s+{side}(?:-hand)?\s+{_TURN_NOUN}\b",
         rf"\b{exit_verbs}(?:\s+(?:the|a)\s+{_JUNCTION})?\s+(?:(?:to(?:wards)?|on|by|via)\s+{_POSSESSIVE}\s+)?{s}\b"
         rf"{_NOT_LANE}{_NOT_ADVERB}",
-        rf"\b{_verb('make')}\s+{_POSSESSIVE}\s+way\s+(?:to(?:wards)?\s+the\s+|over\s+to\s+the\s+)?{s}\b{_NOT_LANE}",
+        rf"\b{verb('make')}\s+{_POSSESSIVE}\s+way\s+(?:to(?:wards)?\s+the\s+|over\s+to\s+the\s+)?{s}\b{_NOT_LANE}",
     ]
 
 
-_GO_ON = _verb(
+_GO_ON = verb(
     "go", "keep", "continue", "carry", "head", "proceed", "drive", "travel", "move", "ride", "cycle", "walk", "stay",
     "run", "push", "press", "cruise", "roll",
 )  # fmt: skip
@@ -160,16 +160,16 @@ _STRAIGHT = [
     r"(?!\s+(?:left|right|off\s+to))",
     r"\bin\s+a\s+straight\s+line\b|\bstraight\s+course\b",
     r"\bin\s+the\s+same\s+direction\b(?!\s+as\b)",
-    rf"\b{_verb('stay', 'keep', 'remain')}\s+on\s+(?:this|the\s+same|its|your|their|the\s+current|the\s+main)"
+    rf"\b{verb('stay', 'keep', 'remain')}\s+on\s+(?:this|the\s+same|its|your|their|the\s+current|the\s+main)"
     r"\s+(?:road|street|route)\b",
 ]
 
-_MOTION = _verb(
+_MOTION = verb(
     "change", "switch", "swap", "move", "shift", "get", "pull", "merge", "nip", "hop", "slide", "cut", "go", "head",
     "drift", "slip", "slot", "jump", "steer", "ease", "edge", "pop", "duck", "tuck", "weave", "dart", "squeeze",
     "cross", "step", "glide", "drop", "come",
 )  # fmt: skip
-_SIDESTEP = _verb(
+_SIDESTEP = verb(
     "move", "shift", "get", "merge", "nip", "hop", "slide", "cut", "drift", "slip", "slot", "jump", "steer", "ease",
     "edge", "pop", "duck", "tuck", "weave", "dart", "squeeze", "step", "glide",
 )  # fmt: skip
@@ -199,7 +199,7 @@ def _lane_change(side: str) -> list[str]:
     not_place = r"(?![ -]?(?:hand\s+)?(?:side|kerb|curb|shoulder|verge|edge)\b)"
     return [
         rf"\b{_MOTION}{_OBJ}(?:\s+(?:over|across|back|out))?\s+(?:into|to|onto|towards?|in\s+to|across|over)\s+{_lane_np(side)}",
-        rf"\b{_verb('get')}{_OBJ}\s+in\s+{_lane_np(side)}",
+        rf"\b{verb('get')}{_OBJ}\s+in\s+{_lane_np(side)}",
         rf"\b{_MOTION}{_OBJ}(?:\s+(?:over|across|back))?\s+(?:(?:one|a|1)\s+lane|lanes?)\s+(?:over\s+)?{to_side}{not_place}",
         rf"\b{_MOTION}{_OBJ}\s+(?:over\s+)?(?:{side}|{side}wards?)\s+(?:one|a|1)\s+lane\b",
         rf"\b{side}(?:-hand)?[ -]lane[ -]change\b|\blane[ -]change\s+(?:to(?:wards)?|on)\s+{_POSSESSIVE}\s+{side}\b",
@@ -225,32 +225,32 @@ def _lane_from_to() -> list[tuple[Behaviour, str]]:
 
 _STOP_NOUN = r"(?:stop|halt|standstill)"
 _STOP = [
-    rf"(?<!non-)(?<!bus\s)\b{_verb('stop', 'halt')}\b(?!\s+(?:sign|line|lights?)\b|-)",
-    rf"\b(?:{_verb('come', 'draw', 'grind', 'roll', 'brake', 'slow', 'slow down', 'ease')}"
-    rf"|{_verb('bring')}\s+(?:it|(?P<agent>{_SLOT})))\s+(?:in)?to\s+a"
+    rf"(?<!non-)(?<!bus\s)\b{verb('stop', 'halt')}\b(?!\s+(?:sign|line|lights?)\b|-)",
+    rf"\b(?:{verb('come', 'draw', 'grind', 'roll', 'brake', 'slow', 'slow down', 'ease')}"
+    rf"|{verb('bring')}\s+(?:it|(?P<agent>{SLOT})))\s+(?:in)?to\s+a"
     rf"(?:\s+(?:full|complete|dead|total|sudden|quick|gentle|smooth|controlled))?\s+{_STOP_NOUN}\b",
     r"\b(?:at\s+a\s+)?standstill\b",
-    rf"\b(?:{_verb('stand', 'stay', 'remain', 'keep', 'sit', 'hold')}|is|are|be|being|been)\s+"
+    rf"\b(?:{verb('stand', 'stay', 'remain', 'keep', 'sit', 'hold')}|is|are|be|being|been)\s+"
     r"(?:completely\s+|perfectly\s+|totally\s+|absolutely\s+|dead\s+)?(?:still|stationary|motionless|static|put)\b"
     r"(?!\s+\w+ing\b)",
-    rf"\b{_verb('stay', 'remain')}\s+in\s+place\b|\b{_verb('hold')}\s+{_POSSESSIVE}\s+position\b",
+    rf"\b{verb('stay', 'remain')}\s+in\s+place\b|\b{verb('hold')}\s+{_POSSESSIVE}\s+position\b",
     r"\b(?:stationary|motionless)\b",
     r"\b(?:(?:does|do|is|are)\s+not|doesn't|don't|isn't|aren't|not)\s+(?:move|moving)\b"
     r"(?!\s+(?:over|into|across|aside|out|left|right|to|onto|off|away|up)\b)",
-    rf"\b{_verb('freeze')}\b",
-    rf"\b{_verb('pull')}\s+up\b",
+    rf"\b{verb('freeze')}\b",
+    rf"\b{verb('pull')}\s+up\b",
 ]
 
 _PLACE = (
     r"(?:side\s+of\s+the\s+(?:road|street)|roadside|road\s+side|kerb|curb|kerbside|curbside|hard\s+shoulder"
     r"|shoulder|verge|edge\s+of\s+the\s+(?:road|street)|lay-by|layby)"
 )
-_TO_THE_SIDE = _verb(
+_TO_THE_SIDE = verb(
     "move", "steer", "head", "go", "get", "pull", "drive", "ease", "edge", "tuck", "draw", "swing", "park", "stop",
     "halt", "come", "bring it", "roll", "coast", "nose", "bear",
 )  # fmt: skip
 _PULL_OVER = [
-    rf"\b{_verb('pull')}{_OBJ}\s+(?:over|in|off|aside)\b"
+    rf"\b{verb('pull')}{_OBJ}\s+(?:over|in|off|aside)\b"
     r"(?!\s+(?:behind|in\s+front|ahead|between|next\s+to|alongside)\b|[^,;.]{0,25}\blanes?\b)",
     rf"\b{_TO_THE_SIDE}"
     rf"{_gap(5)}\s+(?:at|by|on|onto|to|towards|against|beside|alongside|into|next\s+to|near)"
@@ -259,39 +259,39 @@ _PULL_OVER = [
 ]
 
 _SPEED_UP = [
-    rf"\b{_verb('speed')}{_OBJ}\s+up\b",
-    rf"\b{_verb('accelerate')}\b(?!\s+(?:away\s+from|to\s+avoid)\b)",
-    rf"\b{_verb('pick')}\s+up\s+(?:the\s+|some\s+)?(?:speed|pace|tempo|momentum)\b",
-    rf"\b{_verb('gain', 'gather', 'build', 'build up')}\s+(?:some\s+|more\s+)?(?:speed|pace|momentum)\b",
-    rf"\b{_verb('hit', 'press', 'floor', 'stamp on', 'step on', 'push', 'mash', 'open up')}\s+(?:the|its|your|their)"
+    rf"\b{verb('speed')}{_OBJ}\s+up\b",
+    rf"\b{verb('accelerate')}\b(?!\s+(?:away\s+from|to\s+avoid)\b)",
+    rf"\b{verb('pick')}\s+up\s+(?:the\s+|some\s+)?(?:speed|pace|tempo|momentum)\b",
+    rf"\b{verb('gain', 'gather', 'build', 'build up')}\s+(?:some\s+|more\s+)?(?:speed|pace|momentum)\b",
+    rf"\b{verb('hit', 'press', 'floor', 'stamp on', 'step on', 'push', 'mash', 'open up')}\s+(?:the|its|your|their)"
     r"\s+(?:accelerator|gas(?:\s+pedal)?|throttle)\b",
-    rf"\b(?:{_verb('increase', 'raise')}|up(?:s|ped|ping)?)\s+(?:{_POSSESSIVE}\s+|some\s+)?(?:speed|pace)\b",
-    rf"\b{_verb('step')}\s+on\s+(?:it|the\s+(?:gas|accelerator|throttle))\b",
-    rf"\b{_verb('put')}\s+(?:{_POSSESSIVE}|the)\s+foot\s+down\b|\b{_verb('floor', 'gun')}\s+it\b",
-    rf"\b{_verb('hurry')}(?:\s+up)?\b|\b{_verb('get')}\s+a\s+move\s+on\b",
+    rf"\b(?:{verb('increase', 'raise')}|up(?:s|ped|ping)?)\s+(?:{_POSSESSIVE}\s+|some\s+)?(?:speed|pace)\b",
+    rf"\b{verb('step')}\s+on\s+(?:it|the\s+(?:gas|accelerator|throttle))\b",
+    rf"\b{verb('put')}\s+(?:{_POSSESSIVE}|the)\s+foot\s+down\b|\b{verb('floor', 'gun')}\s+it\b",
+    rf"\b{verb('hurry')}(?:\s+up)?\b|\b{verb('get')}\s+a\s+move\s+on\b",
     r"\b(?:faster|quicker|more\s+quickly)\b",
-    rf"\b{_verb('quicken')}\s+(?:{_POSSESSIVE}\s+)?pace\b",
+    rf"\b{verb('quicken')}\s+(?:{_POSSESSIVE}\s+)?pace\b",
 ]
 
 _SLOW_DOWN = [
-    rf"\b{_verb('slow')}(?:{_OBJ}\s+(?:down|up))?\b",
-    rf"\b{_verb('decelerate', 'brake')}\b",
-    rf"\b{_verb('hit', 'tap', 'touch', 'use', 'apply', 'press', 'step on')}\s+(?:the|its|your|their)\s+brakes?\b",
-    rf"\b{_verb('ease', 'back')}\s+(?:off|up|back)\b"
+    rf"\b{verb('slow')}(?:{_OBJ}\s+(?:down|up))?\b",
+    rf"\b{verb('decelerate', 'brake')}\b",
+    rf"\b{verb('hit', 'tap', 'touch', 'use', 'apply', 'press', 'step on')}\s+(?:the|its|your|their)\s+brakes?\b",
+    rf"\b{verb('ease', 'back')}\s+(?:off|up|back)\b"
     r"(?:\s+(?:on\s+|off\s+)?(?:the\s+)?(?:throttle|gas|accelerator|pedal|pace|speed))?",
-    rf"\b{_verb('come', 'get', 'lift', 'back', 'let')}\s+off\s+(?:the\s+)?(?:throttle|gas|accelerator|pedal)\b",
-    rf"\b{_verb('lose', 'reduce', 'drop', 'cut', 'lower', 'decrease', 'shed', 'bleed off', 'bring down', 'lessen')}"
+    rf"\b{verb('come', 'get', 'lift', 'back', 'let')}\s+off\s+(?:the\s+)?(?:throttle|gas|accelerator|pedal)\b",
+    rf"\b{verb('lose', 'reduce', 'drop', 'cut', 'lower', 'decrease', 'shed', 'bleed off', 'bring down', 'lessen')}"
     rf"\s+(?:{_POSSESSIVE}\s+|some\s+|a\s+bit\s+of\s+|a\s+little\s+|some\s+of\s+{_POSSESSIVE}\s+)?(?:speed|pace)\b",
-    rf"\b{_verb('take')}\s+it\s+(?:easy|slow|slower)\b",
+    rf"\b{verb('take')}\s+it\s+(?:easy|slow|slower)\b",
     r"\b(?:slower|more\s+slowly)\b",
 ]
 
-_GO_FIRST_VERBS = _verb(
+_GO_FIRST_VERBS = verb(
     "go", "get", "pass", "cross", "proceed", "head", "enter", "clear", "claim", "make it", "squeeze", "nip", "slip",
     "shoot", "dart", "race", "rush", "jump", "turn", "merge", "pull out", "take", "set off", "drive", "move", "travel",
     "reach", "arrive", "cut",
 )  # fmt: skip
-_AHEAD_VERBS = _verb(
+_AHEAD_VERBS = verb(
     "go", "get", "pass", "cross", "proceed", "enter", "clear", "claim", "make it", "squeeze", "nip", "slip", "shoot",
     "dart", "race", "rush", "jump", "turn", "merge", "pull out", "cut", "reach",
 )  # fmt: skip
@@ -300,54 +300,54 @@ _GO_FIRST = [
     rf"\b{_GO_FIRST_VERBS}{_gap(5)}\s+(?:before|sooner\s+than|earlier\s+than)\s+{_OTHER}",
     rf"\b{_AHEAD_VERBS}"
     rf"{_gap(5)}\s+ahead\s+of\s+{_OTHER}",
-    rf"\b{_verb('cut', 'cross', 'pull out', 'nip', 'dart', 'jump', 'squeeze', 'slip', 'shoot', 'pass', 'go', 'turn')}"
+    rf"\b{verb('cut', 'cross', 'pull out', 'nip', 'dart', 'jump', 'squeeze', 'slip', 'shoot', 'pass', 'go', 'turn')}"
     rf"(?:\s+(?:in|out|across))?\s+in\s+front\s+of\s+{_OTHER}",
-    rf"\b{_verb('take', 'have', 'claim', 'keep', 'assert', 'use', 'exercise', 'get', 'seize')}"
+    rf"\b{verb('take', 'have', 'claim', 'keep', 'assert', 'use', 'exercise', 'get', 'seize')}"
     rf"\s+(?:{_POSSESSIVE}\s+)?(?:right\s+of\s+way|right-of-way|priority|precedence)"
     rf"(?:\s+(?:over|from|ahead\s+of|before|against)\s+{_OTHER})?",
     rf"\b(?:{_GO_FIRST_VERBS}|be|is|are){_gap(3)}\s+first\b"
     r"(?!\s+(?:junction|intersection|left|right|exit|turn|turning|lane|road|street|time|one|lights)\b)",
     r"\bfirst\s+to\s+(?:go|cross|pass|enter|move|proceed|get\s+through|clear|drive)\b",
-    rf"\b{_verb('beat', 'outrun')}\s+{_OTHER}",
+    rf"\b{verb('beat', 'outrun')}\s+{_OTHER}",
     r"\b(?:do(?:es)?\s+not|do(?:es)?n't|never|won't|will\s+not|without|not)\s+(?:\w+\s+)?"
-    rf"{_verb('yield', 'give way', 'wait', 'stop', 'slow', 'slow down', 'brake', 'hold back')}\s+(?:to|for)\s+{_OTHER}",
+    rf"{verb('yield', 'give way', 'wait', 'stop', 'slow', 'slow down', 'brake', 'hold back')}\s+(?:to|for)\s+{_OTHER}",
     rf"\b(?:while|whilst|as|with)\s+{_OTHER}\s+"
-    rf"{_verb('yield', 'give way', 'wait', 'hold back')}(?:\s+(?:to|for)\s+(?:it|them|him|her))?\b",
-    rf"\b{_verb('have', 'take', 'get')}\s+(?:its|your|their|his|her|the)\s+turn\s+(?:before|ahead\s+of)\s+{_OTHER}",
+    rf"{verb('yield', 'give way', 'wait', 'hold back')}(?:\s+(?:to|for)\s+(?:it|them|him|her))?\b",
+    rf"\b{verb('have', 'take', 'get')}\s+(?:its|your|their|his|her|the)\s+turn\s+(?:before|ahead\s+of)\s+{_OTHER}",
 ]
 
 _YIELD = [
-    rf"\b{_verb('yield', 'give way', 'defer', 'cede', 'submit')}"
+    rf"\b{verb('yield', 'give way', 'defer', 'cede', 'submit')}"
     rf"(?:\s+(?:the\s+)?(?:right\s+of\s+way|right-of-way|priority|precedence|the\s+junction))?\s+(?:to|for)\s+{_OTHER}",
-    rf"\b{_verb('give up', 'hand over', 'surrender', 'concede')}\s+(?:the\s+|its\s+)?(?:right\s+of\s+way|right-of-way"
+    rf"\b{verb('give up', 'hand over', 'surrender', 'concede')}\s+(?:the\s+|its\s+)?(?:right\s+of\s+way|right-of-way"
     rf"|priority|precedence)\s+to\s+{_OTHER}",
-    rf"\b{_verb('give', 'grant', 'leave', 'offer')}\s+{_OTHER}\s+(?:the\s+|its\s+)?(?:right\s+of\s+way|right-of-way"
+    rf"\b{verb('give', 'grant', 'leave', 'offer')}\s+{_OTHER}\s+(?:the\s+|its\s+)?(?:right\s+of\s+way|right-of-way"
     r"|priority|precedence|way|room|space|the\s+go-ahead|a\s+chance|the\s+gap)\b",
-    rf"\b{_verb('let', 'allow', 'permit', 'wave', 'invite')}\s+{_OTHER}\s+(?:to\s+)?"
+    rf"\b{verb('let', 'allow', 'permit', 'wave', 'invite')}\s+{_OTHER}\s+(?:to\s+)?"
     r"(?:through|by|past|in|ahead|out|on|over|first|[a-z]+)\b"
     r"(?:\s+(?:first|by|past|through|ahead(?!\s+of)|across|in\s+front|over|on|in|(?:the|its)\s+(?:right\s+of\s+way|turn)"
     r"|priority))*",
-    rf"\b(?:{_verb('wait', 'stop', 'slow', 'brake', 'hold', 'pause', 'halt', 'hang', 'stay', 'sit', 'hover')}"
-    rf"(?:\s+(?:down|back|off|up|hard|\w+ly))?|{_verb('make', 'leave')}\s+(?:room|way|space|a\s+gap))"
+    rf"\b(?:{verb('wait', 'stop', 'slow', 'brake', 'hold', 'pause', 'halt', 'hang', 'stay', 'sit', 'hover')}"
+    rf"(?:\s+(?:down|back|off|up|hard|\w+ly))?|{verb('make', 'leave')}\s+(?:room|way|space|a\s+gap))"
     rf"{_gap(4)}\s+(?:for|until|till)\s+{_OTHER}",
-    rf"\b{_verb('hang', 'hold', 'stay', 'keep', 'sit', 'wait', 'hover', 'drop')}\s+back\b(?:{_TIGHT_GAP}{_OTHER})?",
+    rf"\b{verb('hang', 'hold', 'stay', 'keep', 'sit', 'wait', 'hover', 'drop')}\s+back\b(?:{_TIGHT_GAP}{_OTHER})?",
     rf"\b(?:so|so\s+that|allowing|letting|to\s+let|and\s+let)\s+{_OTHER}\s+(?:can\s+|could\s+|may\s+|is\s+able\s+to\s+)?"
     r"(?:go|pass|cross|proceed|get\s+(?:by|past|through|in)|merge|enter|clear|through|by|past)\w*"
     r"(?:\s+(?:first|by|past|through|ahead(?!\s+of)|across|in))*",
-    rf"\b{_verb('wait')}\s+(?:{_POSSESSIVE})\s+turn\b(?:\s+(?:behind|after)\s+{_OTHER})?",
+    rf"\b{verb('wait')}\s+(?:{_POSSESSIVE})\s+turn\b(?:\s+(?:behind|after)\s+{_OTHER})?",
     rf"\bafter\s+{_OTHER}\s+(?:has\s+|have\s+)?(?:passed|gone|crossed|cleared|gone\s+by|gone\s+through|got\s+through)\b",
-    rf"\b{_verb('yield', 'give way')}\b",
+    rf"\b{verb('yield', 'give way')}\b",
 ]
 
-_BEHIND_VERBS = _verb(
+_BEHIND_VERBS = verb(
     "stay", "keep", "remain", "drive", "travel", "sit", "tuck", "fall", "slot", "hang", "queue", "ride", "drop",
     "settle", "line", "tag", "creep", "cruise", "trundle",
 )  # fmt: skip
 _FOLLOW = [
-    rf"\b{_verb('follow', 'trail', 'tail', 'shadow')}\s+(?:(?:close(?:ly)?\s+)?(?:behind|after)\s+)?{_OTHER}",
+    rf"\b{verb('follow', 'trail', 'tail', 'shadow')}\s+(?:(?:close(?:ly)?\s+)?(?:behind|after)\s+)?{_OTHER}",
     rf"\b{_BEHIND_VERBS}"
     rf"(?:\s+(?:in|back|up|right|directly|close|closely|just|along))*\s+behind\s+{_OTHER}",
-    rf"\b{_verb('keep', 'maintain', 'hold')}\s+(?:a\s+)?(?:safe\s+|steady\s+|constant\s+|good\s+)?(?:distance|gap)"
+    rf"\b{verb('keep', 'maintain', 'hold')}\s+(?:a\s+)?(?:safe\s+|steady\s+|constant\s+|good\s+)?(?:distance|gap)"
     rf"\s+(?:behind|to)\s+{_OTHER}",
     rf"\b(?:in\s+the\s+(?:wake|tracks|footsteps)\s+of|on\s+the\s+tail\s+of)\s+{_OTHER}",
 ]
@@ -376,9 +376,9 @@ def _build_rules() -> tuple[_Rule, ...]:
     return tuple(_Rule(b, re.compile(p)) for b, p in specs)
 
 
-_RULES = _build_rules()
+RULES = _build_rules()
 
-_SUBSUMES: dict[Behaviour, frozenset[Behaviour]] = {
+SUBSUMES: dict[Behaviour, frozenset[Behaviour]] = {
     Behaviour.PULL_OVER: frozenset({Behaviour.STOP, Behaviour.SLOW_DOWN}),
     Behaviour.STOP: frozenset({Behaviour.SLOW_DOWN}),
     Behaviour.YIELD: frozenset({Behaviour.STOP, Behaviour.SLOW_DOWN}),
@@ -387,11 +387,11 @@ _SUBSUMES: dict[Behaviour, frozenset[Behaviour]] = {
 }
 """A kind that, asked with another, is part of it: "pulls over and stops", "brakes to let @7 pass"."""
 
-_NEGATION = re.compile(
+NEGATION = re.compile(
     r"\b(?:not|never|no\s+longer|without|neither|nor|cannot|no|refuses?\s+to|refusing\s+to|fails?\s+to"
     r"|avoid(?:s|ing)?)\b|n't\b"
 )
-_CONTRAST = re.compile(r"\b(?:instead\s+of|rather\s+than)\b[^,;.!?]*")
+CONTRAST = re.compile(r"\b(?:instead\s+of|rather\s+than)\b[^,;.!?]*")
 """What follows 'instead of' in its clause is what the prompt does not ask ("goes straight instead of turning")."""
-_PASSIVE = re.compile(rf"\b(?:is|are|was|were|be|been|being|gets?|got)\b[^,;.!?]*?\bby\s+{_SLOT}")
+PASSIVE = re.compile(rf"\b(?:is|are|was|were|be|been|being|gets?|got)\b[^,;.!?]*?\bby\s+{SLOT}")
 """A passive clause naming an agent ("@7 is followed by @12"): who does what is not read."""
