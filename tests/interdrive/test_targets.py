@@ -108,3 +108,16 @@ def test_going_first_is_feasible_only_where_the_agent_can_get_to_the_crossing_fi
     verdict = order_feasibility(near, 1, 2, Behaviour.GO_FIRST, index)  # the other gets there in 2.5 s
     assert verdict.status == "infeasible" and "@2 gets to the crossing in 2.5 s" in verdict.reason
     assert order_feasibility(near, 1, 2, Behaviour.YIELD, index).status == "feasible"  # waiting is always possible
+
+
+def test_a_lane_change_needs_room_before_the_junction_for_the_change_to_settle():
+    def change_starts(s):
+        target = _target(s, 1, Behaviour.LANE_CHANGE_LEFT)
+        on_lane = target.path[stations(target.path) > target.lateral_from + 1.0]
+        assert np.allclose(on_lane[:, 0], -HALF, atol=0.2)  # the left lane, before or after the junction
+        return on_lane[0, 1]
+
+    far = scene(four_way(), drive(RIGHT_LANE_STRAIGHT, speed=6.0, start=0.0))  # 64 m before the junction
+    near = scene(four_way(), drive(RIGHT_LANE_STRAIGHT, speed=6.0, start=50.0))  # 14 m before it
+    assert change_starts(far) < -30.0  # into the left approach lane, well before the junction at y = -10
+    assert change_starts(near) > 10.0  # too close to settle before it: into the left lane beyond the junction

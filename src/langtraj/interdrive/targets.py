@@ -50,6 +50,10 @@ HORIZON_S = WindowSpec().future * STEP_SECONDS
 """The simulated future the target must fit in (s)."""
 ROUTE_SPACING = 1.0
 """Spacing of a target's path points (m)."""
+LANE_CHANGE_S = 3.0
+"""Time a lane change takes to settle in its new lane (s)."""
+LANE_CHANGE_MIN_M = 15.0
+"""Least length of the new lane before its next junction that a lane change needs (m)."""
 KERB_CLEARANCE = 0.4
 """Gap left between a pulled-over vehicle's side and the road edge (m)."""
 
@@ -347,7 +351,9 @@ def _turn_target(agent: _Agent, behaviour: Behaviour, index: MapIndex, config: C
 
 def _lane_change_target(agent: _Agent, behaviour: Behaviour, index: MapIndex, side: str) -> BehaviourTarget:
     """The neighbour lane on `side`: the first lane parallel to the agent's, 2.5 to 4.5 m to that side, found
-    along its lane ahead from where a lane change can begin (1 s or 4 m ahead)."""
+    along its lane ahead from where a lane change can begin (1 s or 4 m ahead), with room before its next junction
+    for the change to settle (`LANE_CHANGE_S` at the agent's speed, at least `LANE_CHANGE_MIN_M`: the labelers
+    count no change into a junction lane)."""
     _need_lane(agent, index, f"the lane on its {side}")
     ahead = _ahead(agent, index)
     arc = stations(ahead)
@@ -368,6 +374,9 @@ def _lane_change_target(agent: _Agent, behaviour: Behaviour, index: MapIndex, si
         _, lateral = index.project_to_lane(lane, point[None])
         if not (2.5 <= abs(float(lateral[0])) <= 4.5) or np.sign(-lateral[0]) != sign:
             continue
+        room = index.distance_to_junction(lane, float(match.station[0])) if index.has_connectivity else math.inf
+        if room < max(LANE_CHANGE_MIN_M, LANE_CHANGE_S * agent.here.speed):
+            continue  # the lane beside it runs into a junction before a change could settle in it
         path = _route(index, [lane], float(match.station[0]), agent.reach)
         lead_in = _resample(np.stack([agent.xy, path[0]]))
         return BehaviourTarget(
