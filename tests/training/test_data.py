@@ -18,7 +18,8 @@ from langtraj.interdrive.dataset import split_of
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import collate_scenes
 from langtraj.scenario.model import BehaviorEvent
-from langtraj.training.data import MixingSampler, SceneDataset, build_sample, deciders
+from langtraj.scenario.selection import deciders
+from langtraj.training.data import MixingSampler, SceneDataset, build_sample
 
 SMALL = SampleConfig(max_agents=8, max_polylines=12, points_per_polyline=10)
 TEXT_ALWAYS = replace(SMALL, text_dropout=0.0, history_dropout=0.0)

@@ -208,7 +208,7 @@ def window_prompts(
     return tuple(PromptEntry.of(p) for p in build_prompt_pool(labels, seed, config.prompts_per_agent, bank))
 
 
-def _windows(scenario: Scenario, spec: WindowSpec) -> Iterator[tuple[int, Scenario]]:
+def scene_windows(scenario: Scenario, spec: WindowSpec) -> Iterator[tuple[int, Scenario]]:
     """(start, window) pairs: the scene itself when it is one window long or shorter, else its windows."""
     if scenario.num_steps <= spec.length:
         yield 0, scenario
@@ -217,28 +217,44 @@ def _windows(scenario: Scenario, spec: WindowSpec) -> Iterator[tuple[int, Scenar
         yield int(window.metadata["window"]["start"]), window
 
 
+def window_record(
+    window: Scenario,
+    source: str | Path,
+    record: int,
+    start: int,
+    labels: WindowLabels | None = None,
+    prompts: tuple[PromptEntry, ...] = (),
+) -> WindowRecord:
+    """The record of `window` (scene `record` of file `source`, cut at step `start`); no labels when `labels` is
+    None (what stage 1 trains on)."""
+    return WindowRecord(
+        window.scenario_id,
+        str(Path(source).resolve()),
+        record,
+        start,
+        window.current_index,
+        window.num_steps,
+        tuple(int(i) for i in window.agents.ids),
+        WindowLabels(window.scenario_id, (), (), ()) if labels is None else labels,
+        prompts,
+    )
+
+
+def file_windows(path: Path, stride: int | None) -> Iterator[tuple[int, int, Scenario]]:
+    """(scene number, start, window) of every window with a future of every scene in one scenario file."""
+    spec = WindowSpec(stride=stride)
+    for record, scenario in enumerate(read_scenarios(path)):
+        for start, window in scene_windows(scenario, spec):
+            if window.current_index < window.num_steps - 1:  # else no future steps to label or learn
+                yield record, start, window
+
+
 def label_file(path: Path, config: BuildConfig, bank: PhraseBank = TEMPLATES_ONLY) -> list[WindowRecord]:
     """Records of every window of every scene in one scenario file."""
-    spec = WindowSpec(stride=config.window_stride)
     records = []
-    for record, scenario in enumerate(read_scenarios(path)):
-        for start, window in _windows(scenario, spec):
-            if window.current_index >= window.num_steps - 1:
-                continue  # no future steps to label
-            labels = label_window(window, config)
-            records.append(
-                WindowRecord(
-                    window.scenario_id,
-                    str(Path(path).resolve()),
-                    record,
-                    start,
-                    window.current_index,
-                    window.num_steps,
-                    tuple(int(i) for i in window.agents.ids),
-                    labels,
-                    window_prompts(labels, config, bank),
-                )
-            )
+    for record, start, window in file_windows(path, config.window_stride):
+        labels = label_window(window, config)
+        records.append(window_record(window, path, record, start, labels, window_prompts(labels, config, bank)))
     return records
 
 

@@ -289,8 +289,6 @@ def scene_sample(
     hist_steps, hist_inside = _steps(t0 - h + 1, h, scenario.num_steps)
     hist_valid = np.zeros((a_max, h), bool)
     hist_valid[:n] = valid[:, hist_steps] & hist_inside[None]
-    if drop_history:
-        hist_valid[:, :-1] = False
     history = np.zeros((a_max, h, AGENT_HISTORY_FEATURES), np.float32)
     hh = heading[:, hist_steps]
     history[:n] = np.concatenate(
@@ -320,7 +318,7 @@ def scene_sample(
     agent_valid[:n] = True
 
     map_points, map_valid, map_type = map_arrays or sample_map(scenario, chosen, origin, config)
-    return {
+    sample = {
         "agent_history": history,
         "history_valid": hist_valid,
         "agent_type": agent_type,
@@ -338,6 +336,56 @@ def scene_sample(
         "agent_id": agent_id,
         "scenario_id": scenario.scenario_id,
     }
+    if drop_history:
+        apply_history_dropout(sample)
+    return sample
+
+
+def apply_history_dropout(sample: dict[str, Any]) -> None:
+    """Training's history dropout, in place: only the current step of each agent's history stays valid
+    (the rest zeroed), so the model learns scenes started from one observed frame."""
+    sample["history_valid"][:, :-1] = False
+    sample["agent_history"][~sample["history_valid"]] = 0.0
+
+
+SAMPLE_ARRAYS: dict[str, type[np.generic]] = {
+    "agent_history": np.float32,
+    "history_valid": np.bool_,
+    "agent_type": np.int64,
+    "agent_size": np.float32,
+    "agent_valid": np.bool_,
+    "current_state": np.float32,
+    "future": np.float32,
+    "future_valid": np.bool_,
+    "map_points": np.float32,
+    "map_valid": np.bool_,
+    "map_type": np.int64,
+    "origin": np.float32,
+    "agent_id": np.int64,
+}
+"""The fixed-size arrays of a `scene_sample` and their dtypes: what a sample holds besides text, labels and id."""
+
+FEATURES_VERSION = 1
+"""Bumped whenever `scene_sample` would give different arrays for the same scene and config, so stored
+samples (`langtraj.training.store`) built by older code are refused rather than silently reused."""
+
+_KEY_FIELDS = (
+    "max_agents",
+    "max_polylines",
+    "points_per_polyline",
+    "history_steps",
+    "future_steps",
+    "map_radius",
+    "map_selection",
+    "map_ahead_s",
+    "map_ahead_min",
+)
+
+
+def features_key(config: SampleConfig) -> dict[str, Any]:
+    """Everything that fixes `scene_sample`'s arrays for a scene: the config fields it reads and
+    `FEATURES_VERSION`. Two configs with equal keys give equal samples (dropouts and text aside)."""
+    return {"version": FEATURES_VERSION} | {name: getattr(config, name) for name in _KEY_FIELDS}
 
 
 _FLOAT = ("agent_history", "agent_size", "current_state", "future", "map_points", "origin")

@@ -75,3 +75,15 @@ def prioritized_agents(
     ordered += [int(i) for i in closest_agents(scenario, center, step=t) if int(i) not in chosen]
     result = np.asarray(ordered, np.int64)
     return result if max_agents is None else result[:max_agents]
+
+
+def deciders(scenario: Scenario) -> frozenset[int]:
+    """Track ids of the agents that carry out a decision after the scene's current step (`decision` events of
+    synthesized scenes, docs/data.md 'Intents')."""
+    return frozenset(
+        e.track_id
+        for e in scenario.events
+        if e.kind == "decision"
+        and e.attributes.get("executed")
+        and int(e.attributes.get("decision_step", -1)) >= scenario.current_index
+    )

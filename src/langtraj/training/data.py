@@ -26,8 +26,10 @@ from torch.utils.data import Dataset, Sampler
 from langtraj.errors import InputError
 from langtraj.interdrive.dataset import PromptEntry, WindowRecord, iter_records, load_window, split_of
 from langtraj.model.config import SampleConfig
-from langtraj.model.features import map_coverage, scene_sample
+from langtraj.model.features import apply_history_dropout, map_coverage, scene_sample
 from langtraj.scenario.model import Scenario
+from langtraj.scenario.selection import deciders
+from langtraj.training.store import FeatureStore, default_store_path, is_store, record_key
 
 # ---------------------------------------------------------------- text
 
@@ -83,18 +85,6 @@ def choose_text(
 # ---------------------------------------------------------------- one sample
 
 
-def deciders(scenario: Scenario) -> frozenset[int]:
-    """Track ids of the agents that carry out a decision after the scene's current step (`decision` events of
-    synthesized scenes, docs/data.md 'Intents')."""
-    return frozenset(
-        e.track_id
-        for e in scenario.events
-        if e.kind == "decision"
-        and e.attributes.get("executed")
-        and int(e.attributes.get("decision_step", -1)) >= scenario.current_index
-    )
-
-
 def build_sample(
     scenario: Scenario,
     record: WindowRecord | None,
@@ -104,7 +94,24 @@ def build_sample(
     prompt: PromptEntry | None = None,
     augment: bool = True,
 ) -> dict[str, Any]:
-    """One training sample: the window's `scene_sample` with augmentation and the agents' sentences.
+    """One training sample: the window's `scene_sample` with augmentation and the agents' sentences
+    (`augment_sample`)."""
+    sample = scene_sample(scenario, config)
+    return augment_sample(sample, record, deciders(scenario), config, rng, prompt=prompt, augment=augment)
+
+
+def augment_sample(
+    sample: dict[str, Any],
+    record: WindowRecord | None,
+    decided: frozenset[int],
+    config: SampleConfig,
+    rng: np.random.Generator,
+    *,
+    prompt: PromptEntry | None = None,
+    augment: bool = True,
+) -> dict[str, Any]:
+    """Augmentation and text for a `scene_sample` of a window (changed in place and returned); `decided` are
+    the window's `deciders`.
 
     Text (only when `config.text`): with `augment`, no text at all with probability `text_dropout`.
     Otherwise `prompt`, when given, conditions every agent it mentions (and nothing else); else one
@@ -121,9 +128,10 @@ def build_sample(
     """
     drop_history = augment and rng.random() < config.history_dropout
     drop_text = augment and rng.random() < config.text_dropout
-    sample = scene_sample(scenario, config, drop_history=drop_history)
+    if drop_history:
+        apply_history_dropout(sample)
     if config.text and not drop_text:
-        first = deciders(scenario) if config.decision_first else frozenset()
+        first = decided if config.decision_first else frozenset()
         for slot, sentence in choose_text(record, sample["agent_id"], config, rng, prompt, first).items():
             sample["text"][slot] = sentence
     labelled = has_interaction_prompt(record) or (prompt is not None and prompt.subtype is not None)
@@ -135,13 +143,19 @@ def build_sample(
 
 
 class SceneDataset(Dataset):
-    """Samples (`build_sample` dicts) of the windows of an InterDrive dataset folder, for a DataLoader
-    with `collate_fn=collate_scenes`.
+    """Samples (`augment_sample` dicts) of the windows of an InterDrive dataset folder or a feature store,
+    for a DataLoader with `collate_fn=collate_scenes`.
+
+    `data_dir` is a labels folder (`langtraj interdrive build`) or a feature store (`langtraj features
+    build`, `langtraj.training.store`; a store built from scenario files has windows without labels, for
+    stage 1). With a labels folder, `store` "auto" reads the samples from the folder's store for this
+    config when one covers every window (`default_store_path`), a path names a store that must, and None
+    decodes every window. With a store, a sample is a copy of stored arrays; without, a window is read
+    lazily (`load_window`) and the last `cache_size` windows read are kept per process.
 
     `split` "train" / "val" keeps the windows `split_of` assigns there (`val_fraction` of the scenes,
     the same on every run and for every seed), "all" keeps every window. Scenario files are checked to
-    exist up front and windows are read lazily (`load_window`); the last `cache_size` windows read are
-    kept per process, which saves decoding when an upsampled window comes back.
+    exist up front when windows are decoded.
 
     Item `i` is window `i % len(self)`, built with a generator seeded from (seed, epoch, i): the same
     item is the same sample within an epoch, and `set_epoch` changes every item's augmentation (call
@@ -153,7 +167,7 @@ class SceneDataset(Dataset):
 
     def __init__(
         self,
-        labels_dir: str | Path,
+        data_dir: str | Path,
         config: SampleConfig | None = None,
         *,
         split: str = "train",
@@ -161,12 +175,13 @@ class SceneDataset(Dataset):
         seed: int = 0,
         augment: bool | None = None,
         cache_size: int = 8,
+        store: str | Path | None = "auto",
     ) -> None:
         if split not in ("train", "val", "all"):
             raise ValueError(f"split must be 'train', 'val' or 'all', got {split!r}")
         if not 0.0 <= val_fraction <= 1.0:
             raise ValueError(f"val_fraction must be in [0, 1], got {val_fraction}")
-        self.labels_dir = Path(labels_dir)
+        self.labels_dir = Path(data_dir)
         self.config = SampleConfig() if config is None else config
         self.split = split
         self.val_fraction = val_fraction
@@ -174,22 +189,27 @@ class SceneDataset(Dataset):
         self.augment = split == "train" if augment is None else bool(augment)
         self.cache_size = int(cache_size)
         self.epoch = 0
+        self.store: FeatureStore | None = None
+        rows: list[int] = []
         records: list[WindowRecord] = []
-        checked: set[str] = set()
-        for shard, shard_records in iter_records(self.labels_dir):
-            for rec in shard_records:
-                if split != "all" and split_of(rec, val_fraction) != split:
-                    continue
-                if rec.source not in checked:
-                    if not Path(rec.source).is_file():
-                        raise InputError(
-                            "scenario file not found (moved or deleted since the dataset was built?)",
-                            path=rec.source,
-                            where=f"labels shard {shard}",
-                        )
-                    checked.add(rec.source)
-                records.append(rec)
+        if is_store(self.labels_dir):
+            self.store = FeatureStore(self.labels_dir, self.config)
+            for row, entry in enumerate(self.store.rows):
+                if split == "all" or split_of(entry.record, val_fraction) == split:
+                    records.append(entry.record)
+                    rows.append(row)
+        else:
+            records = [
+                rec
+                for _, shard in iter_records(self.labels_dir)
+                for rec in shard
+                if split == "all" or split_of(rec, val_fraction) == split
+            ]
+            self.store, rows = _store_rows(self.labels_dir, self.config, records, store)
+            if self.store is None:
+                _check_sources(records, self.labels_dir)
         self.records: tuple[WindowRecord, ...] = tuple(records)
+        self._rows = np.asarray(rows, np.int64) if self.store is not None else None
         flags = np.array([has_interaction_prompt(r) for r in records], bool)
         self._interaction = np.flatnonzero(flags)
         self._other = np.flatnonzero(~flags)
@@ -241,16 +261,62 @@ class SceneDataset(Dataset):
             index += len(self.records)
         return index % len(self.records)
 
+    def features(self, index: int) -> tuple[dict[str, Any], frozenset[int]]:
+        """Item `index`'s `scene_sample` (no augmentation, no text) and its window's deciders: from the
+        feature store when there is one, else from the decoded window."""
+        pos = self._position(index)
+        if self.store is not None and self._rows is not None:
+            row = int(self._rows[pos])
+            return self.store.sample(row), self.store.rows[row].deciders
+        scene = self.window(pos)
+        return scene_sample(scene, self.config), deciders(scene)
+
     def __getitem__(self, index: int) -> dict[str, Any]:
         pos = self._position(index)
         key = index if index >= 0 else pos
         rng = np.random.default_rng([self.seed, self.epoch, int(key)])
-        return build_sample(self.window(pos), self.records[pos], self.config, rng, augment=self.augment)
+        sample, decided = self.features(pos)
+        return augment_sample(sample, self.records[pos], decided, self.config, rng, augment=self.augment)
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         state["_cache"] = OrderedDict()
         return state
+
+
+def _check_sources(records: list[WindowRecord], labels_dir: Path) -> None:
+    """Every record's scenario file exists (checked once per file), else a one-line InputError."""
+    checked: set[str] = set()
+    for rec in records:
+        if rec.source not in checked:
+            if not Path(rec.source).is_file():
+                raise InputError(
+                    "scenario file not found (moved or deleted since the dataset was built?)",
+                    path=rec.source,
+                    where=f"labels folder {labels_dir}",
+                )
+            checked.add(rec.source)
+
+
+def _store_rows(
+    labels_dir: Path, config: SampleConfig, records: list[WindowRecord], store: str | Path | None
+) -> tuple[FeatureStore | None, list[int]]:
+    """The feature store to read `records` from and each record's row in it; (None, []) when there is none
+    to use (`store` None, or "auto" without a store of this config covering every record)."""
+    if store is None:
+        return None, []
+    path = default_store_path(labels_dir, config) if store == "auto" else Path(store)
+    if store == "auto" and not is_store(path):
+        return None, []
+    opened = FeatureStore(path, config)
+    by_key = opened.rows_by_key()
+    missing = [r for r in records if record_key(r) not in by_key]
+    if missing:
+        if store == "auto":
+            return None, []
+        example = missing[0].scenario_id
+        raise InputError(f"{len(missing)} windows of the labels are not in it (e.g. {example})", path=path)
+    return opened, [by_key[record_key(r)] for r in records]
 
 
 class MixingSampler(Sampler[int]):
@@ -347,7 +413,7 @@ def dataset_map_coverage(dataset: SceneDataset, max_windows: int = 64) -> dict[s
     count = min(len(dataset), max_windows)
     now, later, windows = [], [], np.linspace(0, len(dataset) - 1, count).round().astype(int) if count else []
     for index in windows:
-        sample = scene_sample(dataset.window(int(index)), dataset.config)
+        sample, _ = dataset.features(int(index))
         arrays = (sample["map_points"], sample["map_valid"], sample["map_type"])
         agents = sample["agent_valid"]
         now.append(map_coverage(arrays, sample["current_state"][:, :2], agents)[agents])
