@@ -3,20 +3,23 @@
 from __future__ import annotations
 
 import json
-from dataclasses import replace
+import shutil
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from scenario_builders import make_scenario
 
 from langtraj.cli.main import main
-from langtraj.scenario.io import read_scenarios
+from langtraj.fileio import ZSTD_MAGIC
+from langtraj.scenario.io import read_scenarios, write_scenarios
 from langtraj.scenario.io.tfrecord import count_records
 from langtraj.scenario.types import AgentType
 from langtraj.synth import factory
-from langtraj.synth.factory import FactoryConfig, run_factory
+from langtraj.synth.factory import FactoryConfig, run_factory, shard_path
 from langtraj.synth.network import kind_names
-from langtraj.synth.shard import ShardConfig, ShardTask, run_shard, shard_seed
+from langtraj.synth.shard import ShardConfig, ShardOutcome, ShardTask, run_shard, shard_seed
 from langtraj.synth.windows import WindowConfig
 
 SHORT = ShardConfig(duration_s=100.0, window=WindowConfig(warmup_s=40.0))
@@ -89,16 +92,108 @@ def test_rerun_resumes_without_simulating(first_run, monkeypatch):
 def test_a_damaged_sidecar_makes_the_shard_run_again(first_run, tmp_path):
     out, manifest = first_run
     copy = tmp_path / "c"
-    (copy / "shards").mkdir(parents=True)
-    for shard in manifest["shards"]:
-        for suffix in (".tfrecord", ".json"):
-            src = (out / shard["file"]).with_suffix(suffix)
-            (copy / "shards" / src.name).write_bytes(src.read_bytes())
+    shutil.copytree(out / "shards", copy / "shards")
     first = manifest["shards"][0]["file"]
-    (copy / first).with_suffix(".json").write_text("{not json")
+    sidecar = (copy / first).parent / "signalized-0000.json"
+    sidecar.write_text("{not json")
+    stale = copy / "shards" / "signalized-0000.tfrecord"  # as an earlier run with --no-compress left it
+    stale.write_bytes(b"stale")
     run_factory(_config(copy), progress=False)
     assert (copy / first).read_bytes() == (out / first).read_bytes()
-    assert json.loads((copy / first).with_suffix(".json").read_text())["windows"] == manifest["shards"][0]["windows"]
+    assert json.loads(sidecar.read_text())["windows"] == manifest["shards"][0]["windows"]
+    assert not stale.exists()  # a shard that runs again replaces its file under either name
+
+
+def test_shards_are_compressed_by_default(first_run):
+    out, manifest = first_run
+    for shard in manifest["shards"]:
+        path = out / shard["file"]
+        assert shard["file"] == f"shards/signalized-{shard['index']:04d}.tfrecord.zst"
+        assert path.read_bytes()[:4] == ZSTD_MAGIC
+        assert shard["bytes"] == path.stat().st_size
+        sidecar = json.loads((path.parent / f"signalized-{shard['index']:04d}.json").read_text())
+        assert (sidecar["file"], sidecar["bytes"]) == (path.name, shard["bytes"])
+    stats = manifest["per_kind"]["signalized"]
+    assert stats["bytes_per_window"] == round(sum(s["bytes"] for s in manifest["shards"]) / stats["windows"])
+
+
+def test_shard_names_with_and_without_compression_share_the_sidecar(tmp_path):
+    assert shard_path(tmp_path, "zebra", 7) == tmp_path / "shards" / "zebra-0007.tfrecord.zst"
+    assert shard_path(tmp_path, "zebra", 7, compress=False) == tmp_path / "shards" / "zebra-0007.tfrecord"
+    for compress in (True, False):
+        task = ShardTask("zebra", 7, 1, 2, shard_path(tmp_path, "zebra", 7, compress))
+        assert task.stats_path == tmp_path / "shards" / "zebra-0007.json"
+        assert task.other_path == shard_path(tmp_path, "zebra", 7, not compress)
+
+
+def _finished_shard(out: Path, compress: bool, *, old_sidecar: bool = False) -> ShardTask:
+    """A shard file and sidecar as a finished shard (index 0 of `_config`) leaves them, without SUMO;
+    `old_sidecar` drops the fields that sidecars written before compression lack."""
+    task = ShardTask("signalized", 0, shard_seed(7, "signalized", 0), 2, shard_path(out, "signalized", 0, compress))
+    write_scenarios(task.path, [make_scenario(scenario_id="w0"), make_scenario(scenario_id="w1", seed=1)])
+    outcome = ShardOutcome(
+        kind=task.kind,
+        index=task.index,
+        seed=task.seed,
+        quota=task.quota,
+        settings=asdict(SHORT),
+        windows=2,
+        agents_per_window=[4, 4],
+        agent_types={"vehicle": 8},
+        events={},
+        rejections={},
+        collisions=0,
+        teleports=0,
+        network={},
+        demand={},
+        sumo_version="SUMO 1.28.0",
+        seconds=1.0,
+        file=task.path.name,
+        bytes=task.path.stat().st_size,
+    )
+    data = asdict(outcome)
+    if old_sidecar:
+        del data["file"], data["bytes"]
+    task.stats_path.write_text(json.dumps(data))
+    return task
+
+
+@pytest.mark.parametrize("written", [True, False], ids=["written-compressed", "written-plain"])
+@pytest.mark.parametrize("compress", [True, False], ids=["resumed-compressed", "resumed-plain"])
+def test_resume_takes_a_finished_shard_under_either_name(written, compress, tmp_path, monkeypatch):
+    def refuse(*args, **kwargs):
+        raise AssertionError("a finished shard was run again")
+
+    monkeypatch.setattr(factory, "run_shard", refuse)
+    done = _finished_shard(tmp_path, written, old_sidecar=not written)
+    config = replace(_config(tmp_path), windows=2, compress=compress)
+    manifest = run_factory(config, progress=False)
+    (shard,) = manifest["shards"]
+    assert shard["file"] == f"shards/{done.path.name}" and shard["bytes"] == done.path.stat().st_size
+    assert manifest["per_kind"]["signalized"]["bytes_per_window"] == round(shard["bytes"] / 2)
+
+
+def test_resume_prefers_the_configured_name_and_needs_a_shard_file(tmp_path):
+    plain = _finished_shard(tmp_path, compress=False)
+    packed = _finished_shard(tmp_path, compress=True)
+    for task in (plain, packed):
+        assert factory._finished(task, SHORT).file == task.path.name
+    plain.path.unlink()
+    packed.path.unlink()
+    assert factory._finished(packed, SHORT) is None
+
+
+def test_cli_no_compress_turns_compression_off(tmp_path, monkeypatch, capsys):
+    seen = []
+
+    def fake(config, progress=True):
+        seen.append(config.compress)
+        return {"per_kind": {}, "windows": 0}
+
+    monkeypatch.setattr(factory, "run_factory", fake)
+    for extra in ([], ["--no-compress"]):
+        assert main(["synth", "--kinds", "zebra", "--windows", "1", "--out", str(tmp_path), *extra]) == 0
+    assert seen == [True, False]
 
 
 @pytest.mark.parametrize("kind", kind_names())

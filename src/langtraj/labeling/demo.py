@@ -13,6 +13,7 @@ from langtraj.labeling.auth import create_user
 from langtraj.labeling.db import Database, default_url
 from langtraj.labeling.models import Role, User
 from langtraj.labeling.tasks import add_tasks
+from langtraj.scenario.io import expand_scenario_paths
 
 DEMO_USERS = (
     ("admin", Role.ADMIN),
@@ -44,7 +45,7 @@ def prepare_demo(
             FactoryConfig(kinds=parse_kinds("signalized"), windows=windows, seed=seed, out=scenes), progress=False
         )
     dataset = folder / "dataset"
-    build_dataset(sorted((scenes / "shards").glob("*.tfrecord")), dataset, BuildConfig(seed=seed))
+    build_dataset(expand_scenario_paths([scenes / "shards"]), dataset, BuildConfig(seed=seed))
     db = Database(db_url or default_url(dataset))
     try:
         passwords = {}

@@ -35,6 +35,7 @@ from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets import TargetUnavailable, derive_target
 from langtraj.metrics.instruction_following import rollout_scenario
 from langtraj.rollouts import Rollouts
+from langtraj.scenario.io import expand_scenario_paths
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
 from langtraj.sim.config import SimConfig, SimRequest
@@ -155,7 +156,7 @@ def synthesize_scene(folder: Path, seed: int, driven: int | None = None) -> Demo
     from langtraj.synth.network import parse_kinds
 
     run_factory(FactoryConfig(kinds=parse_kinds("signalized"), windows=4, seed=seed, out=folder), progress=False)
-    return find_scene(sorted((folder / "shards").glob("*.tfrecord")), driven)
+    return find_scene(expand_scenario_paths([folder / "shards"]), driven)
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,5 @@
-"""One shard: build a (kind, seed) network and demand, simulate it, cut windows, write a TFRecord.
+"""One shard: build a (kind, seed) network and demand, simulate it, cut windows, write a TFRecord
+(zstd-compressed when the shard's name ends in `.zst`).
 
 A shard is the unit of work of the factory: independent of every other shard, deterministic in its
 seed (same seed, byte-identical shard), and written atomically with a JSON sidecar of its statistics.
@@ -20,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from langtraj.fileio import atomic_open
+from langtraj.fileio import ZSTD_SUFFIX, atomic_open
 from langtraj.scenario.io import write_scenarios
 from langtraj.scenario.model import STEP_SECONDS, BehaviorEvent, RoadMap, Scenario
 from langtraj.synth.demand import write_demand
@@ -75,7 +76,19 @@ class ShardTask:
 
     @property
     def stats_path(self) -> Path:
-        return self.path.with_suffix(".json")
+        """The JSON sidecar beside the shard: `kind-0000.json` for `kind-0000.tfrecord` and `.tfrecord.zst`."""
+        return self._plain_path.with_suffix(".json")
+
+    @property
+    def other_path(self) -> Path:
+        """The shard's file under the other naming (plain for compressed, compressed for plain), where a run
+        with the other compression setting wrote it."""
+        plain = self._plain_path
+        return plain if plain != self.path else plain.with_name(plain.name + ZSTD_SUFFIX)
+
+    @property
+    def _plain_path(self) -> Path:
+        return Path(str(self.path).removesuffix(ZSTD_SUFFIX))
 
 
 def shard_seed(base_seed: int, kind: str, index: int) -> int:
@@ -156,6 +169,10 @@ class ShardOutcome:
     """Drivers' decisions in the windows, by kind (`langtraj.synth.intents`)."""
     decisions_ahead: int = 0
     """Windows with an executed decision within `decision_lead_s` after the current step."""
+    file: str = ""
+    """Name of the shard file in `shards/` (`kind-0000.tfrecord.zst` compressed); empty without windows."""
+    bytes: int = 0
+    """Size of the shard file on disk."""
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), sort_keys=True, indent=1)
@@ -246,10 +263,11 @@ def run_shard(task: ShardTask, config: ShardConfig) -> ShardOutcome:
     }
     scenarios, rejections = cut_windows(task, network, run, net_map, config, meta)
     task.path.parent.mkdir(parents=True, exist_ok=True)
-    if scenarios:
+    if scenarios:  # zstd-compressed when the name ends in .zst
         write_scenarios(task.path, scenarios, "womd")
     else:  # no file for a shard without windows: an empty file is not a valid scenario file
         task.path.unlink(missing_ok=True)
+    task.other_path.unlink(missing_ok=True)  # this shard from an earlier run, written the other way: replaced
     outcome = ShardOutcome(
         kind=task.kind,
         index=task.index,
@@ -269,6 +287,8 @@ def run_shard(task: ShardTask, config: ShardConfig) -> ShardOutcome:
         seconds=round(time.perf_counter() - began, 3),
         decisions=dict(sorted(Counter(e.attributes["decision"] for s in scenarios for e in _decisions(s)).items())),
         decisions_ahead=sum(any(_ahead(s, e, config.window) for e in _decisions(s)) for s in scenarios),
+        file=task.path.name if scenarios else "",
+        bytes=task.path.stat().st_size if scenarios else 0,
     )
     with atomic_open(task.stats_path, "w") as fh:
         fh.write(outcome.to_json())

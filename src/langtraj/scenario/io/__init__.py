@@ -11,6 +11,7 @@ import importlib
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
+from langtraj.fileio import ZSTD_SUFFIX
 from langtraj.scenario.io.base import (
     ScenarioFormat,
     available_formats,
@@ -42,9 +43,15 @@ def read_scenario(path: str | Path, index: int = 0) -> Scenario:
     return detect_format(path).read_one(path, index)
 
 
-def write_scenarios(path: str | Path, scenarios: Iterable[Scenario], format_name: str | None = None) -> int:
-    """Write `scenarios` to `path` atomically in `format_name` (default: from the suffix)."""
-    return format_for_output(path, format_name).write(Path(path), scenarios)
+def write_scenarios(
+    path: str | Path, scenarios: Iterable[Scenario], format_name: str | None = None, compress: bool | None = None
+) -> int:
+    """Write `scenarios` to `path` atomically in `format_name` (default: from the suffix), zstd-compressed
+    when `compress` (default: when the name ends in `.zst`); every reader opens either transparently."""
+    path = Path(path)
+    if compress is None:
+        compress = path.name.lower().endswith(ZSTD_SUFFIX)
+    return format_for_output(path, format_name).write(path, scenarios, compress=compress)
 
 
 __all__ = [

@@ -1,9 +1,9 @@
 """Extension point for scenario file formats: a reader/writer interface plus a registry.
 
 A format is one `ScenarioFormat` subclass registered with `@register_format`; `detect_format`
-picks the format by sniffing the file's first bytes, so extensions do not matter, and
-`expand_scenario_paths` turns the files and folders named on a command line into scenario files the
-same way. docs/data.md lists the formats.
+picks the format by sniffing the file's first bytes (decompressed, for a zstd file), so extensions do
+not matter, and `expand_scenario_paths` turns the files and folders named on a command line into
+scenario files the same way. docs/data.md lists the formats.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import ClassVar
 
 from langtraj.errors import InputError
-from langtraj.fileio import open_input
+from langtraj.fileio import ZSTD_SUFFIX, read_head
 from langtraj.registry import Registry
 from langtraj.scenario.model import Scenario
 
@@ -26,9 +26,10 @@ SNIFF_BYTES = 64
 class ScenarioFormat(ABC):
     """A scenario file format: how to recognise, read and write it.
 
-    `read` streams scenarios one at a time so that large files are never loaded whole; it raises
+    `read` streams scenarios one at a time so that large plain files are never loaded whole; it raises
     `InputError` naming the file and record for anything malformed. `write` writes every scenario to
-    one file atomically (temporary file, then rename).
+    one file atomically (temporary file, then rename), zstd-compressed with `compress`; reading needs
+    nothing for that, as `open_input` decompresses transparently.
     """
 
     name: ClassVar[str]
@@ -52,8 +53,9 @@ class ScenarioFormat(ABC):
         raise InputError(f"no scenario at index {index}; the file holds {count}", path=path)
 
     @abstractmethod
-    def write(self, path: Path, scenarios: Iterable[Scenario]) -> int:
-        """Write `scenarios` to `path` atomically; returns how many were written."""
+    def write(self, path: Path, scenarios: Iterable[Scenario], *, compress: bool = False) -> int:
+        """Write `scenarios` to `path` atomically (as one zstd frame with `compress`); returns how many were
+        written."""
 
 
 _FORMATS: Registry[ScenarioFormat] = Registry("scenario format")
@@ -73,9 +75,9 @@ def get_format(name: str) -> ScenarioFormat:
 
 
 def _head(path: Path) -> bytes:
-    """The first SNIFF_BYTES of `path`; a missing or unreadable file raises InputError."""
-    with open_input(path) as fh:
-        return fh.read(SNIFF_BYTES)
+    """The first SNIFF_BYTES of `path`'s content (of a zstd file, decompressed); a missing or unreadable
+    file raises InputError."""
+    return read_head(path, SNIFF_BYTES)
 
 
 def _format_of(head: bytes) -> type[ScenarioFormat] | None:
@@ -131,15 +133,17 @@ def expand_scenario_paths(paths: Iterable[str | Path]) -> list[Path]:
 
 
 def format_for_output(path: str | Path, name: str | None = None) -> ScenarioFormat:
-    """The format to write `path` in: `name` if given, else the one whose suffixes match the path."""
+    """The format to write `path` in: `name` if given, else the one whose suffixes match the path (before a
+    compression suffix: `shard.tfrecord.zst` is WOMD)."""
     if name:
         return get_format(name)
-    path_str = str(path).lower()
+    path_str = str(path).lower().removesuffix(ZSTD_SUFFIX)
     for cls in _FORMATS.classes():
         if any(path_str.endswith(s) for s in cls.suffixes):
             return cls()
     raise InputError(
         "cannot tell the output format from the file name; use a suffix "
-        + ", ".join(s for c in _FORMATS.classes() for s in c.suffixes),
+        + ", ".join(s for c in _FORMATS.classes() for s in c.suffixes)
+        + f" (then {ZSTD_SUFFIX} to compress)",
         path=path,
     )

@@ -933,12 +933,12 @@ class ScenarioNetFormat(ScenarioFormat):
         path = Path(path)
         yield scenario_from_dict(load_pickle(path), where=str(path))
 
-    def write(self, path: Path, scenarios: Iterable[Scenario]) -> int:
+    def write(self, path: Path, scenarios: Iterable[Scenario], *, compress: bool = False) -> int:
         first_two = list(itertools.islice(scenarios, 2))
         if len(first_two) != 1:
             count = "none" if not first_two else "more than one"
             raise InputError(f"a ScenarioNet file holds exactly one scenario; got {count}", path=path)
         data = scenario_to_dict(first_two[0])
-        with atomic_open(path, "wb") as fh:
+        with atomic_open(path, "wb", compress=compress) as fh:
             pickle.dump(data, fh, protocol=PICKLE_PROTOCOL)
         return 1

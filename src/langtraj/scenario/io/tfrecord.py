@@ -2,7 +2,8 @@
 
 Each record is: uint64 length (little endian), uint32 masked CRC32C of those 8 bytes, the payload,
 uint32 masked CRC32C of the payload. Reading streams one record at a time, so shard size does not
-matter; skipping records seeks past payloads without reading them.
+matter; skipping records seeks past payloads without reading them. A zstd-compressed file
+(`*.tfrecord.zst`) reads the same way, from memory (`langtraj.fileio.open_input`).
 
 See docs/data.md.
 """
@@ -59,6 +60,13 @@ def _read_header(fh: BinaryIO, path: Path, index: int) -> int | None:
     return length
 
 
+def _size(fh: BinaryIO) -> int:
+    """Bytes in `fh` (a file or the in-memory content of a compressed one); leaves it at the start."""
+    size = fh.seek(0, os.SEEK_END)
+    fh.seek(0)
+    return size
+
+
 def _skip_payload(fh: BinaryIO, length: int, size: int, path: Path, index: int) -> None:
     fh.seek(length + 4, os.SEEK_CUR)
     if fh.tell() > size:
@@ -74,7 +82,7 @@ def iter_records(path: str | Path, *, start: int = 0, verify: bool = True) -> It
     """
     path = Path(path)
     with open_input(path) as fh:
-        size = os.fstat(fh.fileno()).st_size
+        size = _size(fh)
         index = 0
         while (length := _read_header(fh, path, index)) is not None:
             if index < start:
@@ -96,7 +104,7 @@ def count_records(path: str | Path) -> int:
     """Number of records, found by seeking over payloads."""
     path = Path(path)
     with open_input(path) as fh:
-        size = os.fstat(fh.fileno()).st_size
+        size = _size(fh)
         count = 0
         while (length := _read_header(fh, path, count)) is not None:
             _skip_payload(fh, length, size, path, count)
@@ -110,10 +118,11 @@ def encode_record(payload: bytes) -> bytes:
     return header + _U32.pack(masked_crc32c(header)) + payload + _U32.pack(masked_crc32c(payload))
 
 
-def write_records(path: str | Path, payloads: Iterable[bytes]) -> int:
-    """Write framed records atomically (temporary file, then rename); returns the record count."""
+def write_records(path: str | Path, payloads: Iterable[bytes], *, compress: bool = False) -> int:
+    """Write framed records atomically (temporary file, then rename), as one zstd frame with `compress`;
+    returns the record count."""
     count = 0
-    with atomic_open(path, "wb") as fh:
+    with atomic_open(path, "wb", compress=compress) as fh:
         for payload in payloads:
             fh.write(encode_record(payload))
             count += 1

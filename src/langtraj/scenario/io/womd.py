@@ -380,5 +380,5 @@ class WomdFormat(ScenarioFormat):
         except ScenarioValidationError as exc:
             raise exc.located(path=path, where=f"record {index}") from None
 
-    def write(self, path: Path, scenarios: Iterable[Scenario]) -> int:
-        return write_records(path, (scenario_to_proto(s).SerializeToString() for s in scenarios))
+    def write(self, path: Path, scenarios: Iterable[Scenario], *, compress: bool = False) -> int:
+        return write_records(path, (scenario_to_proto(s).SerializeToString() for s in scenarios), compress=compress)
