@@ -4,6 +4,10 @@ training) on a toy corpus; a second run skips every finished step, a killed stag
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -13,7 +17,7 @@ from dataset_builders import TINY_TRAINING
 from langtraj.cli.main import main
 from langtraj.errors import InputError
 from langtraj.model.checkpoint import load_model
-from langtraj.training.recipe import load_recipe
+from langtraj.training.recipe import label_sources, load_recipe
 
 SMALL = {
     **{k: v for k, v in TINY_TRAINING.items() if k not in ("name", "stage")},
@@ -40,12 +44,14 @@ def recipe_file(tmp_path) -> Path:
          "closed_loop": {"candidates": 2}},
     )  # fmt: skip
     stages = [{"name": n, "config": f"{n}.yaml"} for n in ("s1", "s2", "distill", "cl")]
+    stages[0]["data"] = "corpus"  # stage 1 reads every corpus window, without labels
     _write(
         tmp_path,
         "recipe.yaml",
         {
             "name": "toy",
             "corpus": {"kinds": "signalized", "windows": 2, "seed": 3},
+            "labels": {"windows": 1},
             "stages": stages,
             "ship": "distill",
         },
@@ -62,7 +68,11 @@ def test_the_recipe_runs_every_stage_then_skips_them(recipe_file, tmp_path, caps
     model, data = load_model(out / "cl" / "checkpoints" / "last.ckpt")
     assert (model.config.diffusion_steps, model.config.num_actions) == (5, 8) and data.map_selection == "agents"
     record = json.loads((out / "recipe.json").read_text())
-    assert set(record["seconds"]) == {"corpus", "labels", "s1", "s2", "distill", "cl"}
+    features = {"features s1", "features s2"}  # the later stages read stage 2's store (same sample settings)
+    assert set(record["seconds"]) == {"corpus", "labels", "s1", "s2", "distill", "cl"} | features
+    (corpus_store,) = (out / "features").iterdir()  # stage 1's store of the unlabelled corpus
+    assert corpus_store.name.startswith("corpus-") and (corpus_store / "store.json").is_file()
+    assert len(list((out / "labels" / "features").iterdir())) == 1  # later stages share one sample config
     assert record["shipped"] == str(out / "distill" / "checkpoints" / "last.ckpt")  # the stage it ships
     assert "shipped checkpoint (distill)" in printed
     # a second run skips what is done; a stage whose marker is gone resumes from its checkpoint
@@ -70,6 +80,55 @@ def test_the_recipe_runs_every_stage_then_skips_them(recipe_file, tmp_path, caps
     assert main(["recipe", str(recipe_file), "--out", str(out), "--workers", "1"]) == 0
     printed = capsys.readouterr().out
     assert printed.count("skipped") == 5 and "cl: " in printed
+    assert "resuming from" in printed and "features" not in printed  # the stores are there already
+
+
+def test_the_label_subset_takes_whole_shards_from_every_kind_in_turn(tmp_path):
+    shards = [("a", 0, 40), ("a", 1, 40), ("a", 2, 40), ("b", 0, 30), ("b", 1, 0), ("b", 2, 30), ("c", 0, 10)]
+    manifest = {"shards": [{"file": f"shards/{k}-{i:04d}.tfrecord", "kind": k, "windows": w} for k, i, w in shards]}
+    (tmp_path / "manifest.json").write_text(json.dumps(manifest))
+    names = lambda paths: [p.name for p in paths]  # noqa: E731
+    assert names(label_sources(tmp_path, 75)) == ["a-0000.tfrecord", "b-0000.tfrecord", "c-0000.tfrecord"]
+    assert names(label_sources(tmp_path, 81)) == [
+        "a-0000.tfrecord", "a-0001.tfrecord", "b-0000.tfrecord", "c-0000.tfrecord"
+    ]  # fmt: skip
+    assert len(label_sources(tmp_path, None)) == 6  # every shard with windows
+    stages = [{"name": "s", "config": "s.yaml"}]
+    with pytest.raises(InputError, match=r"labels\.windows"):
+        load_recipe_text(tmp_path, {"name": "x", "labels": {"windows": 0}, "stages": stages})
+
+
+def load_recipe_text(folder: Path, data: dict):
+    _write(folder, "s.yaml", {**SMALL, "stage": 1})
+    _write(folder, "r.yaml", data)
+    return load_recipe(folder / "r.yaml")
+
+
+def test_a_killed_recipe_resumes_its_stage_from_the_last_checkpoint(recipe_file, tmp_path):
+    """SIGKILL in the middle of stage 1, then the same command: it goes on from the checkpoint it had."""
+    data = yaml.safe_load(recipe_file.read_text())
+    _write(recipe_file.parent, "long.yaml", {"extends": "s1.yaml", "max_steps": 400})
+    data["stages"] = [{"name": "s1", "config": "long.yaml", "data": "corpus"}]
+    data.pop("ship")
+    _write(recipe_file.parent, "kill.yaml", data)
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "langtraj.cli.main", "recipe", str(recipe_file.parent / "kill.yaml")]
+    job = subprocess.Popen([*command, "--out", str(out), "--workers", "1"], stdout=subprocess.DEVNULL)
+    deadline = time.monotonic() + 300
+    while len(list((out / "s1" / "checkpoints").glob("step*.ckpt"))) < 2:
+        assert job.poll() is None and time.monotonic() < deadline, "the recipe ended or stalled before stage 1"
+        time.sleep(0.2)
+    job.send_signal(signal.SIGKILL)
+    job.wait()
+    assert not (out / "s1" / "DONE.json").exists()
+    before = load_model(out / "s1" / "checkpoints" / "last.ckpt")  # a kill never leaves a half-written file
+    assert before is not None
+    again = subprocess.run([*command, "--out", str(out), "--workers", "1", "--max-steps", "6"], capture_output=True)
+    printed = again.stdout.decode()
+    assert again.returncode == 0, again.stderr.decode()[-2000:]
+    assert "corpus: done before" in printed and "resuming from" in printed
+    step = int(printed.split("resuming from")[1].split("(step ")[1].split(")")[0])
+    assert step >= 1 and (out / "s1" / "DONE.json").is_file()
 
 
 def test_a_bad_recipe_is_one_line(recipe_file, tmp_path):

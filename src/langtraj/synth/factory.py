@@ -5,6 +5,8 @@ each kind that is still short for enough shards of at most `windows_per_shard` w
 yields fewer (windows are filtered) is made up for by the next round. Shard seeds depend only on the run
 seed, the kind and the shard index, so the plan and every shard are the same whatever the worker count.
 A shard whose file and sidecar exist with the same seed, quota and settings is not run again (resume).
+Shards are written zstd-compressed (`kind-0000.tfrecord.zst`) unless `compress` is off; a resumed
+shard counts as finished under either name, since compression does not change what it holds.
 
 See docs/data.md.
 """
@@ -15,15 +17,16 @@ import json
 import math
 from collections import Counter
 from collections.abc import Iterable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from langtraj import __version__
+from langtraj.errors import InputError
 from langtraj.executors import EXECUTORS
-from langtraj.fileio import atomic_open
+from langtraj.fileio import ZSTD_SUFFIX, atomic_open
 from langtraj.synth.shard import ShardConfig, ShardOutcome, ShardTask, run_shard, shard_seed
 from langtraj.synth.sumo import SynthError, sumo_version
 
@@ -34,7 +37,8 @@ MAX_ROUNDS = 8
 @dataclass(frozen=True)
 class FactoryConfig:
     """A synthesis job: which kinds, how many windows in all, the seed, the output, and where shards run
-    (`executor` "process" or "ray", with at most `workers` shards at once)."""
+    (`executor` "process" or "ray", with at most `workers` shards at once). `compress` writes each shard as
+    one zstd frame, about 10x smaller: every window of a shard repeats the same road map."""
 
     kinds: tuple[str, ...]
     windows: int
@@ -44,6 +48,7 @@ class FactoryConfig:
     executor: str = "process"
     windows_per_shard: int = 40
     shard: ShardConfig = field(default_factory=ShardConfig)
+    compress: bool = True
 
     def targets(self) -> dict[str, int]:
         """Windows per kind: an equal share, the remainder to the first kinds."""
@@ -51,13 +56,20 @@ class FactoryConfig:
         return {kind: base + (1 if i < extra else 0) for i, kind in enumerate(self.kinds)}
 
 
-def shard_path(out: Path, kind: str, index: int) -> Path:
-    return out / "shards" / f"{kind}-{index:04d}.tfrecord"
+def shard_path(out: Path, kind: str, index: int, compress: bool = True) -> Path:
+    """Where shard `index` of `kind` goes: `out/shards/kind-0000.tfrecord`, plus `.zst` when compressed."""
+    return out / "shards" / f"{kind}-{index:04d}.tfrecord{ZSTD_SUFFIX if compress else ''}"
+
+
+def _shard_file(task: ShardTask) -> Path | None:
+    """The task's shard file on disk: under its own name, else under the other naming (compressed or not),
+    so that a corpus resumes whichever way it was written; None when there is neither."""
+    return next((p for p in (task.path, task.other_path) if p.is_file()), None)
 
 
 def _finished(task: ShardTask, config: ShardConfig) -> ShardOutcome | None:
-    """The sidecar of a finished shard with the same seed, quota and settings (and its file, unless it has
-    no windows), else None."""
+    """The sidecar of a finished shard with the same seed, quota and settings (and its file under either
+    naming, unless it has no windows), else None."""
     if not task.stats_path.exists():
         return None
     try:
@@ -65,15 +77,17 @@ def _finished(task: ShardTask, config: ShardConfig) -> ShardOutcome | None:
         outcome = ShardOutcome(**data)
     except (OSError, ValueError, TypeError):
         return None
-    if outcome.windows and not task.path.exists():
-        return None
     if (outcome.seed, outcome.quota, outcome.settings) != (
         task.seed,
         task.quota,
         json.loads(json.dumps(asdict(config))),
     ):
         return None
-    return outcome
+    if not outcome.windows:
+        return outcome
+    if (found := _shard_file(task)) is None:
+        return None
+    return replace(outcome, file=found.name, bytes=found.stat().st_size)  # older sidecars have neither
 
 
 def _run_task(args: tuple[ShardTask, ShardConfig]) -> ShardOutcome:
@@ -90,8 +104,19 @@ def _round_tasks(config: FactoryConfig, short: dict[str, int], next_index: dict[
             quota = min(config.windows_per_shard, missing)
             missing -= quota
             seed = shard_seed(config.seed, kind, index)
-            tasks.append(ShardTask(kind, index, seed, quota, shard_path(config.out, kind, index)))
+            tasks.append(ShardTask(kind, index, seed, quota, shard_path(config.out, kind, index, config.compress)))
     return tasks
+
+
+def read_factory_manifest(out: Path) -> dict[str, Any]:
+    """The manifest `run_factory` wrote into corpus folder `out`; a missing or unreadable one raises InputError."""
+    path = Path(out) / "manifest.json"
+    try:
+        return json.loads(path.read_text())
+    except FileNotFoundError:
+        raise InputError("no manifest.json: not a finished corpus (langtraj synth)", path=out) from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"not JSON: {exc.msg}", path=path) from None
 
 
 def run_factory(config: FactoryConfig, progress: bool = True) -> dict[str, Any]:
@@ -156,7 +181,8 @@ def _distribution(values: Iterable[int]) -> dict[str, float]:
 
 
 def build_manifest(config: FactoryConfig, outcomes: Sequence[ShardOutcome], targets: dict[str, int]) -> dict[str, Any]:
-    """Counts per kind, agents per window, event and rejection counts, seeds, versions and shard list."""
+    """Counts per kind, agents per window, event and rejection counts, bytes on disk, seeds, versions and
+    shard list."""
     per_kind: dict[str, Any] = {}
     ordered = sorted(outcomes, key=lambda o: (o.kind, o.index))
     for kind in config.kinds:
@@ -174,6 +200,7 @@ def build_manifest(config: FactoryConfig, outcomes: Sequence[ShardOutcome], targ
             "sumo_collisions": sum(o.collisions for o in mine),
             "sumo_teleports": sum(o.teleports for o in mine),
             "simulation_seconds": round(sum(o.seconds for o in mine), 2),
+            "bytes_per_window": round(sum(o.bytes for o in mine) / max(sum(o.windows for o in mine), 1)),
         }
     return {
         "langtraj_version": __version__,
@@ -189,11 +216,12 @@ def build_manifest(config: FactoryConfig, outcomes: Sequence[ShardOutcome], targ
         "per_kind": per_kind,
         "shards": [
             {
-                "file": str(shard_path(Path("."), o.kind, o.index)),
+                "file": str(Path("shards") / o.file),
                 "kind": o.kind,
                 "index": o.index,
                 "seed": o.seed,
                 "windows": o.windows,
+                "bytes": o.bytes,
             }
             for o in ordered
             if o.windows

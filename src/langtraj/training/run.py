@@ -92,6 +92,11 @@ def report_map_coverage(data_dir: str | Path, config: TrainConfig, out: Path) ->
     return coverage
 
 
+@rank_zero_only
+def _say(text: str) -> None:
+    print(text, flush=True)
+
+
 def resolve_resume(resume: str | None, out: Path) -> str | None:
     """`auto`: the run's `last.ckpt` when there is one; a path: that file; None: a fresh start."""
     if resume is None:
@@ -121,6 +126,8 @@ def train(
     report_map_coverage(data_dir, config, out)
     module = LangTrajModule(config.to_dict())
     ckpt_path = resolve_resume(resume, out)
+    if ckpt_path is not None:
+        _say(f"resuming from {ckpt_path} (step {read_checkpoint(ckpt_path).get('global_step', '?')})")
     if ckpt_path is None and config.init_from:
         _initialise(module, config.init_from)
     checkpoints = ModelCheckpoint(
