@@ -33,6 +33,9 @@ class ModelConfig:
     map_attention_radius: float = 50.0  # map polylines attend to polylines within this distance (m)
     text: TextEncoderConfig = field(default_factory=TextEncoderConfig)
     use_text: bool = True  # build the language branch (stage 2); stage 1 can skip it
+    gradient_checkpointing: bool = False
+    """Training only: recompute each attention block in backward instead of keeping its activations
+    (docs/model.md, 'Training memory'); the weights and every output stay the same."""
 
     def __post_init__(self) -> None:
         for name in ("hidden_dim", "num_heads", "num_actions", "diffusion_steps", "history_steps"):

@@ -16,7 +16,7 @@ from __future__ import annotations
 from torch import Tensor, nn
 
 from langtraj.model.config import ModelConfig
-from langtraj.model.layers import AttentionBlock, mlp, step_embedding
+from langtraj.model.layers import AttentionBlock, PoseTerms, mlp, recomputing, run_block, step_embedding
 from langtraj.model.scene_encoder import SceneContext
 
 STEP_REFERENCE = 100
@@ -31,6 +31,7 @@ class Denoiser(nn.Module):
         super().__init__()
         d = config.hidden_dim
         self.dim = d
+        self.checkpointing = config.gradient_checkpointing
         self.action_in = mlp(config.num_actions * 2, d, d)
         self.step = mlp(d, d, d)
         # Steps are embedded as the step of a STEP_REFERENCE-step schedule with the same noise level, so a
@@ -57,14 +58,16 @@ class Denoiser(nn.Module):
         scene only, so one computation serves every denoising step, and, computed on the scenes before
         they are repeated per sample, every sample (see `RelPoseAttention.forward`). Under local attention
         they cover each agent's neighbours only."""
+        return {(i, j): self.pose_terms(i, j, scene) for i in range(len(self.blocks)) for j in range(3)}
+
+    def pose_terms(self, i: int, j: int, scene: SceneContext) -> PoseTerms:
+        """The relative-pose terms of sub-block j (0: agents, 1: scene tokens folded in, 2: text) of block i."""
         pose = scene.agent_pose
         agents, context = _indices(scene)
-        cache = {}
-        for i, (agent_block, context_block, text_block) in enumerate(self.blocks):
-            cache[(i, 0)] = agent_block.attn.relative(pose, pose, agents)
-            cache[(i, 1)] = context_block.fixed_context(pose, scene.tokens, scene.pose, context)
-            cache[(i, 2)] = text_block.attn.relative(pose, pose, agents)
-        return cache
+        block = self.blocks[i][j]
+        if j == 1:
+            return block.fixed_context(pose, scene.tokens, scene.pose, context)
+        return block.attn.relative(pose, pose, agents)
 
     def forward(
         self, x_k: Tensor, k: Tensor, scene: SceneContext, language: Tensor, cache: dict | None = None
@@ -77,7 +80,7 @@ class Denoiser(nn.Module):
         condition = step + self.condition_in(language)  # [B, A, D]: each agent's step and own text
         h = self.action_in(x_k.reshape(b, a, n * c)) + scene.agent_tokens + condition
         film = nn.functional.silu(condition)
-        pose, mask = scene.agent_pose, scene.agent_mask
+        mask = scene.agent_mask
         agents, context = _indices(scene)
         if scene.neighbours is None:
             pair = mask[:, :, None] & mask[:, None, :]
@@ -85,18 +88,36 @@ class Denoiser(nn.Module):
         else:
             pair = scene.neighbours.agents_valid & mask[:, :, None]
             scene_attn = scene.neighbours.context_valid & mask[:, :, None]
-        if cache is None:
+        # Under gradient checkpointing each sub-block computes its own pose terms, inside what it recomputes.
+        recompute = cache is None and recomputing(self.checkpointing, self)
+        if cache is None and not recompute:
             cache = self.pose_cache(scene)
-        elif not cache:
+        elif cache is not None and not cache:
             cache.update(self.pose_cache(scene))
-        for i, (agent_block, context_block, text_block) in enumerate(self.blocks):
-            rel = [cache[(i, j)] for j in range(3)]
+        masks, indices = (pair, scene_attn, pair), (agents, context, agents)
+        for i in range(len(self.blocks)):
             scale, shift = self.modulation[i](film).chunk(2, dim=-1)
             h = h * (1.0 + scale) + shift
-            h = agent_block(h, pose, h, pose, pair, rel[0], agents)
-            h = context_block(h, pose, None, None, scene_attn, rel[1], context)  # tokens folded into rel[1]
-            h = text_block(h, pose, language, pose, pair, rel[2], agents)
+            for j in range(3):  # agents attend to each other's tokens, to the scene (folded in), to the text
+                key = (h, None, language)[j]
+                if recompute:
+                    h = run_block(True, self._fresh_sub_block, i, j, h, key, scene, masks[j], indices[j])
+                else:
+                    h = self._sub_block(i, j, h, key, scene, masks[j], cache[(i, j)], indices[j])
         return self.out(h).reshape(b, a, n, c) * mask[..., None, None]
+
+    def _sub_block(
+        self, i: int, j: int, h: Tensor, key: Tensor | None, scene: SceneContext, mask: Tensor, rel: PoseTerms, index
+    ) -> Tensor:
+        """Sub-block j of block i on tokens `h`; the scene tokens (j = 1) are folded into `rel`."""
+        pose = scene.agent_pose
+        return self.blocks[i][j](h, pose, key, None if key is None else pose, mask, rel, index)
+
+    def _fresh_sub_block(
+        self, i: int, j: int, h: Tensor, key: Tensor | None, scene: SceneContext, mask: Tensor, index
+    ) -> Tensor:
+        """`_sub_block` with its pose terms computed here, so that gradient checkpointing recomputes them too."""
+        return self._sub_block(i, j, h, key, scene, mask, self.pose_terms(i, j, scene), index)
 
 
 def _indices(scene: SceneContext) -> tuple[Tensor | None, Tensor | None]:

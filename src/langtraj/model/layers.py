@@ -10,10 +10,13 @@ See docs/model.md.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import torch
 from torch import Tensor, nn
+from torch.utils.checkpoint import checkpoint
 
 
 def mlp(in_dim: int, hidden: int, out_dim: int, layers: int = 2) -> nn.Sequential:
@@ -25,6 +28,21 @@ def mlp(in_dim: int, hidden: int, out_dim: int, layers: int = 2) -> nn.Sequentia
         dim = hidden
     mods.append(nn.Linear(dim, out_dim))
     return nn.Sequential(*mods)
+
+
+def recomputing(enabled: bool, module: nn.Module) -> bool:
+    """Whether `module` should recompute its blocks in backward (gradient checkpointing): asked for
+    (`ModelConfig.gradient_checkpointing`), training, and building a graph; never in sampling."""
+    return enabled and module.training and torch.is_grad_enabled()
+
+
+def run_block(recompute: bool, function: Callable[..., Tensor], *args: Any) -> Tensor:
+    """`function(*args)`; with `recompute`, its activations are dropped after the forward pass and recomputed
+    in backward (`torch.utils.checkpoint`, non-reentrant, dropout replayed), which trades a second forward
+    pass for the memory of every block but one (docs/model.md, 'Training memory'). Same result either way."""
+    if not recompute:
+        return function(*args)
+    return checkpoint(function, *args, use_reentrant=False)
 
 
 def gather_keys(values: Tensor, index: Tensor) -> Tensor:

@@ -10,7 +10,7 @@ from torch import Tensor, nn
 
 from langtraj.model.batch import SceneBatch
 from langtraj.model.config import LocalAttention, ModelConfig
-from langtraj.model.layers import AttentionBlock, mlp
+from langtraj.model.layers import AttentionBlock, mlp, recomputing, run_block
 
 _AGENT_TYPES = 5  # padding + AgentType 1..4
 _MAP_TYPES = 40  # padding + MapFeatureType values (< 40)
@@ -143,6 +143,7 @@ class SceneEncoder(nn.Module):
         super().__init__()
         d = config.hidden_dim
         self.radius = config.map_attention_radius
+        self.checkpointing = config.gradient_checkpointing
         self.agent_embed = mlp(config.history_steps * 7, d, d)
         self.agent_type = nn.Embedding(_AGENT_TYPES, d)
         self.agent_size = mlp(2, d, d)
@@ -169,8 +170,9 @@ class SceneEncoder(nn.Module):
         polylines = polylines + self.map_type(batch.map_type.clamp(0, _MAP_TYPES - 1))
         near = torch.cdist(map_pose[..., :2], map_pose[..., :2]) < self.radius
         map_attn = near & map_mask[:, None, :] & map_mask[:, :, None]
+        recompute = recomputing(self.checkpointing, self)
         for layer in self.map_layers:
-            polylines = layer(polylines, map_pose, polylines, map_pose, map_attn)
+            polylines = run_block(recompute, layer, polylines, map_pose, polylines, map_pose, map_attn)
         return MapContext(polylines, map_pose, map_mask)
 
     def forward(
@@ -195,8 +197,9 @@ class SceneEncoder(nn.Module):
             agent_attn, index = neighbours.context_valid & batch.agent_valid[:, :, None], neighbours.context
         else:
             agent_attn, index = context_mask[:, None, :].expand(b, a, -1) & batch.agent_valid[:, :, None], None
+        recompute = recomputing(self.checkpointing, self)
         for layer in self.agent_layers:
             context = torch.cat([agent, polylines], dim=1)
-            agent = layer(agent, agent_pose, context, context_pose, agent_attn, index=index)
+            agent = run_block(recompute, layer, agent, agent_pose, context, context_pose, agent_attn, None, index)
         agent = agent * batch.agent_valid[..., None]
         return SceneContext(agent, agent_pose, batch.agent_valid, polylines, map_pose, map_mask, neighbours)
