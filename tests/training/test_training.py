@@ -4,6 +4,7 @@ clearly. Small model, toy scenes, CPU."""
 from __future__ import annotations
 
 import csv
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -17,6 +18,7 @@ from langtraj.model.checkpoint import load_model, read_checkpoint
 from langtraj.model.config import SampleConfig
 from langtraj.training.config import ClosedLoopConfig, TrainConfig, load_config
 from langtraj.training.run import train
+from langtraj.training.store import build_store, default_store_path, labelled_jobs
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = TrainConfig(
@@ -78,6 +80,25 @@ def test_resume_auto_picks_up_the_last_checkpoint(labels, tmp_path):
     train(config, labels, tmp_path / "run", resume="auto", max_steps=5, progress=False)
     assert read_checkpoint(tmp_path / "run" / "checkpoints" / "last.ckpt")["global_step"] == 5
     assert not list((tmp_path / "run" / "checkpoints").glob(".*.partial"))
+
+
+def test_milestone_checkpoints_are_kept_and_training_reads_a_feature_store_alike(labels, tmp_path):
+    """`keep_every_steps` keeps every milestone (the rolling checkpoints keep only the latest two); a run on
+    the labels folder's feature store ends with the same weights as one decoding every window."""
+    config = replace(CONFIG, max_steps=6, keep_every_steps=2)
+    train(config, labels, tmp_path / "decoded", progress=False)
+    kept = sorted(p.name for p in (tmp_path / "decoded" / "checkpoints" / "kept").glob("*.ckpt"))
+    assert kept == ["step0000002.ckpt", "step0000004.ckpt", "step0000006.ckpt"]
+    store = default_store_path(labels, config.data)
+    build_store(labelled_jobs(labels, config.data), store, say=lambda _: None)
+    try:
+        train(config, labels, tmp_path / "stored", progress=False)
+    finally:
+        shutil.rmtree(store.parent)  # the module's other tests decode
+    a = read_checkpoint(tmp_path / "decoded" / "checkpoints" / "last.ckpt")["state_dict"]
+    b = read_checkpoint(tmp_path / "stored" / "checkpoints" / "last.ckpt")["state_dict"]
+    for key, value in a.items():
+        torch.testing.assert_close(b[key], value, atol=1e-6, rtol=1e-5, msg=key)
 
 
 def test_checkpoints_leave_out_the_pretrained_text_weights_and_reload(labels, tmp_path):

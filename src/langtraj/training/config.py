@@ -137,6 +137,9 @@ class TrainConfig:
     max_steps: int = 2000
     val_every_steps: int = 500
     checkpoint_every_steps: int = 100
+    keep_every_steps: int | None = None
+    """Also keep a checkpoint every this many steps in RUN_DIR/checkpoints/kept/ (never deleted): milestones
+    for a scaling table or a learning curve. None: only the latest checkpoints are kept."""
     text_loss_weight: float = 1.0  # stage 2: loss weight of the agents that carry a sentence
     num_workers: int = 0
     seed: int = 0
@@ -153,6 +156,11 @@ class TrainConfig:
     def __post_init__(self) -> None:
         for name in ("batch_size", "max_steps", "val_every_steps", "checkpoint_every_steps", "num_nodes"):
             require(getattr(self, name) >= 1, name, f"must be >= 1, got {getattr(self, name)}")
+        require(
+            self.keep_every_steps is None or self.keep_every_steps >= 1,
+            "keep_every_steps",
+            f"must be >= 1, got {self.keep_every_steps}",
+        )
         require(self.num_workers >= 0, "num_workers", f"must be >= 0, got {self.num_workers}")
         require(self.text_loss_weight >= 0, "text_loss_weight", f"must be >= 0, got {self.text_loss_weight}")
         require(

@@ -92,6 +92,21 @@ def report_map_coverage(data_dir: str | Path, config: TrainConfig, out: Path) ->
     return coverage
 
 
+def _milestones(config: TrainConfig, out: Path) -> list[ModelCheckpoint]:
+    """The checkpoints kept every `keep_every_steps` steps, in RUN_DIR/checkpoints/kept/ (none when unset)."""
+    if config.keep_every_steps is None:
+        return []
+    return [
+        ModelCheckpoint(
+            dirpath=out / "checkpoints" / "kept",
+            filename="step{step:07d}",
+            auto_insert_metric_name=False,
+            every_n_train_steps=config.keep_every_steps,
+            save_top_k=-1,
+        )
+    ]
+
+
 @rank_zero_only
 def _say(text: str) -> None:
     print(text, flush=True)
@@ -147,7 +162,7 @@ def train(
         check_val_every_n_epoch=None,
         num_sanity_val_steps=0,
         logger=[TensorBoardLogger(out / "logs", name="tb"), CSVLogger(out / "logs", name="csv")],
-        callbacks=[checkpoints, LearningRateMonitor(logging_interval="step")],
+        callbacks=[checkpoints, *_milestones(config, out), LearningRateMonitor(logging_interval="step")],
         plugins=[AtomicCheckpointIO()],
         gradient_clip_val=config.optim.grad_clip,
         accelerator=config.accelerator,
