@@ -22,51 +22,9 @@ import time
 from pathlib import Path
 
 import torch
+from synthetic import synthetic_batch
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def synthetic_batch(batch_size: int, agents: int, polylines: int, points: int, history: int, seed: int = 0):
-    """A full batch of random scenes: agents on a 100 m square driving at 0-15 m/s, straight polylines."""
-    from langtraj.model.batch import SceneBatch
-
-    g = torch.Generator().manual_seed(seed)
-    b, a, m, p = batch_size, agents, polylines, points
-    pos = torch.rand(b, a, 2, generator=g) * 100 - 50
-    heading = torch.rand(b, a, generator=g) * 6.28 - 3.14
-    speed = torch.rand(b, a, generator=g) * 15
-    t = torch.arange(-history + 1, 81, dtype=torch.float32) * 0.1
-    direction = torch.stack([torch.cos(heading), torch.sin(heading)], -1)
-    track = pos[:, :, None] + direction[:, :, None] * (speed[..., None, None] * t[:, None])
-    hist = torch.zeros(b, a, history, 7)
-    hist[..., 0:2] = track[:, :, :history]
-    hist[..., 2] = torch.cos(heading)[..., None]
-    hist[..., 3] = torch.sin(heading)[..., None]
-    hist[..., 4:6] = (direction * speed[..., None])[:, :, None]
-    hist[..., 6] = 1
-    future = torch.cat([track[:, :, history:], heading[..., None, None].expand(b, a, 80, 1)], -1)
-    start = torch.rand(b, m, 1, 2, generator=g) * 100 - 50
-    angle = torch.rand(b, m, 1, generator=g) * 6.28
-    steps = torch.arange(p, dtype=torch.float32)[None, None, :, None] * 2.0
-    map_points = start + steps * torch.stack([torch.cos(angle), torch.sin(angle)], -1)
-    return SceneBatch(
-        agent_history=hist,
-        history_valid=torch.ones(b, a, history, dtype=torch.bool),
-        agent_type=torch.ones(b, a, dtype=torch.long),
-        agent_size=torch.tensor([4.5, 2.0]).expand(b, a, 2).clone(),
-        agent_valid=torch.ones(b, a, dtype=torch.bool),
-        current_state=torch.stack([pos[..., 0], pos[..., 1], heading, speed], -1),
-        future=future,
-        future_valid=torch.ones(b, a, 80, dtype=torch.bool),
-        map_points=map_points,
-        map_valid=torch.ones(b, m, p, dtype=torch.bool),
-        map_type=torch.full((b, m), 2, dtype=torch.long),
-        text=[["the target agent turns left at the intersection"] * a for _ in range(b)],
-        interaction_labelled=torch.ones(b, dtype=torch.bool),
-        origin=torch.zeros(b, 3),
-        agent_id=torch.arange(a).expand(b, a).clone(),
-        scenario_id=[f"bench{i}" for i in range(b)],
-    )
 
 
 def measure(preset: str, steps: int, base_batch: int) -> dict:
@@ -76,10 +34,9 @@ def measure(preset: str, steps: int, base_batch: int) -> dict:
     config = load_config(ROOT / "configs" / f"{preset}-text.yaml")
     batch_size = base_batch if preset == "base" and not torch.cuda.is_available() else config.batch_size
     device = "cuda" if torch.cuda.is_available() else "cpu"
-    data = config.data
+
     model = LangTraj(config.model).to(device)
-    batch = synthetic_batch(batch_size, data.max_agents, data.max_polylines, data.points_per_polyline,
-                            config.model.history_steps).to(device)  # fmt: skip
+    batch = synthetic_batch(config, batch_size, text_fraction=1.0).to(device)
     optimizer = torch.optim.AdamW([p for p in model.parameters() if p.requires_grad], lr=1e-4)
     times = []
     for step in range(steps + 2):
@@ -93,8 +50,7 @@ def measure(preset: str, steps: int, base_batch: int) -> dict:
         if step >= 2:
             times.append(time.perf_counter() - start)
     model.eval()
-    scene = synthetic_batch(1, 64, data.max_polylines, data.points_per_polyline, config.model.history_steps)
-    scene = scene.to(device)
+    scene = synthetic_batch(config, 1, agents=64, text_fraction=1.0).to(device)
     sampling = {}
     for k in (5, 100):
         runs = []
@@ -110,8 +66,8 @@ def measure(preset: str, steps: int, base_batch: int) -> dict:
         "preset": preset,
         "device": device,
         "batch_size": batch_size,
-        "agents": data.max_agents,
-        "polylines": data.max_polylines,
+        "agents": config.data.max_agents,
+        "polylines": config.data.max_polylines,
         "trainable_parameters": sum(p.numel() for p in model.parameters() if p.requires_grad),
         "step_seconds": step_time,
         "samples_per_second": batch_size / step_time,

@@ -19,12 +19,19 @@ H200_PEAK_GIB = 7.7
 
 
 @pytest.fixture(scope="module")
-def bench():
+def bench(monkeypatch_module):
+    monkeypatch_module.syspath_prepend(str(SCRIPT.parent))  # the script imports its sibling `synthetic`
     spec = importlib.util.spec_from_file_location("train_memory", SCRIPT)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # its dataclasses look their module up
     spec.loader.exec_module(module)
     return module
+
+
+@pytest.fixture(scope="module")
+def monkeypatch_module():
+    with pytest.MonkeyPatch.context() as patch:
+        yield patch
 
 
 def test_live_bytes_follow_allocations_and_releases_and_count_views_once(bench):

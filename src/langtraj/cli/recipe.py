@@ -1,7 +1,7 @@
 """`langtraj recipe NAME|FILE --out RUN [--workers W] [--max-steps N]`: the whole training chain, synthesis
 to final checkpoint, each step resumed or skipped when done (docs/model.md, 'The recipe').
 
-NAME is a recipe of `configs/recipes/` (`tiny`, `base`) looked up from the current folder; FILE is a
+NAME is a recipe of `configs/recipes/` (`tiny`, `gpu-short`, `base`) looked up from the current folder; FILE is a
 recipe YAML anywhere.
 """
 
@@ -15,7 +15,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "recipe", help="the whole training chain: synth, labels, stages 1, 2, distill, closed loop"
     )
-    p.add_argument("recipe", metavar="NAME|FILE", help="tiny, base, or a recipe YAML (configs/recipes/)")
+    p.add_argument("recipe", metavar="NAME|FILE", help="tiny, gpu-short, base, or a recipe YAML (configs/recipes/)")
     p.add_argument("--out", required=True, type=Path, help="run folder (corpus, labels, one folder per stage)")
     p.add_argument("--workers", type=int, default=2, help="processes for synthesis and labelling (default 2)")
     p.add_argument("--max-steps", type=int, help="cap every training stage (a smoke run)")
