@@ -16,6 +16,7 @@ from scenario_builders import make_scenario
 
 from langtraj.errors import InputError
 from langtraj.interdrive.dataset import iter_records, load_window
+from langtraj.interdrive.labels import WindowLabels
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import SAMPLE_ARRAYS, scene_sample
 from langtraj.scenario.io import write_scenarios
@@ -58,7 +59,8 @@ def test_stored_samples_are_the_scene_samples_of_their_windows(labels_dir):
     records = [r for _, shard in iter_records(labels_dir) for r in shard]
     assert len(store) == len(records) == 24 and len(store.chunks) == 5
     for row, record in enumerate(records):
-        assert store.rows[row].record == record
+        assert store.rows[row].record == replace(record, labels=WindowLabels(record.scenario_id))  # prompts kept
+        assert store.rows[row].record.prompts == record.prompts and record.prompts
         _same(store.sample(row), scene_sample(load_window(record), SMALL))
 
 

@@ -3,10 +3,11 @@ memory-mapped arrays, so a training sample costs a copy instead of a window deco
 (docs/model.md, 'The feature store').
 
 A store folder holds `store.json` (the features key it was built for, its chunks and their row counts)
-and one folder per chunk: `index.jsonl` (one `WindowRecord` per row, labels and prompts included, with
-the row's deciders) and one `FIELD.npy` per `SAMPLE_ARRAYS` field, [rows, ...]. A store is built from an
-InterDrive labels folder (`labelled_jobs`: every stage) or straight from scenario files without labels
-(`scenario_jobs`: stage 1 needs none). `build_store` writes each chunk into `STORE.partial/` as a whole
+and one folder per chunk: `index.jsonl` (one `WindowRecord` per row with its prompts, which training
+draws sentences from, but not its labels, which it never reads; and the row's deciders) and one
+`FIELD.npy` per `SAMPLE_ARRAYS` field, [rows, ...]. A store is built from an InterDrive labels folder
+(`labelled_jobs`: every stage) or straight from scenario files without labels (`scenario_jobs`: stage 1
+needs none). `build_store` writes each chunk into `STORE.partial/` as a whole
 (temporary folder, then rename), so a killed build resumes with the chunks not yet done; the folder
 becomes STORE only when every chunk is there.
 """
@@ -19,7 +20,7 @@ import json
 import os
 import shutil
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +30,7 @@ from langtraj.errors import InputError
 from langtraj.executors import EXECUTORS
 from langtraj.fileio import atomic_path
 from langtraj.interdrive.dataset import WindowRecord, file_windows, iter_records, load_window, window_record
+from langtraj.interdrive.labels import WindowLabels
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import SAMPLE_ARRAYS, features_key, scene_sample
 from langtraj.scenario.model import Scenario
@@ -231,7 +233,8 @@ def _build_chunk(job: StoreJob, partial: Path) -> int:
     samples, lines = [], []
     for record, window in job.windows():
         samples.append(scene_sample(window, job.config))
-        lines.append(json.dumps({"record": record.to_json(), "deciders": sorted(deciders(window))}))
+        kept = replace(record, labels=WindowLabels(record.scenario_id))  # prompts stay; labels are the folder's
+        lines.append(json.dumps({"record": kept.to_json(), "deciders": sorted(deciders(window))}))
     tmp = partial / f".{job.folder}.tmp"
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
@@ -265,7 +268,8 @@ def build_store(
         raise InputError("nothing to store", path=out)
     config = jobs[0].config
     partial = out.with_name(out.name + ".partial")
-    plan = json.dumps([features_key(config), [[j.records and j.records[0].scenario_id, j.files] for j in jobs]])
+    chunks = [[j.records[0].scenario_id if j.records else None, len(j.records), list(j.files)] for j in jobs]
+    plan = json.dumps([features_key(config), chunks])
     plan_file = partial / "plan.json"
     if partial.exists() and (not plan_file.is_file() or plan_file.read_text() != plan):
         shutil.rmtree(partial)  # an earlier build of other windows or settings: start over
