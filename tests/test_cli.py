@@ -169,6 +169,16 @@ def test_console_script_is_installed(toy_file: Path) -> None:
     assert bad.stderr.count("\n") == 1 and "no such file" in bad.stderr
 
 
+def test_a_reader_that_leaves_early_is_not_an_error(toy_file: Path) -> None:
+    """`langtraj inspect FILE --json | head -1` under `set -o pipefail`: the closed pipe ends the command with 0
+    and nothing on standard error (a broken pipe is an OSError, caught before the generic branch)."""
+    command = [sys.executable, "-m", "langtraj.cli.main", "inspect", str(toy_file), "--json"]
+    job = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    job.stdout.close()  # the reader is gone before the first write
+    _, err = job.communicate(timeout=120)
+    assert job.returncode == 0 and err == b""
+
+
 # ------------------------------------------------------------------------------ render
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
@@ -68,14 +69,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     except LangTrajError as exc:
         print(f"langtraj {args.verb}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # the reader left, e.g. `langtraj inspect ... | head`: not an error (before OSError,
+        _silence_stdout()  # its base class); nothing more can be written, not even at exit
+        return 0
     except OSError as exc:  # the machine refused (disk full, permissions, a file where a folder must be)
         print(f"langtraj {args.verb}: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"langtraj {args.verb}: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # e.g. `langtraj inspect ... | head`
-        return 0
+
+
+def _silence_stdout() -> None:
+    """Point standard output at /dev/null, so the interpreter's flush at exit does not fail on the closed pipe."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
 
 
 if __name__ == "__main__":
