@@ -127,6 +127,9 @@ def test_bad_checkpoints_and_configs_are_input_errors(tmp_path):
     bad.write_text("colour: red\n")
     with pytest.raises(InputError, match="unknown keys colour"):
         load_config(bad)
+    bad.write_text("model: {history_steps: 5}\n")  # the samples keep their default 11
+    with pytest.raises(InputError, match=r"data\.history_steps.*11 steps of history in the samples, the model reads 5"):
+        load_config(bad)
 
 
 @pytest.mark.parametrize("name", ["tiny.yaml", "tiny-text.yaml", "base.yaml", "base-text.yaml", "base-ddp.yaml"])

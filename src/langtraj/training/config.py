@@ -157,6 +157,12 @@ class TrainConfig:
         for name in ("batch_size", "max_steps", "val_every_steps", "checkpoint_every_steps", "num_nodes"):
             require(getattr(self, name) >= 1, name, f"must be >= 1, got {getattr(self, name)}")
         require(
+            self.model.history_steps == self.data.history_steps,
+            "data.history_steps",
+            f"{self.data.history_steps} steps of history in the samples, the model reads {self.model.history_steps}"
+            " (model.history_steps): they must agree",
+        )
+        require(
             self.keep_every_steps is None or self.keep_every_steps >= 1,
             "keep_every_steps",
             f"must be >= 1, got {self.keep_every_steps}",
