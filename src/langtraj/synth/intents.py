@@ -17,16 +17,12 @@ import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from langtraj.scenario.model import STEP_SECONDS, BehaviorEvent
-
-if TYPE_CHECKING:  # the runner imports this module to drive the controller
-    from langtraj.synth.runner import LaneChangeRecord
-    from langtraj.synth.tracks import Track
-
+from langtraj.synth.records import LaneChangeRecord, Track
 
 KERB_MARGIN_M = 0.2
 """A pulled-over vehicle keeps this much room to the lane's outer edge (SUMO ignores a stop right on it)."""

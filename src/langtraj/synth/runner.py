@@ -18,6 +18,7 @@ import numpy as np
 
 from langtraj.scenario.types import AgentType
 from langtraj.synth.intents import AppliedDecision, IntentConfig, IntentController
+from langtraj.synth.records import LaneChangeRecord, RawTrack
 from langtraj.synth.sumo import STEP_LENGTH, SynthError, simulation_options
 
 # TraCI variable ids (traci.constants); spelled out so the runner does not import the TraCI client.
@@ -37,24 +38,6 @@ FOE_RANGE_M = 50.0
 """Junction foes are looked up for conflicts at most this far ahead of a vehicle."""
 
 
-@dataclass
-class RawTrack:
-    """What SUMO reported for one agent at each step it existed (front position, SUMO angle)."""
-
-    sumo_id: str
-    agent_type: AgentType
-    vclass: str
-    vtype: str
-    length: float
-    width: float
-    height: float
-    steps: list[int] = field(default_factory=list)
-    rows: list[tuple[float, float, float, float]] = field(default_factory=list)  # front x, y, SUMO angle, speed
-    lanes: list[int] = field(default_factory=list)  # interned lane (vehicles) or lane-of-edge (persons) ids
-    leaders: list[str] = field(default_factory=list)
-    gaps: list[float] = field(default_factory=list)
-
-
 @dataclass(frozen=True)
 class FoeObservation:
     """At `step`, vehicle `ego` has to respond to (yield to) `foe` at a junction conflict point.
@@ -71,19 +54,6 @@ class FoeObservation:
     ego_dist: float
     foe_dist: float
     mutual: bool
-
-
-@dataclass(frozen=True)
-class LaneChangeRecord:
-    """One row of SUMO's lane-change output (`changeStarted`, `change` or `changeEnded`)."""
-
-    tag: str
-    sumo_id: str
-    step: int
-    from_lane: str
-    to_lane: str
-    direction: int
-    reason: str
 
 
 @dataclass(frozen=True)

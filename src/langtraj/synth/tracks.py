@@ -10,46 +10,13 @@ See docs/data.md.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from langtraj.scenario.types import AgentType
 from langtraj.synth.convert import centre_from_front, heading_from_sumo_angle
-from langtraj.synth.runner import RawTrack
+from langtraj.synth.records import RawTrack, Track
 from langtraj.synth.smoothing import limit_yaw_rate, smooth_pedestrian
-
-
-@dataclass(frozen=True, eq=False)
-class Track:
-    """One agent over global steps [start, start + n): centres, headings, speeds and lanes.
-
-    `lane` indexes the simulation's interned lane names (-1 at invalid steps); `leader` is the track id of
-    the vehicle ahead within range (-1 when none) and `gap` the bumper-to-bumper distance to it.
-    """
-
-    track_id: int
-    sumo_id: str
-    agent_type: AgentType
-    vtype: str
-    size: tuple[float, float, float]
-    start: int
-    xy: np.ndarray  # float64 [n, 2]
-    heading: np.ndarray  # float64 [n]
-    speed: np.ndarray  # float64 [n]
-    valid: np.ndarray  # bool [n]
-    lane: np.ndarray  # int32 [n]
-    leader: np.ndarray  # int64 [n]
-    gap: np.ndarray  # float32 [n]
-
-    @property
-    def stop(self) -> int:
-        """One past the last global step of the track."""
-        return self.start + len(self.valid)
-
-    def local(self, step: int) -> int:
-        """Index into the arrays of global `step` (which must lie in [start, stop))."""
-        return step - self.start
 
 
 def _dense(raw: RawTrack) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
