@@ -17,7 +17,7 @@ from dataset_builders import TINY_TRAINING
 from langtraj.cli.main import main
 from langtraj.errors import InputError
 from langtraj.model.checkpoint import load_model
-from langtraj.training.recipe import label_sources, load_recipe
+from langtraj.training.recipe import corpus_shards, load_recipe
 
 SMALL = {
     **{k: v for k, v in TINY_TRAINING.items() if k not in ("name", "stage")},
@@ -80,7 +80,8 @@ def test_the_recipe_runs_every_stage_then_skips_them(recipe_file, tmp_path, caps
     assert main(["recipe", str(recipe_file), "--out", str(out), "--workers", "1"]) == 0
     printed = capsys.readouterr().out
     assert printed.count("skipped") == 5 and "cl: " in printed
-    assert "resuming from" in printed and "features" not in printed  # the stores are there already
+    assert "resuming from" in printed and "input: feature store" in printed  # cl reads its labels' store
+    assert not [line for line in printed.splitlines() if line.startswith("feature")]  # no store built again
 
 
 def test_the_label_subset_takes_whole_shards_from_every_kind_in_turn(tmp_path):
@@ -88,11 +89,11 @@ def test_the_label_subset_takes_whole_shards_from_every_kind_in_turn(tmp_path):
     manifest = {"shards": [{"file": f"shards/{k}-{i:04d}.tfrecord", "kind": k, "windows": w} for k, i, w in shards]}
     (tmp_path / "manifest.json").write_text(json.dumps(manifest))
     names = lambda paths: [p.name for p in paths]  # noqa: E731
-    assert names(label_sources(tmp_path, 75)) == ["a-0000.tfrecord", "b-0000.tfrecord", "c-0000.tfrecord"]
-    assert names(label_sources(tmp_path, 81)) == [
+    assert names(corpus_shards(tmp_path, 75)) == ["a-0000.tfrecord", "b-0000.tfrecord", "c-0000.tfrecord"]
+    assert names(corpus_shards(tmp_path, 81)) == [
         "a-0000.tfrecord", "a-0001.tfrecord", "b-0000.tfrecord", "c-0000.tfrecord"
     ]  # fmt: skip
-    assert len(label_sources(tmp_path, None)) == 6  # every shard with windows
+    assert len(corpus_shards(tmp_path, None)) == 6  # every shard with windows
     stages = [{"name": "s", "config": "s.yaml"}]
     with pytest.raises(InputError, match=r"labels\.windows"):
         load_recipe_text(tmp_path, {"name": "x", "labels": {"windows": 0}, "stages": stages})

@@ -88,12 +88,16 @@ def test_a_store_of_other_sample_settings_is_not_used_automatically_and_refused_
         SceneDataset(path, SMALL)
 
 
-def test_a_named_store_must_hold_every_window(tmp_path, labels_dir):
+def test_a_store_must_hold_every_window_of_the_labels(tmp_path, labels_dir):
     records = [r for _, shard in iter_records(labels_dir) for r in shard]
     partial = build_store([store_module.StoreJob(0, SMALL, records=tuple(records[:3]))], tmp_path / "s", say=_quiet)
     assert len(partial) == 3
     with pytest.raises(InputError, match="21 windows of the labels are not in it"):
         SceneDataset(labels_dir, SMALL, split="all", store=tmp_path / "s")
+    stale = default_store_path(labels_dir, SMALL)  # where "auto" looks: a store older than the labels
+    build_store([store_module.StoreJob(0, SMALL, records=tuple(records[:3]))], stale, say=_quiet)
+    with pytest.raises(InputError, match=r"21 windows of the labels are not in it.*rebuild"):
+        SceneDataset(labels_dir, SMALL, split="all")
 
 
 def test_a_killed_build_resumes_with_the_chunks_not_yet_done(labels_dir, monkeypatch):

@@ -388,9 +388,7 @@ def features_key(config: SampleConfig) -> dict[str, Any]:
     return {"version": FEATURES_VERSION} | {name: getattr(config, name) for name in _KEY_FIELDS}
 
 
-_FLOAT = ("agent_history", "agent_size", "current_state", "future", "map_points", "origin")
-_BOOL = ("history_valid", "agent_valid", "future_valid", "map_valid", "interaction_labelled")
-_LONG = ("agent_type", "map_type", "agent_id")
+_TORCH_DTYPES = {np.float32: torch.float32, np.bool_: torch.bool, np.int64: torch.long}
 
 
 def collate_scenes(samples: Sequence[dict[str, Any]]) -> SceneBatch:
@@ -398,10 +396,11 @@ def collate_scenes(samples: Sequence[dict[str, Any]]) -> SceneBatch:
     `collate_fn`."""
     if not samples:
         raise ValueError("cannot collate an empty list of samples")
-    tensors: dict[str, Any] = {}
-    for names, dtype in ((_FLOAT, torch.float32), (_BOOL, torch.bool), (_LONG, torch.long)):
-        for name in names:
-            tensors[name] = torch.as_tensor(np.stack([s[name] for s in samples]), dtype=dtype)
+    arrays = SAMPLE_ARRAYS | {"interaction_labelled": np.bool_}
+    tensors = {
+        name: torch.as_tensor(np.stack([s[name] for s in samples]), dtype=_TORCH_DTYPES[dtype])
+        for name, dtype in arrays.items()
+    }
     return SceneBatch(
         **tensors,
         text=[list(s["text"]) for s in samples],

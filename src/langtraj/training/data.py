@@ -149,9 +149,10 @@ class SceneDataset(Dataset):
     `data_dir` is a labels folder (`langtraj interdrive build`) or a feature store (`langtraj features
     build`, `langtraj.training.store`; a store built from scenario files has windows without labels, for
     stage 1). With a labels folder, `store` "auto" reads the samples from the folder's store for this
-    config when one covers every window (`default_store_path`), a path names a store that must, and None
-    decodes every window. With a store, a sample is a copy of stored arrays; without, a window is read
-    lazily (`load_window`) and the last `cache_size` windows read are kept per process.
+    config when there is one (`default_store_path`), a path names the store to read, and None decodes every
+    window; a store that lacks a window of the labels is an error (rebuild it), never a silent fallback.
+    With a store, a sample is a copy of stored arrays; without, a window is read lazily (`load_window`)
+    and the last `cache_size` windows read are kept per process.
 
     `split` "train" / "val" keeps the windows `split_of` assigns there (`val_fraction` of the scenes,
     the same on every run and for every seed), "all" keeps every window. Scenario files are checked to
@@ -181,7 +182,7 @@ class SceneDataset(Dataset):
             raise ValueError(f"split must be 'train', 'val' or 'all', got {split!r}")
         if not 0.0 <= val_fraction <= 1.0:
             raise ValueError(f"val_fraction must be in [0, 1], got {val_fraction}")
-        self.labels_dir = Path(data_dir)
+        self.data_dir = Path(data_dir)
         self.config = SampleConfig() if config is None else config
         self.split = split
         self.val_fraction = val_fraction
@@ -192,8 +193,8 @@ class SceneDataset(Dataset):
         self.store: FeatureStore | None = None
         rows: list[int] = []
         records: list[WindowRecord] = []
-        if is_store(self.labels_dir):
-            self.store = FeatureStore(self.labels_dir, self.config)
+        if is_store(self.data_dir):
+            self.store = FeatureStore(self.data_dir, self.config)
             for row, entry in enumerate(self.store.rows):
                 if split == "all" or split_of(entry.record, val_fraction) == split:
                     records.append(entry.record)
@@ -201,13 +202,13 @@ class SceneDataset(Dataset):
         else:
             records = [
                 rec
-                for _, shard in iter_records(self.labels_dir)
+                for _, shard in iter_records(self.data_dir)
                 for rec in shard
                 if split == "all" or split_of(rec, val_fraction) == split
             ]
-            self.store, rows = _store_rows(self.labels_dir, self.config, records, store)
+            self.store, rows = _store_rows(self.data_dir, self.config, records, store)
             if self.store is None:
-                _check_sources(records, self.labels_dir)
+                _check_sources(records, self.data_dir)
         self.records: tuple[WindowRecord, ...] = tuple(records)
         self._rows = np.asarray(rows, np.int64) if self.store is not None else None
         flags = np.array([has_interaction_prompt(r) for r in records], bool)
@@ -302,7 +303,7 @@ def _store_rows(
     labels_dir: Path, config: SampleConfig, records: list[WindowRecord], store: str | Path | None
 ) -> tuple[FeatureStore | None, list[int]]:
     """The feature store to read `records` from and each record's row in it; (None, []) when there is none
-    to use (`store` None, or "auto" without a store of this config covering every record)."""
+    to use (`store` None, or "auto" and no store of this config). A store that lacks some record is an error."""
     if store is None:
         return None, []
     path = default_store_path(labels_dir, config) if store == "auto" else Path(store)
@@ -311,11 +312,13 @@ def _store_rows(
     opened = FeatureStore(path, config)
     by_key = opened.rows_by_key()
     missing = [r for r in records if record_key(r) not in by_key]
-    if missing:
-        if store == "auto":
-            return None, []
+    if missing:  # a store older than the labels: never fall back to decoding without saying so
         example = missing[0].scenario_id
-        raise InputError(f"{len(missing)} windows of the labels are not in it (e.g. {example})", path=path)
+        raise InputError(
+            f"{len(missing)} windows of the labels are not in it (e.g. {example}); rebuild it with langtraj "
+            "features build, or delete it",
+            path=path,
+        )
     return opened, [by_key[record_key(r)] for r in records]
 
 

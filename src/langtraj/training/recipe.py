@@ -123,10 +123,11 @@ def _finish(folder: Path, record: dict[str, Any]) -> None:
         tmp.write_text(json.dumps(record, indent=2))
 
 
-def label_sources(corpus: Path, windows: int | None) -> list[Path]:
-    """The corpus shards to label: every one when `windows` is None, else whole shards taken in turn from
-    each kind (manifest order within a kind) until `windows` windows are covered, so every kind is in the
-    labelled subset. Files in manifest order."""
+def corpus_shards(corpus: Path, windows: int | None = None) -> list[Path]:
+    """The corpus's shards as its manifest lists them (not whatever else lies in its folder): every one with
+    windows when `windows` is None, else whole shards taken in turn from each kind (manifest order within a
+    kind) until `windows` windows are covered, so every kind is in the subset (the labelled one). Files in
+    manifest order."""
     from langtraj.synth.factory import read_factory_manifest
 
     shards = [s for s in read_factory_manifest(corpus)["shards"] if s["windows"]]
@@ -157,7 +158,6 @@ def run_recipe(
     one folder per stage. Returns the final checkpoint of the stage it ships (`Recipe.shipped_stage`).
     `max_steps` caps every stage (smoke runs)."""
     from langtraj.interdrive.dataset import BuildConfig, build_dataset
-    from langtraj.scenario.io import expand_scenario_paths
     from langtraj.synth.factory import FactoryConfig, run_factory
     from langtraj.synth.network import parse_kinds
     from langtraj.training.run import train
@@ -213,7 +213,7 @@ def run_recipe(
             labels,
             lambda: {
                 "windows": build_dataset(
-                    label_sources(corpus, recipe.labels.windows), labels, BuildConfig(seed=recipe.label_seed), workers
+                    corpus_shards(corpus, recipe.labels.windows), labels, BuildConfig(seed=recipe.label_seed), workers
                 )["windows"]
             },
         )
@@ -229,7 +229,7 @@ def run_recipe(
                 data = stored(
                     f"features {stage.name}",
                     out / "features" / f"corpus-{store_digest(config.data)}",
-                    lambda config=config: scenario_jobs(expand_scenario_paths([corpus / "shards"]), config.data),
+                    lambda config=config: scenario_jobs(corpus_shards(corpus), config.data),
                 )
             else:
                 stored(

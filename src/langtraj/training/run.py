@@ -138,6 +138,9 @@ def train(
         config = replace(config, max_steps=max_steps)
     pl.seed_everything(config.seed, workers=True, verbose=False)
     data = CorpusData(data_dir, config)
+    store = data.train_set.store
+    _say(f"input: feature store {store.path}" if store else "input: decoding every window (no feature store for "
+         "these sample settings; langtraj features build makes one)")  # fmt: skip
     report_map_coverage(data_dir, config, out)
     module = LangTrajModule(config.to_dict())
     ckpt_path = resolve_resume(resume, out)

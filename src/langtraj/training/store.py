@@ -228,8 +228,8 @@ def scenario_jobs(paths: Sequence[Path], config: SampleConfig, stride: int | Non
     ]
 
 
-def _build_chunk(job: StoreJob, partial: Path) -> int:
-    """Write one chunk folder (arrays and index) into `partial`, atomically; returns its window count."""
+def _build_chunk(job: StoreJob, partial: Path) -> None:
+    """Write one chunk folder (arrays and index) into `partial`, atomically."""
     samples, lines = [], []
     for record, window in job.windows():
         samples.append(scene_sample(window, job.config))
@@ -243,12 +243,10 @@ def _build_chunk(job: StoreJob, partial: Path) -> int:
         np.save(tmp / f"{name}.npy", values.astype(_STORED_DTYPES.get(name, dtype)))
     (tmp / INDEX_FILE).write_text("".join(line + "\n" for line in lines))
     os.replace(tmp, partial / job.folder)
-    return len(samples)
 
 
-def _run_job(item: tuple[StoreJob, Path]) -> tuple[int, int]:
-    job, partial = item
-    return job.number, _build_chunk(job, partial)
+def _run_job(item: tuple[StoreJob, Path]) -> None:
+    _build_chunk(*item)
 
 
 def build_store(
@@ -284,9 +282,9 @@ def build_store(
         done += 1
         if done % 10 == 0 or done == len(jobs):
             say(f"feature store: {done} of {len(jobs)} chunks")
-    chunks = [
-        {"folder": job.folder, "windows": sum(1 for _ in (partial / job.folder / INDEX_FILE).open())} for job in jobs
-    ]
+    # counted from the chunks on disk: a resumed build did not make all of them
+    counts = [(partial / job.folder / INDEX_FILE).read_text().count("\n") for job in jobs]
+    chunks = [{"folder": job.folder, "windows": n} for job, n in zip(jobs, counts, strict=True)]
     meta = {"key": features_key(config), "windows": sum(c["windows"] for c in chunks), "chunks": chunks}
     with atomic_path(partial / STORE_FILE) as tmp:
         tmp.write_text(json.dumps(meta, indent=1))
