@@ -9,13 +9,18 @@ import torch
 
 
 def synthetic_batch(
-    config, batch_size: int, seed: int = 0, agents: int | None = None, text_fraction: float | None = None
+    config,
+    batch_size: int,
+    seed: int = 0,
+    agents: int | None = None,
+    text_fraction: float | None = None,
+    sentence: str | None = None,
 ):
     """A full batch of the preset's sizes: agents on a square of the map radius driving straight at 0-15
     m/s, straight map pieces of 2-m spacing, and in stage 2 a distinct sentence for the data's
     `heuristic_label_fraction` of each scene's agents (text dropout off: the most sentences a step meets).
     `agents` overrides the preset's `max_agents` (a scene to sample), `text_fraction` the share of agents with a
-    sentence."""
+    sentence, and `sentence` gives them all that one sentence (the text encoder then encodes it once)."""
     from langtraj.model.batch import AGENT_HISTORY_FEATURES, SceneBatch
 
     data, model = config.data, config.model
@@ -41,7 +46,7 @@ def synthetic_batch(
     steps = torch.arange(p, dtype=torch.float32)[None, None, :, None] * 2.0
     fraction = data.heuristic_label_fraction if text_fraction is None else text_fraction
     texted = max(1, round(a * fraction)) if model.use_text else 0
-    text = [[f"scene {i}: agent {j} yields" if j < texted else None for j in range(a)] for i in range(b)]
+    text = [[(sentence or f"scene {i}: agent {j} yields") if j < texted else None for j in range(a)] for i in range(b)]
     return SceneBatch(
         agent_history=history,
         history_valid=torch.ones(b, a, h, dtype=torch.bool),

@@ -25,6 +25,8 @@ import torch
 from synthetic import synthetic_batch
 
 ROOT = Path(__file__).resolve().parents[1]
+SENTENCE = "the target agent turns left at the intersection"
+"""Every agent's sentence in the measured batches (as in the figures recorded since 2026-11-23)."""
 
 
 def measure(preset: str, steps: int, base_batch: int) -> dict:
@@ -36,7 +38,7 @@ def measure(preset: str, steps: int, base_batch: int) -> dict:
     device = "cuda" if torch.cuda.is_available() else "cpu"
 
     model = LangTraj(config.model).to(device)
-    batch = synthetic_batch(config, batch_size, text_fraction=1.0).to(device)
+    batch = synthetic_batch(config, batch_size, text_fraction=1.0, sentence=SENTENCE).to(device)
     optimizer = torch.optim.AdamW([p for p in model.parameters() if p.requires_grad], lr=1e-4)
     times = []
     for step in range(steps + 2):
@@ -50,7 +52,7 @@ def measure(preset: str, steps: int, base_batch: int) -> dict:
         if step >= 2:
             times.append(time.perf_counter() - start)
     model.eval()
-    scene = synthetic_batch(config, 1, agents=64, text_fraction=1.0).to(device)
+    scene = synthetic_batch(config, 1, agents=64, text_fraction=1.0, sentence=SENTENCE).to(device)
     sampling = {}
     for k in (5, 100):
         runs = []
