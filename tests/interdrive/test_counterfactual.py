@@ -1,6 +1,6 @@
 """Counterfactual prompts: behaviour kinds, feasibility from the map on constructed scenes, alternatives, warnings
 for infeasible typed prompts, and the hand-written free-text prompts (also the scene builders of
-tests/metrics/test_instruction_following.py and tests/sim/test_infeasible_prompt_warning.py)."""
+tests/metrics/test_instruction_following.py and tests/cli/test_simulate_prompt_warnings.py)."""
 
 from __future__ import annotations
 

@@ -8,6 +8,8 @@ connectivity, no neighbour lists), never guessing.
 `feasible_alternatives` turns the feasible behaviours, and going first or yielding in each interaction pair the
 log shows, into prompts, marking those the log itself shows (ground-truth prompts). `infeasible_manoeuvres`
 warns about a typed prompt asking for a turn or lane change the map does not allow.
+The hand-written free-text prompts (`FreeTextPrompt`, `load_free_text_prompts`) are in `free_text`, imported
+from here too.
 
 See docs/interdrive.md ('Counterfactual prompts and instruction following').
 """
@@ -15,19 +17,14 @@ See docs/interdrive.md ('Counterfactual prompts and instruction following').
 from __future__ import annotations
 
 import functools
-import json
 import math
 import re
-from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Literal
 
 import numpy as np
-import yaml
 
 from langtraj.angles import wrap_angle
-from langtraj.errors import InputError
 from langtraj.interdrive.adherence import AdherenceChecker, Fact, lane_change_side
 from langtraj.interdrive.behaviour import (
     BEHAVIOURS,
@@ -38,9 +35,11 @@ from langtraj.interdrive.behaviour import (
 )
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.detector import DetectorConfig
+from langtraj.interdrive.free_text import FreeTextPrompt as FreeTextPrompt  # re-exported: its import path stays
+from langtraj.interdrive.free_text import load_free_text_prompts as load_free_text_prompts
 from langtraj.interdrive.heuristics import HeuristicConfig
 from langtraj.interdrive.mapindex import SEGMENT_SPACING_M, MapIndex
-from langtraj.interdrive.prompts import Prompt, label_phrases, label_variants, mentions_in, parse_user_prompt
+from langtraj.interdrive.prompts import Prompt, label_phrases, label_variants, mentions_in
 from langtraj.interdrive.reader import read_prompt
 from langtraj.interdrive.taxonomy import LABELS_BY_KEY
 from langtraj.scenario.model import Scenario
@@ -539,71 +538,3 @@ def infeasible_manoeuvres(
     if len(changes) == 2 and any(verdicts[b].status != "infeasible" for b in changes):
         asked = tuple(b for b in asked if b not in changes)
     return tuple(ManoeuvreWarning(track, b, verdicts[b].reason) for b in asked if verdicts[b].status == "infeasible")
-
-
-# ---------------------------------------------------------------------------------------------- free text
-
-
-@dataclass(frozen=True)
-class FreeTextPrompt:
-    """A hand-written prompt outside the template grammar: `text` names the agent `{agent}` (and `{other}`),
-    `behaviour` is what it asks for."""
-
-    text: str
-    behaviour: Behaviour
-
-    @property
-    def needs_other(self) -> bool:
-        return "{other}" in self.text
-
-    def render(self, agent: int, other: int | None = None) -> str:
-        """The `@id` prompt for `agent` (and `other`)."""
-        if self.needs_other and other is None:
-            raise InputError(f"free-text prompt {self.text!r} needs another agent")
-        return self.text.replace("{agent}", f"@{agent}").replace("{other}", f"@{other}")
-
-    def entry(self, agent: int, other: int | None = None) -> tuple[PromptEntry, frozenset[Fact]]:
-        """The validated prompt entry (labelled with the behaviour's label or subtype) and the facts judging it."""
-        text = self.render(agent, other)
-        ids = [agent] if other is None else [agent, other]
-        facts = behaviour_facts(self.behaviour, agent, other if self.needs_other else None)
-        spec = BEHAVIOURS[self.behaviour]
-        subtype = next(iter(facts))[3] if spec.is_pair else None  # type: ignore[misc]
-        labels = spec.label_keys
-        parsed = parse_user_prompt(text, ids)
-        return PromptEntry.of(Prompt(parsed.text, parsed.mentions, subtype, labels, source="user")), facts
-
-
-def load_free_text_prompts(path: str | Path) -> tuple[FreeTextPrompt, ...]:
-    """Free-text prompts from a YAML or JSON list of `{text, behaviour}` entries; a bad entry raises InputError
-    naming it (an unknown behaviour, no `{agent}`, an `{other}` a single-agent behaviour does not take, a pair
-    behaviour without `{other}`)."""
-    path = Path(path)
-    try:
-        raw = path.read_text()
-        data = json.loads(raw) if path.suffix == ".json" else yaml.safe_load(raw)
-    except (OSError, ValueError, yaml.YAMLError) as exc:
-        raise InputError(f"cannot read free-text prompts: {exc}", path=path) from None
-    entries = data.get("prompts") if isinstance(data, Mapping) else data
-    if not isinstance(entries, list):
-        raise InputError("expected a list of prompts (or a mapping with a 'prompts' list)", path=path)
-    return tuple(_free_text(obj, path, f"prompts[{i}]") for i, obj in enumerate(entries))
-
-
-def _free_text(obj: object, path: Path, where: str) -> FreeTextPrompt:
-    if not isinstance(obj, Mapping) or not isinstance(obj.get("text"), str):
-        raise InputError("expected a mapping with a string 'text'", path=path, where=where)
-    try:
-        behaviour = Behaviour(str(obj.get("behaviour")))
-    except ValueError:
-        known = ", ".join(b.value for b in Behaviour)
-        raise InputError(
-            f"unknown behaviour {obj.get('behaviour')!r}; known: {known}", path=path, where=where
-        ) from None
-    prompt = FreeTextPrompt(" ".join(str(obj["text"]).split()), behaviour)
-    if "{agent}" not in prompt.text:
-        raise InputError("the text names no {agent}", path=path, where=where)
-    if prompt.needs_other != BEHAVIOURS[behaviour].is_pair:
-        need = "needs" if BEHAVIOURS[behaviour].is_pair else "takes no"
-        raise InputError(f"behaviour {behaviour.value!r} {need} {{other}}", path=path, where=where)
-    return prompt

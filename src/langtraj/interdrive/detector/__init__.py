@@ -3,9 +3,11 @@
 For real scenes (Waymo, nuScenes) and to pre-fill the labeling tool; docs/interdrive.md ('Interaction labels')
 describes it and docs/benchmarks.md ('InterDrive labels') measures it. One `InteractionRule` per interaction type,
 registered in `INTERACTION_RULES`; `detect_interactions` runs them all over one shared, lazily computed
-`SceneGeometry`. Modules: `config` (thresholds), `scene` (`SceneGeometry` and who stands), `paths` (paths, leaders,
-following), `lanes` (lane matches, lane leaders, roundabouts), `lane_changes` (lane changes, merges, overtakes),
-`yields` (held vehicles, conflict points), `crosswalks` (pedestrians), `rules` (the rules). Lane primitives shared
+`SceneGeometry`. Modules: `config` (thresholds), `arrays` (`SceneArrays`: the agents' arrays and who stands),
+`parts` (`Pair` and the `ScenePart` base), `scene` (`SceneGeometry`, its parts built in dependency order), `paths`
+(paths, leaders, following), `lanes` (lane matches, lane leaders, roundabouts), `lane_changes` (lane changes,
+merges, overtakes), `yields` (held vehicles, conflict points), `crosswalks` (pedestrians), `rules` (the rules); each
+part imports only the parts it reads, so no module imports one that imports it back. Lane primitives shared
 with the heuristic labeler (`LaneChange`, neighbour lanes, the road-side test of parked cars) are in `mapindex`.
 The rules mirror how `ground_truth.py` defines each type from SUMO's events, so the two can be compared with
 `evaluation.match_interactions`:
@@ -62,6 +64,7 @@ Labels are kept when they overlap [current_index, num_steps) by `min_window_s` (
 filter) and are sorted as the ground truth's.
 """
 
+from langtraj.interdrive.detector.arrays import SceneArrays
 from langtraj.interdrive.detector.config import DetectorConfig
 from langtraj.interdrive.detector.parts import Pair
 from langtraj.interdrive.detector.paths import Path
@@ -76,6 +79,7 @@ __all__ = [
     "LaneChange",
     "Pair",
     "Path",
+    "SceneArrays",
     "SceneGeometry",
     "detect_interactions",
 ]

@@ -9,13 +9,20 @@ from functools import cached_property
 import numpy as np
 from matplotlib.path import Path as MplPath
 
+from langtraj.interdrive.detector.arrays import SceneArrays
 from langtraj.interdrive.detector.parts import Pair, ScenePart
+from langtraj.interdrive.detector.yields import YieldGeometry
 from langtraj.runs import true_runs
 from langtraj.scenario.types import AgentType, MapFeatureType
 
 
 class CrosswalkGeometry(ScenePart):
-    """Crosswalk polygons, pedestrians on them, and the yields and waits around them."""
+    """Crosswalk polygons, pedestrians on them, and the yields and waits around them (held vehicles from
+    `yields`)."""
+
+    def __init__(self, arrays: SceneArrays, yields: YieldGeometry):
+        super().__init__(arrays)
+        self.yields = yields
 
     @cached_property
     def crosswalks(self) -> list[MplPath]:
@@ -45,7 +52,7 @@ class CrosswalkGeometry(ScenePart):
     def pedestrian_yields(self) -> list[Pair]:
         """Held vehicles whose look-ahead runs over a crosswalk with a pedestrian on it, to the nearest one."""
         cfg = self.config
-        held = self.scene.yields.held
+        held = self.yields.held
         hits: dict[tuple[int, int], list[int]] = {}
         ahead = np.linspace(0.5, cfg.ped_lookahead, 24)
         for c, cw in enumerate(self.crosswalks):

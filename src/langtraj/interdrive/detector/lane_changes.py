@@ -12,7 +12,10 @@ from functools import cached_property
 
 import numpy as np
 
+from langtraj.interdrive.detector.arrays import SceneArrays
+from langtraj.interdrive.detector.lanes import LaneGeometry
 from langtraj.interdrive.detector.parts import Pair, ScenePart
+from langtraj.interdrive.labels import AgentLabel
 from langtraj.interdrive.mapindex import LaneChange
 from langtraj.runs import true_runs
 
@@ -38,7 +41,13 @@ def _signed_offset(line: np.ndarray, point: np.ndarray) -> float:
 
 
 class LaneChangeGeometry(ScenePart):
-    """The lane changes of one scene, which of them are merges and overtakes, and the leaders around them."""
+    """The lane changes of one scene, which of them are merges and overtakes, and the leaders around them; from the
+    map lanes of `lanes`, else from the `changing_lanes` labels among `agent_labels`."""
+
+    def __init__(self, arrays: SceneArrays, lanes: LaneGeometry, agent_labels: tuple[AgentLabel, ...]):
+        super().__init__(arrays)
+        self.lanes = lanes
+        self.agent_labels = agent_labels
 
     def _neighbours(self, from_lane: int, to_lane: int) -> bool:
         """Whether map lanes `from_lane` and `to_lane` (feature ids) are side by side."""
@@ -57,7 +66,7 @@ class LaneChangeGeometry(ScenePart):
         cfg = self.config
         changes = []
         for a in np.flatnonzero(self.movers).tolist():
-            lanes = self.scene.lanes.per_step[a]
+            lanes = self.lanes.per_step[a]
             runs = [
                 (lane, s, e)
                 for lane in np.unique(lanes[lanes >= 0]).tolist()
@@ -94,7 +103,7 @@ class LaneChangeGeometry(ScenePart):
         steps = lo + np.flatnonzero(self.valid[a, lo : switch + cfg.lane_change_lateral_steps + 1])
         if steps.size < 2:
             return False
-        polylines = self.scene.lanes.polylines
+        polylines = self.lanes.polylines
         moves = [
             abs(_signed_offset(line, self.xy[a, steps[-1]]) - _signed_offset(line, self.xy[a, steps[0]]))
             for line in (polylines[i][0] for i in (from_lane, to_lane) if i in polylines)
@@ -105,7 +114,7 @@ class LaneChangeGeometry(ScenePart):
         index = {int(i): n for n, i in enumerate(self.ids)}
         return [
             LaneChange(index[lab.track_id], -1, -1, (lab.start + lab.end) // 2, lab.start, lab.end)
-            for lab in self.scene.agent_labels
+            for lab in self.agent_labels
             if lab.key == "changing_lanes" and lab.track_id in index
         ]
 
@@ -115,7 +124,7 @@ class LaneChangeGeometry(ScenePart):
         is no merge). A map without lane connectivity (nuScenes) shows no lane ending, so it has no merges."""
         by_id = self.scenario.road_map.by_id
         lane, target = by_id.get(change.from_lane), by_id.get(change.to_lane)
-        if lane is None or target is None or lane.exit_lanes or not self.scene.lanes.has_connectivity:
+        if lane is None or target is None or lane.exit_lanes or not self.lanes.has_connectivity:
             return False
         if target.exit_lanes:
             return True
@@ -141,11 +150,11 @@ class LaneChangeGeometry(ScenePart):
 
     def leader_after(self, change: LaneChange) -> int:
         """The leader on the target lane right after the switch (agent index, -1 when none)."""
-        return self.scene.lanes.leader(change.agent, min(change.switch + 1, self.num_steps - 1), change.to_lane)
+        return self.lanes.leader(change.agent, min(change.switch + 1, self.num_steps - 1), change.to_lane)
 
     def former_leader(self, change: LaneChange) -> int:
         """The leader on the lane left right before the switch (agent index, -1 when none)."""
-        return self.scene.lanes.leader(change.agent, max(change.switch - 1, 0), change.from_lane)
+        return self.lanes.leader(change.agent, max(change.switch - 1, 0), change.from_lane)
 
     @cached_property
     def overtakes(self) -> dict[LaneChange, Pair]:

@@ -13,12 +13,19 @@ from functools import cached_property
 import numpy as np
 
 from langtraj.angles import wrap_angle
+from langtraj.interdrive.detector.arrays import SceneArrays
 from langtraj.interdrive.detector.parts import ScenePart
+from langtraj.interdrive.detector.paths import PathGeometry
 from langtraj.interdrive.mapindex import LaneMatch
 
 
 class LaneGeometry(ScenePart):
-    """Lane matches, lane leaders, lane continuations and roundabouts of one scene."""
+    """Lane matches, lane leaders, lane continuations and roundabouts of one scene; `paths` gives the path leader
+    where the map has no lane."""
+
+    def __init__(self, arrays: SceneArrays, paths: PathGeometry):
+        super().__init__(arrays)
+        self.paths = paths
 
     @cached_property
     def polylines(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:
@@ -33,12 +40,8 @@ class LaneGeometry(ScenePart):
 
     def match(self, xy: np.ndarray, heading: np.ndarray, exclude_junctions: bool) -> LaneMatch:
         """The lane of each point: the nearest centreline within `lane_match_distance` among lanes (of any kind)
-        heading within `lane_match_heading`."""
-        cfg = self.config
-        return self.map_index.match_lanes(
-            xy, heading, radius=cfg.lane_match_distance, max_heading_diff=cfg.lane_match_heading,
-            heading_weight=0.0, drivable_only=False, exclude_junctions=exclude_junctions,
-        )  # fmt: skip
+        heading within `lane_match_heading` (`SceneArrays.match_lanes`)."""
+        return self.arrays.match_lanes(xy, heading, exclude_junctions)
 
     def lane_ids(self, xy: np.ndarray, heading: np.ndarray, exclude_junctions: bool) -> np.ndarray:
         """Map lane id of each point of `match` (-1 where none)."""
@@ -135,7 +138,7 @@ class LaneGeometry(ScenePart):
         its successors along a's way (heading along them); a's leader on its own path where the map has no such
         lane."""
         if lane_id < 0 or lane_id not in self.polylines:
-            return int(self.scene.paths.leaders[a, t])
+            return int(self.paths.leaders[a, t])
         cfg = self.config
         others = np.flatnonzero(self.movers & self.valid[:, t])
         others = others[others != a]

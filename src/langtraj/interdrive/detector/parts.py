@@ -1,15 +1,13 @@
 """What the detector's parts share: the `Pair` record they produce and the `ScenePart` base that gives each part
-its scene's arrays (docs/interdrive.md, 'Interaction labels')."""
+its scene's `SceneArrays` (docs/interdrive.md, 'Interaction labels')."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from langtraj.interdrive.detector.scene import SceneGeometry
+from langtraj.interdrive.detector.arrays import SceneArrays
 
 
 @dataclass(frozen=True)
@@ -24,23 +22,24 @@ class Pair:
 
 class ScenePart:
     """One group of per-scene quantities (paths, lanes, yields, ...), each computed once on first use, over the
-    arrays of its `SceneGeometry` (shared, not copied)."""
+    scene's `SceneArrays` (shared, not copied). A part that reads another is given it when built (see
+    `SceneGeometry`)."""
 
-    def __init__(self, scene: SceneGeometry):
-        self.scene = scene
-        self.scenario, self.config, self.map_index = scene.scenario, scene.config, scene.map_index
-        self.xy, self.heading, self.speed, self.accel = scene.xy, scene.heading, scene.speed, scene.accel
-        self.length, self.valid = scene.length, scene.valid
-        self.types, self.ids, self.movers = scene.types, scene.ids, scene.movers
+    def __init__(self, arrays: SceneArrays):
+        self.arrays = arrays
+        self.scenario, self.config, self.map_index = arrays.scenario, arrays.config, arrays.map_index
+        self.xy, self.heading, self.speed, self.accel = arrays.xy, arrays.heading, arrays.speed, arrays.accel
+        self.length, self.valid = arrays.length, arrays.valid
+        self.types, self.ids, self.movers = arrays.types, arrays.ids, arrays.movers
 
     @property
     def num_steps(self) -> int:
-        return self.scene.num_steps
+        return self.arrays.num_steps
 
     @property
     def static(self) -> np.ndarray:
-        return self.scene.static
+        return self.arrays.static
 
     @property
     def parked(self) -> np.ndarray:
-        return self.scene.parked
+        return self.arrays.parked

@@ -1,19 +1,19 @@
 """`SceneGeometry`: the per-scene quantities the detector's rules share (docs/interdrive.md, 'Interaction labels').
 
-It holds the agents' arrays and who stands all window; the rest lives in its parts, each computed once on first
-use: `paths` (paths, leaders, following), `lanes` (lane matches, lane leaders, roundabouts), `changes` (lane
-changes, merges, overtakes), `yields` (held vehicles, yields at conflict points) and `crossings` (pedestrians and
-crosswalks).
+It holds the agents' arrays and who stands all window (`SceneArrays`, in `arrays`); the rest lives in its parts,
+each computed once on first use and built here in dependency order, each given the parts it reads: `paths` (paths,
+leaders, following), `lanes` (lane matches, lane leaders, roundabouts), `changes` (lane changes, merges,
+overtakes), `yields` (held vehicles, yields at conflict points) and `crossings` (pedestrians and crosswalks).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from functools import cached_property
 
 import numpy as np
 
-from langtraj.interdrive.detector.config import MOVERS, DetectorConfig
+from langtraj.interdrive.detector.arrays import SceneArrays
+from langtraj.interdrive.detector.config import DetectorConfig
 from langtraj.interdrive.detector.crosswalks import CrosswalkGeometry
 from langtraj.interdrive.detector.lane_changes import LaneChangeGeometry
 from langtraj.interdrive.detector.lanes import LaneGeometry
@@ -21,8 +21,7 @@ from langtraj.interdrive.detector.paths import PathGeometry
 from langtraj.interdrive.detector.yields import YieldGeometry
 from langtraj.interdrive.labels import AgentLabel
 from langtraj.interdrive.mapindex import MapIndex
-from langtraj.scenario.model import STEP_SECONDS, Scenario
-from langtraj.scenario.types import StateField
+from langtraj.scenario.model import Scenario
 
 
 class SceneGeometry:
@@ -39,48 +38,27 @@ class SceneGeometry:
         self.agent_labels = tuple(agent_labels)
         self.config = config
         self.map_index = map_index or MapIndex.build(scenario.road_map)
-        agents = scenario.agents
-        self.xy = agents.xy.astype(np.float64)
-        self.heading = agents.heading.astype(np.float64)
-        self.speed = agents.speed.astype(np.float64)
-        self.valid = agents.valid
-        self.length = agents.states[..., StateField.LENGTH].astype(np.float64)
-        self.types = agents.types
-        self.ids = agents.ids
-        self.movers = np.isin(self.types, MOVERS)
-        steps = agents.num_steps
-        self.accel = np.gradient(self.speed, STEP_SECONDS, axis=1) if steps > 1 else np.zeros_like(self.speed)
+        self.arrays = arrays = SceneArrays.of(scenario, config, self.map_index)
+        self.xy, self.heading, self.speed, self.accel = arrays.xy, arrays.heading, arrays.speed, arrays.accel
+        self.length, self.valid = arrays.length, arrays.valid
+        self.types, self.ids, self.movers = arrays.types, arrays.ids, arrays.movers
         # the parts compute nothing until asked
-        self.paths = PathGeometry(self)
-        self.lanes = LaneGeometry(self)
-        self.changes = LaneChangeGeometry(self)
-        self.yields = YieldGeometry(self)
-        self.crossings = CrosswalkGeometry(self)
+        self.paths = PathGeometry(arrays)
+        self.lanes = LaneGeometry(arrays, self.paths)
+        self.changes = LaneChangeGeometry(arrays, self.lanes, self.agent_labels)
+        self.yields = YieldGeometry(arrays, self.paths, self.lanes)
+        self.crossings = CrosswalkGeometry(arrays, self.yields)
 
     @property
     def num_steps(self) -> int:
-        return self.scenario.num_steps
+        return self.arrays.num_steps
 
-    # ------------------------------------------------------------ standing agents
-    @cached_property
+    @property
     def static(self) -> np.ndarray:
-        """[A]: the agent stands over the whole window, history included: its valid positions span at most
-        `static_displacement` (a parked car, or one waiting all window long)."""
-        out = np.zeros(len(self.ids), bool)
-        for a in range(len(self.ids)):
-            pts = self.xy[a, self.valid[a]]
-            if len(pts):
-                out[a] = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) <= self.config.static_displacement
-        return out
+        """[A]: the agent stands all window (`SceneArrays.static`)."""
+        return self.arrays.static
 
-    @cached_property
+    @property
     def parked(self) -> np.ndarray:
-        """[A]: static and on no map lane at any step (the road side, a parking lot); every static agent where the
-        map has no lanes. The road-side test is `MapIndex.parked_decision` on the agent's lane match at every
-        valid step; undecided counts as parked."""
-        out = self.static.copy()
-        for a in np.flatnonzero(out).tolist():
-            steps = self.valid[a]
-            match = self.lanes.match(self.xy[a, steps], self.heading[a, steps], exclude_junctions=False)
-            out[a] = self.map_index.parked_decision(match, self.xy[a, steps])[0] is not False
-        return out
+        """[A]: the agent stands all window off the lanes (`SceneArrays.parked`)."""
+        return self.arrays.parked

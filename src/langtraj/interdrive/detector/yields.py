@@ -9,13 +9,22 @@ from functools import cached_property
 import numpy as np
 
 from langtraj.angles import wrap_angle
+from langtraj.interdrive.detector.arrays import SceneArrays
+from langtraj.interdrive.detector.lanes import LaneGeometry
 from langtraj.interdrive.detector.parts import Pair, ScenePart
+from langtraj.interdrive.detector.paths import PathGeometry
 from langtraj.runs import true_runs
 from langtraj.scenario.types import TrafficLightState
 
 
 class YieldGeometry(ScenePart):
-    """Which vehicle is held back, and which waits for whom where their paths cross."""
+    """Which vehicle is held back, and which waits for whom where their paths cross (over the `paths` and map
+    `lanes` of the scene)."""
+
+    def __init__(self, arrays: SceneArrays, paths: PathGeometry, lanes: LaneGeometry):
+        super().__init__(arrays)
+        self.paths = paths
+        self.lanes = lanes
 
     @cached_property
     def red(self) -> np.ndarray:
@@ -31,7 +40,7 @@ class YieldGeometry(ScenePart):
         for lane in self.scenario.road_map.lanes:
             cols = [column[n] for n in (lane.id, *lane.exit_lanes) if n in column]
             if cols:
-                on = self.scene.lanes.per_step == lane.id
+                on = self.lanes.per_step == lane.id
                 out |= on & ~go[:, cols].any(axis=1)[steps][None, :]
         stops = lights.stop_points[:, :2]
         rel = stops[None, None, :, :] - self.xy[:, :, None, :]  # [A, T, L, 2]
@@ -52,11 +61,11 @@ class YieldGeometry(ScenePart):
         """a's possible paths from its first valid step: its trajectory extended straight by `wait_extension`; for
         a vehicle standing all window (its way on is unknown), its lane and each chain of successor lanes instead
         (`LaneGeometry.continuations`, none on a signal-controlled approach); points [N, 2] and headings [N]."""
-        path = self.scene.paths.waiting[a]
+        path = self.paths.waiting[a]
         real = path.points[path.real]
         last = np.flatnonzero(self.valid[a])[-1]
         continue_on = self.config.continue_on_map and self.static[a] and self.held[a, last]
-        conts = self.scene.lanes.continuations(a) if continue_on else []
+        conts = self.lanes.continuations(a) if continue_on else []
         if not conts:
             return [(path.points, path.heading)]
         out = []
@@ -70,7 +79,7 @@ class YieldGeometry(ScenePart):
         """The first point of `branch` that b's path (trajectory and straight extension) crosses."""
         cfg = self.config
         pa, ha = branch
-        path_b = self.scene.paths.driven[b]
+        path_b = self.paths.driven[b]
         ahead = path_b.arc >= 0.0
         pb, hb = path_b.points[ahead], path_b.heading[ahead]
         if not len(pa) or not len(pb):
@@ -107,7 +116,7 @@ class YieldGeometry(ScenePart):
 
     def _queued(self, a: int, point: np.ndarray) -> np.ndarray:
         """[T]: a's leader (on a's path) is between a and `point`, so a waits behind it, not for a foe."""
-        lead = self.scene.paths.leaders[a]
+        lead = self.paths.leaders[a]
         out = np.zeros(self.num_steps, bool)
         steps = np.flatnonzero(lead >= 0)
         if not steps.size:
@@ -119,7 +128,7 @@ class YieldGeometry(ScenePart):
 
     def _candidate_pairs(self) -> list[tuple[int, int]]:
         """Ordered mover pairs whose trajectory boxes (grown by the wait extension) overlap."""
-        paths = self.scene.paths.driven
+        paths = self.paths.driven
         keys = sorted(paths)
         grow = self.config.wait_extension + self.config.conflict_radius
         boxes = {}

@@ -1,26 +1,8 @@
-"""Map queries and the lane primitives of the heuristic labeler and the interaction detector, built once per scene
-over a `RoadMap` (docs/interdrive.md describes both labelers).
-
-Lanes and road edges are resampled to short segments (at most `SEGMENT_SPACING_M` long) and bucketed in a
-uniform grid, so a batch of positions is matched to its nearest segments by vectorised numpy (no scipy).
-
-What each query relies on, and what it falls back to (each `*_source` attribute names it):
-- junction lanes: `MapFeature.interpolating` when any lane of the map sets it (WOMD v1.1+, synthesized maps);
-  otherwise geometry: a lane whose centerline crosses another lane's centerline at 30 degrees or more
-  (away from both lanes' ends, so lanes that merge or fan out from a shared point do not count), or a short
-  lane that turns sharply (at least 60 degrees within 40 m).
-- lane neighbours: `left_neighbors` / `right_neighbors` where the map has any; optionally (`infer_neighbors`)
-  geometry: a same-direction lane whose centerline runs 2.5-4.5 m beside this one; otherwise none. The detector
-  asks per lane pair instead (`neighbor_side` with `per_lane`).
-- parked vehicles: `parked_decision`, whether a vehicle standing all window is at the road side.
-- lane changes: both labelers report them as `LaneChange`.
-- lane connectivity (distance to the next junction): `exit_lanes` / `entry_lanes` only.
-- crosswalks and road edges: the `CROSSWALK` polygons and `ROAD_EDGE_*` polylines, where the map has any.
-"""
+"""`MapIndex`: the per-scene lane, junction, neighbour, crosswalk and road-edge queries over a `RoadMap` (see the
+package docstring; docs/interdrive.md, 'Single-agent labels')."""
 
 from __future__ import annotations
 
-import heapq
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -29,202 +11,27 @@ from typing import Literal
 import numpy as np
 
 from langtraj.angles import wrap_angle
+from langtraj.interdrive.mapindex.lane_graph import (
+    _ending_lanes,
+    _geometric_junctions,
+    _junction_distances,
+    _neighbor_spans,
+    _NeighborSpan,
+    _symmetric_links,
+)
+from langtraj.interdrive.mapindex.records import LaneMatch, LanePosition, Side
+from langtraj.interdrive.mapindex.segments import SegmentSet, _best_per_query, arc_lengths
 from langtraj.scenario.model import MapFeature, RoadMap
 from langtraj.scenario.types import MapFeatureType
 
-SEGMENT_SPACING_M = 1.0
-"""Longest segment after resampling lane and edge polylines (m)."""
-
-GRID_CELL_M = 3.0
-"""Side of a grid cell of the segment index (m)."""
-
-JUNCTION_CROSSING_ANGLE = math.radians(30.0)
-JUNCTION_CROSSING_DISTANCE_M = 0.6
-JUNCTION_END_MARGIN_M = 1.5
-JUNCTION_TURN_ANGLE = math.radians(60.0)
-JUNCTION_TURN_MAX_LENGTH_M = 40.0
 NEIGHBOR_MIN_OFFSET_M = 2.5
 NEIGHBOR_MAX_OFFSET_M = 4.5
 NEIGHBOR_BAND_M = (NEIGHBOR_MIN_OFFSET_M, NEIGHBOR_MAX_OFFSET_M)
 """Offset between a lane and a geometric neighbour lane, measured at a point on both (m)."""
 NEIGHBOR_MAX_HEADING_DIFF = math.radians(20.0)
 NEIGHBOR_STATION_TOLERANCE_M = 3.0
-JUNCTION_DISTANCE_CAP_M = 500.0
 
-LanePosition = Literal["leftmost", "middle", "rightmost", "single", "unknown"]
-Side = Literal["left", "right"]
 DRIVABLE_LANE_TYPES = (MapFeatureType.LANE_UNKNOWN, MapFeatureType.LANE_FREEWAY, MapFeatureType.LANE_SURFACE_STREET)
-
-
-def _resample(points: np.ndarray, spacing: float) -> np.ndarray:
-    """A 2-D polyline resampled at equal steps of at most `spacing`; duplicates dropped; [0, 2] if degenerate."""
-    xy = points[:, :2]
-    if len(xy) >= 2:
-        keep = np.concatenate([[True], np.linalg.norm(np.diff(xy, axis=0), axis=1) > 1e-6])
-        xy = xy[keep]
-    if len(xy) < 2:
-        return np.zeros((0, 2))
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
-    num = max(1, math.ceil(s[-1] / spacing))
-    s_new = np.linspace(0.0, s[-1], num + 1)
-    return np.stack([np.interp(s_new, s, xy[:, 0]), np.interp(s_new, s, xy[:, 1])], axis=1)
-
-
-def arc_lengths(points: np.ndarray) -> np.ndarray:
-    """Arc length at each point of a polyline."""
-    steps = np.linalg.norm(np.diff(points[:, :2], axis=0), axis=1)
-    return np.concatenate([[0.0], np.cumsum(steps)])
-
-
-@dataclass(frozen=True, eq=False)
-class SegmentSet:
-    """Short segments of several polylines in a uniform grid, for radius queries by many points at once."""
-
-    start: np.ndarray  # float64 [G, 2]
-    end: np.ndarray  # float64 [G, 2]
-    owner: np.ndarray  # int64 [G], index of the polyline the segment belongs to
-    station: np.ndarray  # float64 [G], arc length of the segment start along its polyline
-    heading: np.ndarray  # float64 [G]
-    owner_first: np.ndarray  # int64 [P], first segment of each polyline
-    owner_stop: np.ndarray  # int64 [P], one past its last segment
-    origin: np.ndarray  # float64 [2]
-    shape: tuple[int, int]
-    sorted_keys: np.ndarray  # int64 [G], grid cell of each segment, sorted
-    order: np.ndarray  # int64 [G], segment index of each sorted key
-
-    @classmethod
-    def build(cls, polylines: list[np.ndarray], spacing: float = SEGMENT_SPACING_M) -> SegmentSet:
-        """Resample `polylines` and index their segments; an empty or degenerate polyline gets no segments."""
-        starts, ends, owners, stations = [], [], [], []
-        first = np.zeros(len(polylines), np.int64)
-        stop = np.zeros(len(polylines), np.int64)
-        count = 0
-        for i, line in enumerate(polylines):
-            pts = _resample(line, spacing)
-            first[i] = count
-            if len(pts) >= 2:
-                starts.append(pts[:-1])
-                ends.append(pts[1:])
-                owners.append(np.full(len(pts) - 1, i, np.int64))
-                stations.append(arc_lengths(pts)[:-1])
-                count += len(pts) - 1
-            stop[i] = count
-        if count == 0:
-            empty = np.zeros((0, 2))
-            return cls(empty, empty, np.zeros(0, np.int64), np.zeros(0), np.zeros(0), first, stop, np.zeros(2), (0, 0),
-                       np.zeros(0, np.int64), np.zeros(0, np.int64))  # fmt: skip
-        start, end = np.concatenate(starts), np.concatenate(ends)
-        delta = end - start
-        mid = 0.5 * (start + end)
-        origin = mid.min(axis=0) - GRID_CELL_M
-        cells = np.floor((mid - origin) / GRID_CELL_M).astype(np.int64)
-        shape = (int(cells[:, 0].max()) + 2, int(cells[:, 1].max()) + 2)
-        keys = cells[:, 0] * shape[1] + cells[:, 1]
-        order = np.argsort(keys, kind="stable")
-        return cls(
-            start,
-            end,
-            np.concatenate(owners),
-            np.concatenate(stations),
-            np.arctan2(delta[:, 1], delta[:, 0]),
-            first,
-            stop,
-            origin,
-            shape,
-            keys[order],
-            order,
-        )
-
-    def __len__(self) -> int:
-        return len(self.owner)
-
-    def candidates(self, xy: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-        """Pairs (query index, segment index) of every segment that may lie within `radius` of a query point."""
-        if len(self) == 0 or len(xy) == 0:
-            return np.zeros(0, np.int64), np.zeros(0, np.int64)
-        reach = math.ceil((radius + SEGMENT_SPACING_M / 2) / GRID_CELL_M)
-        cells = np.floor((xy - self.origin) / GRID_CELL_M).astype(np.int64)
-        offsets = np.arange(-reach, reach + 1)
-        cx = (cells[:, 0:1] + offsets[None, :])[:, :, None]
-        cy = (cells[:, 1:2] + offsets[None, :])[:, None, :]
-        inside = (cx >= 0) & (cx < self.shape[0]) & (cy >= 0) & (cy < self.shape[1])
-        keys = np.where(inside, cx * self.shape[1] + cy, -1).reshape(len(xy), -1)
-        lo = np.searchsorted(self.sorted_keys, keys, "left").ravel()
-        hi = np.searchsorted(self.sorted_keys, keys, "right").ravel()
-        counts = hi - lo
-        total = int(counts.sum())
-        query = np.repeat(np.repeat(np.arange(len(xy)), keys.shape[1]), counts)
-        within = np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
-        return query, self.order[np.repeat(lo, counts) + within]
-
-    def project(self, xy: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Distance, signed lateral offset (left of the segment positive) and station of each point on its segment."""
-        a, b = self.start[segments], self.end[segments]
-        d = b - a
-        length = np.maximum(np.linalg.norm(d, axis=1), 1e-9)
-        rel = xy - a
-        t = np.clip((rel * d).sum(axis=1) / length**2, 0.0, 1.0)
-        dist = np.linalg.norm(rel - t[:, None] * d, axis=1)
-        side = np.where(d[:, 0] * rel[:, 1] - d[:, 1] * rel[:, 0] >= 0, 1.0, -1.0)
-        return dist, side * dist, self.station[segments] + t * length
-
-    def segments_of(self, owner: int) -> np.ndarray:
-        """Segment indices of polyline `owner`."""
-        return np.arange(self.owner_first[owner], self.owner_stop[owner])
-
-
-def _best_per_query(query: np.ndarray, cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For each query with at least one pair, the position (into the pair arrays) of its cheapest pair."""
-    if len(query) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    order = np.lexsort((cost, query))
-    q_sorted = query[order]
-    first = np.concatenate([[True], q_sorted[1:] != q_sorted[:-1]])
-    return q_sorted[first], order[first]
-
-
-@dataclass(frozen=True, eq=False)
-class LaneMatch:
-    """Best lane of each query point; `lane` is an index into `MapIndex.lane_ids`, -1 where none matched."""
-
-    lane: np.ndarray  # int64 [N]
-    distance: np.ndarray  # float64 [N], distance to the centerline, inf where none
-    lateral: np.ndarray  # float64 [N], signed offset from the centerline (left positive), nan where none
-    station: np.ndarray  # float64 [N], arc length along the lane, nan where none
-    heading: np.ndarray  # float64 [N], centerline heading there, nan where none
-
-    @property
-    def matched(self) -> np.ndarray:
-        return self.lane >= 0
-
-
-@dataclass(frozen=True)
-class LaneChange:
-    """Agent index `agent` switches from lane `from_lane` to neighbour lane `to_lane` (map feature ids, -1 where
-    unknown) at window step `switch`, over window steps [start, end).
-
-    The detector fills only these; the heuristic labeler also the `side` of the new lane, the `lateral`
-    displacement across the lanes (m, left positive) and the lane positions left and entered."""
-
-    agent: int
-    from_lane: int
-    to_lane: int
-    switch: int
-    start: int
-    end: int
-    side: Side | None = None
-    lateral: float | None = None
-    from_position: LanePosition = "unknown"
-    to_position: LanePosition = "unknown"
-
-
-@dataclass(frozen=True)
-class _NeighborSpan:
-    """A neighbour lane along stations [start, end] of a lane."""
-
-    lane: int
-    start: float
-    end: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -581,116 +388,6 @@ class MapIndex:
 
 def _covers(spans: tuple[_NeighborSpan, ...], station: float) -> bool:
     return any(s.start - NEIGHBOR_STATION_TOLERANCE_M <= station <= s.end + NEIGHBOR_STATION_TOLERANCE_M for s in spans)
-
-
-def _symmetric_links(
-    exits: tuple[tuple[int, ...], ...], entries: tuple[tuple[int, ...], ...]
-) -> tuple[tuple[tuple[int, ...], ...], tuple[tuple[int, ...], ...]]:
-    """Exit and entry lists completed from each other (a source may fill only one side)."""
-    ex = [set(e) for e in exits]
-    en = [set(e) for e in entries]
-    for lane, outs in enumerate(exits):
-        for nxt in outs:
-            en[nxt].add(lane)
-    for lane, ins in enumerate(entries):
-        for prev in ins:
-            ex[prev].add(lane)
-    return tuple(tuple(sorted(e)) for e in ex), tuple(tuple(sorted(e)) for e in en)
-
-
-def _neighbor_spans(
-    lanes: list[MapFeature], index: dict[int, int]
-) -> tuple[tuple[tuple[_NeighborSpan, ...], ...], tuple[tuple[_NeighborSpan, ...], ...]]:
-    """Left and right neighbour spans (in stations) of each lane, completed with the reverse relations."""
-    left: list[list[_NeighborSpan]] = [[] for _ in lanes]
-    right: list[list[_NeighborSpan]] = [[] for _ in lanes]
-    stations = [arc_lengths(f.points) if len(f.points) else np.zeros(1) for f in lanes]
-    for i, feature in enumerate(lanes):
-        for side, mirror, neighbors in ((left, right, feature.left_neighbors), (right, left, feature.right_neighbors)):
-            for nb in neighbors:
-                j = index.get(nb.feature_id)
-                if j is None:
-                    continue
-                side[i].append(_NeighborSpan(j, *_station_range(stations[i], nb.self_start_index, nb.self_end_index)))
-                span = _station_range(stations[j], nb.neighbor_start_index, nb.neighbor_end_index)
-                if not any(s.lane == i for s in mirror[j]):
-                    mirror[j].append(_NeighborSpan(i, *span))
-    return tuple(tuple(s) for s in left), tuple(tuple(s) for s in right)
-
-
-def _ending_lanes(
-    exits: tuple[tuple[int, ...], ...],
-    left: tuple[tuple[_NeighborSpan, ...], ...],
-    right: tuple[tuple[_NeighborSpan, ...], ...],
-) -> np.ndarray:
-    """bool [L]: lanes without exit lanes beside a map neighbour that has some, i.e. lanes that end where the
-    road goes on (an acceleration lane, a lane drop). A map cut across the road leaves both without exits."""
-    ending = np.zeros(len(exits), bool)
-    for lane, outs in enumerate(exits):
-        if not outs:
-            ending[lane] = any(exits[s.lane] for s in (*left[lane], *right[lane]))
-    return ending
-
-
-def _station_range(stations: np.ndarray, start: int, end: int) -> tuple[float, float]:
-    last = len(stations) - 1
-    lo, hi = sorted((int(np.clip(start, 0, last)), int(np.clip(end, 0, last))))
-    return float(stations[lo]), float(stations[hi])
-
-
-def _geometric_junctions(lanes: SegmentSet, num_lanes: int, lengths: np.ndarray) -> np.ndarray:
-    """Junction lanes from geometry: centerlines crossing another at a large angle, or short sharp turns."""
-    junction = np.zeros(num_lanes, bool)
-    if len(lanes) == 0:
-        return junction
-    mid = 0.5 * (lanes.start + lanes.end)
-    query, seg = lanes.candidates(mid, JUNCTION_CROSSING_DISTANCE_M)
-    other = lanes.owner[seg] != lanes.owner[query]
-    query, seg = query[other], seg[other]
-    dist, _, station = lanes.project(mid[query], seg)
-    diff = np.abs(wrap_angle(lanes.heading[query] - lanes.heading[seg]))
-    folded = np.minimum(diff, np.pi - diff)
-    own_station = lanes.station[query] + 0.5 * np.linalg.norm(lanes.end[query] - lanes.start[query], axis=1)
-    own_len = lengths[lanes.owner[query]]
-    other_len = lengths[lanes.owner[seg]]
-    away = (
-        (own_station > JUNCTION_END_MARGIN_M)
-        & (own_station < own_len - JUNCTION_END_MARGIN_M)
-        & (station > JUNCTION_END_MARGIN_M)
-        & (station < other_len - JUNCTION_END_MARGIN_M)
-    )
-    hit = (dist <= JUNCTION_CROSSING_DISTANCE_M) & (folded >= JUNCTION_CROSSING_ANGLE) & away
-    junction[lanes.owner[query[hit]]] = True
-    for lane in range(num_lanes):
-        segs = lanes.segments_of(lane)
-        if len(segs) and lengths[lane] <= JUNCTION_TURN_MAX_LENGTH_M:
-            turn = abs(float(np.sum(wrap_angle(np.diff(lanes.heading[segs])))))
-            junction[lane] |= turn >= JUNCTION_TURN_ANGLE
-    return junction
-
-
-def _junction_distances(
-    junction: np.ndarray,
-    lengths: np.ndarray,
-    entries: tuple[tuple[int, ...], ...],
-) -> np.ndarray:
-    """Distance from each lane's start along the lane graph to the start of the nearest junction lane ahead
-    (Dijkstra backwards from the junction lanes, capped at `JUNCTION_DISTANCE_CAP_M`; inf beyond)."""
-    dist = np.full(len(junction), np.inf)
-    heap = [(0.0, int(j)) for j in np.flatnonzero(junction)]
-    for _, j in heap:
-        dist[j] = 0.0
-    heapq.heapify(heap)
-    while heap:
-        d, lane = heapq.heappop(heap)
-        if d > dist[lane]:
-            continue
-        for prev in entries[lane]:
-            cand = d + lengths[prev]
-            if not junction[prev] and cand < dist[prev] and cand <= JUNCTION_DISTANCE_CAP_M:
-                dist[prev] = cand
-                heapq.heappush(heap, (cand, prev))
-    return dist
 
 
 def _inside_polygon(xy: np.ndarray, polygon: np.ndarray) -> np.ndarray:
