@@ -30,6 +30,7 @@ from langtraj.guidance.costs import CollisionCost, GoalCost, KeepLaneCost, NoCol
 from langtraj.interdrive.prompts.compose import OTHER_PREFIX, TARGET, Prompt
 from langtraj.interdrive.targets import SPEED_CHANGE
 from langtraj.interdrive.taxonomy import LANE_POSITIONS, label_def
+from langtraj.scenario import FUTURE_STEPS
 
 SPEED_WEIGHT = 1 / 2.0**2
 LANE_WEIGHT = 1.0
@@ -56,7 +57,7 @@ class PromptAgents:
     target: int
     other: int | None
     current_state: Tensor
-    num_steps: int = 80
+    num_steps: int = FUTURE_STEPS
     dt: float = 0.1
     params: Mapping[str, str] = field(default_factory=dict)
 
@@ -296,7 +297,7 @@ def terms_for_prompt(
     subtype_id: str | None = None,
     label_keys: Sequence[str] = (),
     label_params: Mapping[str, Mapping[str, str]] | None = None,
-    num_steps: int = 80,
+    num_steps: int = FUTURE_STEPS,
     dt: float = 0.1,
 ) -> list[GuidanceTerm]:
     """The library's terms for one prompt: its interaction `subtype_id` (if any) and its `label_keys`.
@@ -341,7 +342,7 @@ def terms_for(
     current_state: Tensor,
     *,
     label_params: Mapping[str, Mapping[str, str]] | None = None,
-    num_steps: int = 80,
+    num_steps: int = FUTURE_STEPS,
     dt: float = 0.1,
 ) -> list[GuidanceTerm]:
     """`terms_for_prompt` for a composed `Prompt`: its first mention is the target agent, its second the

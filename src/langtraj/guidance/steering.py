@@ -24,15 +24,13 @@ from langtraj.guidance.library import AVOID_WEIGHT, SPEED_WEIGHT
 from langtraj.guidance.route import RouteCost, StationCost
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.targets import BehaviourTarget
-from langtraj.scenario.model import STEP_SECONDS
-from langtraj.scenario.windowing import WindowSpec
+from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS
 
 ROUTE_WEIGHT = 1.0  # per m^2 off the route
 REACH_WEIGHT = 1 / 5.0**2  # per m^2 short of a goal station
 HOLD_WEIGHT = 1 / 2.0**2  # per m^2 past a stop or conflict point
 CLEAR_WEIGHT = AVOID_WEIGHT  # per unit of summed disk overlap with the other agents (as the library keeps clear)
 CLEAR_BUFFER = 0.5  # m kept beyond touching
-FUTURE = WindowSpec().future  # simulated steps after the start
 
 
 class ClearOfOthersCost(NoCollisionCost):
@@ -84,14 +82,14 @@ class _Clock:
     elapsed: int
     horizon: int
 
-    def window(self, first: int = 1, last: int = FUTURE) -> tuple[int, int] | None:
+    def window(self, first: int = 1, last: int = FUTURE_STEPS) -> tuple[int, int] | None:
         """Plan steps [start, end) covering simulated steps first ... last; None when none is left."""
         start = max(first - self.elapsed - 1, 0)
         end = min(last - self.elapsed, self.horizon)
         return (start, end) if end > start else None
 
 
-def _route(s: Steering, clock: _Clock, first: int = 1, last: int = FUTURE, weight: float = ROUTE_WEIGHT) -> list:
+def _route(s: Steering, clock: _Clock, first: int = 1, last: int = FUTURE_STEPS, weight: float = ROUTE_WEIGHT) -> list:
     span = clock.window(first, last)
     if span is None or len(s.target.path) < 2:
         return []
@@ -106,7 +104,7 @@ def _station(s: Steering, clock: _Clock, station: float, mode: str, first: int, 
     return [GuidanceTerm(cost, weight)]
 
 
-def _speed(s: Steering, clock: _Clock, speed: float, first: int, last: int = FUTURE) -> list:
+def _speed(s: Steering, clock: _Clock, speed: float, first: int, last: int = FUTURE_STEPS) -> list:
     span = clock.window(first, last)
     if span is None:
         return []
@@ -128,7 +126,7 @@ def _turn(s: Steering, clock: _Clock) -> list:
     goal = s.target.station_of_goal
     terms = _route(s, clock)
     if goal is not None:
-        terms += _station(s, clock, goal, "reach", _steps(7.5), FUTURE, REACH_WEIGHT)
+        terms += _station(s, clock, goal, "reach", _steps(7.5), FUTURE_STEPS, REACH_WEIGHT)
     return terms
 
 
@@ -146,7 +144,7 @@ def _stop_step(s: Steering) -> int:
 def _stop(s: Steering, clock: _Clock) -> list:
     """Never past the stop point; standing still from when even braking gets there."""
     goal = s.target.station_of_goal or 0.0
-    terms = _station(s, clock, goal, "hold", 1, FUTURE, HOLD_WEIGHT)
+    terms = _station(s, clock, goal, "hold", 1, FUTURE_STEPS, HOLD_WEIGHT)
     return terms + _speed(s, clock, 0.0, _stop_step(s)) + _route(s, clock, weight=0.25 * ROUTE_WEIGHT)
 
 
@@ -155,7 +153,7 @@ def _pull_over(s: Steering, clock: _Clock) -> list:
     there (at most 5.5 s, so the stop lasts the 2 s the labeler asks)."""
     goal = s.target.station_of_goal or 0.0
     terms = _route(s, clock, first=_steps(2.0))
-    terms += _station(s, clock, goal, "hold", 1, FUTURE, HOLD_WEIGHT)
+    terms += _station(s, clock, goal, "hold", 1, FUTURE_STEPS, HOLD_WEIGHT)
     return terms + _speed(s, clock, 0.0, min(_stop_step(s), _steps(5.5)))
 
 
@@ -170,9 +168,13 @@ def _go_first(s: Steering, clock: _Clock) -> list:
     t = s.target
     if t.station_of_goal is None or t.other_eta is None:  # keep going, clear of the other agent
         return _speed(s, clock, max(t.current_speed, 3.0), 1) + _route(s, clock, weight=0.25) + _avoid(s, 1.0)
-    by = int(np.clip(_steps(t.other_eta - 1.0), 10, FUTURE))
+    by = int(np.clip(_steps(t.other_eta - 1.0), 10, FUTURE_STEPS))
     goal = t.station_of_goal + 5.0
-    return _station(s, clock, goal, "reach", by, FUTURE, REACH_WEIGHT) + _route(s, clock, weight=0.25) + _avoid(s, 1.0)
+    return (
+        _station(s, clock, goal, "reach", by, FUTURE_STEPS, REACH_WEIGHT)
+        + _route(s, clock, weight=0.25)
+        + _avoid(s, 1.0)
+    )
 
 
 def _yield(s: Steering, clock: _Clock) -> list:
@@ -181,7 +183,7 @@ def _yield(s: Steering, clock: _Clock) -> list:
     t = s.target
     if t.station_of_goal is None or t.other_eta is None:  # slow in the first half, clear of the other agent
         return _speed(s, clock, 0.3 * t.current_speed, 1, _steps(4.0)) + _avoid(s, 3.0)
-    until = int(np.clip(_steps(t.other_eta + 2.0), 20, FUTURE))
+    until = int(np.clip(_steps(t.other_eta + 2.0), 20, FUTURE_STEPS))
     hold = max(t.station_of_goal - 4.0, 0.0)
     terms = _station(s, clock, hold, "hold", 1, until, HOLD_WEIGHT)
     return terms + _speed(s, clock, 0.0, _steps(1.0), until) + _avoid(s, 3.0)

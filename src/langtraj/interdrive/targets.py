@@ -38,15 +38,14 @@ from langtraj.interdrive.counterfactual import (
     junction_chains,
 )
 from langtraj.interdrive.mapindex import MapIndex, arc_lengths
-from langtraj.scenario.model import STEP_SECONDS, Scenario
+from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
 from langtraj.scenario.types import AgentType, StateField
-from langtraj.scenario.windowing import WindowSpec
 
 PULL_OVER_DECELERATION = 1.5
 """Braking a pull-over is planned with (m/s^2): gentler, as it also moves sideways."""
 SPEED_CHANGE = 3.0
 """Speed gained or lost by speeding up or slowing down (m/s; the labelers need at least 1 m/s)."""
-HORIZON_S = WindowSpec().future * STEP_SECONDS
+HORIZON_S = FUTURE_STEPS * STEP_SECONDS
 """The simulated future the target must fit in (s)."""
 ROUTE_SPACING = 1.0
 """Spacing of a target's path points (m)."""

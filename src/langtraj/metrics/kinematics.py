@@ -27,6 +27,7 @@ def central_and(valid: np.ndarray) -> np.ndarray:
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
+    # Not `angles.wrap_angle`: the official WOSAC code's [-pi, pi) in the input's dtype, to agree with it to 1e-7.
     return (angle + np.pi) % (2 * np.pi) - np.pi
 
 

@@ -9,6 +9,7 @@ from typing import Any
 
 from langtraj.errors import InputError
 from langtraj.model.text_encoder import TextEncoderConfig
+from langtraj.scenario import FUTURE_STEPS, HISTORY_STEPS
 from langtraj.settings import dataclass_kwargs
 
 
@@ -24,7 +25,7 @@ class ModelConfig:
     encoder_layers: int = 2  # map self-attention + agent attention rounds in the scene encoder
     denoiser_blocks: int = 3  # (agent-agent, scene, text) attention triples in the denoiser
     dropout: float = 0.1
-    history_steps: int = 11  # history length the encoder reads (10 Hz, ending at the current step)
+    history_steps: int = HISTORY_STEPS  # history length the encoder reads (10 Hz, ending at the current step)
     num_actions: int = 16  # 0.5 s actions: 16 cover 8 s
     dynamics: str = "unicycle"
     vehicle_max_curvature: float = 0.25  # 1/m (a 4 m turn radius): vehicles cannot turn on the spot
@@ -92,8 +93,8 @@ class SampleConfig:
     max_agents: int = 32
     max_polylines: int = 96
     points_per_polyline: int = 20
-    history_steps: int = 11
-    future_steps: int = 80
+    history_steps: int = HISTORY_STEPS
+    future_steps: int = FUTURE_STEPS
     map_radius: float = 80.0
     map_selection: str = "agents"
     map_ahead_s: float = 8.0
@@ -132,12 +133,14 @@ class SampleConfig:
         network takes any number of agents and pieces; the map must still cover every one of them."""
         scale = max(num_agents / self.max_agents, 1.0)
         return replace(
-            self,
+            self.for_inference(self.text),
             max_agents=max(num_agents, 1),
             max_polylines=math.ceil(self.max_polylines * scale - 1e-9),
-            text_dropout=0.0,
-            history_dropout=0.0,
         )
+
+    def for_inference(self, text: bool) -> SampleConfig:
+        """These samples as a trained model is fed them: no text or history dropout, text on or off."""
+        return replace(self, text=text, text_dropout=0.0, history_dropout=0.0)
 
     def local_attention(self) -> LocalAttention:
         """The neighbourhood a model trained on these samples saw: its agent slots and map pieces."""

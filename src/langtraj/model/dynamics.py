@@ -8,20 +8,15 @@ See docs/model.md.
 
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 from typing import ClassVar
 
 import torch
 from torch import Tensor, nn
 
+from langtraj.angles import wrap_angle
 from langtraj.errors import InputError
 from langtraj.registry import Registry
-
-
-def wrap_angle(angle: Tensor) -> Tensor:
-    """Angles wrapped to (-pi, pi] (the torch twin of `langtraj.angles.wrap_angle`)."""
-    return math.pi - torch.remainder(math.pi - angle, 2 * math.pi)
 
 
 class Dynamics(nn.Module, ABC):

@@ -2,7 +2,7 @@
 
 The network predicts the clean actions (x0) of every agent from noisy ones; actions are integrated by
 the dynamics model into 10 Hz states, and the training loss compares those states with the logged
-future in the scene frame, masked by validity (paper 'LangTraj', DESIGN.md section 6).
+future in the scene frame, masked by validity (paper 'LangTraj'; docs/design.md, 'The model').
 
 See docs/model.md.
 """
@@ -15,6 +15,7 @@ from dataclasses import replace
 import torch
 from torch import Tensor, nn
 
+from langtraj.angles import wrap_angle
 from langtraj.model.batch import SceneBatch
 from langtraj.model.config import LocalAttention, ModelConfig
 from langtraj.model.denoiser import Denoiser
@@ -123,7 +124,7 @@ class LangTraj(nn.Module):
             weight = weight * torch.where(batch.has_text & batch.agent_valid, text_weight, 1.0)[..., None]
         count = weight.sum().clamp(min=1.0)
         position = ((states[..., :2] - future[..., :2]) ** 2).sum(-1)
-        dh = torch.remainder(states[..., 2] - future[..., 2] + torch.pi, 2 * torch.pi) - torch.pi
+        dh = wrap_angle(states[..., 2] - future[..., 2], interval="[-pi, pi)")
         position_loss = (position * weight).sum() / count
         heading_loss = (dh**2 * weight).sum() / count
         ade = (torch.sqrt(position + 1e-9) * weight).sum() / count

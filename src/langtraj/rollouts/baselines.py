@@ -122,6 +122,14 @@ class ConstantVelocity(RolloutBaseline):
         index = np.full(len(states), current_index, np.int64)
         return _extend(states, valid, index, current_index + 1 + np.arange(num_steps))
 
+    def model_states(self, states, valid, current_index, num_steps=FUTURE_STEPS) -> np.ndarray:
+        """The poses as the model's states [A, num_steps, 4] (x, y, heading, speed), float64; the speed is the
+        first step's displacement from the current position over `STEP_SECONDS`, held (constant velocity)."""
+        poses = self.poses(states, valid, current_index, num_steps)
+        current_xy = np.asarray(states, np.float64)[:, current_index, StateField.X : StateField.Y + 1]
+        speed = np.linalg.norm(poses[:, :1, :2] - current_xy[:, None], axis=-1, keepdims=True) / STEP_SECONDS
+        return np.concatenate([poses[..., :2], poses[..., 3:], np.broadcast_to(speed, poses[..., :1].shape)], -1)
+
 
 @BASELINES.register
 @dataclass(frozen=True)

@@ -20,9 +20,7 @@ import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_path
-
-FUTURE_STEPS = 80
-"""Simulated steps after the current one: 8 s at 10 Hz."""
+from langtraj.scenario import FUTURE_STEPS as FUTURE_STEPS  # simulated steps after the current one (re-exported)
 
 WOSAC_ROLLOUTS = 32
 """Joint rollouts per scenario in the Waymo Open Sim Agents Challenge."""

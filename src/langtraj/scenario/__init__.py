@@ -1,7 +1,10 @@
 """The Scenario data model, its file formats, windowing and agent selection. See docs/data.md."""
 
 from langtraj.scenario.model import (
+    FUTURE_STEPS,
+    HISTORY_STEPS,
     STEP_SECONDS,
+    WINDOW_STEPS,
     Agents,
     BehaviorEvent,
     BoundarySegment,
@@ -14,7 +17,10 @@ from langtraj.scenario.model import (
 from langtraj.scenario.types import AgentType, MapFeatureType, StateField, TrafficLightState
 
 __all__ = [
+    "FUTURE_STEPS",
+    "HISTORY_STEPS",
     "STEP_SECONDS",
+    "WINDOW_STEPS",
     "AgentType",
     "Agents",
     "BehaviorEvent",

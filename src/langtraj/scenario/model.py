@@ -1,6 +1,6 @@
 """The Scenario data model: the contract between readers, synthesis, labels, the model and metrics.
 
-Typed, immutable dataclasses over numpy arrays (DESIGN.md section 4). Arrays are validated and
+Typed, immutable dataclasses over numpy arrays (docs/design.md, 'The Scenario data model'). Arrays are validated and
 coerced to their contract dtypes on construction, so every consumer can rely on shapes and dtypes.
 Convert to tensors only at the model boundary.
 
@@ -24,6 +24,11 @@ from langtraj.scenario.types import NUM_STATE_FIELDS, AgentType, MapFeatureType,
 
 STEP_SECONDS = 0.1
 """Scenario time step (10 Hz), as in WOMD."""
+
+HISTORY_STEPS = 11
+FUTURE_STEPS = 80
+WINDOW_STEPS = HISTORY_STEPS + FUTURE_STEPS
+"""WOMD's window at 10 Hz: 1.1 s of history including the current step, then 8 s of future (91 steps)."""
 
 MPH_TO_MPS = 0.44704
 
@@ -448,6 +453,10 @@ class Scenario:
     @property
     def sdc_id(self) -> int | None:
         return None if self.sdc_index < 0 else int(self.agents.ids[self.sdc_index])
+
+    def logs_future(self, steps: int = FUTURE_STEPS) -> bool:
+        """True when the scene logs at least `steps` steps after the current one (default: WOMD's 8 s)."""
+        return self.num_steps - self.current_index - 1 >= steps
 
     # ------------------------------------------------------------------ derived scenes
     def select_agents(self, indices: Sequence[int] | np.ndarray) -> Scenario:

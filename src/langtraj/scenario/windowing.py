@@ -7,7 +7,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from langtraj.scenario.model import Scenario
+from langtraj.scenario.model import FUTURE_STEPS, HISTORY_STEPS, Scenario
 
 
 @dataclass(frozen=True)
@@ -17,8 +17,8 @@ class WindowSpec:
     `stride` is the step offset between consecutive window starts (default: non-overlapping).
     """
 
-    history: int = 11
-    future: int = 80
+    history: int = HISTORY_STEPS
+    future: int = FUTURE_STEPS
     stride: int | None = None
 
     def __post_init__(self) -> None:

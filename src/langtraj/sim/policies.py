@@ -141,10 +141,7 @@ class ConstantVelocityPolicy(Policy):
         plans = []
         for r in range(world.num_rollouts):
             tracks = world.states[r, world.driven].astype(np.float64)
-            poses = rule.poses(tracks, world.valid[r, world.driven], step, horizon)  # [A, H, 4]: x, y, z, heading
-            speed = np.linalg.norm(poses[:, :1, :2] - tracks[:, step, None, :2], axis=-1, keepdims=True) / STEP_SECONDS
-            speed = np.broadcast_to(speed, poses[..., :1].shape)
-            plans.append(np.concatenate([poses[..., :2], poses[..., 3:], speed], -1))
+            plans.append(rule.model_states(tracks, world.valid[r, world.driven], step, horizon))  # [A, H, 4]
         return np.stack(plans)
 
 
@@ -256,7 +253,7 @@ class LangTrajPolicy(Policy):
             )
         self.model = model.eval()
         self.levers = levers
-        self.data = replace(data, text=prompt is not None and levers.text, text_dropout=0.0, history_dropout=0.0)
+        self.data = data.for_inference(text=prompt is not None and levers.text)
         self.prompt = prompt
         self.prompt_texts = tuple(prompt_texts) if prompt_texts is not None else (prompt.text,) if prompt else ()
         self.terms = tuple(terms)

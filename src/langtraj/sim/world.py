@@ -103,7 +103,7 @@ class SimWorld:
             if not gap.any():
                 continue
             steps = np.arange(self.start + 1, self.end + 1)[gap]
-            xy = np.stack([cv.x[0, col], cv.y[0, col]], -1).astype(np.float64)  # [80, 2]
+            xy = np.stack([cv.x[0, col], cv.y[0, col]], -1).astype(np.float64)  # [FUTURE_STEPS, 2]
             step_length = np.linalg.norm(np.diff(xy, axis=0, prepend=states[row, self.start, None, :2]), axis=-1)
             poses = np.stack([xy[gap, 0], xy[gap, 1], cv.heading[0, col, gap], step_length[gap] / STEP_SECONDS], -1)
             block = states[row, steps]

@@ -15,7 +15,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from langtraj.scenario.model import STEP_SECONDS, Agents, BehaviorEvent, RoadMap, Scenario, TrafficLights
+from langtraj.scenario.model import (
+    FUTURE_STEPS,
+    HISTORY_STEPS,
+    STEP_SECONDS,
+    Agents,
+    BehaviorEvent,
+    RoadMap,
+    Scenario,
+    TrafficLights,
+)
 from langtraj.scenario.types import NUM_STATE_FIELDS, AgentType, StateField, TrafficLightState
 from langtraj.synth.network import InterestCentre
 from langtraj.synth.tracks import Track
@@ -54,8 +63,8 @@ for _char, _state in SUMO_SIGNAL_STATES.items():
 class WindowConfig:
     """How windows are cut and filtered."""
 
-    history: int = 11
-    future: int = 80
+    history: int = HISTORY_STEPS
+    future: int = FUTURE_STEPS
     stride_s: float = 2.5
     warmup_s: float = 60.0
     min_agents: int = 10

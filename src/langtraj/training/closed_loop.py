@@ -22,6 +22,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
+from langtraj.angles import wrap_angle
 from langtraj.guidance.costs import NoCollisionCost
 from langtraj.guidance.scene import GuidanceScene
 from langtraj.model.batch import SceneBatch
@@ -113,7 +114,7 @@ def closed_loop_loss(
     weight = (batch.future_valid[:, :, :steps] & free[..., None]).to(executed.dtype)
     count = weight.sum().clamp(min=1.0)
     position = ((executed[..., :2] - truth[..., :2]) ** 2).sum(-1)
-    dh = torch.remainder(executed[..., 2] - truth[..., 2] + torch.pi, 2 * torch.pi) - torch.pi
+    dh = wrap_angle(executed[..., 2] - truth[..., 2], interval="[-pi, pi)")
     position_loss = (position * weight).sum() / count
     heading_loss = (dh**2 * weight).sum() / count
     collision = collision_cost(executed, batch) if config.collision_weight > 0 else executed.new_zeros(())

@@ -22,7 +22,6 @@ from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.model.checkpoint import CHECKPOINT_FORMAT, restore_frozen, strip_frozen
 from langtraj.model.features import collate_scenes
 from langtraj.model.langtraj import LangTraj
-from langtraj.rollouts.container import FUTURE_STEPS
 from langtraj.sim.open_loop import open_loop_rollouts, sample_open_loop
 from langtraj.training.closed_loop import closed_loop_loss
 from langtraj.training.config import TrainConfig
@@ -115,7 +114,7 @@ class LangTrajModule(pl.LightningModule):
             if len(scores) >= val.wosac_scenes:
                 break
             scenario = dataset.window(index)
-            if scenario.num_steps - scenario.current_index - 1 < FUTURE_STEPS:
+            if not scenario.logs_future():
                 continue
             samples = sample_open_loop(
                 self.model, scenario, self.train_config.data, num_samples=val.wosac_rollouts,
