@@ -8,12 +8,12 @@ from types import SimpleNamespace
 import imageio.v3 as iio
 
 from langtraj.cli.main import main
+from langtraj.experiments import demo
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.counterfactual import make_alternative
 from langtraj.interdrive.targets import TargetUnavailable
 from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.scenario.io import read_scenario
-from langtraj.sim import demo
 
 
 def test_demo_writes_three_panels_and_a_summary(tiny_run, tmp_path, capsys):

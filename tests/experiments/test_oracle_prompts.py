@@ -10,11 +10,11 @@ from dataset_builders import write_dataset
 
 from langtraj.cli.main import main
 from langtraj.errors import InputError
+from langtraj.experiments.oracle_prompts import displacement_phrase, oracle_prompts, write_oracle_dataset
 from langtraj.interdrive.dataset import iter_records, load_window
 from langtraj.model.config import SampleConfig
 from langtraj.scenario.types import StateField
 from langtraj.training.data import SceneDataset
-from langtraj.training.oracle_prompts import displacement_phrase, oracle_prompts, write_oracle_dataset
 
 
 def test_the_phrase_rounds_to_the_bin_and_names_the_side():

@@ -12,7 +12,7 @@ from dataset_builders import write_dataset
 
 from langtraj.cli.main import main
 from langtraj.errors import InputError
-from langtraj.sim.realism import COLUMNS, Method
+from langtraj.experiments.realism import COLUMNS, Method
 
 FREE_TEXT = Path(__file__).parents[1] / "data" / "free_text_prompts.yaml"
 

@@ -9,15 +9,14 @@ import numpy as np
 import pytest
 from dataset_builders import make_record
 from scenario_builders import make_scenario
+from training.test_training import CONFIG
 
+from langtraj.experiments.text_gain import TextGainConfig, label_consistent_draws, text_gain_table
 from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.dataset import PromptEntry, write_manifest, write_shard
 from langtraj.model.checkpoint import load_model
 from langtraj.scenario.io import write_scenarios
 from langtraj.training.run import train
-from langtraj.training.text_gain import TextGainConfig, label_consistent_draws, text_gain_table
-
-from .test_training import CONFIG
 
 
 def _labelled_dataset(folder: Path, num_scenes: int = 16) -> Path:
@@ -83,7 +82,7 @@ def test_prior_samples_must_cover_the_scored_samples():
 
 
 def test_the_label_fraction_sets_how_many_agents_are_prompted(module):
-    from langtraj.training.evaluation import open_loop_table
+    from langtraj.experiments.open_loop import open_loop_table
 
     model, labels = module  # trained with heuristic_label_fraction 1.0
     kwargs = {"num_samples": 1, "steps": 2, "max_windows": 8}

@@ -16,6 +16,7 @@ from langtraj.errors import InputError
 from langtraj.model import ModelConfig
 from langtraj.model.checkpoint import load_model, read_checkpoint
 from langtraj.model.config import SampleConfig
+from langtraj.settings import read_yaml
 from langtraj.training.config import ClosedLoopConfig, TrainConfig, load_config
 from langtraj.training.run import train
 from langtraj.training.store import build_store, default_store_path, labelled_jobs
@@ -138,8 +139,13 @@ def test_the_presets_load(name):
     assert config.stage == (2 if "text" in name else 1)
 
 
-@pytest.mark.parametrize("path", sorted((ROOT / "configs" / "experiments").glob("*.yaml")), ids=lambda p: p.stem)
-def test_the_experiment_configs_load(path):
+EXPERIMENT_CONFIGS = sorted((ROOT / "configs" / "experiments").glob("*.yaml"))
+TRAINING_RUNS = [p for p in EXPERIMENT_CONFIGS if "experiment" not in read_yaml(p)]
+"""The training runs of the experiments (the other files there configure the tables, tests/experiments)."""
+
+
+@pytest.mark.parametrize("path", TRAINING_RUNS, ids=lambda p: p.stem)
+def test_the_experiment_training_runs_load(path):
     config = load_config(path)
     assert config.model.use_text == (config.stage == 2)  # stage 1 (the scaling cells) has no text branch
 

@@ -28,7 +28,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from langtraj.sim.demo import run_demo
+    from langtraj.experiments.demo import run_demo
 
     summary = run_demo(
         args.out,

@@ -1,107 +1,100 @@
 """`langtraj experiment open-loop|closed-loop|realism|instruction-following|oracle-prompts ...`: the experiments of
-docs/experiments.md.
+docs/experiments.md (`langtraj.experiments`).
 
 `open-loop`: minADE with and without the ground-truth prompt on held-out windows (optionally prompt
 adherence and the ceiling of the text gain); `closed-loop`: realism, controllability and safety of each
 method; `realism`: the closed-loop realism of each model or baseline driving every agent (the paper's
 closed-loop ablation, selection and guidance variants); `instruction-following`: closed-loop GT-IFR and F-IFR
 (ground-truth and feasible counterfactual prompts) with and without text, and the classifier-free guidance
-table; `oracle-prompts`: a copy of a dataset whose
-sentences state each agent's displacement, to check the text pathway apart from the labels. Training
-runs of an experiment are `langtraj train` with its committed config under `configs/experiments/`.
+table; `oracle-prompts`: a copy of a dataset whose sentences state each agent's displacement, to check the
+text pathway apart from the labels.
+
+The four tables take `--config FILE`, a YAML file of their settings under `configs/experiments/` (keys: the
+flags' long names with '_' for '-', lists for the repeatable ones, whose string forms stay as shorthand); flags
+given beside it override the file's values. Training runs of an experiment are `langtraj train` with its
+committed config under `configs/experiments/`.
 """
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
+
+S = argparse.SUPPRESS  # a flag not given leaves the setting to the config file or the settings' default
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("experiment", help="run an experiment of docs/experiments.md and print its table")
     sub = p.add_subparsers(dest="experiment", required=True, metavar="EXPERIMENT")
 
-    o = sub.add_parser("open-loop", help="minADE with and without text on held-out windows, per checkpoint")
-    o.add_argument("--data", required=True, type=Path, help="InterDrive dataset folder (its val split is held out)")
-    o.add_argument("--checkpoint", action="append", required=True, help="NAME=PATH, repeatable")
-    o.add_argument("--windows", type=int, default=None, help="score at most this many held-out windows")
-    o.add_argument("--samples", type=int, default=6)
-    o.add_argument("--steps", type=int, default=10, help="DDIM steps")
-    o.add_argument("--cfg", type=float, default=0.0, help="classifier-free guidance weight with text (0: plain)")
+    o = _table(sub, "open-loop", "minADE with and without text on held-out windows, per checkpoint")
+    o.add_argument("--data", type=Path, default=S, help="InterDrive dataset folder (its val split is held out)")
+    o.add_argument("--checkpoint", dest="checkpoints", action="append", default=S, help="NAME=PATH, repeatable")
+    o.add_argument("--windows", type=int, default=S, help="score at most this many held-out windows")
+    o.add_argument("--samples", type=int, default=S, help="samples per agent (default 6)")
+    o.add_argument("--steps", type=int, default=S, help="DDIM steps (default 10)")
+    o.add_argument("--cfg", type=float, default=S, help="classifier-free guidance weight with text (default 0: plain)")
     o.add_argument(
         "--label-fraction",
         type=float,
-        default=0.3,
-        help="share of the other labelled agents given a single-agent sentence (the paper's 0.3; the same for "
-        "every checkpoint, so all are scored on the same agents)",
+        default=S,
+        help="share of the other labelled agents given a single-agent sentence (the paper's 0.3, the default; the "
+        "same for every checkpoint, so all are scored on the same agents)",
     )
     o.add_argument(
         "--decision-first",
         action="store_true",
+        default=S,
         help="single-agent sentences go first to the agents that decide after the current step (synthesized scenes)",
     )
-    o.add_argument("--text-gain", action="store_true", help="also measure adherence and the text-gain ceiling")
-    o.add_argument("--prior-samples", type=int, default=48, help="draws without text for the ceiling")
-    o.add_argument("--json", type=Path, help="also write the figures here")
-    o.set_defaults(func=run_open_loop)
+    o.add_argument("--text-gain", action="store_true", default=S, help="also measure adherence and its ceiling")
+    o.add_argument("--prior-samples", type=int, default=S, help="draws without text for the ceiling (default 48)")
 
-    c = sub.add_parser("closed-loop", help="realism, controllability and safety per method, per dataset")
-    c.add_argument("--checkpoint", required=True, type=Path)
-    c.add_argument(
-        "--data", action="append", required=True, help="NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]] (val, --rollouts)"
-    )
-    c.add_argument("--windows", type=int, default=None, help="at most this many windows per dataset")
-    c.add_argument("--rollouts", type=int, default=8)
-    c.add_argument("--candidates", type=int, default=4)
-    c.add_argument("--steps", type=int, default=5, help="DDIM steps")
-    c.add_argument("--seed", type=int, default=0)
-    c.add_argument("--json", type=Path, help="also write every figure here")
-    c.set_defaults(func=run_closed_loop)
+    c = _table(sub, "closed-loop", "realism, controllability and safety per method, per dataset")
+    c.add_argument("--checkpoint", type=Path, default=S, help="trained checkpoint (shipped: the packaged one)")
+    _datasets(c, "NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]] (split default val), repeatable")
+    _closed_loop(c, rollouts=8)
 
-    e = sub.add_parser("realism", help="closed-loop realism per method (every agent driven, no text), per dataset")
+    e = _table(sub, "realism", "closed-loop realism per method (every agent driven, no text), per dataset")
     e.add_argument(
         "--method",
+        dest="methods",
         action="append",
-        required=True,
+        default=S,
         help="NAME=SPEC (no '=' in NAME): constant_velocity, stationary, log_replay, or "
-        "CKPT[|selector=S][|guidance=COST:W[+COST:W]]",
+        "CKPT[|selector=S][|guidance=COST:W[+COST:W]], repeatable",
     )
-    e.add_argument("--data", action="append", required=True, help="NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]] (val, 8)")
-    e.add_argument("--windows", type=int, default=None, help="at most this many windows per dataset")
-    e.add_argument("--candidates", type=int, default=4)
-    e.add_argument("--steps", type=int, default=5, help="DDIM steps (at most the model's K)")
-    e.add_argument("--seed", type=int, default=0)
-    e.add_argument("--json", type=Path, help="also write every figure here")
-    e.set_defaults(func=run_realism)
+    _datasets(e, "NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]] (split default val), repeatable")
+    _closed_loop(e, rollouts=8)
 
-    i = sub.add_parser(
+    i = _table(
+        sub,
         "instruction-following",
-        help="closed-loop GT-IFR and F-IFR (feasible counterfactual prompts) without a prompt and with each of its "
+        "closed-loop GT-IFR and F-IFR (feasible counterfactual prompts) without a prompt and with each of its "
         "levers (text, guidance, adherence-first selection)",
     )
-    i.add_argument("--checkpoint", required=True)
-    i.add_argument("--data", action="append", required=True, help="NAME=LABELS_DIR[:SPLIT] (split default val)")
-    i.add_argument("--windows", type=int, default=None, help="at most this many windows per dataset")
-    i.add_argument("--skip", type=int, default=0, help="pass over the first K windows of the split (default 0)")
-    i.add_argument("--agents", type=int, default=2, help="prompted agents per window")
-    i.add_argument("--counterfactuals", type=int, default=2, help="feasible counterfactual prompts per agent")
-    i.add_argument("--rollouts", type=int, default=4)
-    i.add_argument("--candidates", type=int, default=4)
-    i.add_argument("--steps", type=int, default=5, help="DDIM steps (at most the model's K)")
-    i.add_argument("--seed", type=int, default=0)
-    i.add_argument("--cfg", type=float, default=0.0, help="classifier-free guidance weight with text (default 0)")
+    i.add_argument("--checkpoint", type=Path, default=S, help="trained checkpoint (shipped: the packaged one)")
+    _datasets(i, "NAME=LABELS_DIR[:SPLIT] (split default val), repeatable")
+    _closed_loop(i, rollouts=4)
+    i.add_argument("--skip", type=int, default=S, help="pass over the first K windows of the split (default 0)")
+    i.add_argument("--agents", type=int, default=S, help="prompted agents per window (default 2)")
+    i.add_argument("--counterfactuals", type=int, default=S, help="feasible counterfactual prompts per agent (2)")
+    i.add_argument("--cfg", type=float, default=S, help="classifier-free guidance weight with text (default 0)")
     i.add_argument(
         "--conditions",
+        type=_names,
+        default=S,
         help="comma-separated conditions to run (default all): 'no prompt', text, guidance, 'text + guidance', default",
     )
-    i.add_argument("--on-road", type=float, default=None, help="on-road guidance weight (default: simulate's)")
-    i.add_argument("--no-collision", type=float, default=None, help="no-collision weight (default: simulate's)")
+    i.add_argument("--on-road", type=float, default=S, help="on-road guidance weight (default: simulate's)")
+    i.add_argument("--no-collision", type=float, default=S, help="no-collision weight (default: simulate's)")
     i.add_argument(
         "--free-text",
+        type=Path,
+        default=S,
         help="YAML/JSON of hand-written prompts per behaviour: each prompt is also run in their words (every lever)",
     )
-    i.add_argument("--json", help="also write every figure and judgement here")
-    i.set_defaults(func=run_instruction_following)
 
     r = sub.add_parser("oracle-prompts", help="a dataset copy whose sentences state each agent's displacement")
     r.add_argument("labels", type=Path, help="InterDrive dataset folder")
@@ -110,99 +103,47 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     r.set_defaults(func=run_oracle_prompts)
 
 
-def _positive(value: int | None, flag: str) -> None:
-    from langtraj.errors import InputError
-
-    if value is not None and value < 1:
-        raise InputError(f"must be >= 1, got {value}", where=flag)
-
-
-def run_open_loop(args: argparse.Namespace) -> int:
-    from langtraj.training.experiments import open_loop_experiment
-
-    for value, flag in ((args.windows, "--windows"), (args.samples, "--samples"), (args.steps, "--steps")):
-        _positive(value, flag)
-    open_loop_experiment(
-        args.data,
-        args.checkpoint,
-        windows=args.windows,
-        samples=args.samples,
-        steps=args.steps,
-        cfg=args.cfg,
-        label_fraction=args.label_fraction,
-        decision_first=args.decision_first,
-        text_gain=args.text_gain,
-        prior_samples=args.prior_samples,
-        json_out=args.json,
-    )
-    return 0
+def _table(sub: argparse._SubParsersAction, name: str, help: str) -> argparse.ArgumentParser:
+    """The parser of one table's verb, with the options every table has."""
+    p = sub.add_parser(name, help=help)
+    p.add_argument("--config", type=Path, help="YAML settings of this experiment (configs/experiments/)")
+    p.add_argument("--json", type=Path, default=S, help="also write every figure here")
+    p.set_defaults(func=run_table)
+    return p
 
 
-def run_closed_loop(args: argparse.Namespace) -> int:
-    from langtraj.sim.experiments import closed_loop_experiment
-
-    for value, flag in ((args.windows, "--windows"), (args.rollouts, "--rollouts"), (args.candidates, "--candidates")):
-        _positive(value, flag)
-    closed_loop_experiment(
-        args.checkpoint,
-        args.data,
-        windows=args.windows,
-        rollouts=args.rollouts,
-        candidates=args.candidates,
-        steps=args.steps,
-        seed=args.seed,
-        json_out=args.json,
-    )
-    return 0
+def _datasets(p: argparse.ArgumentParser, help: str) -> None:
+    p.add_argument("--data", dest="datasets", action="append", default=S, help=help)
 
 
-def run_realism(args: argparse.Namespace) -> int:
-    from langtraj.sim.realism import realism_experiment
-
-    for value, flag in ((args.windows, "--windows"), (args.candidates, "--candidates"), (args.steps, "--steps")):
-        _positive(value, flag)
-    realism_experiment(
-        args.method,
-        args.data,
-        windows=args.windows,
-        candidates=args.candidates,
-        steps=args.steps,
-        seed=args.seed,
-        json_out=args.json,
-    )
-    return 0
+def _closed_loop(p: argparse.ArgumentParser, rollouts: int) -> None:
+    """The closed-loop tables' simulation flags."""
+    p.add_argument("--windows", type=int, default=S, help="at most this many windows per dataset")
+    p.add_argument("--rollouts", type=int, default=S, help=f"rollouts per window (default {rollouts})")
+    p.add_argument("--candidates", type=int, default=S, help="candidates per replan (default 4)")
+    p.add_argument("--steps", type=int, default=S, help="DDIM steps, at most the model's K (default 5)")
+    p.add_argument("--seed", type=int, default=S, help="default 0")
 
 
-def run_instruction_following(args: argparse.Namespace) -> int:
-    from dataclasses import replace
+def _names(text: str) -> list[str]:
+    return [c.strip() for c in text.split(",") if c.strip()]
 
-    from langtraj.interdrive.counterfactual import load_free_text_prompts
-    from langtraj.sim.instruction import IFRSettings, instruction_following_experiment
 
-    settings = IFRSettings(
-        free_text=load_free_text_prompts(args.free_text) if args.free_text else (),
-        windows=args.windows,
-        agents=args.agents,
-        counterfactuals=args.counterfactuals,
-        rollouts=args.rollouts,
-        candidates=args.candidates,
-        steps=args.steps,
-        seed=args.seed,
-        cfg=args.cfg,
-        skip=args.skip,
-    )
-    if args.conditions:
-        settings = replace(settings, conditions=tuple(c.strip() for c in args.conditions.split(",") if c.strip()))
-    if args.on_road is not None:
-        settings = replace(settings, on_road=args.on_road)
-    if args.no_collision is not None:
-        settings = replace(settings, no_collision=args.no_collision)
-    instruction_following_experiment(args.checkpoint, args.data, settings, args.json)
+def run_table(args: argparse.Namespace) -> int:
+    """Build the experiment's settings from `--config` and the flags given, then run it."""
+    from dataclasses import fields
+
+    from langtraj.experiments import EXPERIMENTS, experiment_settings
+
+    names = {f.name for f in fields(EXPERIMENTS.get(args.experiment).settings)}
+    given: dict[str, Any] = {k: v for k, v in vars(args).items() if k in names}  # the flags given, by setting
+    settings = experiment_settings(args.experiment, args.config, given)
+    EXPERIMENTS.create(args.experiment).run(settings)
     return 0
 
 
 def run_oracle_prompts(args: argparse.Namespace) -> int:
-    from langtraj.training.oracle_prompts import write_oracle_dataset
+    from langtraj.experiments.oracle_prompts import write_oracle_dataset
 
     count = write_oracle_dataset(args.labels, args.out, args.bin)
     print(f"{count} windows with oracle prompts -> {args.out}")

@@ -1,8 +1,9 @@
 """The closed-loop experiment of docs/experiments.md: realism, controllability and safety of each method
 on held-out synthesized windows and on real scenes, one table per dataset.
 
-    langtraj experiment closed-loop --checkpoint CKPT --data NAME=LABELS_DIR[:SPLIT] [...] \
+    langtraj experiment closed-loop --checkpoint CKPT --data NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]] [...] \
         [--windows N] [--rollouts R] [--candidates M] [--json OUT]
+    langtraj experiment closed-loop --config configs/experiments/closed-loop.yaml   # the same as YAML
 
 Each window gets one ground-truth prompt from its InterDrive labels: an interaction prompt whose agents
 the model drives, else a single-agent one (windows with neither are skipped). Methods: constant velocity,
@@ -16,24 +17,30 @@ edges) and, for collision guidance, the adversary-target collision rate.
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from langtraj.errors import InputError
-from langtraj.fileio import atomic_path
+from langtraj.experiments.base import EXPERIMENTS, Experiment
+from langtraj.experiments.common import (
+    DatasetSpec,
+    cell,
+    held_out_windows,
+    markdown_table,
+    nanmean,
+    write_results,
+)
 from langtraj.guidance import CollisionCost, GuidanceTerm
-from langtraj.interdrive.dataset import PromptEntry, WindowRecord, iter_records, load_window, split_of
+from langtraj.interdrive.dataset import PromptEntry, WindowRecord
 from langtraj.metrics.controllability import collision_rate, min_ade, offroad_rate, pair_collision_rate
 from langtraj.metrics.features import SceneMap
 from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.model.checkpoint import load_model
 from langtraj.scenario.model import Scenario
+from langtraj.sim.checkpoints import checkpoint_path
 from langtraj.sim.config import SimConfig
 from langtraj.sim.engine import simulate
 from langtraj.sim.policies import (
@@ -75,57 +82,15 @@ def choose_prompt(record: WindowRecord, driven_ids: set[int]) -> PromptEntry | N
     return (interaction or fits or [None])[0]
 
 
-@dataclass(frozen=True)
-class DatasetSpec:
-    """`NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]]` as the experiments take it (split default val)."""
-
-    name: str
-    folder: str
-    split: str = "val"
-    rollouts: int | None = None
-
-    @classmethod
-    def parse(cls, item: str) -> DatasetSpec:
-        name, sep, rest = item.partition("=")
-        if not sep or not rest:
-            raise InputError(f"expected NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]], got {item!r}", where="--data")
-        folder, _, tail = rest.partition(":")
-        split, _, count = tail.partition(":")
-        try:
-            rollouts = int(count) if count else None
-        except ValueError:
-            raise InputError(f"rollouts must be a whole number, got {count!r}", where="--data") from None
-        if rollouts is not None and rollouts < 1:
-            raise InputError(f"rollouts must be >= 1, got {rollouts}", where="--data")
-        return cls(name, folder, split or "val", rollouts)
-
-
-def held_out_records(labels_dir: str, split: str, val_fraction: float = 0.1) -> list[WindowRecord]:
-    """The records of a dataset's `split` ("train", "val" by `split_of`, or "all"), in dataset order."""
-    if split not in ("train", "val", "all"):
-        raise InputError(f"split must be train, val or all, got {split!r}", where="--data")
-    return [
-        record
-        for _, records in iter_records(Path(labels_dir))
-        for record in records
-        if split == "all" or split_of(record, val_fraction) == split
-    ]
-
-
-def cases(labels_dir: str, split: str, max_windows: int | None) -> tuple[list[Case], int]:
-    """Windows of `split` with a usable prompt (at most `max_windows`) and how many were skipped."""
+def cases(spec: DatasetSpec, max_windows: int | None) -> tuple[list[Case], int]:
+    """Windows of the spec's split with a usable prompt (at most `max_windows`) and how many were skipped."""
     found, skipped = [], 0
-    for record in held_out_records(labels_dir, split):
+    for record, scenario in held_out_windows(spec):
         if max_windows is not None and len(found) >= max_windows:
             break
-        try:
-            scenario = load_window(record)
-        except FileNotFoundError:
-            raise InputError("scenario file not found", path=record.source) from None
         driven = model_agents(scenario)
         ids = {int(i) for i in scenario.agents.ids[driven]}
-        future_ok = scenario.num_steps - scenario.current_index - 1 >= 80
-        prompt = choose_prompt(record, ids) if future_ok else None
+        prompt = choose_prompt(record, ids) if scenario.logs_future() else None
         if prompt is None:
             skipped += 1
             continue
@@ -198,63 +163,71 @@ def run_experiment(loaded: LoadedModel, all_cases: list[Case], config: SimConfig
     for name, values in rows.items():
         if not values:
             continue
-        table[name] = {c: _nanmean([v[c] for v in values]) for c in COLUMNS} | {
+        table[name] = {c: nanmean([v[c] for v in values]) for c in COLUMNS} | {
             "windows": len(values),
             "seconds": seconds[name],
         }
     return {"table": table, "per_window": rows}
 
 
-def _nanmean(values: list[float]) -> float:
-    finite = [v for v in values if not math.isnan(v)]
-    return float(np.mean(finite)) if finite else math.nan
-
-
 def markdown(table: dict[str, dict[str, float]]) -> str:
     """The table as Markdown (NaN shown as a dash)."""
-
-    def cell(v: float) -> str:
-        return "–" if math.isnan(v) else f"{v:.3f}"
-
-    head = (
-        "| method | meta | kinematic | interactive | map | minADE (m) | collision | offroad | adv.–target collision |"
-    )
-    lines = [head, "|" + " --- |" * 9]
-    for name, r in table.items():
-        lines.append(f"| {name} | " + " | ".join(cell(r[c]) for c in COLUMNS) + " |")
-    return "\n".join(lines)
+    header = ("method", "meta", "kinematic", "interactive", "map", "minADE (m)", "collision", "offroad")
+    rows = [(name, *(cell(r[c]) for c in COLUMNS)) for name, r in table.items()]
+    return markdown_table((*header, "adv.–target collision"), rows)
 
 
-def closed_loop_experiment(
-    checkpoint: str | Path,
-    datasets: Sequence[str],
-    *,
-    windows: int | None = None,
-    rollouts: int = 8,
-    candidates: int = 4,
-    steps: int = 5,
-    seed: int = 0,
-    json_out: str | Path | None = None,
-) -> dict[str, dict]:
-    """The closed-loop table of every dataset (`NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]]`, default split val), printed as
-    Markdown; every figure is also written to `json_out` when given."""
-    loaded = load_model(checkpoint)
-    config = SimConfig(rollouts=rollouts, seed=seed)
+@dataclass(frozen=True)
+class ClosedLoopSettings:
+    """The closed-loop table's settings: one checkpoint, the datasets, at most `windows` windows of each, `rollouts`
+    per window (a dataset's own, when it gives them), `candidates` per replan, `steps` denoising steps, the seed,
+    and where to write every figure (None: nowhere)."""
+
+    checkpoint: Path
+    datasets: tuple[DatasetSpec, ...]
+    windows: int | None = None
+    rollouts: int = 8
+    candidates: int = 4
+    steps: int = 5
+    seed: int = 0
+    json: Path | None = None
+
+    def __post_init__(self) -> None:
+        if not self.datasets:
+            raise InputError("name at least one dataset", where="--data")
+        for flag in ("windows", "rollouts", "candidates"):
+            value = getattr(self, flag)
+            if value is not None and value < 1:
+                raise InputError(f"must be >= 1, got {value}", where=f"--{flag}")
+
+
+def closed_loop_experiment(settings: ClosedLoopSettings) -> dict[str, dict]:
+    """The closed-loop table of every dataset, printed as Markdown; every figure is also written to
+    `settings.json` when given."""
+    loaded = load_model(checkpoint_path(settings.checkpoint))
     results = {}
-    for item in datasets:
-        spec = DatasetSpec.parse(item)
-        name = spec.name
-        found, skipped = cases(spec.folder, spec.split, windows)
-        count = spec.rollouts or rollouts
-        result = run_experiment(loaded, found, replace(config, rollouts=count), candidates, steps)
+    for spec in settings.datasets:
+        found, skipped = cases(spec, settings.windows)
+        count = spec.rollouts or settings.rollouts
+        config = SimConfig(rollouts=count, seed=settings.seed)
+        result = run_experiment(loaded, found, config, settings.candidates, settings.steps)
         result["skipped_windows"] = skipped
-        results[name] = result
+        results[spec.name] = result
         print(
-            f"\n{name}: {len(found)} windows ({skipped} skipped: no prompt whose agents the model drives), "
-            f"{count} rollouts, {candidates} candidates per replan, K = {steps}"
+            f"\n{spec.name}: {len(found)} windows ({skipped} skipped: no prompt whose agents the model drives), "
+            f"{count} rollouts, {settings.candidates} candidates per replan, K = {settings.steps}"
         )
         print(markdown(result["table"]))
-    if json_out:
-        with atomic_path(json_out) as tmp:
-            tmp.write_text(json.dumps(results, indent=1, default=float))
+    write_results(settings.json, results)
     return results
+
+
+@EXPERIMENTS.register
+class ClosedLoopExperiment(Experiment):
+    """`langtraj experiment closed-loop`: realism, controllability and safety per method, per dataset."""
+
+    name = "closed-loop"
+    settings = ClosedLoopSettings
+
+    def run(self, settings: ClosedLoopSettings) -> dict[str, dict]:
+        return closed_loop_experiment(settings)

@@ -11,7 +11,8 @@ gives a target to steer toward (`interdrive.targets`), else the logged interacti
 The summary says, per panel, the share of rollouts in which the labelers find the prompt followed; the video
 marks the prompted agent's target (`viz.marks`).
 
-See docs/simulation.md.
+It lives among the experiments because, like them, it composes the packages below: synthesis, labels,
+simulation and rendering (`sim` itself reads neither `synth` nor `viz`). See docs/simulation.md.
 """
 
 from __future__ import annotations
@@ -98,7 +99,7 @@ def find_scene(files: list[Path], driven: int | None = None) -> DemoScene:
     for path in files:
         for record in label_file(path, BuildConfig()):
             scenario = load_window(record)
-            if scenario.num_steps - scenario.current_index - 1 < 80:
+            if not scenario.logs_future():
                 continue
             ids = {int(i) for i in scenario.agents.ids[prioritized_agents(scenario, driven)]}
             prompt = _pick_prompt(scenario, record.prompts, ids)

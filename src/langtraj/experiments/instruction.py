@@ -2,7 +2,8 @@
 
     langtraj experiment instruction-following --checkpoint CKPT --data NAME=LABELS_DIR[:SPLIT] \
         [--windows N] [--skip K] [--agents A] [--counterfactuals C] [--rollouts R] [--cfg W]
-        [--conditions NAME,...] [--json OUT]
+        [--conditions NAME,...] [--free-text PROMPTS.yaml] [--json OUT]
+    langtraj experiment instruction-following --config configs/experiments/instruction-following.yaml
 
 For each held-out window, up to `agents` driven vehicles (objects of interest first) get prompts from
 `interdrive.counterfactual.feasible_alternatives`: what the log shows (ground truth) and up to
@@ -18,19 +19,25 @@ offroad rates and minADE under their ground-truth prompts, and seconds per simul
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from langtraj.errors import InputError
-from langtraj.fileio import atomic_path
+from langtraj.experiments.base import EXPERIMENTS, Experiment
+from langtraj.experiments.common import DatasetSpec, cell, held_out_windows, markdown_table, write_results
 from langtraj.interdrive.adherence import AdherenceChecker
-from langtraj.interdrive.counterfactual import Alternative, Behaviour, FreeTextPrompt, feasible_alternatives
-from langtraj.interdrive.dataset import load_window
+from langtraj.interdrive.counterfactual import (
+    Alternative,
+    Behaviour,
+    FreeTextPrompt,
+    feasible_alternatives,
+    load_free_text_prompts,
+)
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.metrics.controllability import agent_rates, min_ade
 from langtraj.metrics.features import SceneMap
@@ -40,9 +47,9 @@ from langtraj.model.checkpoint import load_model
 from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
+from langtraj.sim.checkpoints import checkpoint_path
 from langtraj.sim.config import ALL_LEVERS, PromptLevers, SimConfig
 from langtraj.sim.engine import simulate
-from langtraj.sim.experiments import DatasetSpec, held_out_records
 from langtraj.sim.policies import (
     DEFAULT_NO_COLLISION,
     DEFAULT_ON_ROAD,
@@ -68,8 +75,11 @@ REALISM = ("meta", "kinematic", "interactive", "map")
 
 @dataclass(frozen=True)
 class IFRSettings:
-    """What the experiment runs: prompts per window, closed-loop settings, the guidance weights to compare."""
+    """What the experiment runs: the checkpoint and datasets, prompts per window, closed-loop settings, the
+    guidance weights to compare, and where to write every figure and judgement (None: nowhere)."""
 
+    checkpoint: Path
+    datasets: tuple[DatasetSpec, ...]
     windows: int | None = None
     skip: int = 0
     """Windows of the split passed over first (settings are chosen on windows that the report leaves out)."""
@@ -84,11 +94,14 @@ class IFRSettings:
     on_road: float = DEFAULT_ON_ROAD
     no_collision: float = DEFAULT_NO_COLLISION
     conditions: tuple[str, ...] = tuple(CONDITIONS)
-    free_text: tuple[FreeTextPrompt, ...] = ()
-    """Hand-written prompts: each prompt of a behaviour they cover is also run in their words, with every
-    lever, as the condition 'default, free text'."""
+    free_text: Path | None = None
+    """Hand-written prompts (`interdrive.counterfactual.load_free_text_prompts`): each prompt of a behaviour they
+    cover is also run in their words, with every lever, as the condition 'default, free text'."""
+    json: Path | None = None
 
     def __post_init__(self) -> None:
+        if not self.datasets:
+            raise InputError("name at least one dataset", where="--data")
         for name in ("agents", "rollouts", "candidates", "steps"):
             if getattr(self, name) < 1:
                 raise InputError(f"must be >= 1, got {getattr(self, name)}", where=f"--{name}")
@@ -106,6 +119,10 @@ class IFRSettings:
                 f"conditions must include {NO_PROMPT!r} and be among {', '.join(CONDITIONS)}; got {self.conditions}",
                 where="--conditions",
             )
+
+    def free_text_prompts(self) -> tuple[FreeTextPrompt, ...]:
+        """The hand-written prompts of `free_text` (none without it)."""
+        return load_free_text_prompts(self.free_text) if self.free_text else ()
 
 
 @dataclass(frozen=True)
@@ -151,14 +168,10 @@ def ifr_cases(spec: DatasetSpec, settings: IFRSettings) -> tuple[list[IFRCase], 
     """The windows of the dataset's split with prompts (at most `settings.windows`) and how many had none."""
     rng = np.random.default_rng(settings.seed)
     found, skipped = [], 0
-    for record in held_out_records(spec.folder, spec.split)[settings.skip :]:
+    for _, scenario in held_out_windows(spec, skip=settings.skip):
         if settings.windows is not None and len(found) >= settings.windows:
             break
-        try:
-            scenario = load_window(record)
-        except FileNotFoundError:
-            raise InputError("scenario file not found", path=record.source) from None
-        if scenario.num_steps - scenario.current_index - 1 < 80:
+        if not scenario.logs_future():
             skipped += 1
             continue
         prompts, checker = choose_prompts(scenario, settings, rng)
@@ -255,9 +268,16 @@ def _run_prompts(
     return row
 
 
-def run_case(loaded: LoadedModel, case: IFRCase, settings: IFRSettings, pick: int = 0) -> dict[str, dict]:
+def run_case(
+    loaded: LoadedModel,
+    case: IFRCase,
+    settings: IFRSettings,
+    pick: int = 0,
+    free_text: Sequence[FreeTextPrompt] = (),
+) -> dict[str, dict]:
     """Per condition: judgements, realism rows (one per simulation), the prompted agents' collision and offroad
-    rates and the ground-truth prompts' agents' minADE, and seconds spent simulating."""
+    rates and the ground-truth prompts' agents' minADE, and seconds spent simulating; with `free_text`, the
+    prompts it covers in its words too."""
     config = SimConfig(rollouts=settings.rollouts, seed=settings.seed)
     scene_map = SceneMap.from_scenario(case.scenario)
     out: dict[str, dict] = {}
@@ -274,8 +294,8 @@ def run_case(loaded: LoadedModel, case: IFRCase, settings: IFRSettings, pick: in
     for condition in settings.conditions:
         if condition != NO_PROMPT:
             out[condition] = _run_prompts(loaded, case, settings, scene_map, case.prompts, condition)
-    if settings.free_text:
-        worded = [in_free_text(p, settings.free_text, pick + i) for i, p in enumerate(case.prompts)]
+    if free_text:
+        worded = [in_free_text(p, free_text, pick + i) for i, p in enumerate(case.prompts)]
         covered = [p for p in worded if p is not None]
         if covered:
             out["default, free text"] = _run_prompts(loaded, case, settings, scene_map, covered, "default")
@@ -313,48 +333,36 @@ def summarize(per_case: Sequence[dict[str, dict]]) -> dict[str, dict]:
     return table
 
 
-def _cell(value: float | None) -> str:
-    return "–" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.3f}"
-
-
 def markdown(table: dict[str, dict]) -> str:
     """The conditions' table (the paper's realism columns, the prompted agents' safety, GT-IFR and F-IFR, seconds
     per simulation), then F-IFR and GT-IFR per behaviour kind."""
     columns = (*REALISM, "minade", "prompted_collision", "prompted_offroad", "gt_ifr", "f_ifr")
-    lines = [
-        "| condition | meta | kinematic | interactive | map | minADE (m) | prompted collision | prompted offroad "
-        "| GT-IFR | F-IFR | s / simulation |",
-        "|" + " --- |" * 11,
-    ]
-    for name, row in table.items():
-        cells = [_cell(row[k]) for k in columns] + [f"{row['seconds_per_simulation']:.1f}"]
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    lines += ["", "| behaviour | " + " | ".join(f"{name} F-IFR / GT-IFR" for name in table) + " |"]
-    lines.append("|" + " --- |" * (len(table) + 1))
+    header = ("condition", *REALISM, "minADE (m)", "prompted collision", "prompted offroad", "GT-IFR", "F-IFR")
+    rows = [(name, *(cell(r[k]) for k in columns), f"{r['seconds_per_simulation']:.1f}") for name, r in table.items()]
+    kinds = []
     for behaviour in Behaviour:
         cells = []
         for row in table.values():
             f = row["report"]["f_ifr"]["per_kind"].get(behaviour.value)
             g = row["report"]["gt_ifr"]["per_kind"].get(behaviour.value)
-            f_cell = f"{_cell(f and f['ifr'])} ({f['prompts'] if f else 0})"
-            cells.append(f"{f_cell} / {_cell(g and g['ifr'])} ({g['prompts'] if g else 0})")
-        lines.append(f"| {behaviour.value} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+            f_cell = f"{cell(f and f['ifr'])} ({f['prompts'] if f else 0})"
+            cells.append(f"{f_cell} / {cell(g and g['ifr'])} ({g['prompts'] if g else 0})")
+        kinds.append((behaviour.value, *cells))
+    per_kind = markdown_table(("behaviour", *(f"{name} F-IFR / GT-IFR" for name in table)), kinds)
+    return markdown_table((*header, "s / simulation"), rows) + "\n\n" + per_kind
 
 
-def instruction_following_experiment(
-    checkpoint: str, datasets: Sequence[str], settings: IFRSettings, json_out: str | None = None
-) -> dict[str, dict]:
+def instruction_following_experiment(settings: IFRSettings) -> dict[str, dict]:
     """The instruction-following table of each dataset, printed as Markdown; all figures (and every judgement) in
-    `json_out` when given."""
-    loaded = load_model(checkpoint)
+    `settings.json` when given."""
+    loaded = load_model(checkpoint_path(settings.checkpoint))
+    free_text = settings.free_text_prompts()
     results = {}
-    for item in datasets:
-        spec = DatasetSpec.parse(item)
+    for spec in settings.datasets:
         found, skipped = ifr_cases(spec, settings)
         if not found:
-            raise InputError(f"no held-out window of {spec.folder} has an agent with prompts to judge", where="--data")
-        per_case = [run_case(loaded, case, settings, pick=i) for i, case in enumerate(found)]
+            raise InputError(f"no held-out window of {spec.labels} has an agent with prompts to judge", where="--data")
+        per_case = [run_case(loaded, case, settings, pick=i, free_text=free_text) for i, case in enumerate(found)]
         table = summarize(per_case)
         prompts = sum(len(c.prompts) for c in found)
         results[spec.name] = {
@@ -375,7 +383,16 @@ def instruction_following_experiment(
             f"{settings.rollouts} rollouts, {settings.candidates} candidates, K = {settings.steps}"
         )
         print(markdown(table))
-    if json_out:
-        with atomic_path(json_out) as tmp:
-            tmp.write_text(json.dumps(results, indent=1, default=float))
+    write_results(settings.json, results)
     return results
+
+
+@EXPERIMENTS.register
+class InstructionFollowingExperiment(Experiment):
+    """`langtraj experiment instruction-following`: closed-loop GT-IFR and F-IFR per condition, per dataset."""
+
+    name = "instruction-following"
+    settings = IFRSettings
+
+    def run(self, settings: IFRSettings) -> dict[str, dict]:
+        return instruction_following_experiment(settings)

@@ -1,89 +1,111 @@
 """The open-loop experiment of docs/experiments.md: minADE over 6 samples on held-out synthesized
 windows for constant velocity and each given checkpoint, with and without the ground-truth prompt.
-`--text-gain` adds prompt adherence and the ceiling of the text gain (`langtraj.training.text_gain`).
+`--text-gain` adds prompt adherence and the ceiling of the text gain (`langtraj.experiments.text_gain`).
 
     langtraj experiment open-loop --data LABELS_DIR --checkpoint NAME=CKPT [...] [--windows N]
         [--label-fraction 0.3] [--text-gain [--prior-samples 48]]
+    langtraj experiment open-loop --config configs/experiments/open-loop.yaml   # the same as YAML
+
+Open-loop minADE is a diagnostic: claims about realism and control come from the closed-loop tables.
 """
 
 from __future__ import annotations
 
-import json
 import time
-from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
+import torch
+from torch import Tensor
+from torch.utils.data import DataLoader, Subset
+
 from langtraj.errors import InputError
-from langtraj.fileio import atomic_path
+from langtraj.experiments.base import EXPERIMENTS, Experiment
+from langtraj.experiments.common import cell, held_out_dataset, markdown_table, parse_named, write_results
+from langtraj.experiments.text_gain import TextGainConfig, text_gain_table
 from langtraj.model.checkpoint import load_model
-from langtraj.training.evaluation import open_loop_table
-from langtraj.training.text_gain import TextGainConfig, text_gain_table
+from langtraj.model.config import SampleConfig
+from langtraj.model.features import collate_scenes
+from langtraj.model.langtraj import LangTraj
+from langtraj.scenario.model import FUTURE_STEPS
+from langtraj.sim.checkpoints import checkpoint_path
+from langtraj.training.evaluation import constant_velocity, min_ade
 
 
-def open_loop_experiment(
-    labels_dir: str | Path,
-    checkpoints: Sequence[str],
-    *,
-    windows: int | None = None,
-    samples: int = 6,
-    steps: int = 10,
-    cfg: float = 0.0,
-    label_fraction: float = 0.3,
-    decision_first: bool = False,
-    text_gain: bool = False,
-    prior_samples: int = 48,
-    json_out: str | Path | None = None,
-) -> dict[str, dict]:
-    """The open-loop table (and with `text_gain` the adherence table) of each checkpoint
-    (`NAME=PATH`) on the held-out windows of `labels_dir`, printed as Markdown; every figure is also
-    written to `json_out` when given. The same `label_fraction` and `decision_first` for every checkpoint
-    score all of them on the same agents."""
+@dataclass(frozen=True)
+class NamedCheckpoint:
+    """A checkpoint and its name in the tables; shorthand `NAME=PATH` (`shipped`: the packaged one)."""
+
+    name: str
+    path: Path
+
+    @classmethod
+    def parse(cls, item: str) -> NamedCheckpoint:
+        name, path = parse_named(item, "--checkpoint", "NAME=PATH")
+        return cls(name, Path(path))
+
+
+@dataclass(frozen=True)
+class OpenLoopSettings:
+    """The open-loop table's settings: the labels folder whose val split is scored, the checkpoints, at most
+    `windows` windows, `samples` per agent with `steps` DDIM steps and classifier-free weight `cfg`, the share of
+    the other labelled agents given a single-agent sentence (`label_fraction`, the same for every checkpoint so
+    that all are scored on the same agents; `decision_first`: to the agents that decide after the current step
+    first), and with `text_gain` the adherence table from `prior_samples` draws without text."""
+
+    data: Path
+    checkpoints: tuple[NamedCheckpoint, ...]
+    windows: int | None = None
+    samples: int = 6
+    steps: int = 10
+    cfg: float = 0.0
+    label_fraction: float = 0.3
+    decision_first: bool = False
+    text_gain: bool = False
+    prior_samples: int = 48
+    json: Path | None = None
+
+    def __post_init__(self) -> None:
+        if not self.checkpoints:
+            raise InputError("name at least one checkpoint", where="--checkpoint")
+        for flag in ("windows", "samples", "steps"):
+            value = getattr(self, flag)
+            if value is not None and value < 1:
+                raise InputError(f"must be >= 1, got {value}", where=f"--{flag}")
+
+
+def open_loop_experiment(settings: OpenLoopSettings) -> dict[str, dict]:
+    """The open-loop table (and with `text_gain` the adherence table) of each checkpoint on the held-out windows
+    of `settings.data`, printed as Markdown; every figure is also written to `settings.json` when given."""
+    s = settings
     results = {}
-    for item in checkpoints:
-        name, sep, path = item.partition("=")
-        if not sep or not path:
-            raise InputError(f"expected NAME=PATH, got {item!r}", where="--checkpoint")
+    for checkpoint in s.checkpoints:
         start = time.perf_counter()
-        model, data = load_model(path)
-        results[name] = open_loop_table(
-            model,
-            data,
-            labels_dir,
-            num_samples=samples,
-            steps=steps,
-            max_windows=windows,
-            guidance_weight=cfg,
-            label_fraction=label_fraction,
-            decision_first=decision_first,
+        model, data = load_model(checkpoint_path(checkpoint.path))
+        shared = {"max_windows": s.windows, "label_fraction": s.label_fraction, "decision_first": s.decision_first}
+        results[checkpoint.name] = open_loop_table(
+            model, data, s.data, num_samples=s.samples, steps=s.steps, guidance_weight=s.cfg, **shared
         )
-        if text_gain:
+        if s.text_gain:
             gain_config = TextGainConfig(
-                num_samples=samples,
-                prior_samples=prior_samples,
-                steps=steps,
-                guidance_weight=cfg,
-                max_windows=windows,
-                label_fraction=label_fraction,
-                decision_first=decision_first,
+                num_samples=s.samples, prior_samples=s.prior_samples, steps=s.steps, guidance_weight=s.cfg, **shared
             )
-            results[name]["text_gain"] = text_gain_table(model, data, labels_dir, gain_config, progress=True)
-        results[name]["seconds"] = time.perf_counter() - start
+            results[checkpoint.name]["text_gain"] = text_gain_table(model, data, s.data, gain_config, progress=True)
+        results[checkpoint.name]["seconds"] = time.perf_counter() - start
     first = next(iter(results.values()))
     print(
         f"held-out windows {int(first['windows'])}, agents scored {int(first['scored_agents'])}, "
-        f"prompted agents {int(first['prompted_agents'])}, minADE over {samples} samples (m)"
+        f"prompted agents {int(first['prompted_agents'])}, minADE over {s.samples} samples (m)"
     )
-    print("| model | all agents | prompted agents |\n| --- | --- | --- |")
-    print(f"| constant velocity | {first['cv_all']:.3f} | {first['cv_prompted']:.3f} |")
+    rows = [("constant velocity", cell(first["cv_all"]), cell(first["cv_prompted"]))]
     for name, r in results.items():
-        print(f"| {name}, no text | {r['model_no_text_all']:.3f} | {r['model_no_text_prompted']:.3f} |")
+        rows.append((f"{name}, no text", cell(r["model_no_text_all"]), cell(r["model_no_text_prompted"])))
         if "model_text_all" in r:
-            print(f"| {name}, ground-truth prompt | {r['model_text_all']:.3f} | {r['model_text_prompted']:.3f} |")
-    if text_gain:
-        _print_text_gain(results, samples, prior_samples)
-    if json_out:
-        with atomic_path(json_out) as tmp:
-            tmp.write_text(json.dumps(results, indent=2))
+            rows.append((f"{name}, ground-truth prompt", cell(r["model_text_all"]), cell(r["model_text_prompted"])))
+    print(markdown_table(("model", "all agents", "prompted agents"), rows))
+    if s.text_gain:
+        _print_text_gain(results, s.samples, s.prior_samples)
+    write_results(s.json, results)
     return results
 
 
@@ -93,23 +115,88 @@ def _print_text_gain(results: dict, samples: int, prior_samples: int) -> None:
         f"\nprompt adherence (share of samples showing the prompt's facts) and the ceiling: minADE over the "
         f"first {samples} of {prior_samples} draws without text that show them"
     )
-    print(
-        "| model | agents | adherence, no text | adherence, text | minADE no text | minADE text | "
-        "minADE ceiling | text gain | ceiling gain |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- |"
-    )
+    rows = []
     for name, r in results.items():
         g = r["text_gain"]
         for group in ("prompted", "checked"):
             if not g.get(f"{group}_agents"):
                 continue
-            adherence = (
-                (f"{g['checked_adherence_no_text']:.3f}", f"{g['checked_adherence_text']:.3f}")
-                if group == "checked"
-                else ("", "")
-            )
-            print(
-                f"| {name} ({group}) | {int(g[f'{group}_agents'])} | {adherence[0]} | {adherence[1]} | "
-                f"{g[f'{group}_min_ade_no_text']:.3f} | {g[f'{group}_min_ade_text']:.3f} | "
-                f"{g[f'{group}_min_ade_ceiling']:.3f} | {100 * g[f'{group}_text_gain']:.1f} % | "
-                f"{100 * g[f'{group}_ceiling_gain']:.1f} % |"
-            )
+            checked = group == "checked"
+            adherence = [cell(g[f"checked_adherence_{k}"]) if checked else "" for k in ("no_text", "text")]
+            figures = [cell(g[f"{group}_min_ade_{k}"]) for k in ("no_text", "text", "ceiling")]
+            gains = [f"{100 * g[f'{group}_{k}_gain']:.1f} %" for k in ("text", "ceiling")]
+            rows.append((f"{name} ({group})", str(int(g[f"{group}_agents"])), *adherence, *figures, *gains))
+    header = ("model", "agents", "adherence, no text", "adherence, text", "minADE no text", "minADE text")
+    print(markdown_table((*header, "minADE ceiling", "text gain", "ceiling gain"), rows))
+
+
+def open_loop_table(
+    model: LangTraj,
+    data: SampleConfig,
+    labels_dir,
+    *,
+    split: str = "val",
+    num_samples: int = 6,
+    steps: int = 10,
+    batch_size: int = 16,
+    max_windows: int | None = None,
+    seed: int = 0,
+    guidance_weight: float = 0.0,
+    label_fraction: float | None = None,
+    decision_first: bool | None = None,
+) -> dict[str, float]:
+    """Open-loop minADE over `num_samples` samples on held-out windows, against constant velocity.
+
+    Every window gets its ground-truth prompt (drawn from its labels' prompt pool, no dropout), so the
+    same agents are scored with and without text. Besides an interaction prompt's agents, a share
+    `label_fraction` of the other labelled agents get a single-agent sentence (default: the model's
+    training setting; give one value to compare models trained with different shares on the same
+    agents). `prompted_text` conditions on the sentences,
+    `prompted_no_text` samples with the text removed (classifier-free weight -1; with text the weight is
+    `guidance_weight`, 0 = the plain conditional model). `all_*` cover every
+    agent with a logged future; constant velocity is one deterministic sample.
+    """
+    dataset = held_out_dataset(
+        data, labels_dir, split=split, seed=seed, label_fraction=label_fraction, decision_first=decision_first
+    )
+    count = len(dataset) if max_windows is None else min(max_windows, len(dataset))
+    loader = DataLoader(Subset(dataset, list(range(count))), batch_size=batch_size, collate_fn=collate_scenes)
+    sums: dict[str, list[float]] = {}
+
+    def add(name: str, total: Tensor, n: Tensor) -> None:
+        s = sums.setdefault(name, [0.0, 0.0])
+        s[0] += float(total)
+        s[1] += float(n)
+
+    model = model.eval()
+    has_text_branch = model.text_encoder is not None
+    for index, batch in enumerate(loader):
+        prompted = batch.has_text & batch.agent_valid
+        cv = constant_velocity(batch, FUTURE_STEPS)
+        add("cv_all", *min_ade(cv, batch))
+        add("cv_prompted", *min_ade(cv, batch, prompted))
+        gen = torch.Generator().manual_seed(seed + index)
+        plain, _ = model.sample(batch, num_samples, steps=steps, guidance_weight=-1.0, generator=gen)
+        add("model_no_text_all", *min_ade(plain, batch))
+        add("model_no_text_prompted", *min_ade(plain, batch, prompted))
+        if has_text_branch:
+            gen.manual_seed(seed + index)
+            text, _ = model.sample(batch, num_samples, steps=steps, guidance_weight=guidance_weight, generator=gen)
+            add("model_text_all", *min_ade(text, batch))
+            add("model_text_prompted", *min_ade(text, batch, prompted))
+    out = {name: total / n for name, (total, n) in sums.items() if n}
+    out["windows"] = float(count)
+    out["prompted_agents"] = sums["cv_prompted"][1]
+    out["scored_agents"] = sums["cv_all"][1]
+    return out
+
+
+@EXPERIMENTS.register
+class OpenLoopExperiment(Experiment):
+    """`langtraj experiment open-loop`: minADE with and without text on held-out windows, per checkpoint."""
+
+    name = "open-loop"
+    settings = OpenLoopSettings
+
+    def run(self, settings: OpenLoopSettings) -> dict[str, dict]:
+        return open_loop_experiment(settings)

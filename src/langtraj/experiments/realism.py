@@ -5,11 +5,13 @@ that collide. It holds the paper's closed-loop ablation (open-loop K = 100, K = 
 with and without teacher forcing) beside the baselines, and the selection and guidance variants.
 
     langtraj experiment realism --method NAME=SPEC ... --data NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]] ... \\
-        [--windows N] [--candidates M] [--seed S] [--json OUT]
+        [--windows N] [--rollouts R] [--candidates M] [--seed S] [--json OUT]
+    langtraj experiment realism --config configs/experiments/realism-heldout-maps.yaml   # the same as YAML
 
 SPEC is `constant_velocity`, `stationary`, `log_replay` (a labelled baseline that reads the future), or
-a checkpoint, optionally followed by `|selector=NAME`, `|guidance=COST:WEIGHT[+COST:WEIGHT]`,
-`|guided_steps=N` (the defaults' guidance at the last N denoising steps only), `|defaults` and `|dense`.
+a checkpoint (`shipped`: the one inside the package), optionally followed by `|selector=NAME`,
+`|guidance=COST:WEIGHT[+COST:WEIGHT]`, `|guided_steps=N` (the defaults' guidance at the last N denoising steps
+only), `|defaults` and `|dense`.
 A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says otherwise;
 `|defaults` adds `langtraj simulate`'s default guidance and selection (on-road guidance, no-collision
 guidance per agent pair, `per_agent` selection; `sim.policies`). Every model row attends locally in
@@ -20,28 +22,35 @@ attention.
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from langtraj.errors import InputError
-from langtraj.fileio import atomic_path
-from langtraj.interdrive.dataset import load_window
+from langtraj.experiments.base import EXPERIMENTS, Experiment
+from langtraj.experiments.common import (
+    DatasetSpec,
+    cell,
+    held_out_windows,
+    markdown_table,
+    nanmean,
+    parse_named,
+    write_results,
+)
 from langtraj.metrics.controllability import collision_rate, offroad_rate
 from langtraj.metrics.features import SceneMap
 from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.model.checkpoint import load_model
 from langtraj.rollouts.baselines import generate_baseline
-from langtraj.rollouts.container import FUTURE_STEPS, Rollouts
+from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.model import Scenario
+from langtraj.sim.checkpoints import checkpoint_path
 from langtraj.sim.config import SimConfig
 from langtraj.sim.engine import simulate
-from langtraj.sim.experiments import DatasetSpec, held_out_records
 from langtraj.sim.policies import POLICIES, LangTrajPolicy, LoadedModel
 from langtraj.sim.terms import scene_wide_terms
 
@@ -52,7 +61,8 @@ ROLLOUT_BASELINES = ("stationary",)
 
 @dataclass(frozen=True)
 class Method:
-    """One row: a baseline, or a checkpoint with its selector and scene-wide guidance (`NAME=WEIGHT`)."""
+    """One row: a baseline, or a checkpoint with its selector and scene-wide guidance (`COST=WEIGHT`). From YAML
+    a mapping of these fields, or the `NAME=SPEC` shorthand (see the module docstring)."""
 
     name: str
     baseline: str | None = None
@@ -62,14 +72,23 @@ class Method:
     defaults: bool = False  # `langtraj simulate`'s default guidance and selection besides the spec's
     dense: bool = False  # dense attention in scenes larger than the training scenes (default: local)
     guided_steps: int | None = None  # the last N denoising steps get the defaults' guidance (None: the default)
-    loaded: LoadedModel | None = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if (self.baseline is None) == (self.checkpoint is None):
+            raise InputError(f"{self.name}: give a baseline or a checkpoint, not both or neither", where="--method")
+        if self.baseline is not None:
+            if self.baseline not in BASELINE_POLICIES + ROLLOUT_BASELINES:
+                known = ", ".join(BASELINE_POLICIES + ROLLOUT_BASELINES)
+                raise InputError(f"unknown baseline {self.baseline!r}; known: {known}", where="--method")
+            options = (self.selector, self.guidance, self.defaults, self.dense, self.guided_steps)
+            if any(o not in (None, (), False) for o in options):
+                raise InputError(f"baseline {self.baseline} takes no options", where="--method")
+        scene_wide_terms(self.guidance)  # checked now, before anything runs
 
     @classmethod
     def parse(cls, item: str) -> Method:
         """`NAME=SPEC` (see the module docstring), or a one-line InputError."""
-        name, sep, spec = item.partition("=")
-        if not sep or not name or not spec:
-            raise InputError(f"expected NAME=SPEC, got {item!r}", where="--method")
+        name, spec = parse_named(item, "--method", "NAME=SPEC")
         head, *options = spec.split("|")
         if head in BASELINE_POLICIES + ROLLOUT_BASELINES:
             if options:
@@ -85,33 +104,31 @@ class Method:
                     where="--method",
                 )
             settings[key] = value
-        guidance = tuple(g.replace(":", "=") for g in settings.get("guidance", "").split("+") if g)
-        scene_wide_terms(guidance)  # checked now, before anything runs
         return cls(
             name,
             checkpoint=Path(head),
             selector=settings.get("selector"),
-            guidance=guidance,
+            guidance=tuple(g.replace(":", "=") for g in settings.get("guidance", "").split("+") if g),
             defaults="defaults" in options,
             dense="dense" in options,
             guided_steps=_int_option(settings, "guided_steps"),
         )
 
-    def load(self) -> Method:
-        """The method with its checkpoint loaded (once for every window)."""
-        if self.checkpoint is None:
-            return self
-        return replace(self, loaded=load_model(self.checkpoint))
+    def load(self) -> LoadedModel | None:
+        """The method's model (None for a baseline), loaded once for every window."""
+        return None if self.checkpoint is None else load_model(checkpoint_path(self.checkpoint))
 
-    def rollouts(self, scenario: Scenario, config: SimConfig, candidates: int, steps: int) -> Rollouts:
-        """R rollouts of every sim agent of `scenario`."""
+    def rollouts(
+        self, scenario: Scenario, config: SimConfig, candidates: int, steps: int, loaded: LoadedModel | None
+    ) -> Rollouts:
+        """R rollouts of every sim agent of `scenario` (`loaded`: this method's `load()`)."""
         if self.baseline in ROLLOUT_BASELINES:
             return generate_baseline(self.baseline, scenario, config.rollouts)
         if self.baseline is not None:
             policy = POLICIES.get(self.baseline)()
         else:
-            assert self.loaded is not None
-            model, data = self.loaded
+            assert loaded is not None
+            model, data = loaded
             paper = {} if self.defaults else {"selector": "min_collision", "on_road": 0.0, "no_collision": 0.0}
             if self.selector:
                 paper["selector"] = self.selector
@@ -139,14 +156,13 @@ def _int_option(settings: dict[str, str], key: str) -> int | None:
         raise InputError(f"{key} must be an integer, got {settings[key]!r}", where="--method") from None
 
 
-def windows_of(labels_dir: str, split: str, limit: int | None) -> list[Scenario]:
+def windows_of(spec: DatasetSpec, limit: int | None) -> list[Scenario]:
     """Windows of a dataset split that log the 8 s the metrics score (at most `limit`, in dataset order)."""
     found = []
-    for record in held_out_records(labels_dir, split):
+    for _, scenario in held_out_windows(spec):
         if limit is not None and len(found) >= limit:
             break
-        scenario = load_window(record)
-        if scenario.num_steps - scenario.current_index - 1 >= FUTURE_STEPS:
+        if scenario.logs_future():
             found.append(scenario)
     return found
 
@@ -169,11 +185,6 @@ def score(scenario: Scenario, rollouts: Rollouts) -> dict[str, float]:
     return out
 
 
-def _nanmean(values: Sequence[float]) -> float:
-    finite = [v for v in values if not math.isnan(v)]
-    return float(np.mean(finite)) if finite else math.nan
-
-
 def realism_table(
     methods: Sequence[Method],
     scenes: Sequence[Scenario],
@@ -181,18 +192,21 @@ def realism_table(
     candidates: int,
     steps: int,
     progress: Callable[[str], None] | None = None,
+    loaded: Mapping[str, LoadedModel | None] | None = None,
 ) -> dict:
-    """Mean figures per method over `scenes`, the per-window figures, and seconds per simulation."""
+    """Mean figures per method over `scenes`, the per-window figures, and seconds per simulation (`loaded`: each
+    method's model by name, as `Method.load` gives it; None: loaded here)."""
+    loaded = loaded if loaded is not None else {m.name: m.load() for m in methods}
     table, per_window = {}, {}
     for method in methods:
         rows, seconds = [], []
         for scenario in scenes:
             begin = time.perf_counter()
-            rollouts = method.rollouts(scenario, config, candidates, steps)
+            rollouts = method.rollouts(scenario, config, candidates, steps, loaded[method.name])
             seconds.append(time.perf_counter() - begin)
             rows.append(score(scenario, rollouts) | {"scenario_id": scenario.scenario_id})
         per_window[method.name] = rows
-        table[method.name] = {c: _nanmean([r[c] for r in rows]) for c in COLUMNS} | {
+        table[method.name] = {c: nanmean([r[c] for r in rows]) for c in COLUMNS} | {
             "min_meta": min(r["meta"] for r in rows),
             "windows": len(rows),
             "seconds_per_simulation": float(np.median(seconds)),
@@ -204,46 +218,69 @@ def realism_table(
 
 def markdown(table: dict[str, dict[str, float]]) -> str:
     """The table as Markdown (NaN as a dash)."""
-
-    def cell(v: float) -> str:
-        return "–" if math.isnan(v) else f"{v:.3f}"
-
-    lines = [
-        "| method | meta | kinematic | interactive | map | offroad | collision | lowest meta | s per simulation |",
-        "|" + " --- |" * 9,
+    header = ("method", "meta", "kinematic", "interactive", "map", "offroad", "collision", "lowest meta")
+    rows = [
+        (name, *(cell(r[c]) for c in COLUMNS), cell(r["min_meta"]), f"{r['seconds_per_simulation']:.1f}")
+        for name, r in table.items()
     ]
-    for name, r in table.items():
-        figures = [cell(r[c]) for c in COLUMNS] + [cell(r["min_meta"]), f"{r['seconds_per_simulation']:.1f}"]
-        lines.append(f"| {name} | " + " | ".join(figures) + " |")
-    return "\n".join(lines)
+    return markdown_table((*header, "s per simulation"), rows)
 
 
-def realism_experiment(
-    methods: Sequence[str],
-    datasets: Sequence[str],
-    *,
-    windows: int | None = None,
-    candidates: int = 4,
-    steps: int = 5,
-    seed: int = 0,
-    json_out: str | Path | None = None,
-) -> dict[str, dict]:
-    """The realism table of every dataset (`NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]]`, default split val and 8
-    rollouts), printed as Markdown and written to `json_out` when given."""
-    parsed = [Method.parse(m) for m in methods]
-    loaded = [m.load() for m in parsed]
+@dataclass(frozen=True)
+class RealismSettings:
+    """The realism table's settings: its rows (`methods`), the datasets, at most `windows` windows of each,
+    `rollouts` per window (a dataset's own, when it gives them), `candidates` per replan, `steps` denoising steps
+    (at most a model's K), the seed, and where to write every figure (None: nowhere)."""
+
+    methods: tuple[Method, ...]
+    datasets: tuple[DatasetSpec, ...]
+    windows: int | None = None
+    rollouts: int = 8
+    candidates: int = 4
+    steps: int = 5
+    seed: int = 0
+    json: Path | None = None
+
+    def __post_init__(self) -> None:
+        if not self.methods:
+            raise InputError("name at least one method", where="--method")
+        names = [m.name for m in self.methods]
+        if len(set(names)) < len(names):
+            raise InputError(f"method names repeat: {names}", where="--method")
+        if not self.datasets:
+            raise InputError("name at least one dataset", where="--data")
+        for flag in ("windows", "rollouts", "candidates", "steps"):
+            value = getattr(self, flag)
+            if value is not None and value < 1:
+                raise InputError(f"must be >= 1, got {value}", where=f"--{flag}")
+
+
+def realism_experiment(settings: RealismSettings) -> dict[str, dict]:
+    """The realism table of every dataset, printed as Markdown and written to `settings.json` when given."""
+    loaded = {m.name: m.load() for m in settings.methods}  # once for every dataset
     results = {}
-    for item in datasets:
-        spec = DatasetSpec.parse(item)
-        name, folder, rollouts = spec.name, spec.folder, spec.rollouts or 8
-        scenes = windows_of(folder, spec.split, windows)
+    for spec in settings.datasets:
+        rollouts = spec.rollouts or settings.rollouts
+        scenes = windows_of(spec, settings.windows)
         if not scenes:
-            raise InputError("no window logs 8 s after its current step", path=folder)
-        print(f"\n{name}: {len(scenes)} windows, {rollouts} rollouts, {candidates} candidates per replan, K = {steps}")
-        result = realism_table(loaded, scenes, SimConfig(rollouts=rollouts, seed=seed), candidates, steps, print)
-        results[name] = result | {"rollouts": rollouts}
+            raise InputError("no window logs 8 s after its current step", path=spec.labels)
+        candidates, steps = settings.candidates, settings.steps
+        counts = f"{len(scenes)} windows, {rollouts} rollouts, {candidates} candidates per replan, K = {steps}"
+        print(f"\n{spec.name}: {counts}")
+        config = SimConfig(rollouts=rollouts, seed=settings.seed)
+        result = realism_table(settings.methods, scenes, config, candidates, steps, print, loaded)
+        results[spec.name] = result | {"rollouts": rollouts}
         print(markdown(result["table"]))
-    if json_out:
-        with atomic_path(json_out) as tmp:
-            tmp.write_text(json.dumps(results, indent=1, default=float))
+    write_results(settings.json, results)
     return results
+
+
+@EXPERIMENTS.register
+class RealismExperiment(Experiment):
+    """`langtraj experiment realism`: closed-loop realism per method, every agent driven, per dataset."""
+
+    name = "realism"
+    settings = RealismSettings
+
+    def run(self, settings: RealismSettings) -> dict[str, dict]:
+        return realism_experiment(settings)

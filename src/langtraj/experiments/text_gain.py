@@ -1,6 +1,6 @@
 """How much the ground-truth prompt can and does change a model's samples, on held-out windows.
 
-Two measures beside minADE (`evaluation.open_loop_table`), both from `interdrive.adherence`:
+Two measures beside minADE (`experiments.open_loop.open_loop_table`), both from `interdrive.adherence`:
 
 - adherence: the share of a prompted agent's samples that show its prompt's facts (label keys and
   interaction), with the prompt and without it. A model that follows its text raises it.
@@ -27,13 +27,13 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from langtraj.experiments.common import held_out_dataset
 from langtraj.frames import poses_to_world
 from langtraj.interdrive.adherence import AdherenceChecker, Fact, prompt_for_sentence
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import collate_scenes
 from langtraj.model.langtraj import LangTraj
 from langtraj.sim.open_loop import OpenLoopSamples
-from langtraj.training.evaluation import held_out_dataset
 
 
 @dataclass(frozen=True)

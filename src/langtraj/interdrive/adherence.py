@@ -10,7 +10,7 @@ change whose lane positions tell its side also holds the fact `changing_lanes:le
 
 This measures instruction following directly (minADE only does so through the logged future), and,
 applied to samples drawn without text, bounds what any text-conditioned model could gain from the
-labels (`langtraj.training.text_gain`).
+labels (`langtraj.experiments.text_gain`).
 
 See docs/interdrive.md.
 """

@@ -165,7 +165,11 @@ class WindowRecord:
             raise InputError(f"malformed record: {exc!r}", where=where) from None
 
 
-def split_of(record: WindowRecord, val_fraction: float) -> str:
+VAL_FRACTION = 0.1
+"""The share of a dataset's scenes held out from training (the val split) unless a run says otherwise."""
+
+
+def split_of(record: WindowRecord, val_fraction: float = VAL_FRACTION) -> str:
     """The split ("val" or "train") of a record, fixed by a hash of its scene's id: the window id without the
     `_w{start}` suffix that windows cut from a longer scene carry, so those windows stay together."""
     key = record.scenario_id

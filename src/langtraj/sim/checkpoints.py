@@ -19,3 +19,12 @@ def shipped_checkpoint() -> Path:
     if not path.is_file():
         raise InputError("this install has no shipped checkpoint; pass --checkpoint CKPT", path=path)
     return path
+
+
+SHIPPED = "shipped"
+"""What a checkpoint argument may say instead of a path to mean the shipped checkpoint (experiment configs)."""
+
+
+def checkpoint_path(spec: str | Path) -> Path:
+    """The checkpoint a setting names: `shipped` for the shipped one, else a path."""
+    return shipped_checkpoint() if str(spec) == SHIPPED else Path(spec)

@@ -14,11 +14,10 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from langtraj.errors import InputError
 from langtraj.model.config import ModelConfig, SampleConfig
-from langtraj.settings import dataclass_kwargs, require
+from langtraj.scenario import FUTURE_STEPS
+from langtraj.settings import dataclass_kwargs, read_yaml, require
 
 
 @dataclass(frozen=True)
@@ -179,7 +178,7 @@ class TrainConfig:
         )
         horizon = self.model.num_actions * 5  # 0.5-s actions at 10 Hz
         require(
-            not self.val.wosac_scenes or horizon >= 80,
+            not self.val.wosac_scenes or horizon >= FUTURE_STEPS,
             "val.wosac_scenes",
             f"WOSAC validation scores 8 s; this model plans {horizon / 10:g} s (set wosac_scenes: 0)",
         )
@@ -215,32 +214,6 @@ class TrainConfig:
         if config.stage == 2 and not config.model.use_text:
             raise InputError("stage 2 trains with text: model.use_text must be true", where=where)
         return config
-
-
-def _merge(base: dict[str, Any], top: dict[str, Any]) -> dict[str, Any]:
-    out = dict(base)
-    for key, value in top.items():
-        out[key] = _merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
-    return out
-
-
-def read_yaml(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
-    """The YAML mapping at `path` with its `extends` chain merged in."""
-    path = Path(path).resolve()
-    if path in _seen:
-        raise InputError("circular 'extends'", path=path)
-    try:
-        data = yaml.safe_load(path.read_text()) or {}
-    except FileNotFoundError:
-        raise InputError("no such file", path=path) from None
-    except yaml.YAMLError as exc:
-        raise InputError(f"not valid YAML: {exc}", path=path) from None
-    if not isinstance(data, dict):
-        raise InputError("expected a mapping of settings", path=path)
-    parent = data.pop("extends", None)
-    if parent is None:
-        return data
-    return _merge(read_yaml(path.parent / parent, (*_seen, path)), data)
 
 
 def load_config(path: str | Path) -> TrainConfig:

@@ -24,7 +24,7 @@ import numpy as np
 from torch.utils.data import Dataset, Sampler
 
 from langtraj.errors import InputError
-from langtraj.interdrive.dataset import PromptEntry, WindowRecord, iter_records, load_window, split_of
+from langtraj.interdrive.dataset import VAL_FRACTION, PromptEntry, WindowRecord, iter_records, load_window, split_of
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import apply_history_dropout, map_coverage, scene_sample
 from langtraj.scenario.model import Scenario
@@ -172,7 +172,7 @@ class SceneDataset(Dataset):
         config: SampleConfig | None = None,
         *,
         split: str = "train",
-        val_fraction: float = 0.1,
+        val_fraction: float = VAL_FRACTION,
         seed: int = 0,
         augment: bool | None = None,
         cache_size: int = 8,

@@ -22,8 +22,8 @@ from typing import Any
 
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_path
-from langtraj.settings import dataclass_kwargs, require
-from langtraj.training.config import load_config, read_yaml
+from langtraj.settings import dataclass_kwargs, read_yaml, require
+from langtraj.training.config import load_config
 
 
 @dataclass(frozen=True)

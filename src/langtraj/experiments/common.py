@@ -1,0 +1,130 @@
+"""What the experiments share (docs/experiments.md): the datasets they read (`DatasetSpec`), the one choice of
+held-out windows, `NAME=VALUE` shorthands, NaN-aware means, Markdown tables and the JSON of their figures."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from langtraj.errors import InputError
+from langtraj.fileio import atomic_path
+from langtraj.interdrive.dataset import VAL_FRACTION, WindowRecord, iter_records, load_window, split_of
+from langtraj.model.config import SampleConfig
+from langtraj.scenario.model import Scenario
+from langtraj.training.data import SceneDataset
+
+SPLITS = ("train", "val", "all")
+"""A dataset's windows an experiment reads: training's, the held-out ones (`split_of`), or every one."""
+
+
+def parse_named(item: str, where: str, form: str = "NAME=VALUE") -> tuple[str, str]:
+    """`NAME=VALUE` as (name, value); a missing name or value is a one-line InputError at `where`."""
+    name, sep, value = item.partition("=")
+    if not sep or not name or not value:
+        raise InputError(f"expected {form}, got {item!r}", where=where)
+    return name, value
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """A dataset an experiment scores: its name in the tables, its InterDrive labels folder, the split of its
+    windows (`SPLITS`, default the held-out val) and, for the closed-loop tables, its own rollouts per window
+    (None: the experiment's). Shorthand: `NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]]`."""
+
+    name: str
+    labels: Path
+    split: str = "val"
+    rollouts: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.split not in SPLITS:
+            raise InputError(f"split must be train, val or all, got {self.split!r}", where="--data")
+        if self.rollouts is not None and self.rollouts < 1:
+            raise InputError(f"rollouts must be >= 1, got {self.rollouts}", where="--data")
+
+    @classmethod
+    def parse(cls, item: str) -> DatasetSpec:
+        name, rest = parse_named(item, "--data", "NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]]")
+        folder, _, tail = rest.partition(":")
+        split, _, count = tail.partition(":")
+        try:
+            rollouts = int(count) if count else None
+        except ValueError:
+            raise InputError(f"rollouts must be a whole number, got {count!r}", where="--data") from None
+        return cls(name, Path(folder), split or "val", rollouts)
+
+
+def held_out_records(labels: str | Path, split: str, val_fraction: float = VAL_FRACTION) -> list[WindowRecord]:
+    """The records of a dataset's `split` ("train", "val" by `split_of`, or "all"), in dataset order: the one
+    place experiments choose their windows (training holds out the same ones, `training.data.SceneDataset`)."""
+    if split not in SPLITS:
+        raise InputError(f"split must be train, val or all, got {split!r}", where="--data")
+    return [
+        record
+        for _, records in iter_records(Path(labels))
+        for record in records
+        if split == "all" or split_of(record, val_fraction) == split
+    ]
+
+
+def held_out_windows(spec: DatasetSpec, skip: int = 0) -> Iterator[tuple[WindowRecord, Scenario]]:
+    """The windows of the spec's split after the first `skip`, each with its record, loaded one at a time (a
+    missing scenario file is a one-line InputError)."""
+    for record in held_out_records(spec.labels, spec.split)[skip:]:
+        try:
+            yield record, load_window(record)
+        except FileNotFoundError:
+            raise InputError("scenario file not found", path=record.source) from None
+
+
+def held_out_dataset(
+    data: SampleConfig,
+    labels_dir,
+    *,
+    split: str = "val",
+    seed: int = 0,
+    label_fraction: float | None = None,
+    decision_first: bool | None = None,
+) -> SceneDataset:
+    """The windows of `split` as samples of a model trained with `data`, each with its ground-truth prompt:
+    no text or history dropout. `label_fraction` (default: the training setting) is the share of the
+    other labelled agents given a single-agent sentence beside an interaction prompt's agents;
+    `decision_first` (default: the training setting) gives it first to the agents that decide after the current
+    step (`SampleConfig.decision_first`)."""
+    data = data.for_inference(text=True)
+    if label_fraction is not None:
+        data = replace(data, heuristic_label_fraction=label_fraction)
+    if decision_first is not None:
+        data = replace(data, decision_first=decision_first)
+    return SceneDataset(labels_dir, data, split=split, seed=seed, augment=False)
+
+
+def nanmean(values: Sequence[float]) -> float:
+    """The mean of the values that are not NaN (NaN when none is)."""
+    finite = [v for v in values if not math.isnan(v)]
+    return float(np.mean(finite)) if finite else math.nan
+
+
+def cell(value: float | None) -> str:
+    """A table figure to three decimals; NaN or None as a dash."""
+    return "–" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.3f}"
+
+
+def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    """A Markdown table of already formatted cells."""
+    lines = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def write_results(path: str | Path | None, results: dict[str, Any]) -> None:
+    """Every figure of an experiment as JSON at `path` (nothing when None), written whole or not at all."""
+    if path:
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(results, indent=1, default=float))
