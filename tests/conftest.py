@@ -1,5 +1,5 @@
-"""Shared fixtures: the real scenario files in ../shared/data/real (skipped when absent) and small
-scenarios built in memory."""
+"""Shared fixtures: the real scenario files in ../shared/data/real (skipped when absent), small
+scenarios built in memory, and a tiny trained checkpoint."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import os
 from pathlib import Path
 
 import pytest
+from dataset_builders import train_tiny
 from scenario_builders import make_scenario
 
 from langtraj.scenario import Scenario
@@ -41,3 +42,10 @@ def real_files(real_data_dir: Path) -> list[Path]:
 @pytest.fixture
 def toy_scenario() -> Scenario:
     return make_scenario()
+
+
+@pytest.fixture(scope="package")
+def tiny_run(tmp_path_factory) -> tuple[Path, Path]:
+    """A tiny trained checkpoint (2 steps on toy scenes), shared by the simulation and command tests:
+    (checkpoint, scenario file of toy scenes with tracks 7, 17, 37, 47 valid at the current step)."""
+    return train_tiny(tmp_path_factory.mktemp("sim"), 8)

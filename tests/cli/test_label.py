@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 import pytest
-from builders import labels_body, make_label_dataset
+from labeling.builders import labels_body, make_label_dataset
 
 from langtraj.cli.main import main
 from langtraj.labeling import tasks

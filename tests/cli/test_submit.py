@@ -9,22 +9,12 @@ import numpy as np
 import pytest
 from scenario_builders import make_scenario
 
+from cli.helpers import METADATA
 from langtraj.cli.main import main
 from langtraj.metrics.submission import iter_submission_rollouts, read_submission
 from langtraj.rollouts import Rollouts
 from langtraj.rollouts.baselines import generate_baseline
 from langtraj.scenario.io import write_scenarios
-
-METADATA = {
-    "account_name": "someone@example.com",
-    "unique_method_name": "langtraj-test",
-    "authors": ["A. Person"],
-    "affiliation": "Nowhere",
-    "description": "constant velocity",
-    "method_link": "https://example.com",
-    "num_model_parameters": "0",
-    "acknowledge_complies_with_closed_loop_requirement": True,
-}
 
 
 @pytest.fixture
