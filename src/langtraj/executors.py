@@ -2,7 +2,7 @@
 
 An executor maps a picklable function over independent items and yields the results as they finish.
 `process` (the default) is a local process pool; `ray` hands each item to a Ray cluster as a task
-(DESIGN.md section 9), so one command scales from a laptop to many nodes. libsumo keeps one
+(docs/design.md, 'Scale-out'), so one command scales from a laptop to many nodes. libsumo keeps one
 simulation per process, so every engine must run one item per process at a time.
 """
 

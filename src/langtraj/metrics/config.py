@@ -1,4 +1,5 @@
-"""WOSAC metric configurations: one estimator and meta-metric weight per feature (DESIGN.md section 8).
+"""WOSAC metric configurations: one estimator and meta-metric weight per feature (docs/design.md, 'WOSAC metric
+configuration').
 
 `WOSAC_2025` is the 2025 Sim Agents Challenge configuration; `WOSAC_2024` differs only in two
 weights (road edge 0.10, traffic lights 0). Custom configurations are plain dataclasses.

@@ -1,5 +1,5 @@
 """The LangTraj model: query-centric scene encoder, language encoder with LoRA, transformer denoiser,
-and diffusion over unicycle actions (DESIGN.md section 6; docs/model.md)."""
+and diffusion over unicycle actions (docs/design.md, 'The model'; docs/model.md)."""
 
 from langtraj.model.batch import SceneBatch
 from langtraj.model.config import ModelConfig

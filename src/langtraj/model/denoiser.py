@@ -1,5 +1,5 @@
 """The denoiser: noisy future actions of all agents to their clean estimate (x0), given the scene and
-per-agent language conditions (paper 'LangTraj'; DESIGN.md section 6).
+per-agent language conditions (paper 'LangTraj'; docs/design.md, 'The model').
 
 Each block has (a) agent-agent attention over the noisy futures with relative pose, (b) cross-attention
 to the scene tokens, (c) cross-attention to the agents' language embeddings E_L (each fused with its

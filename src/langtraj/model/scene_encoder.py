@@ -1,5 +1,5 @@
 """Query-centric scene encoder: each agent history and map polyline in its own frame, then
-relative-pose attention between them (paper 'LangTraj', DESIGN.md section 6). See docs/model.md."""
+relative-pose attention between them (paper 'LangTraj'; docs/design.md, 'The model'). See docs/model.md."""
 
 from __future__ import annotations
 
