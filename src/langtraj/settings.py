@@ -95,6 +95,15 @@ def load_dataclass(cls: type, path: str | Path, data: dict[str, Any] | None = No
         raise exc.located(path=path) from None
 
 
+_SCALARS: dict[type, tuple[str, type | tuple[type, ...]]] = {
+    bool: ("true or false", bool),
+    int: ("a whole number", int),
+    float: ("a number", (int, float)),
+    str: ("text", str),
+}
+"""What a setting of each scalar type accepts, and how an error names it."""
+
+
 def _convert(hint: Any, value: Any, where: str) -> Any:
     """`value` as the annotation `hint` asks, or an InputError at `where`."""
     origin, args = typing.get_origin(hint), typing.get_args(hint)
@@ -129,20 +138,9 @@ def _convert(hint: Any, value: Any, where: str) -> Any:
         if not isinstance(value, str | Path):
             raise InputError(f"expected a path, got {type(value).__name__}", where=where)
         return Path(value)
-    if hint is bool:
-        if not isinstance(value, bool):
-            raise InputError(f"expected true or false, got {value!r}", where=where)
-        return value
-    if hint is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise InputError(f"expected a whole number, got {value!r}", where=where)
-        return value
-    if hint is float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise InputError(f"expected a number, got {value!r}", where=where)
-        return float(value)
-    if hint is str:
-        if not isinstance(value, str):
-            raise InputError(f"expected text, got {value!r}", where=where)
-        return value
+    if hint in _SCALARS:
+        what, accepted = _SCALARS[hint]
+        if not isinstance(value, accepted) or (hint is not bool and isinstance(value, bool)):
+            raise InputError(f"expected {what}, got {value!r}", where=where)
+        return float(value) if hint is float else value
     return value

@@ -30,7 +30,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
     o = _table(sub, "open-loop", "minADE with and without text on held-out windows, per checkpoint")
     o.add_argument("--data", type=Path, default=S, help="InterDrive dataset folder (its val split is held out)")
-    o.add_argument("--checkpoint", dest="checkpoints", action="append", default=S, help="NAME=PATH, repeatable")
+    o.add_argument(
+        "--checkpoint", dest="checkpoints", metavar="NAME=PATH", action="append", default=S, help="repeatable"
+    )
     o.add_argument("--windows", type=int, default=S, help="score at most this many held-out windows")
     o.add_argument("--samples", type=int, default=S, help="samples per agent (default 6)")
     o.add_argument("--steps", type=int, default=S, help="DDIM steps (default 10)")
@@ -60,6 +62,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     e.add_argument(
         "--method",
         dest="methods",
+        metavar="NAME=SPEC",
         action="append",
         default=S,
         help="NAME=SPEC (no '=' in NAME): constant_velocity, stationary, log_replay, or "
@@ -106,14 +109,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def _table(sub: argparse._SubParsersAction, name: str, help: str) -> argparse.ArgumentParser:
     """The parser of one table's verb, with the options every table has."""
     p = sub.add_parser(name, help=help)
-    p.add_argument("--config", type=Path, help="YAML settings of this experiment (configs/experiments/)")
-    p.add_argument("--json", type=Path, default=S, help="also write every figure here")
+    p.add_argument("--config", type=Path, metavar="FILE", help="YAML settings (configs/experiments/)")
+    p.add_argument("--json", type=Path, metavar="FILE", default=S, help="also write every figure here")
     p.set_defaults(func=run_table)
     return p
 
 
 def _datasets(p: argparse.ArgumentParser, help: str) -> None:
-    p.add_argument("--data", dest="datasets", action="append", default=S, help=help)
+    p.add_argument("--data", dest="datasets", metavar="NAME=LABELS", action="append", default=S, help=help)
 
 
 def _closed_loop(p: argparse.ArgumentParser, rollouts: int) -> None:

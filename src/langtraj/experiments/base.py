@@ -9,20 +9,28 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from langtraj.errors import InputError
+from langtraj.experiments.common import write_results
 from langtraj.registry import Registry
 from langtraj.settings import build_dataclass, load_dataclass, read_yaml
 
 
 class Experiment(ABC):
-    """One experiment: `name` (its verb and the YAML's `experiment:`), its `settings` dataclass, and `run`, which
-    prints its tables and returns every figure."""
+    """One experiment: `name` (its verb and the YAML's `experiment:`), its `settings` dataclass (with a `json`
+    path, None for none), and `tables`, which prints its tables and returns every figure."""
 
     name: ClassVar[str]
     settings: ClassVar[type]
 
     @abstractmethod
+    def tables(self, settings: Any) -> dict[str, Any]:
+        """Run the experiment with `settings` (an instance of `self.settings`), print its tables, return every
+        figure."""
+
     def run(self, settings: Any) -> dict[str, Any]:
-        """Run the experiment with `settings` (an instance of `self.settings`)."""
+        """`tables`, with every figure also written to `settings.json` when it is given."""
+        results = self.tables(settings)
+        write_results(settings.json, results)
+        return results
 
 
 def _builtin() -> None:

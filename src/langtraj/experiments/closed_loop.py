@@ -31,7 +31,8 @@ from langtraj.experiments.common import (
     held_out_windows,
     markdown_table,
     nanmean,
-    write_results,
+    require_counts,
+    require_items,
 )
 from langtraj.guidance import CollisionCost, GuidanceTerm
 from langtraj.interdrive.dataset import PromptEntry, WindowRecord
@@ -193,41 +194,30 @@ class ClosedLoopSettings:
     json: Path | None = None
 
     def __post_init__(self) -> None:
-        if not self.datasets:
-            raise InputError("name at least one dataset", where="--data")
-        for flag in ("windows", "rollouts", "candidates"):
-            value = getattr(self, flag)
-            if value is not None and value < 1:
-                raise InputError(f"must be >= 1, got {value}", where=f"--{flag}")
-
-
-def closed_loop_experiment(settings: ClosedLoopSettings) -> dict[str, dict]:
-    """The closed-loop table of every dataset, printed as Markdown; every figure is also written to
-    `settings.json` when given."""
-    loaded = load_model(checkpoint_path(settings.checkpoint))
-    results = {}
-    for spec in settings.datasets:
-        found, skipped = cases(spec, settings.windows)
-        count = spec.rollouts or settings.rollouts
-        config = SimConfig(rollouts=count, seed=settings.seed)
-        result = run_experiment(loaded, found, config, settings.candidates, settings.steps)
-        result["skipped_windows"] = skipped
-        results[spec.name] = result
-        print(
-            f"\n{spec.name}: {len(found)} windows ({skipped} skipped: no prompt whose agents the model drives), "
-            f"{count} rollouts, {settings.candidates} candidates per replan, K = {settings.steps}"
-        )
-        print(markdown(result["table"]))
-    write_results(settings.json, results)
-    return results
+        require_items(self.datasets, "--data")
+        require_counts(self, ("windows", "rollouts", "candidates", "steps"))
 
 
 @EXPERIMENTS.register
 class ClosedLoopExperiment(Experiment):
-    """`langtraj experiment closed-loop`: realism, controllability and safety per method, per dataset."""
+    """`langtraj experiment closed-loop`: realism, controllability and safety per method, one table per dataset."""
 
     name = "closed-loop"
     settings = ClosedLoopSettings
 
-    def run(self, settings: ClosedLoopSettings) -> dict[str, dict]:
-        return closed_loop_experiment(settings)
+    def tables(self, settings: ClosedLoopSettings) -> dict[str, dict]:
+        loaded = load_model(checkpoint_path(settings.checkpoint))
+        results = {}
+        for spec in settings.datasets:
+            found, skipped = cases(spec, settings.windows)
+            count = spec.rollouts or settings.rollouts
+            config = SimConfig(rollouts=count, seed=settings.seed)
+            result = run_experiment(loaded, found, config, settings.candidates, settings.steps)
+            result["skipped_windows"] = skipped
+            results[spec.name] = result
+            print(
+                f"\n{spec.name}: {len(found)} windows ({skipped} skipped: no prompt whose agents the model drives), "
+                f"{count} rollouts, {settings.candidates} candidates per replan, K = {settings.steps}"
+            )
+            print(markdown(result["table"]))
+        return results

@@ -105,6 +105,23 @@ def held_out_dataset(
     return SceneDataset(labels_dir, data, split=split, seed=seed, augment=False)
 
 
+def require_counts(settings: Any, names: Sequence[str], minimum: int = 1) -> None:
+    """Each of the `names` settings (None: no limit) is at least `minimum`; an error names the flag."""
+    for name in names:
+        value = getattr(settings, name)
+        if value is not None and value < minimum:
+            raise InputError(f"must be >= {minimum}, got {value}", where=f"--{name.replace('_', '-')}")
+
+
+def require_items(items: Sequence[Any], flag: str) -> None:
+    """At least one item (dataset, method, checkpoint), none of whose names repeats; an error names the flag."""
+    if not items:
+        raise InputError("give at least one", where=flag)
+    names = [item.name for item in items]
+    if len(set(names)) < len(names):
+        raise InputError(f"names repeat: {names}", where=flag)
+
+
 def nanmean(values: Sequence[float]) -> float:
     """The mean of the values that are not NaN (NaN when none is)."""
     finite = [v for v in values if not math.isnan(v)]

@@ -29,7 +29,14 @@ import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.experiments.base import EXPERIMENTS, Experiment
-from langtraj.experiments.common import DatasetSpec, cell, held_out_windows, markdown_table, write_results
+from langtraj.experiments.common import (
+    DatasetSpec,
+    cell,
+    held_out_windows,
+    markdown_table,
+    require_counts,
+    require_items,
+)
 from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.counterfactual import (
     Alternative,
@@ -100,19 +107,11 @@ class IFRSettings:
     json: Path | None = None
 
     def __post_init__(self) -> None:
-        if not self.datasets:
-            raise InputError("name at least one dataset", where="--data")
-        for name in ("agents", "rollouts", "candidates", "steps"):
-            if getattr(self, name) < 1:
-                raise InputError(f"must be >= 1, got {getattr(self, name)}", where=f"--{name}")
-        if self.counterfactuals < 0:
-            raise InputError(f"must be >= 0, got {self.counterfactuals}", where="--counterfactuals")
-        if self.windows is not None and self.windows < 1:
-            raise InputError(f"must be >= 1, got {self.windows}", where="--windows")
+        require_items(self.datasets, "--data")
+        require_counts(self, ("windows", "agents", "rollouts", "candidates", "steps"))
+        require_counts(self, ("counterfactuals", "skip"), minimum=0)
         if not math.isfinite(self.cfg) or self.cfg < -1:
             raise InputError(f"must be finite and >= -1, got {self.cfg}", where="--cfg")
-        if self.skip < 0:
-            raise InputError(f"must be >= 0, got {self.skip}", where="--skip")
         unknown = [c for c in self.conditions if c not in CONDITIONS]
         if unknown or NO_PROMPT not in self.conditions:
             raise InputError(
@@ -352,47 +351,43 @@ def markdown(table: dict[str, dict]) -> str:
     return markdown_table((*header, "s / simulation"), rows) + "\n\n" + per_kind
 
 
-def instruction_following_experiment(settings: IFRSettings) -> dict[str, dict]:
-    """The instruction-following table of each dataset, printed as Markdown; all figures (and every judgement) in
-    `settings.json` when given."""
-    loaded = load_model(checkpoint_path(settings.checkpoint))
-    free_text = settings.free_text_prompts()
-    results = {}
-    for spec in settings.datasets:
-        found, skipped = ifr_cases(spec, settings)
-        if not found:
-            raise InputError(f"no held-out window of {spec.labels} has an agent with prompts to judge", where="--data")
-        per_case = [run_case(loaded, case, settings, pick=i, free_text=free_text) for i, case in enumerate(found)]
-        table = summarize(per_case)
-        prompts = sum(len(c.prompts) for c in found)
-        results[spec.name] = {
-            "table": table,
-            "windows": len(found),
-            "skipped_windows": skipped,
-            "prompts": prompts,
-            "judgements": {
-                cond: [j.to_json() for case in per_case for j in case.get(cond, {}).get("judgements", [])]
-                for cond in table
-            },
-            "prompts_by_condition": {
-                cond: [p for case in per_case for p in case.get(cond, {}).get("prompts", [])] for cond in table
-            },
-        }
-        print(
-            f"\n{spec.name}: {len(found)} windows ({skipped} without a judgeable agent), {prompts} prompts, "
-            f"{settings.rollouts} rollouts, {settings.candidates} candidates, K = {settings.steps}"
-        )
-        print(markdown(table))
-    write_results(settings.json, results)
-    return results
-
-
 @EXPERIMENTS.register
 class InstructionFollowingExperiment(Experiment):
-    """`langtraj experiment instruction-following`: closed-loop GT-IFR and F-IFR per condition, per dataset."""
+    """`langtraj experiment instruction-following`: closed-loop GT-IFR and F-IFR per condition, one table per dataset
+    (every judgement in the JSON)."""
 
     name = "instruction-following"
     settings = IFRSettings
 
-    def run(self, settings: IFRSettings) -> dict[str, dict]:
-        return instruction_following_experiment(settings)
+    def tables(self, settings: IFRSettings) -> dict[str, dict]:
+        loaded = load_model(checkpoint_path(settings.checkpoint))
+        free_text = settings.free_text_prompts()
+        results = {}
+        for spec in settings.datasets:
+            found, skipped = ifr_cases(spec, settings)
+            if not found:
+                raise InputError(
+                    f"no held-out window of {spec.labels} has an agent with prompts to judge", where="--data"
+                )
+            per_case = [run_case(loaded, case, settings, pick=i, free_text=free_text) for i, case in enumerate(found)]
+            table = summarize(per_case)
+            prompts = sum(len(c.prompts) for c in found)
+            results[spec.name] = {
+                "table": table,
+                "windows": len(found),
+                "skipped_windows": skipped,
+                "prompts": prompts,
+                "judgements": {
+                    cond: [j.to_json() for case in per_case for j in case.get(cond, {}).get("judgements", [])]
+                    for cond in table
+                },
+                "prompts_by_condition": {
+                    cond: [p for case in per_case for p in case.get(cond, {}).get("prompts", [])] for cond in table
+                },
+            }
+            print(
+                f"\n{spec.name}: {len(found)} windows ({skipped} without a judgeable agent), {prompts} prompts, "
+                f"{settings.rollouts} rollouts, {settings.candidates} candidates, K = {settings.steps}"
+            )
+            print(markdown(table))
+        return results

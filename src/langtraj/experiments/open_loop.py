@@ -19,9 +19,15 @@ import torch
 from torch import Tensor
 from torch.utils.data import DataLoader, Subset
 
-from langtraj.errors import InputError
 from langtraj.experiments.base import EXPERIMENTS, Experiment
-from langtraj.experiments.common import cell, held_out_dataset, markdown_table, parse_named, write_results
+from langtraj.experiments.common import (
+    cell,
+    held_out_dataset,
+    markdown_table,
+    parse_named,
+    require_counts,
+    require_items,
+)
 from langtraj.experiments.text_gain import TextGainConfig, text_gain_table
 from langtraj.model.checkpoint import load_model
 from langtraj.model.config import SampleConfig
@@ -66,47 +72,8 @@ class OpenLoopSettings:
     json: Path | None = None
 
     def __post_init__(self) -> None:
-        if not self.checkpoints:
-            raise InputError("name at least one checkpoint", where="--checkpoint")
-        for flag in ("windows", "samples", "steps"):
-            value = getattr(self, flag)
-            if value is not None and value < 1:
-                raise InputError(f"must be >= 1, got {value}", where=f"--{flag}")
-
-
-def open_loop_experiment(settings: OpenLoopSettings) -> dict[str, dict]:
-    """The open-loop table (and with `text_gain` the adherence table) of each checkpoint on the held-out windows
-    of `settings.data`, printed as Markdown; every figure is also written to `settings.json` when given."""
-    s = settings
-    results = {}
-    for checkpoint in s.checkpoints:
-        start = time.perf_counter()
-        model, data = load_model(checkpoint_path(checkpoint.path))
-        shared = {"max_windows": s.windows, "label_fraction": s.label_fraction, "decision_first": s.decision_first}
-        results[checkpoint.name] = open_loop_table(
-            model, data, s.data, num_samples=s.samples, steps=s.steps, guidance_weight=s.cfg, **shared
-        )
-        if s.text_gain:
-            gain_config = TextGainConfig(
-                num_samples=s.samples, prior_samples=s.prior_samples, steps=s.steps, guidance_weight=s.cfg, **shared
-            )
-            results[checkpoint.name]["text_gain"] = text_gain_table(model, data, s.data, gain_config, progress=True)
-        results[checkpoint.name]["seconds"] = time.perf_counter() - start
-    first = next(iter(results.values()))
-    print(
-        f"held-out windows {int(first['windows'])}, agents scored {int(first['scored_agents'])}, "
-        f"prompted agents {int(first['prompted_agents'])}, minADE over {s.samples} samples (m)"
-    )
-    rows = [("constant velocity", cell(first["cv_all"]), cell(first["cv_prompted"]))]
-    for name, r in results.items():
-        rows.append((f"{name}, no text", cell(r["model_no_text_all"]), cell(r["model_no_text_prompted"])))
-        if "model_text_all" in r:
-            rows.append((f"{name}, ground-truth prompt", cell(r["model_text_all"]), cell(r["model_text_prompted"])))
-    print(markdown_table(("model", "all agents", "prompted agents"), rows))
-    if s.text_gain:
-        _print_text_gain(results, s.samples, s.prior_samples)
-    write_results(s.json, results)
-    return results
+        require_items(self.checkpoints, "--checkpoint")
+        require_counts(self, ("windows", "samples", "steps", "prior_samples"))
 
 
 def _print_text_gain(results: dict, samples: int, prior_samples: int) -> None:
@@ -193,10 +160,39 @@ def open_loop_table(
 
 @EXPERIMENTS.register
 class OpenLoopExperiment(Experiment):
-    """`langtraj experiment open-loop`: minADE with and without text on held-out windows, per checkpoint."""
+    """`langtraj experiment open-loop`: minADE with and without text on held-out windows, per checkpoint (and with
+    `text_gain` the adherence table)."""
 
     name = "open-loop"
     settings = OpenLoopSettings
 
-    def run(self, settings: OpenLoopSettings) -> dict[str, dict]:
-        return open_loop_experiment(settings)
+    def tables(self, settings: OpenLoopSettings) -> dict[str, dict]:
+        s = settings
+        results = {}
+        for checkpoint in s.checkpoints:
+            start = time.perf_counter()
+            model, data = load_model(checkpoint_path(checkpoint.path))
+            shared = {"max_windows": s.windows, "label_fraction": s.label_fraction, "decision_first": s.decision_first}
+            results[checkpoint.name] = open_loop_table(
+                model, data, s.data, num_samples=s.samples, steps=s.steps, guidance_weight=s.cfg, **shared
+            )
+            if s.text_gain:
+                gain_config = TextGainConfig(
+                    num_samples=s.samples, prior_samples=s.prior_samples, steps=s.steps, guidance_weight=s.cfg, **shared
+                )
+                results[checkpoint.name]["text_gain"] = text_gain_table(model, data, s.data, gain_config, progress=True)
+            results[checkpoint.name]["seconds"] = time.perf_counter() - start
+        first = next(iter(results.values()))
+        print(
+            f"held-out windows {int(first['windows'])}, agents scored {int(first['scored_agents'])}, "
+            f"prompted agents {int(first['prompted_agents'])}, minADE over {s.samples} samples (m)"
+        )
+        rows = [("constant velocity", cell(first["cv_all"]), cell(first["cv_prompted"]))]
+        for name, r in results.items():
+            rows.append((f"{name}, no text", cell(r["model_no_text_all"]), cell(r["model_no_text_prompted"])))
+            if "model_text_all" in r:
+                rows.append((f"{name}, ground-truth prompt", cell(r["model_text_all"]), cell(r["model_text_prompted"])))
+        print(markdown_table(("model", "all agents", "prompted agents"), rows))
+        if s.text_gain:
+            _print_text_gain(results, s.samples, s.prior_samples)
+        return results

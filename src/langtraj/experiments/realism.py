@@ -39,7 +39,8 @@ from langtraj.experiments.common import (
     markdown_table,
     nanmean,
     parse_named,
-    write_results,
+    require_counts,
+    require_items,
 )
 from langtraj.metrics.controllability import collision_rate, offroad_rate
 from langtraj.metrics.features import SceneMap
@@ -242,45 +243,31 @@ class RealismSettings:
     json: Path | None = None
 
     def __post_init__(self) -> None:
-        if not self.methods:
-            raise InputError("name at least one method", where="--method")
-        names = [m.name for m in self.methods]
-        if len(set(names)) < len(names):
-            raise InputError(f"method names repeat: {names}", where="--method")
-        if not self.datasets:
-            raise InputError("name at least one dataset", where="--data")
-        for flag in ("windows", "rollouts", "candidates", "steps"):
-            value = getattr(self, flag)
-            if value is not None and value < 1:
-                raise InputError(f"must be >= 1, got {value}", where=f"--{flag}")
-
-
-def realism_experiment(settings: RealismSettings) -> dict[str, dict]:
-    """The realism table of every dataset, printed as Markdown and written to `settings.json` when given."""
-    loaded = {m.name: m.load() for m in settings.methods}  # once for every dataset
-    results = {}
-    for spec in settings.datasets:
-        rollouts = spec.rollouts or settings.rollouts
-        scenes = windows_of(spec, settings.windows)
-        if not scenes:
-            raise InputError("no window logs 8 s after its current step", path=spec.labels)
-        candidates, steps = settings.candidates, settings.steps
-        counts = f"{len(scenes)} windows, {rollouts} rollouts, {candidates} candidates per replan, K = {steps}"
-        print(f"\n{spec.name}: {counts}")
-        config = SimConfig(rollouts=rollouts, seed=settings.seed)
-        result = realism_table(settings.methods, scenes, config, candidates, steps, print, loaded)
-        results[spec.name] = result | {"rollouts": rollouts}
-        print(markdown(result["table"]))
-    write_results(settings.json, results)
-    return results
+        require_items(self.methods, "--method")
+        require_items(self.datasets, "--data")
+        require_counts(self, ("windows", "rollouts", "candidates", "steps"))
 
 
 @EXPERIMENTS.register
 class RealismExperiment(Experiment):
-    """`langtraj experiment realism`: closed-loop realism per method, every agent driven, per dataset."""
+    """`langtraj experiment realism`: closed-loop realism per method, every agent driven, one table per dataset."""
 
     name = "realism"
     settings = RealismSettings
 
-    def run(self, settings: RealismSettings) -> dict[str, dict]:
-        return realism_experiment(settings)
+    def tables(self, settings: RealismSettings) -> dict[str, dict]:
+        loaded = {m.name: m.load() for m in settings.methods}  # once for every dataset
+        results = {}
+        for spec in settings.datasets:
+            rollouts = spec.rollouts or settings.rollouts
+            scenes = windows_of(spec, settings.windows)
+            if not scenes:
+                raise InputError("no window logs 8 s after its current step", path=spec.labels)
+            candidates, steps = settings.candidates, settings.steps
+            counts = f"{len(scenes)} windows, {rollouts} rollouts, {candidates} candidates per replan, K = {steps}"
+            print(f"\n{spec.name}: {counts}")
+            config = SimConfig(rollouts=rollouts, seed=settings.seed)
+            result = realism_table(settings.methods, scenes, config, candidates, steps, print, loaded)
+            results[spec.name] = result | {"rollouts": rollouts}
+            print(markdown(result["table"]))
+        return results

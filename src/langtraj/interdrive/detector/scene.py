@@ -10,13 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import numpy as np
-
 from langtraj.interdrive.detector.arrays import SceneArrays
 from langtraj.interdrive.detector.config import DetectorConfig
 from langtraj.interdrive.detector.crosswalks import CrosswalkGeometry
 from langtraj.interdrive.detector.lane_changes import LaneChangeGeometry
 from langtraj.interdrive.detector.lanes import LaneGeometry
+from langtraj.interdrive.detector.parts import ScenePart
 from langtraj.interdrive.detector.paths import PathGeometry
 from langtraj.interdrive.detector.yields import YieldGeometry
 from langtraj.interdrive.labels import AgentLabel
@@ -24,8 +23,9 @@ from langtraj.interdrive.mapindex import MapIndex
 from langtraj.scenario.model import Scenario
 
 
-class SceneGeometry:
-    """Per-scene quantities the rules share, each computed once on first use."""
+class SceneGeometry(ScenePart):
+    """Per-scene quantities the rules share, each computed once on first use: the arrays (as every part has them)
+    and the parts."""
 
     def __init__(
         self,
@@ -34,31 +34,12 @@ class SceneGeometry:
         config: DetectorConfig,
         map_index: MapIndex | None = None,
     ):
-        self.scenario = scenario
+        super().__init__(SceneArrays.of(scenario, config, map_index or MapIndex.build(scenario.road_map)))
         self.agent_labels = tuple(agent_labels)
-        self.config = config
-        self.map_index = map_index or MapIndex.build(scenario.road_map)
-        self.arrays = arrays = SceneArrays.of(scenario, config, self.map_index)
-        self.xy, self.heading, self.speed, self.accel = arrays.xy, arrays.heading, arrays.speed, arrays.accel
-        self.length, self.valid = arrays.length, arrays.valid
-        self.types, self.ids, self.movers = arrays.types, arrays.ids, arrays.movers
+        arrays = self.arrays
         # the parts compute nothing until asked
         self.paths = PathGeometry(arrays)
         self.lanes = LaneGeometry(arrays, self.paths)
         self.changes = LaneChangeGeometry(arrays, self.lanes, self.agent_labels)
         self.yields = YieldGeometry(arrays, self.paths, self.lanes)
         self.crossings = CrosswalkGeometry(arrays, self.yields)
-
-    @property
-    def num_steps(self) -> int:
-        return self.arrays.num_steps
-
-    @property
-    def static(self) -> np.ndarray:
-        """[A]: the agent stands all window (`SceneArrays.static`)."""
-        return self.arrays.static
-
-    @property
-    def parked(self) -> np.ndarray:
-        """[A]: the agent stands all window off the lanes (`SceneArrays.parked`)."""
-        return self.arrays.parked
