@@ -27,12 +27,11 @@ from langtraj.errors import InputError
 from langtraj.experiments.base import EXPERIMENTS, Experiment
 from langtraj.experiments.common import (
     DatasetSpec,
+    SimulationSettings,
     cell,
     held_out_windows,
     markdown_table,
     nanmean,
-    require_counts,
-    require_items,
 )
 from langtraj.guidance import CollisionCost, GuidanceTerm
 from langtraj.interdrive.dataset import PromptEntry, WindowRecord
@@ -178,24 +177,11 @@ def markdown(table: dict[str, dict[str, float]]) -> str:
     return markdown_table((*header, "adv.–target collision"), rows)
 
 
-@dataclass(frozen=True)
-class ClosedLoopSettings:
-    """The closed-loop table's settings: one checkpoint, the datasets, at most `windows` windows of each, `rollouts`
-    per window (a dataset's own, when it gives them), `candidates` per replan, `steps` denoising steps, the seed,
-    and where to write every figure (None: nowhere)."""
+@dataclass(frozen=True, kw_only=True)
+class ClosedLoopSettings(SimulationSettings):
+    """The closed-loop table's settings: one checkpoint, and the simulation settings every closed-loop table has."""
 
     checkpoint: Path
-    datasets: tuple[DatasetSpec, ...]
-    windows: int | None = None
-    rollouts: int = 8
-    candidates: int = 4
-    steps: int = 5
-    seed: int = 0
-    json: Path | None = None
-
-    def __post_init__(self) -> None:
-        require_items(self.datasets, "--data")
-        require_counts(self, ("windows", "rollouts", "candidates", "steps"))
 
 
 @EXPERIMENTS.register

@@ -60,6 +60,25 @@ class DatasetSpec:
         return cls(name, Path(folder), split or "val", rollouts)
 
 
+@dataclass(frozen=True, kw_only=True)
+class SimulationSettings:
+    """What every closed-loop table sets: the datasets, at most `windows` windows of each, `rollouts` per window (a
+    dataset's own, when it gives them), `candidates` per replan, `steps` denoising steps (at most a model's K), the
+    seed, and where to write every figure (None: nowhere)."""
+
+    datasets: tuple[DatasetSpec, ...]
+    windows: int | None = None
+    rollouts: int = 8
+    candidates: int = 4
+    steps: int = 5
+    seed: int = 0
+    json: Path | None = None
+
+    def __post_init__(self) -> None:
+        require_items(self.datasets, "--data")
+        require_counts(self, ("windows", "rollouts", "candidates", "steps"))
+
+
 def held_out_records(labels: str | Path, split: str, val_fraction: float = VAL_FRACTION) -> list[WindowRecord]:
     """The records of a dataset's `split` ("train", "val" by `split_of`, or "all"), in dataset order: the one
     place experiments choose their windows (training holds out the same ones, `training.data.SceneDataset`)."""

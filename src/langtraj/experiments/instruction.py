@@ -31,11 +31,11 @@ from langtraj.errors import InputError
 from langtraj.experiments.base import EXPERIMENTS, Experiment
 from langtraj.experiments.common import (
     DatasetSpec,
+    SimulationSettings,
     cell,
     held_out_windows,
     markdown_table,
     require_counts,
-    require_items,
 )
 from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.counterfactual import (
@@ -80,22 +80,17 @@ CONDITIONS: dict[str, PromptLevers | None] = {
 REALISM = ("meta", "kinematic", "interactive", "map")
 
 
-@dataclass(frozen=True)
-class IFRSettings:
-    """What the experiment runs: the checkpoint and datasets, prompts per window, closed-loop settings, the
-    guidance weights to compare, and where to write every figure and judgement (None: nowhere)."""
+@dataclass(frozen=True, kw_only=True)
+class IFRSettings(SimulationSettings):
+    """What the experiment runs: the checkpoint, prompts per window, the guidance weights to compare, and the
+    simulation settings every closed-loop table has (4 rollouts by default); the JSON holds every judgement."""
 
     checkpoint: Path
-    datasets: tuple[DatasetSpec, ...]
-    windows: int | None = None
+    rollouts: int = 4
     skip: int = 0
     """Windows of the split passed over first (settings are chosen on windows that the report leaves out)."""
     agents: int = 2
     counterfactuals: int = 2
-    rollouts: int = 4
-    candidates: int = 4
-    steps: int = 5
-    seed: int = 0
     cfg: float = 0.0
     """Classifier-free guidance weight of the conditions with text."""
     on_road: float = DEFAULT_ON_ROAD
@@ -104,11 +99,10 @@ class IFRSettings:
     free_text: Path | None = None
     """Hand-written prompts (`interdrive.counterfactual.load_free_text_prompts`): each prompt of a behaviour they
     cover is also run in their words, with every lever, as the condition 'default, free text'."""
-    json: Path | None = None
 
     def __post_init__(self) -> None:
-        require_items(self.datasets, "--data")
-        require_counts(self, ("windows", "agents", "rollouts", "candidates", "steps"))
+        super().__post_init__()
+        require_counts(self, ("agents",))
         require_counts(self, ("counterfactuals", "skip"), minimum=0)
         if not math.isfinite(self.cfg) or self.cfg < -1:
             raise InputError(f"must be finite and >= -1, got {self.cfg}", where="--cfg")

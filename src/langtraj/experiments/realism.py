@@ -34,12 +34,12 @@ from langtraj.errors import InputError
 from langtraj.experiments.base import EXPERIMENTS, Experiment
 from langtraj.experiments.common import (
     DatasetSpec,
+    SimulationSettings,
     cell,
     held_out_windows,
     markdown_table,
     nanmean,
     parse_named,
-    require_counts,
     require_items,
 )
 from langtraj.metrics.controllability import collision_rate, offroad_rate
@@ -227,25 +227,15 @@ def markdown(table: dict[str, dict[str, float]]) -> str:
     return markdown_table((*header, "s per simulation"), rows)
 
 
-@dataclass(frozen=True)
-class RealismSettings:
-    """The realism table's settings: its rows (`methods`), the datasets, at most `windows` windows of each,
-    `rollouts` per window (a dataset's own, when it gives them), `candidates` per replan, `steps` denoising steps
-    (at most a model's K), the seed, and where to write every figure (None: nowhere)."""
+@dataclass(frozen=True, kw_only=True)
+class RealismSettings(SimulationSettings):
+    """The realism table's settings: its rows (`methods`), and the simulation settings every closed-loop table has."""
 
     methods: tuple[Method, ...]
-    datasets: tuple[DatasetSpec, ...]
-    windows: int | None = None
-    rollouts: int = 8
-    candidates: int = 4
-    steps: int = 5
-    seed: int = 0
-    json: Path | None = None
 
     def __post_init__(self) -> None:
         require_items(self.methods, "--method")
-        require_items(self.datasets, "--data")
-        require_counts(self, ("windows", "rollouts", "candidates", "steps"))
+        super().__post_init__()
 
 
 @EXPERIMENTS.register
