@@ -82,7 +82,10 @@ def build_dataclass(cls: type, data: Any, where: str = "") -> Any:
     try:
         return cls(**kwargs)
     except InputError as exc:
-        raise exc.located(where=where or None) from None
+        if not where:
+            raise
+        inner = None if (exc.where or "").startswith("--") else exc.where  # a flag's name means nothing in a file
+        raise InputError(exc.detail, path=exc.path, where=", ".join(w for w in (where, inner) if w)) from None
 
 
 def load_dataclass(cls: type, path: str | Path, data: dict[str, Any] | None = None) -> Any:
