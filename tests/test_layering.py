@@ -1,5 +1,5 @@
-"""The package layering of docs/design.md, 'Package layout': imports only point downward, and the simulation
-loads neither the SUMO factory nor the renderer."""
+"""The package layering of docs/design.md, 'Package layout': imports only point downward, no two modules import
+each other (not even for type hints), and the simulation loads neither the SUMO factory nor the renderer."""
 
 from __future__ import annotations
 
@@ -25,6 +25,9 @@ LAYERS = (
 )
 """Each package may import only packages of earlier layers (and itself)."""
 RANK = {package: rank for rank, layer in enumerate(LAYERS) for package in layer}
+APART = {"sim": {"synth", "viz", "labeling"}}
+"""Lower packages a package never imports, not even lazily: the simulation engine needs no SUMO factory, renderer
+or labeling tool (what the model may load: tests/model/test_imports.py)."""
 
 
 def _top_package(path: Path) -> str:
@@ -58,6 +61,63 @@ def test_imports_only_point_downward():
             if imported in RANK and RANK[imported] >= RANK[package]:
                 upward.append(f"{path.relative_to(SRC)} imports langtraj.{imported}")
     assert not upward, "\n".join(upward)
+
+
+def _module_level_imports(path: Path, modules: set[str]) -> set[str]:
+    """The langtraj modules a file imports outside its functions (`if TYPE_CHECKING:` blocks included): the
+    imports that tie modules together; an import inside a function is a deliberate lazy one."""
+    found: set[str] = set()
+
+    def visit(statements: list[ast.stmt]) -> None:
+        for node in statements:
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("langtraj"):
+                for alias in node.names:  # `from package import submodule` imports the submodule
+                    submodule = f"{node.module}.{alias.name}"
+                    found.add(submodule if submodule in modules else node.module)
+            elif isinstance(node, ast.Import):
+                found.update(alias.name for alias in node.names if alias.name.startswith("langtraj"))
+            elif isinstance(node, ast.If | ast.Try | ast.With):
+                for block in ("body", "orelse", "finalbody", "handlers"):
+                    visit([s for s in getattr(node, block, []) if isinstance(s, ast.stmt)])
+                for handler in getattr(node, "handlers", []):
+                    visit(handler.body)
+
+    visit(ast.parse(path.read_text()).body)
+    return found
+
+
+def test_no_two_modules_import_each_other():
+    modules = {}
+    for path in SRC.rglob("*.py"):
+        name = ".".join(path.relative_to(SRC.parent).with_suffix("").parts).removesuffix(".__init__")
+        modules[name] = path
+    names = set(modules)
+    graph = {m: {t for t in _module_level_imports(p, names) if t in names and t != m} for m, p in modules.items()}
+    cycles = []
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+
+    def walk(module: str, path: list[str]) -> None:
+        state[module] = 1
+        for target in sorted(graph[module]):
+            if state.get(target) == 1:
+                cycles.append(" -> ".join([*path[path.index(target) :], target]))
+            elif target not in state:
+                walk(target, [*path, target])
+        state[module] = 2
+
+    for module in sorted(graph):
+        if module not in state:
+            walk(module, [module])
+    assert not cycles, "\n".join(cycles)
+
+
+def test_the_engine_keeps_apart_from_what_it_does_not_need():
+    found = [
+        f"{path.relative_to(SRC)} imports langtraj.{imported}"
+        for path in sorted(SRC.rglob("*.py"))
+        for imported in _imported_packages(path) & APART.get(_top_package(path), set())
+    ]
+    assert not found, "\n".join(found)
 
 
 def test_the_simulation_loads_neither_the_factory_nor_the_renderer():
