@@ -16,14 +16,12 @@ edges) and, for collision guidance, the adversary-target collision rate.
 
 from __future__ import annotations
 
-import contextlib
 import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from langtraj.errors import InputError
 from langtraj.experiments.base import EXPERIMENTS, Experiment
 from langtraj.experiments.common import (
     DatasetSpec,
@@ -32,12 +30,13 @@ from langtraj.experiments.common import (
     held_out_windows,
     markdown_table,
     nanmean,
+    safety_figures,
+    wosac_figures,
 )
 from langtraj.guidance import CollisionCost, GuidanceTerm
 from langtraj.interdrive.dataset import PromptEntry, WindowRecord
-from langtraj.metrics.controllability import collision_rate, min_ade, offroad_rate, pair_collision_rate
+from langtraj.metrics.controllability import min_ade, pair_collision_rate
 from langtraj.metrics.features import SceneMap
-from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.model.checkpoint import load_model
 from langtraj.scenario.model import Scenario
 from langtraj.sim.checkpoints import checkpoint_path
@@ -124,21 +123,8 @@ def _policies(loaded: LoadedModel, case: Case, candidates: int, steps: int) -> d
 
 def score(case: Case, rollouts, scene_map: SceneMap, pair: bool) -> dict[str, float]:
     """The table's figures for one method on one window."""
-    wosac = evaluate_scenario(case.scenario, rollouts, "2025", scene_map=scene_map)
-    prompted = list(case.prompt.mentions)
-    out = {
-        "meta": wosac.metametric,
-        "kinematic": wosac.kinematic_metrics,
-        "interactive": wosac.interactive_metrics,
-        "map": wosac.map_based_metrics,
-        "minade": min_ade(case.scenario, rollouts, prompted).mean,
-        "collision": collision_rate(case.scenario, rollouts),
-        "offroad": math.nan,
-        "pair_collision": math.nan,
-    }
-    if scene_map.road_edges is not None:
-        with contextlib.suppress(InputError):  # raised when no sim agent is a vehicle
-            out["offroad"] = offroad_rate(case.scenario, rollouts, scene_map=scene_map)
+    out = wosac_figures(case.scenario, rollouts, scene_map) | safety_figures(case.scenario, rollouts, scene_map)
+    out |= {"minade": min_ade(case.scenario, rollouts, list(case.prompt.mentions)).mean, "pair_collision": math.nan}
     if pair:
         target, adversary = case.prompt.mentions[:2]
         out["pair_collision"] = pair_collision_rate(case.scenario, rollouts, adversary, target)

@@ -3,6 +3,7 @@ held-out windows, `NAME=VALUE` shorthands, NaN-aware means, Markdown tables and 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 from collections.abc import Iterator, Sequence
@@ -14,13 +15,14 @@ import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_path
-from langtraj.interdrive.dataset import VAL_FRACTION, WindowRecord, iter_records, load_window, split_of
+from langtraj.interdrive.dataset import SPLITS, WindowRecord, in_split, iter_records, load_window
+from langtraj.metrics.controllability import collision_rate, offroad_rate
+from langtraj.metrics.features import SceneMap
+from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.model.config import SampleConfig
+from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.model import Scenario
 from langtraj.training.data import SceneDataset
-
-SPLITS = ("train", "val", "all")
-"""A dataset's windows an experiment reads: training's, the held-out ones (`split_of`), or every one."""
 
 
 def parse_named(item: str, where: str, form: str = "NAME=VALUE") -> tuple[str, str]:
@@ -34,8 +36,8 @@ def parse_named(item: str, where: str, form: str = "NAME=VALUE") -> tuple[str, s
 @dataclass(frozen=True)
 class DatasetSpec:
     """A dataset an experiment scores: its name in the tables, its InterDrive labels folder, the split of its
-    windows (`SPLITS`, default the held-out val) and, for the closed-loop tables, its own rollouts per window
-    (None: the experiment's). Shorthand: `NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]]`."""
+    windows (`interdrive.dataset.SPLITS`, default the held-out val) and, for the closed-loop tables, its own
+    rollouts per window (None: the experiment's). Shorthand: `NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]]`."""
 
     name: str
     labels: Path
@@ -79,23 +81,12 @@ class SimulationSettings:
         require_counts(self, ("windows", "rollouts", "candidates", "steps"))
 
 
-def held_out_records(labels: str | Path, split: str, val_fraction: float = VAL_FRACTION) -> list[WindowRecord]:
-    """The records of a dataset's `split` ("train", "val" by `split_of`, or "all"), in dataset order: the one
-    place experiments choose their windows (training holds out the same ones, `training.data.SceneDataset`)."""
-    if split not in SPLITS:
-        raise InputError(f"split must be train, val or all, got {split!r}", where="--data")
-    return [
-        record
-        for _, records in iter_records(Path(labels))
-        for record in records
-        if split == "all" or split_of(record, val_fraction) == split
-    ]
-
-
 def held_out_windows(spec: DatasetSpec, skip: int = 0) -> Iterator[tuple[WindowRecord, Scenario]]:
-    """The windows of the spec's split after the first `skip`, each with its record, loaded one at a time (a
-    missing scenario file is a one-line InputError)."""
-    for record in held_out_records(spec.labels, spec.split)[skip:]:
+    """The windows of the spec's split (`interdrive.dataset.in_split`, as training holds them out) in dataset
+    order after the first `skip`, each with its record, loaded one at a time (a missing scenario file is a
+    one-line InputError)."""
+    records = [r for _, shard in iter_records(spec.labels) for r in shard if in_split(r, spec.split)]
+    for record in records[skip:]:
         try:
             yield record, load_window(record)
         except FileNotFoundError:
@@ -139,6 +130,27 @@ def require_items(items: Sequence[Any], flag: str) -> None:
     names = [item.name for item in items]
     if len(set(names)) < len(names):
         raise InputError(f"names repeat: {names}", where=flag)
+
+
+def wosac_figures(scenario: Scenario, rollouts: Rollouts, scene_map: SceneMap) -> dict[str, float]:
+    """One window's WOSAC 2025 meta-metric and its kinematic, interactive and map-based buckets."""
+    wosac = evaluate_scenario(scenario, rollouts, "2025", scene_map=scene_map)
+    return {
+        "meta": wosac.metametric,
+        "kinematic": wosac.kinematic_metrics,
+        "interactive": wosac.interactive_metrics,
+        "map": wosac.map_based_metrics,
+    }
+
+
+def safety_figures(scenario: Scenario, rollouts: Rollouts, scene_map: SceneMap) -> dict[str, float]:
+    """One window's share of (rollout, sim agent) pairs that collide and of (rollout, vehicle) pairs that leave the
+    road (offroad: NaN for a map without road edges or a scene without vehicles)."""
+    out = {"collision": collision_rate(scenario, rollouts), "offroad": math.nan}
+    if scene_map.road_edges is not None:
+        with contextlib.suppress(InputError):  # no vehicle among the sim agents
+            out["offroad"] = offroad_rate(scenario, rollouts, scene_map=scene_map)
+    return out
 
 
 def nanmean(values: Sequence[float]) -> float:

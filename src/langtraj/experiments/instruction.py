@@ -36,6 +36,7 @@ from langtraj.experiments.common import (
     held_out_windows,
     markdown_table,
     require_counts,
+    wosac_figures,
 )
 from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.counterfactual import (
@@ -49,7 +50,6 @@ from langtraj.interdrive.mapindex import MapIndex
 from langtraj.metrics.controllability import agent_rates, min_ade
 from langtraj.metrics.features import SceneMap
 from langtraj.metrics.instruction_following import Judgement, instruction_following, judge_rollouts
-from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.model.checkpoint import load_model
 from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.model import Scenario
@@ -192,16 +192,6 @@ def _policy(loaded: LoadedModel, settings: IFRSettings, prompt: Alternative | No
     return LangTrajPolicy(model, data, prompt=prompt.prompt, guidance_weight=settings.cfg, levers=levers, **options)
 
 
-def _realism(scenario: Scenario, rollouts, scene_map: SceneMap) -> dict[str, float]:
-    wosac = evaluate_scenario(scenario, rollouts, "2025", scene_map=scene_map)
-    return {
-        "meta": wosac.metametric,
-        "kinematic": wosac.kinematic_metrics,
-        "interactive": wosac.interactive_metrics,
-        "map": wosac.map_based_metrics,
-    }
-
-
 def in_free_text(prompt: Alternative, free_text: Sequence[FreeTextPrompt], pick: int) -> Alternative | None:
     """`prompt` in the words of one of the hand-written prompts of its behaviour (the `pick`-th, cyclically),
     judged by the same facts; None when none covers the behaviour."""
@@ -239,7 +229,7 @@ def _run_prompts(
         row["seconds"] += time.perf_counter() - start
         judged = judge_rollouts(case.scenario, rollouts, [prompt], checker=case.checker)
         row["judgements"] += judged
-        row["realism"].append(_realism(case.scenario, rollouts, scene_map))
+        row["realism"].append(wosac_figures(case.scenario, rollouts, scene_map))
         safety = _safety(case, rollouts, scene_map, [prompt.track_id])
         for key, values in safety.items():
             row[key] += values
@@ -278,7 +268,7 @@ def run_case(
     plain = simulate(case.scenario, _policy(loaded, settings, None, NO_PROMPT), config).rollouts
     out[NO_PROMPT] = {
         "judgements": list(judge_rollouts(case.scenario, plain, case.prompts, checker=case.checker)),
-        "realism": [_realism(case.scenario, plain, scene_map)],
+        "realism": [wosac_figures(case.scenario, plain, scene_map)],
         "realism_weight": len(case.prompts),  # judged against every prompt: it counts once per prompt
         "minade": [min_ade(case.scenario, plain, [p.track_id]).mean for p in case.prompts if p.logged],
         "seconds": time.perf_counter() - start,

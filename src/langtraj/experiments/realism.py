@@ -21,8 +21,6 @@ attention.
 
 from __future__ import annotations
 
-import contextlib
-import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -41,10 +39,10 @@ from langtraj.experiments.common import (
     nanmean,
     parse_named,
     require_items,
+    safety_figures,
+    wosac_figures,
 )
-from langtraj.metrics.controllability import collision_rate, offroad_rate
 from langtraj.metrics.features import SceneMap
-from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.model.checkpoint import load_model
 from langtraj.rollouts.baselines import generate_baseline
 from langtraj.rollouts.container import Rollouts
@@ -168,44 +166,27 @@ def windows_of(spec: DatasetSpec, limit: int | None) -> list[Scenario]:
     return found
 
 
-def score(scenario: Scenario, rollouts: Rollouts) -> dict[str, float]:
-    """One window's figures (offroad: NaN for a map without road edges or a scene without vehicles)."""
-    wosac = evaluate_scenario(scenario, rollouts, "2025")
-    scene_map = SceneMap.from_scenario(scenario)
-    out = {
-        "meta": wosac.metametric,
-        "kinematic": wosac.kinematic_metrics,
-        "interactive": wosac.interactive_metrics,
-        "map": wosac.map_based_metrics,
-        "offroad": math.nan,
-        "collision": collision_rate(scenario, rollouts),
-    }
-    if scene_map.road_edges is not None:
-        with contextlib.suppress(InputError):  # no vehicle among the sim agents
-            out["offroad"] = offroad_rate(scenario, rollouts, scene_map=scene_map)
-    return out
-
-
 def realism_table(
     methods: Sequence[Method],
     scenes: Sequence[Scenario],
     config: SimConfig,
     candidates: int,
     steps: int,
+    loaded: Mapping[str, LoadedModel | None],
     progress: Callable[[str], None] | None = None,
-    loaded: Mapping[str, LoadedModel | None] | None = None,
 ) -> dict:
-    """Mean figures per method over `scenes`, the per-window figures, and seconds per simulation (`loaded`: each
-    method's model by name, as `Method.load` gives it; None: loaded here)."""
-    loaded = loaded if loaded is not None else {m.name: m.load() for m in methods}
+    """Mean figures per method over `scenes`, the per-window figures (WOSAC, collision and offroad), and seconds per
+    simulation (`loaded`: each method's model by name, as `Method.load` gives it)."""
+    maps = [SceneMap.from_scenario(scenario) for scenario in scenes]  # once for every method
     table, per_window = {}, {}
     for method in methods:
         rows, seconds = [], []
-        for scenario in scenes:
+        for scenario, scene_map in zip(scenes, maps, strict=True):
             begin = time.perf_counter()
             rollouts = method.rollouts(scenario, config, candidates, steps, loaded[method.name])
             seconds.append(time.perf_counter() - begin)
-            rows.append(score(scenario, rollouts) | {"scenario_id": scenario.scenario_id})
+            figures = wosac_figures(scenario, rollouts, scene_map) | safety_figures(scenario, rollouts, scene_map)
+            rows.append(figures | {"scenario_id": scenario.scenario_id})
         per_window[method.name] = rows
         table[method.name] = {c: nanmean([r[c] for r in rows]) for c in COLUMNS} | {
             "min_meta": min(r["meta"] for r in rows),
@@ -257,7 +238,7 @@ class RealismExperiment(Experiment):
             counts = f"{len(scenes)} windows, {rollouts} rollouts, {candidates} candidates per replan, K = {steps}"
             print(f"\n{spec.name}: {counts}")
             config = SimConfig(rollouts=rollouts, seed=settings.seed)
-            result = realism_table(settings.methods, scenes, config, candidates, steps, print, loaded)
+            result = realism_table(settings.methods, scenes, config, candidates, steps, loaded, print)
             results[spec.name] = result | {"rollouts": rollouts}
             print(markdown(result["table"]))
         return results

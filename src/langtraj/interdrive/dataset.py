@@ -180,6 +180,15 @@ def split_of(record: WindowRecord, val_fraction: float = VAL_FRACTION) -> str:
     return "val" if value < val_fraction else "train"
 
 
+SPLITS = ("train", "val", "all")
+"""Which of a dataset's windows a run reads: training's, the held-out ones (`split_of`), or every one."""
+
+
+def in_split(record: WindowRecord, split: str, val_fraction: float = VAL_FRACTION) -> bool:
+    """Whether `record` belongs to `split`, one of `SPLITS` (checked by the caller, once)."""
+    return split == "all" or split_of(record, val_fraction) == split
+
+
 # ---------------------------------------------------------------- labeling one window
 
 

@@ -24,7 +24,15 @@ import numpy as np
 from torch.utils.data import Dataset, Sampler
 
 from langtraj.errors import InputError
-from langtraj.interdrive.dataset import VAL_FRACTION, PromptEntry, WindowRecord, iter_records, load_window, split_of
+from langtraj.interdrive.dataset import (
+    SPLITS,
+    VAL_FRACTION,
+    PromptEntry,
+    WindowRecord,
+    in_split,
+    iter_records,
+    load_window,
+)
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import apply_history_dropout, map_coverage, scene_sample
 from langtraj.scenario.model import Scenario
@@ -178,8 +186,8 @@ class SceneDataset(Dataset):
         cache_size: int = 8,
         store: str | Path | None = "auto",
     ) -> None:
-        if split not in ("train", "val", "all"):
-            raise ValueError(f"split must be 'train', 'val' or 'all', got {split!r}")
+        if split not in SPLITS:
+            raise ValueError(f"split must be one of {', '.join(SPLITS)}, got {split!r}")
         if not 0.0 <= val_fraction <= 1.0:
             raise ValueError(f"val_fraction must be in [0, 1], got {val_fraction}")
         self.data_dir = Path(data_dir)
@@ -196,7 +204,7 @@ class SceneDataset(Dataset):
         if is_store(self.data_dir):
             self.store = FeatureStore(self.data_dir, self.config)
             for row, entry in enumerate(self.store.rows):
-                if split == "all" or split_of(entry.record, val_fraction) == split:
+                if in_split(entry.record, split, val_fraction):
                     records.append(entry.record)
                     rows.append(row)
         else:
@@ -204,7 +212,7 @@ class SceneDataset(Dataset):
                 rec
                 for _, shard in iter_records(self.data_dir)
                 for rec in shard
-                if split == "all" or split_of(rec, val_fraction) == split
+                if in_split(rec, split, val_fraction)
             ]
             self.store, rows = _store_rows(self.data_dir, self.config, records, store)
             if self.store is None:
