@@ -5,13 +5,11 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import numpy as np
 import pytest
 import torch
 
-from langtraj.angles import wrap_angle as np_wrap_angle
 from langtraj.errors import InputError
-from langtraj.model.dynamics import DYNAMICS, Unicycle, initial_state_from_log, wrap_angle
+from langtraj.model.dynamics import DYNAMICS, Unicycle, initial_state_from_log
 from langtraj.scenario import AgentType
 from langtraj.scenario.io import read_scenario
 
@@ -44,11 +42,6 @@ def test_registry_and_shapes() -> None:
     assert actions.shape == (3, 16, 2) and action_valid.shape == (3, 16) and action_valid.all()
     with pytest.raises(InputError):
         dyn(torch.zeros(3, 4), torch.zeros(3, 16, 3))
-
-
-def test_wrap_angle_matches_numpy() -> None:
-    angles = np.linspace(-10, 10, 101)
-    np.testing.assert_allclose(wrap_angle(torch.from_numpy(angles)).numpy(), np_wrap_angle(angles), atol=1e-12)
 
 
 def test_constant_acceleration_straight_line() -> None:

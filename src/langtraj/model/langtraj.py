@@ -124,7 +124,7 @@ class LangTraj(nn.Module):
             weight = weight * torch.where(batch.has_text & batch.agent_valid, text_weight, 1.0)[..., None]
         count = weight.sum().clamp(min=1.0)
         position = ((states[..., :2] - future[..., :2]) ** 2).sum(-1)
-        dh = wrap_angle(states[..., 2] - future[..., 2], interval="[-pi, pi)")
+        dh = wrap_angle(states[..., 2] - future[..., 2])
         position_loss = (position * weight).sum() / count
         heading_loss = (dh**2 * weight).sum() / count
         ade = (torch.sqrt(position + 1e-9) * weight).sum() / count

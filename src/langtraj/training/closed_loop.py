@@ -114,7 +114,7 @@ def closed_loop_loss(
     weight = (batch.future_valid[:, :, :steps] & free[..., None]).to(executed.dtype)
     count = weight.sum().clamp(min=1.0)
     position = ((executed[..., :2] - truth[..., :2]) ** 2).sum(-1)
-    dh = wrap_angle(executed[..., 2] - truth[..., 2], interval="[-pi, pi)")
+    dh = wrap_angle(executed[..., 2] - truth[..., 2])
     position_loss = (position * weight).sum() / count
     heading_loss = (dh**2 * weight).sum() / count
     collision = collision_cost(executed, batch) if config.collision_weight > 0 else executed.new_zeros(())
