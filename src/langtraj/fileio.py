@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import os
 import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import zstandard
 
@@ -94,6 +95,18 @@ def _decompress(fh: BinaryIO, path: Path) -> bytes:
         if len(out) > MAX_DECOMPRESSED_BYTES:
             raise _too_large(len(out), path)
     return bytes(out)
+
+
+def read_json(path: str | Path, missing: str) -> Any:
+    """The JSON document at `path`; a missing file raises InputError(`missing`), an unreadable one names the
+    parse error, both naming the file."""
+    path = Path(path)
+    try:
+        return json.loads(path.read_text())
+    except FileNotFoundError:
+        raise InputError(missing, path=path) from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"not JSON: {exc}", path=path) from None
 
 
 def open_input(path: str | Path) -> BinaryIO:

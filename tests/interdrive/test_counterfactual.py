@@ -19,10 +19,10 @@ from langtraj.interdrive.counterfactual import (
     behaviour_feasibility,
     feasible_alternatives,
     infeasible_manoeuvres,
-    load_free_text_prompts,
     logged_facts,
 )
 from langtraj.interdrive.dataset import PromptEntry
+from langtraj.interdrive.free_text import load_free_text_prompts
 from langtraj.interdrive.labels import AgentLabel
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.prompts import Prompt, mentions_in, parse_user_prompt

@@ -28,8 +28,8 @@ from langtraj.metrics.controllability import (
     safety,
 )
 from langtraj.metrics.interaction import distance_to_nearest_object, pair_signed_distance
-from langtraj.rollouts import FUTURE_STEPS, Rollouts, evaluated_agent_indices
-from langtraj.scenario import Agents, AgentType, MapFeature, MapFeatureType, RoadMap, Scenario, StateField
+from langtraj.rollouts import Rollouts, evaluated_agent_indices
+from langtraj.scenario import FUTURE_STEPS, Agents, AgentType, MapFeature, MapFeatureType, RoadMap, Scenario, StateField
 
 C = 10  # current step
 STEPS = C + 1 + FUTURE_STEPS

@@ -29,7 +29,8 @@ from langtraj.metrics.instruction_following import (
     judge_rollouts,
     rollout_scenario,
 )
-from langtraj.rollouts.container import FUTURE_STEPS, Rollouts
+from langtraj.rollouts.container import Rollouts
+from langtraj.scenario import FUTURE_STEPS
 from langtraj.scenario.types import StateField
 
 

@@ -24,8 +24,8 @@ from langtraj.metrics.submission import (
     validate_scenario_rollouts,
     write_submission,
 )
-from langtraj.rollouts import FUTURE_STEPS, WOSAC_ROLLOUTS, Rollouts, sim_agent_indices
-from langtraj.scenario import Scenario
+from langtraj.rollouts import WOSAC_ROLLOUTS, Rollouts, sim_agent_indices
+from langtraj.scenario import FUTURE_STEPS, Scenario
 from langtraj.scenario.io import read_scenario
 
 

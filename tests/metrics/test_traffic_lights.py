@@ -9,8 +9,9 @@ import pytest
 
 from langtraj.metrics.traffic_lights import SignalLanes, red_light_violations
 from langtraj.metrics.wosac import evaluate_scenario
-from langtraj.rollouts import FUTURE_STEPS, Rollouts
+from langtraj.rollouts import Rollouts
 from langtraj.scenario import (
+    FUTURE_STEPS,
     Agents,
     AgentType,
     MapFeature,

@@ -11,7 +11,7 @@ from scenario_builders import make_scenario
 
 from langtraj.angles import wrap_angle
 from langtraj.errors import InputError
-from langtraj.rollouts import FUTURE_STEPS, Rollouts, sim_agent_indices
+from langtraj.rollouts import Rollouts, sim_agent_indices
 from langtraj.rollouts.baselines import (
     BASELINES,
     ConstantVelocity,
@@ -21,7 +21,7 @@ from langtraj.rollouts.baselines import (
     generate_baseline,
 )
 from langtraj.rollouts.validation import check_rollouts
-from langtraj.scenario import Agents, AgentType, Scenario, StateField
+from langtraj.scenario import FUTURE_STEPS, Agents, AgentType, Scenario, StateField
 from langtraj.scenario.io import read_scenario
 from langtraj.scenario.io.tfrecord import iter_records
 from langtraj.scenario.io.womd import decode_scenario

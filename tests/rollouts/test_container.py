@@ -10,10 +10,10 @@ import pytest
 from scenario_builders import make_scenario
 
 from langtraj.errors import InputError
-from langtraj.rollouts import FUTURE_STEPS, Rollouts
+from langtraj.rollouts import Rollouts
 from langtraj.rollouts.baselines import generate_baseline
 from langtraj.rollouts.validation import check_rollouts
-from langtraj.scenario import Scenario
+from langtraj.scenario import FUTURE_STEPS, Scenario
 from langtraj.scenario.io import read_scenario
 
 from .test_baselines import REFERENCE, WOMD_FILE, WOMD_ID, load_reference

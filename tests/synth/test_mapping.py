@@ -17,14 +17,10 @@ from langtraj.scenario.io.womd import scenario_from_proto, scenario_to_proto
 
 sumolib = pytest.importorskip("sumolib", reason="SUMO (sumolib, eclipse-sumo) is not installed")
 
-from langtraj.synth.mapping import (  # noqa: E402  (needs sumolib)
-    DRIVABLE_CLASSES,
-    NetMap,
-    build_net_map,
-    crop_road_map,
-    is_intersection,
-    offset_polyline,
-)
+from langtraj.synth.mapping import NetMap, build_net_map, crop_road_map  # noqa: E402  (needs sumolib)
+from langtraj.synth.mapping.common import DRIVABLE_CLASSES  # noqa: E402
+from langtraj.synth.mapping.geometry import offset_polyline  # noqa: E402
+from langtraj.synth.mapping.network import is_intersection  # noqa: E402
 from langtraj.synth.sumo import run_tool  # noqa: E402
 from langtraj.viz import RenderConfig, render_frame  # noqa: E402
 

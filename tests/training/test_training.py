@@ -133,12 +133,6 @@ def test_bad_checkpoints_and_configs_are_input_errors(tmp_path):
         load_config(bad)
 
 
-@pytest.mark.parametrize("name", ["tiny.yaml", "tiny-text.yaml", "base.yaml", "base-text.yaml", "base-ddp.yaml"])
-def test_the_presets_load(name):
-    config = load_config(ROOT / "configs" / name)
-    assert config.stage == (2 if "text" in name else 1)
-
-
 EXPERIMENT_CONFIGS = sorted((ROOT / "configs" / "experiments").glob("*.yaml"))
 TRAINING_RUNS = [p for p in EXPERIMENT_CONFIGS if "experiment" not in read_yaml(p)]
 """The training runs of the experiments (the other files there configure the tables, tests/experiments)."""

@@ -30,14 +30,15 @@ import numpy as np
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_path
 from langtraj.interdrive.adherence import AdherenceChecker, prompt_facts
-from langtraj.interdrive.counterfactual import Alternative, Behaviour, feasible_alternatives
+from langtraj.interdrive.behaviour import Behaviour
+from langtraj.interdrive.counterfactual import Alternative, feasible_alternatives
 from langtraj.interdrive.dataset import BuildConfig, PromptEntry, label_file, load_window
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets import TargetUnavailable, derive_target
 from langtraj.metrics.instruction_following import rollout_scenario
 from langtraj.rollouts import Rollouts
 from langtraj.scenario.io import expand_scenario_paths
-from langtraj.scenario.model import Scenario
+from langtraj.scenario.model import HISTORY_STEPS, WINDOW_STEPS, Scenario
 from langtraj.scenario.types import AgentType
 from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.engine import SimResult, simulate
@@ -179,8 +180,9 @@ def _panel(panel: Panel, follow: int):
         caption=panel.caption, marks=panel.marks,
     )  # fmt: skip
     scene = panel.result.scenario(0)
-    start = max(scene.current_index - 10, 0)
-    return TopDownRenderer(scene, config, steps=range(start, start + 91)), range(start, start + 91)
+    start = max(scene.current_index - (HISTORY_STEPS - 1), 0)  # the window the simulation ran
+    steps = range(start, start + WINDOW_STEPS)
+    return TopDownRenderer(scene, config, steps=steps), steps
 
 
 def write_side_by_side(path: Path, panels: list[Panel], follow: int) -> int:

@@ -39,13 +39,9 @@ from langtraj.experiments.common import (
     wosac_figures,
 )
 from langtraj.interdrive.adherence import AdherenceChecker
-from langtraj.interdrive.counterfactual import (
-    Alternative,
-    Behaviour,
-    FreeTextPrompt,
-    feasible_alternatives,
-    load_free_text_prompts,
-)
+from langtraj.interdrive.behaviour import Behaviour
+from langtraj.interdrive.counterfactual import Alternative, feasible_alternatives
+from langtraj.interdrive.free_text import FreeTextPrompt, load_free_text_prompts
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.metrics.controllability import agent_rates, min_ade
 from langtraj.metrics.features import SceneMap
@@ -97,7 +93,7 @@ class IFRSettings(SimulationSettings):
     no_collision: float = DEFAULT_NO_COLLISION
     conditions: tuple[str, ...] = tuple(CONDITIONS)
     free_text: Path | None = None
-    """Hand-written prompts (`interdrive.counterfactual.load_free_text_prompts`): each prompt of a behaviour they
+    """Hand-written prompts (`interdrive.free_text.load_free_text_prompts`): each prompt of a behaviour they
     cover is also run in their words, with every lever, as the condition 'default, free text'."""
 
     def __post_init__(self) -> None:

@@ -8,8 +8,7 @@ connectivity, no neighbour lists), never guessing.
 `feasible_alternatives` turns the feasible behaviours, and going first or yielding in each interaction pair the
 log shows, into prompts, marking those the log itself shows (ground-truth prompts). `infeasible_manoeuvres`
 warns about a typed prompt asking for a turn or lane change the map does not allow.
-The hand-written free-text prompts (`FreeTextPrompt`, `load_free_text_prompts`) are in `free_text`, imported
-from here too.
+The hand-written free-text prompts (`FreeTextPrompt`, `load_free_text_prompts`) are in `free_text`.
 
 See docs/interdrive.md ('Counterfactual prompts and instruction following').
 """
@@ -35,8 +34,6 @@ from langtraj.interdrive.behaviour import (
 )
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.detector import DetectorConfig
-from langtraj.interdrive.free_text import FreeTextPrompt as FreeTextPrompt  # re-exported: its import path stays
-from langtraj.interdrive.free_text import load_free_text_prompts as load_free_text_prompts
 from langtraj.interdrive.heuristics import HeuristicConfig
 from langtraj.interdrive.mapindex import SEGMENT_SPACING_M, MapIndex
 from langtraj.interdrive.prompts import Prompt, label_phrases, label_variants, mentions_in

@@ -19,8 +19,8 @@ from langtraj.metrics.kinematics import kinematic_features
 from langtraj.metrics.road import RoadEdgeIndex, RoadEdges, distance_to_road_edge
 from langtraj.metrics.traffic_lights import SignalLanes, red_light_violations
 from langtraj.rollouts.agents import evaluated_agent_indices, sim_agent_indices
-from langtraj.rollouts.container import FUTURE_STEPS, Rollouts
-from langtraj.scenario.model import STEP_SECONDS, Scenario
+from langtraj.rollouts.container import Rollouts
+from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
 from langtraj.scenario.types import AgentType, StateField
 
 COLLISION_THRESHOLD = 0.0

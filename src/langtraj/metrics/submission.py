@@ -29,9 +29,9 @@ from google.protobuf.message import DecodeError
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_path, open_input
 from langtraj.metrics.proto import sim_agents_submission_pb2 as pb
-from langtraj.rollouts.container import FUTURE_STEPS, WOSAC_ROLLOUTS, Rollouts
+from langtraj.rollouts.container import WOSAC_ROLLOUTS, Rollouts
 from langtraj.rollouts.validation import check_rollouts
-from langtraj.scenario.model import Scenario
+from langtraj.scenario.model import FUTURE_STEPS, Scenario
 
 ScenarioRollouts = pb.ScenarioRollouts
 SimAgentsChallengeSubmission = pb.SimAgentsChallengeSubmission

@@ -16,11 +16,10 @@ from langtraj.rollouts.baselines import (
     Stationary,
     generate_baseline,
 )
-from langtraj.rollouts.container import FUTURE_STEPS, WOSAC_ROLLOUTS, Rollouts
+from langtraj.rollouts.container import WOSAC_ROLLOUTS, Rollouts
 
 __all__ = [
     "BASELINES",
-    "FUTURE_STEPS",
     "WOSAC_ROLLOUTS",
     "ConstantVelocity",
     "LogReplay",

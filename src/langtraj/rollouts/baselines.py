@@ -26,8 +26,8 @@ from langtraj.angles import wrap_angle
 from langtraj.errors import InputError
 from langtraj.registry import Registry
 from langtraj.rollouts.agents import sim_agent_indices
-from langtraj.rollouts.container import FUTURE_STEPS, WOSAC_ROLLOUTS, Rollouts
-from langtraj.scenario.model import STEP_SECONDS, Scenario
+from langtraj.rollouts.container import WOSAC_ROLLOUTS, Rollouts
+from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
 from langtraj.scenario.types import StateField
 
 _POSE = [StateField.X, StateField.Y, StateField.Z, StateField.HEADING]

@@ -20,7 +20,6 @@ import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_path
-from langtraj.scenario import FUTURE_STEPS as FUTURE_STEPS  # simulated steps after the current one (re-exported)
 
 WOSAC_ROLLOUTS = 32
 """Joint rollouts per scenario in the Waymo Open Sim Agents Challenge."""

@@ -9,8 +9,8 @@ import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.rollouts.agents import sim_agent_indices
-from langtraj.rollouts.container import FUTURE_STEPS, Rollouts
-from langtraj.scenario.model import Scenario
+from langtraj.rollouts.container import Rollouts
+from langtraj.scenario.model import FUTURE_STEPS, Scenario
 
 
 def _ids(values: np.ndarray, limit: int = 8) -> str:

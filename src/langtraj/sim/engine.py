@@ -18,8 +18,8 @@ import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.rollouts.agents import sim_agent_indices
-from langtraj.rollouts.container import FUTURE_STEPS, Rollouts
-from langtraj.scenario.model import Scenario
+from langtraj.rollouts.container import Rollouts
+from langtraj.scenario.model import FUTURE_STEPS, Scenario
 from langtraj.sim.config import SimConfig
 from langtraj.sim.policies import Policy
 from langtraj.sim.world import SimWorld

@@ -19,8 +19,8 @@ from langtraj.angles import wrap_angle
 from langtraj.errors import InputError
 from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.rollouts.baselines import generate_baseline
-from langtraj.rollouts.container import FUTURE_STEPS, Rollouts
-from langtraj.scenario.model import STEP_SECONDS, Agents, Scenario, TrafficLights
+from langtraj.rollouts.container import Rollouts
+from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Agents, Scenario, TrafficLights
 from langtraj.scenario.types import StateField
 from langtraj.sim.config import UNDRIVEN
 

@@ -47,8 +47,8 @@ from langtraj.runs import true_runs, value_runs
 from langtraj.scenario.model import STEP_SECONDS, BehaviorEvent
 from langtraj.scenario.types import AgentType
 from langtraj.synth.intents import Decision, decision_events
-from langtraj.synth.runner import LEADER_RANGE_M, FoeObservation, LaneChangeRecord, SimulationLog
-from langtraj.synth.tracks import Track
+from langtraj.synth.records import LaneChangeRecord, Track
+from langtraj.synth.runner import LEADER_RANGE_M, FoeObservation, SimulationLog
 
 MAX_MANOEUVRE_STEPS = 50
 """A lane-change event spans at most 5 s either side of the switch (SUMO may start a manoeuvre, pause it

@@ -24,9 +24,8 @@ from typing import Any
 import numpy as np
 
 from langtraj import __version__
-from langtraj.errors import InputError
 from langtraj.executors import EXECUTORS
-from langtraj.fileio import ZSTD_SUFFIX, atomic_open
+from langtraj.fileio import ZSTD_SUFFIX, atomic_open, read_json
 from langtraj.synth.shard import ShardConfig, ShardOutcome, ShardTask, run_shard, shard_seed
 from langtraj.synth.sumo import SynthError, sumo_version
 
@@ -110,13 +109,7 @@ def _round_tasks(config: FactoryConfig, short: dict[str, int], next_index: dict[
 
 def read_factory_manifest(out: Path) -> dict[str, Any]:
     """The manifest `run_factory` wrote into corpus folder `out`; a missing or unreadable one raises InputError."""
-    path = Path(out) / "manifest.json"
-    try:
-        return json.loads(path.read_text())
-    except FileNotFoundError:
-        raise InputError("no manifest.json: not a finished corpus (langtraj synth)", path=out) from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not JSON: {exc.msg}", path=path) from None
+    return read_json(Path(out) / "manifest.json", "no manifest.json: not a finished corpus (langtraj synth)")
 
 
 def run_factory(config: FactoryConfig, progress: bool = True) -> dict[str, Any]:

@@ -29,9 +29,10 @@ from langtraj.synth.events import NetContext, extract_events
 from langtraj.synth.intents import IntentConfig
 from langtraj.synth.mapping import NetMap, build_net_map, crop_road_map
 from langtraj.synth.network import BuiltNetwork, get_kind
+from langtraj.synth.records import Track
 from langtraj.synth.runner import SimulationInput, SimulationLog, simulate
 from langtraj.synth.sumo import sumo_version
-from langtraj.synth.tracks import Track, build_tracks
+from langtraj.synth.tracks import build_tracks
 from langtraj.synth.windows import Rejection, RunData, SignalTable, WindowConfig, WindowCutter
 
 AUTO_SLACK = 1.6

@@ -27,7 +27,7 @@ from langtraj.scenario.model import (
 )
 from langtraj.scenario.types import NUM_STATE_FIELDS, AgentType, StateField, TrafficLightState
 from langtraj.synth.network import InterestCentre
-from langtraj.synth.tracks import Track
+from langtraj.synth.records import Track
 
 INTERACTION_RANK = {
     "yield": 0,

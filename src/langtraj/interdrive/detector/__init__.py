@@ -64,22 +64,14 @@ Labels are kept when they overlap [current_index, num_steps) by `min_window_s` (
 filter) and are sorted as the ground truth's.
 """
 
-from langtraj.interdrive.detector.arrays import SceneArrays
 from langtraj.interdrive.detector.config import DetectorConfig
-from langtraj.interdrive.detector.parts import Pair
-from langtraj.interdrive.detector.paths import Path
 from langtraj.interdrive.detector.rules import INTERACTION_RULES, InteractionRule, detect_interactions
 from langtraj.interdrive.detector.scene import SceneGeometry
-from langtraj.interdrive.mapindex import LaneChange
 
 __all__ = [
     "INTERACTION_RULES",
     "DetectorConfig",
     "InteractionRule",
-    "LaneChange",
-    "Pair",
-    "Path",
-    "SceneArrays",
     "SceneGeometry",
     "detect_interactions",
 ]

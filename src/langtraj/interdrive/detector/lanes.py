@@ -16,7 +16,6 @@ from langtraj.angles import wrap_angle
 from langtraj.interdrive.detector.arrays import SceneArrays
 from langtraj.interdrive.detector.parts import ScenePart
 from langtraj.interdrive.detector.paths import PathGeometry
-from langtraj.interdrive.mapindex import LaneMatch
 
 
 class LaneGeometry(ScenePart):
@@ -38,14 +37,9 @@ class LaneGeometry(ScenePart):
                 out[lane.id] = (p, np.arctan2(d[:, 1], d[:, 0]))
         return out
 
-    def match(self, xy: np.ndarray, heading: np.ndarray, exclude_junctions: bool) -> LaneMatch:
-        """The lane of each point: the nearest centreline within `lane_match_distance` among lanes (of any kind)
-        heading within `lane_match_heading` (`SceneArrays.match_lanes`)."""
-        return self.arrays.match_lanes(xy, heading, exclude_junctions)
-
     def lane_ids(self, xy: np.ndarray, heading: np.ndarray, exclude_junctions: bool) -> np.ndarray:
-        """Map lane id of each point of `match` (-1 where none)."""
-        match = self.match(xy, heading, exclude_junctions)
+        """Map lane id of each point's lane match (`SceneArrays.match_lanes`; -1 where none)."""
+        match = self.arrays.match_lanes(xy, heading, exclude_junctions)
         return np.where(match.matched, self.map_index.lane_ids[np.maximum(match.lane, 0)], -1)
 
     @cached_property

@@ -17,18 +17,15 @@ parked vehicles, lane changes), `pull_over` (where a pull-over starts), `rules` 
 """
 
 from langtraj.interdrive.heuristics.config import HeuristicConfig
-from langtraj.interdrive.heuristics.context import LabelContext
 from langtraj.interdrive.heuristics.kinematics import Kinematics
 from langtraj.interdrive.heuristics.labeler import label_agents
 from langtraj.interdrive.heuristics.rules import LABEL_RULES, LabelRule
-from langtraj.interdrive.heuristics.runs import INVALID, absorb_short_runs
+from langtraj.interdrive.heuristics.runs import absorb_short_runs
 
 __all__ = [
-    "INVALID",
     "LABEL_RULES",
     "HeuristicConfig",
     "Kinematics",
-    "LabelContext",
     "LabelRule",
     "absorb_short_runs",
     "label_agents",

@@ -21,19 +21,15 @@ Modules: `segments` (`SegmentSet`, the grid of short segments), `records` (`Lane
 (lane links, neighbour spans, junction lanes, derived at build time), `index` (`MapIndex` and its queries).
 """
 
-from langtraj.interdrive.mapindex.index import DRIVABLE_LANE_TYPES, NEIGHBOR_BAND_M, MapIndex
-from langtraj.interdrive.mapindex.records import LaneChange, LaneMatch, LanePosition, Side
+from langtraj.interdrive.mapindex.index import MapIndex
+from langtraj.interdrive.mapindex.records import LaneChange, LaneMatch
 from langtraj.interdrive.mapindex.segments import SEGMENT_SPACING_M, SegmentSet, arc_lengths
 
 __all__ = [
-    "DRIVABLE_LANE_TYPES",
-    "NEIGHBOR_BAND_M",
     "SEGMENT_SPACING_M",
     "LaneChange",
     "LaneMatch",
-    "LanePosition",
     "MapIndex",
     "SegmentSet",
-    "Side",
     "arc_lengths",
 ]

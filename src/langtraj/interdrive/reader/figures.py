@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
+from langtraj.interdrive.free_text import load_free_text_prompts
 from langtraj.interdrive.reader.read import PromptReading, read_prompt
 
 # ---------------------------------------------------------------------------------------------- figures
@@ -57,10 +58,8 @@ def reading_figures(prompts: Iterable[tuple[str, Behaviour, int, int | None]]) -
 
 
 def file_figures(path: str, agent: int = 12, other: int = 7) -> ReadingFigures:
-    """`reading_figures` of a free-text prompt file (`counterfactual.load_free_text_prompts`), rendered for
+    """`reading_figures` of a free-text prompt file (`free_text.load_free_text_prompts`), rendered for
     `agent` (and `other` for pair kinds)."""
-    from langtraj.interdrive.counterfactual import load_free_text_prompts  # here: counterfactual may use the reader
-
     rendered = []
     for prompt in load_free_text_prompts(path):
         pair = BEHAVIOURS[prompt.behaviour].is_pair

@@ -28,46 +28,7 @@ The package: `common` (constants, `NetMap`), `geometry` (polylines), `network` (
 from __future__ import annotations
 
 from langtraj.synth.mapping.build import build_net_map
-from langtraj.synth.mapping.common import (
-    BOUNDARY_MATCH_M,
-    CENTRE_LINE_MATCH_M,
-    CLOSE_GAP_M,
-    DRIVABLE_CLASSES,
-    FREEWAY_EDGE_TYPE_PREFIXES,
-    FREEWAY_EDGE_TYPES,
-    FREEWAY_SPEED_MPS,
-    MAX_EDGE_PIECE_M,
-    MEDIAN_MAX_HALF_WIDTH_M,
-    MIN_AREA_M2,
-    POINT_SPACING_M,
-    SIMPLIFY_M,
-    STOP_SIGN_OFFSET_M,
-    NetMap,
-    SignalLink,
-)
+from langtraj.synth.mapping.common import NetMap
 from langtraj.synth.mapping.crop import crop_road_map
-from langtraj.synth.mapping.geometry import densify, offset_polyline
-from langtraj.synth.mapping.network import is_intersection
 
-__all__ = [
-    "BOUNDARY_MATCH_M",
-    "CENTRE_LINE_MATCH_M",
-    "CLOSE_GAP_M",
-    "DRIVABLE_CLASSES",
-    "FREEWAY_EDGE_TYPES",
-    "FREEWAY_EDGE_TYPE_PREFIXES",
-    "FREEWAY_SPEED_MPS",
-    "MAX_EDGE_PIECE_M",
-    "MEDIAN_MAX_HALF_WIDTH_M",
-    "MIN_AREA_M2",
-    "POINT_SPACING_M",
-    "SIMPLIFY_M",
-    "STOP_SIGN_OFFSET_M",
-    "NetMap",
-    "SignalLink",
-    "build_net_map",
-    "crop_road_map",
-    "densify",
-    "is_intersection",
-    "offset_polyline",
-]
+__all__ = ["NetMap", "build_net_map", "crop_road_map"]

@@ -30,12 +30,7 @@ from pathlib import Path
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_open
 from langtraj.scenario.io.base import ScenarioFormat, register_format
-from langtraj.scenario.io.scenarionet.common import (
-    DEFAULT_CURRENT_INDEX,
-    FORMAT_NAME,
-    FORMAT_VERSION,
-    PICKLE_PROTOCOL,
-)
+from langtraj.scenario.io.scenarionet.common import FORMAT_NAME, PICKLE_PROTOCOL
 from langtraj.scenario.io.scenarionet.reader import scenario_from_dict
 from langtraj.scenario.io.scenarionet.unpickling import load_pickle, looks_like_scenarionet
 from langtraj.scenario.io.scenarionet.writer import scenario_to_dict
@@ -71,9 +66,6 @@ class ScenarioNetFormat(ScenarioFormat):
 
 
 __all__ = [
-    "DEFAULT_CURRENT_INDEX",
-    "FORMAT_VERSION",
-    "PICKLE_PROTOCOL",
     "ScenarioNetFormat",
     "load_pickle",
     "looks_like_scenarionet",
