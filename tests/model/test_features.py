@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 import pytest
@@ -12,7 +12,15 @@ from scenario_builders import make_scenario
 
 from langtraj.model.batch import AGENT_HISTORY_FEATURES, SceneBatch
 from langtraj.model.config import SampleConfig
-from langtraj.model.features import collate_scenes, map_coverage, scene_frame, scene_sample
+from langtraj.model.features import (
+    AUGMENTATION_FIELDS,
+    SAMPLE_ARRAYS,
+    collate_scenes,
+    features_key,
+    map_coverage,
+    scene_frame,
+    scene_sample,
+)
 from langtraj.scenario import MapFeature, MapFeatureType, RoadMap, Scenario
 
 SMALL = SampleConfig(max_agents=8, max_polylines=12, points_per_polyline=10)
@@ -225,3 +233,43 @@ def test_simulation_sizes_samples_for_the_agents_it_drives():
     assert (trained.for_agents(48).max_agents, trained.for_agents(48).max_polylines) == (48, 96)
     assert (trained.for_agents(10).max_agents, trained.for_agents(10).max_polylines) == (10, 48)
     assert trained.for_agents(50).max_polylines == 100 and trained.for_agents(50).history_dropout == 0.0
+
+
+class _Reads:
+    """A config that records which of its fields are read."""
+
+    def __init__(self, config: SampleConfig) -> None:
+        self._config, self.read = config, set()
+
+    def __getattr__(self, name: str):
+        self.read.add(name)
+        return getattr(self._config, name)
+
+
+AUGMENTATION_CHANGES = {
+    "text": False,
+    "text_dropout": 0.9,
+    "history_dropout": 0.1,
+    "heuristic_label_fraction": 1.0,
+    "interaction_fraction": 0.0,
+    "decision_first": True,
+}
+"""Another value for each augmentation-only field: a new one must be added here too, and pass below."""
+
+
+def test_every_sample_setting_is_in_the_store_key_or_declared_augmentation_only():
+    names = {f.name for f in fields(SampleConfig)}
+    keyed = set(features_key(SMALL)) - {"version"}
+    assert names >= AUGMENTATION_FIELDS and set(AUGMENTATION_CHANGES) == AUGMENTATION_FIELDS
+    assert keyed == names - AUGMENTATION_FIELDS  # every other field is keyed
+    scene = make_scenario(6)
+    for selection in ("agents", "origin"):
+        reads = _Reads(replace(SMALL, map_selection=selection))
+        scene_sample(scene, reads)  # type: ignore[arg-type]
+        assert reads.read <= keyed and not reads.read & AUGMENTATION_FIELDS, selection
+    base = scene_sample(scene, SMALL)
+    for name, value in AUGMENTATION_CHANGES.items():
+        changed = replace(SMALL, **{name: value})
+        assert getattr(changed, name) != getattr(SMALL, name) and features_key(changed) == features_key(SMALL)
+        sample = scene_sample(scene, changed)
+        assert all(np.array_equal(sample[a], base[a]) for a in SAMPLE_ARRAYS), name

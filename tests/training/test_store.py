@@ -149,12 +149,16 @@ def test_stage_one_stores_every_window_of_scenario_files_without_labels(tmp_path
     every = SceneDataset(tmp_path / "store", SMALL, split="all")
     assert len(every) == 5 and every.store is not None
     assert all(t is None for t in every[1]["text"])
+    for other in (None, tmp_path / "store"):  # a store folder is its own store: naming another is an error
+        with pytest.raises(ValueError, match="is itself a feature store"):
+            SceneDataset(tmp_path / "store", SMALL, split="all", store=other)
 
 
 def test_a_corrupt_store_gives_one_line_errors_naming_the_file(tmp_path, labels_dir):
     path = tmp_path / "s"
     build_store(labelled_jobs(labels_dir, SMALL), path, say=_quiet)
     meta = json.loads((path / "store.json").read_text())
+    assert set(meta) == {"key", "chunks"}
     meta["chunks"][0]["windows"] += 1
     (path / "store.json").write_text(json.dumps(meta))
     with pytest.raises(InputError, match=r"5 rows, store\.json says 6"):

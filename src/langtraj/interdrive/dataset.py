@@ -24,7 +24,7 @@ from typing import Any
 from langtraj import __version__
 from langtraj.errors import InputError
 from langtraj.executors import EXECUTORS
-from langtraj.fileio import atomic_open
+from langtraj.fileio import atomic_open, read_json
 from langtraj.interdrive.detector import detect_interactions
 from langtraj.interdrive.ground_truth import ground_truth_interactions
 from langtraj.interdrive.heuristics import HeuristicConfig, label_agents
@@ -364,15 +364,9 @@ def _counts(records: Sequence[WindowRecord]) -> dict[str, Any]:
 
 def read_manifest(out: Path) -> dict[str, Any]:
     """The dataset's manifest; a missing or unreadable one raises InputError naming it."""
-    path = Path(out) / MANIFEST
-    try:
-        return json.loads(path.read_text())
-    except FileNotFoundError:
-        raise InputError(
-            f"no {MANIFEST}: not an InterDrive dataset folder (run langtraj interdrive build)", path=out
-        ) from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not JSON: {exc.msg}", path=path) from None
+    return read_json(
+        Path(out) / MANIFEST, f"no {MANIFEST}: not an InterDrive dataset folder (run langtraj interdrive build)"
+    )
 
 
 def write_manifest(out: Path, manifest: Mapping[str, Any]) -> None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -251,7 +251,6 @@ def scene_sample(
     scenario: Scenario,
     config: SampleConfig,
     *,
-    drop_history: bool = False,
     agents: np.ndarray | None = None,
     origin: Origin | None = None,
     map_arrays: MapArrays | None = None,
@@ -267,8 +266,7 @@ def scene_sample(
     at the current one; future the `future_steps` after it; steps outside the scene are invalid. Values
     are in the scene frame (`scene_frame`); headings are wrapped to (-pi, pi]; invalid steps are zeros.
     `current_state` speed is |v| of the reported velocity, or of the backward position difference where
-    the velocity is missing (`_velocities`); history vx, vy use the same velocities. With `drop_history`
-    only the current step of the history stays valid (training's history dropout).
+    the velocity is missing (`_velocities`); history vx, vy use the same velocities.
     """
     a_max, h, f = config.max_agents, config.history_steps, config.future_steps
     t0 = scenario.current_index
@@ -318,7 +316,7 @@ def scene_sample(
     agent_valid[:n] = True
 
     map_points, map_valid, map_type = map_arrays or sample_map(scenario, chosen, origin, config)
-    sample = {
+    arrays = {
         "agent_history": history,
         "history_valid": hist_valid,
         "agent_type": agent_type,
@@ -330,14 +328,19 @@ def scene_sample(
         "map_points": map_points,
         "map_valid": map_valid,
         "map_type": map_type,
-        "text": [None] * a_max,
-        "interaction_labelled": np.bool_(False),
         "origin": np.asarray(origin, np.float32),
         "agent_id": agent_id,
-        "scenario_id": scenario.scenario_id,
     }
-    if drop_history:
-        apply_history_dropout(sample)
+    return sample_of(arrays, scenario.scenario_id)
+
+
+def sample_of(arrays: dict[str, np.ndarray], scenario_id: str) -> dict[str, Any]:
+    """A `scene_sample` dict from its `SAMPLE_ARRAYS` arrays (taken as they are) and its scene's id: no agent
+    conditioned on text, not interaction-labelled. What `scene_sample` returns and a feature store reads back."""
+    sample: dict[str, Any] = dict(arrays)
+    sample["text"] = [None] * len(arrays["agent_id"])
+    sample["interaction_labelled"] = np.bool_(False)
+    sample["scenario_id"] = scenario_id
     return sample
 
 
@@ -369,23 +372,19 @@ FEATURES_VERSION = 1
 """Bumped whenever `scene_sample` would give different arrays for the same scene and config, so stored
 samples (`langtraj.training.store`) built by older code are refused rather than silently reused."""
 
-_KEY_FIELDS = (
-    "max_agents",
-    "max_polylines",
-    "points_per_polyline",
-    "history_steps",
-    "future_steps",
-    "map_radius",
-    "map_selection",
-    "map_ahead_s",
-    "map_ahead_min",
+AUGMENTATION_FIELDS = frozenset(
+    {"text", "text_dropout", "history_dropout", "heuristic_label_fraction", "interaction_fraction", "decision_first"}
 )
+"""`SampleConfig` fields that `scene_sample` never reads: they only steer training's text and augmentation
+(`langtraj.training.data.augment_sample`) and batch mixing, so they stay out of `features_key`. Every other
+field is part of the key: a new field changes stored samples unless it is declared here."""
 
 
 def features_key(config: SampleConfig) -> dict[str, Any]:
-    """Everything that fixes `scene_sample`'s arrays for a scene: the config fields it reads and
-    `FEATURES_VERSION`. Two configs with equal keys give equal samples (dropouts and text aside)."""
-    return {"version": FEATURES_VERSION} | {name: getattr(config, name) for name in _KEY_FIELDS}
+    """Everything that fixes `scene_sample`'s arrays for a scene: every `SampleConfig` field but the
+    `AUGMENTATION_FIELDS`, and `FEATURES_VERSION`. Two configs with equal keys give equal samples."""
+    keyed = (f.name for f in fields(config) if f.name not in AUGMENTATION_FIELDS)
+    return {"version": FEATURES_VERSION} | {name: getattr(config, name) for name in keyed}
 
 
 _TORCH_DTYPES = {np.float32: torch.float32, np.bool_: torch.bool, np.int64: torch.long}

@@ -103,7 +103,8 @@ def build_sample(
     augment: bool = True,
 ) -> dict[str, Any]:
     """One training sample: the window's `scene_sample` with augmentation and the agents' sentences
-    (`augment_sample`)."""
+    (`augment_sample`). A convenience for tests and one-off use: `SceneDataset` builds samples from
+    `features` instead (stored or decoded)."""
     sample = scene_sample(scenario, config)
     return augment_sample(sample, record, deciders(scenario), config, rng, prompt=prompt, augment=augment)
 
@@ -159,8 +160,9 @@ class SceneDataset(Dataset):
     stage 1). With a labels folder, `store` "auto" reads the samples from the folder's store for this
     config when there is one (`default_store_path`), a path names the store to read, and None decodes every
     window; a store that lacks a window of the labels is an error (rebuild it), never a silent fallback.
-    With a store, a sample is a copy of stored arrays; without, a window is read lazily (`load_window`)
-    and the last `cache_size` windows read are kept per process.
+    When `data_dir` is a store, `store` must stay "auto" (ValueError otherwise). With a store, a sample is
+    a copy of stored arrays; without, a window is read lazily (`load_window`) and the last `cache_size`
+    windows read are kept per process.
 
     `split` "train" / "val" keeps the windows `split_of` assigns there (`val_fraction` of the scenes,
     the same on every run and for every seed), "all" keeps every window. Scenario files are checked to
@@ -202,6 +204,8 @@ class SceneDataset(Dataset):
         rows: list[int] = []
         records: list[WindowRecord] = []
         if is_store(self.data_dir):
+            if store != "auto":
+                raise ValueError(f"store={store!r} given, but {self.data_dir} is itself a feature store")
             self.store = FeatureStore(self.data_dir, self.config)
             for row, entry in enumerate(self.store.rows):
                 if in_split(entry.record, split, val_fraction):
@@ -209,16 +213,13 @@ class SceneDataset(Dataset):
                     rows.append(row)
         else:
             records = [
-                rec
-                for _, shard in iter_records(self.data_dir)
-                for rec in shard
-                if in_split(rec, split, val_fraction)
+                rec for _, shard in iter_records(self.data_dir) for rec in shard if in_split(rec, split, val_fraction)
             ]
             self.store, rows = _store_rows(self.data_dir, self.config, records, store)
             if self.store is None:
                 _check_sources(records, self.data_dir)
         self.records: tuple[WindowRecord, ...] = tuple(records)
-        self._rows = np.asarray(rows, np.int64) if self.store is not None else None
+        self._rows = np.asarray(rows, np.int64)  # each window's store row (empty without a store)
         flags = np.array([has_interaction_prompt(r) for r in records], bool)
         self._interaction = np.flatnonzero(flags)
         self._other = np.flatnonzero(~flags)
@@ -274,7 +275,7 @@ class SceneDataset(Dataset):
         """Item `index`'s `scene_sample` (no augmentation, no text) and its window's deciders: from the
         feature store when there is one, else from the decoded window."""
         pos = self._position(index)
-        if self.store is not None and self._rows is not None:
+        if self.store is not None:
             row = int(self._rows[pos])
             return self.store.sample(row), self.store.rows[row].deciders
         scene = self.window(pos)

@@ -76,10 +76,10 @@ def _initialise(module: LangTrajModule, path: str) -> None:
 
 
 @rank_zero_only
-def report_map_coverage(data_dir: str | Path, config: TrainConfig, out: Path) -> dict[str, float | int]:
-    """Print and write `RUN_DIR/map_coverage.json`: how many training agents see a lane within 5 m of
-    them in their sample's map now and at their logged 8-s position (docs/model.md, 'Inputs')."""
-    dataset = SceneDataset(data_dir, config.data, split="train", augment=False)
+def report_map_coverage(dataset: SceneDataset, config: TrainConfig, out: Path) -> dict[str, float | int]:
+    """Print and write `RUN_DIR/map_coverage.json`: how many agents of `dataset` (the training windows) see
+    a lane within 5 m of them in their sample's map now and at their logged 8-s position (docs/model.md,
+    'Inputs'). Only the samples' features are read, never their augmentation."""
     coverage = dataset_map_coverage(dataset)
     print(
         f"map coverage ({config.data.map_selection}, {config.data.max_polylines} pieces) on {coverage['agents']} "
@@ -112,15 +112,23 @@ def _say(text: str) -> None:
     print(text, flush=True)
 
 
-def resolve_resume(resume: str | None, out: Path) -> str | None:
-    """`auto`: the run's `last.ckpt` when there is one; a path: that file; None: a fresh start."""
+def resolve_resume(resume: str | None, out: Path) -> tuple[str | None, int | str | None]:
+    """The checkpoint to resume from and its `global_step` ("?" when it holds none). `auto`: the run's
+    `last.ckpt` when there is one; a path: that file; None: a fresh start (None, None).
+
+    The file is read once, on rank zero only, before training starts (an unreadable one fails there with a
+    clear message, before `Trainer.fit` starts the other processes); the other ranks leave it to
+    `Trainer.fit` (their step is None)."""
     if resume is None:
-        return None
+        return None, None
     if resume == "auto":
         last = out / "checkpoints" / "last.ckpt"
-        return str(last) if last.is_file() else None
-    read_checkpoint(resume)  # fail early with a clear message
-    return resume
+        if not last.is_file():
+            return None, None
+        resume = str(last)
+    if rank_zero_only.rank != 0:
+        return resume, None
+    return resume, read_checkpoint(resume).get("global_step", "?")
 
 
 def train(
@@ -141,11 +149,11 @@ def train(
     store = data.train_set.store
     _say(f"input: feature store {store.path}" if store else "input: decoding every window (no feature store for "
          "these sample settings; langtraj features build makes one)")  # fmt: skip
-    report_map_coverage(data_dir, config, out)
+    report_map_coverage(data.train_set, config, out)
     module = LangTrajModule(config.to_dict())
-    ckpt_path = resolve_resume(resume, out)
+    ckpt_path, step = resolve_resume(resume, out)
     if ckpt_path is not None:
-        _say(f"resuming from {ckpt_path} (step {read_checkpoint(ckpt_path).get('global_step', '?')})")
+        _say(f"resuming from {ckpt_path} (step {step})")
     if ckpt_path is None and config.init_from:
         _initialise(module, config.init_from)
     checkpoints = ModelCheckpoint(

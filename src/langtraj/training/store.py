@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import bisect
 import hashlib
+import itertools
 import json
 import os
 import shutil
@@ -32,7 +33,7 @@ from langtraj.fileio import atomic_path
 from langtraj.interdrive.dataset import WindowRecord, file_windows, iter_records, load_window, window_record
 from langtraj.interdrive.labels import WindowLabels
 from langtraj.model.config import SampleConfig
-from langtraj.model.features import SAMPLE_ARRAYS, features_key, scene_sample
+from langtraj.model.features import SAMPLE_ARRAYS, features_key, sample_of, scene_sample
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.selection import deciders
 
@@ -86,7 +87,10 @@ class FeatureStore:
     """A finished store, opened read-only: `rows` from the chunk indexes, arrays memory-mapped on first use
     (a store pickles without its maps into DataLoader workers, each mapping the files itself)."""
 
-    def __init__(self, path: str | Path, config: SampleConfig | None = None) -> None:
+    def __init__(
+        self, path: str | Path, config: SampleConfig | None = None, *, rows: Sequence[Sequence[StoreRow]] | None = None
+    ) -> None:
+        """`rows`: each chunk's rows when the caller has them already (`build_store`), else read from the indexes."""
         self.path = Path(path)
         meta_path = self.path / STORE_FILE
         try:
@@ -105,13 +109,12 @@ class FeatureStore:
                 where="key",
             )
         self.starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        rows: list[StoreRow] = []
-        for folder, count in zip(self.chunks, counts, strict=True):
-            chunk_rows = list(_read_index(self.path / folder / INDEX_FILE))
+        if rows is None:
+            rows = [list(_read_index(self.path / folder / INDEX_FILE)) for folder in self.chunks]
+        for folder, count, chunk_rows in zip(self.chunks, counts, rows, strict=True):
             if len(chunk_rows) != count:
                 raise InputError(f"{len(chunk_rows)} rows, store.json says {count}", path=self.path / folder)
-            rows += chunk_rows
-        self.rows: tuple[StoreRow, ...] = tuple(rows)
+        self.rows: tuple[StoreRow, ...] = tuple(itertools.chain.from_iterable(rows))
         self._maps: dict[int, dict[str, np.ndarray]] = {}
 
     def __len__(self) -> int:
@@ -136,11 +139,8 @@ class FeatureStore:
             raise IndexError(f"row {row} of a store of {len(self.rows)}")
         number = bisect.bisect_right(self.starts, row) - 1
         arrays, offset = self._chunk_arrays(number), row - int(self.starts[number])
-        sample: dict[str, Any] = {name: np.array(arrays[name][offset], dtype) for name, dtype in SAMPLE_ARRAYS.items()}
-        sample["text"] = [None] * len(sample["agent_id"])
-        sample["interaction_labelled"] = np.bool_(False)
-        sample["scenario_id"] = self.rows[row].record.scenario_id
-        return sample
+        own = {name: np.array(arrays[name][offset], dtype) for name, dtype in SAMPLE_ARRAYS.items()}
+        return sample_of(own, self.rows[row].record.scenario_id)
 
     def rows_by_key(self) -> dict[tuple[str, int, int], int]:
         """Row of each window, by `record_key`."""
@@ -187,7 +187,6 @@ class StoreJob:
     config: SampleConfig
     records: tuple[WindowRecord, ...] = ()
     files: tuple[str, ...] = ()
-    stride: int | None = None
 
     @property
     def folder(self) -> str:
@@ -201,7 +200,7 @@ class StoreJob:
             except InputError as exc:
                 raise exc.located(path=record.source, where=f"window {record.scenario_id}") from None
         for path in self.files:
-            for number, start, window in file_windows(Path(path), self.stride):
+            for number, start, window in file_windows(Path(path), None):
                 yield window_record(window, path, number, start), window
 
 
@@ -216,14 +215,14 @@ def labelled_jobs(labels_dir: str | Path, config: SampleConfig) -> list[StoreJob
     ]
 
 
-def scenario_jobs(paths: Sequence[Path], config: SampleConfig, stride: int | None = None) -> list[StoreJob]:
+def scenario_jobs(paths: Sequence[Path], config: SampleConfig) -> list[StoreJob]:
     """Jobs over every window of scenario files (`CHUNK_FILES` files each), without labels: stage 1's input
-    without a label build. Windows are cut as the labels build cuts them (`stride`)."""
+    without a label build. Windows are cut as a labels build with the default stride cuts them."""
     files = [str(Path(p).resolve()) for p in paths]
     if not files:
         raise InputError("no scenario file given")
     return [
-        StoreJob(n, config, files=tuple(files[i : i + CHUNK_FILES]), stride=stride)
+        StoreJob(n, config, files=tuple(files[i : i + CHUNK_FILES]))
         for n, i in enumerate(range(0, len(files), CHUNK_FILES))
     ]
 
@@ -282,12 +281,12 @@ def build_store(
         done += 1
         if done % 10 == 0 or done == len(jobs):
             say(f"feature store: {done} of {len(jobs)} chunks")
-    # counted from the chunks on disk: a resumed build did not make all of them
-    counts = [(partial / job.folder / INDEX_FILE).read_text().count("\n") for job in jobs]
-    chunks = [{"folder": job.folder, "windows": n} for job, n in zip(jobs, counts, strict=True)]
-    meta = {"key": features_key(config), "windows": sum(c["windows"] for c in chunks), "chunks": chunks}
+    # read from the chunks on disk (a resumed build did not make all of them), once: they count the rows too
+    rows = [list(_read_index(partial / job.folder / INDEX_FILE)) for job in jobs]
+    chunks = [{"folder": job.folder, "windows": len(r)} for job, r in zip(jobs, rows, strict=True)]
+    meta = {"key": features_key(config), "chunks": chunks}
     with atomic_path(partial / STORE_FILE) as tmp:
         tmp.write_text(json.dumps(meta, indent=1))
     plan_file.unlink()
     os.replace(partial, out)
-    return FeatureStore(out, config)
+    return FeatureStore(out, config, rows=rows)
