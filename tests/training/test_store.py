@@ -11,14 +11,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 from dataset_builders import write_dataset
 from scenario_builders import make_scenario
 
 from langtraj.errors import InputError
 from langtraj.interdrive.dataset import iter_records, load_window
 from langtraj.interdrive.labels import WindowLabels
-from langtraj.model.config import SampleConfig
-from langtraj.model.features import SAMPLE_ARRAYS, scene_sample
+from langtraj.model.config import ModelConfig, SampleConfig
+from langtraj.model.features import SAMPLE_ARRAYS, collate_scenes, scene_sample
+from langtraj.model.langtraj import LangTraj
+from langtraj.model.targets import fit_actions
 from langtraj.scenario.io import write_scenarios
 from langtraj.scenario.model import BehaviorEvent
 from langtraj.training import store as store_module
@@ -62,6 +65,32 @@ def test_stored_samples_are_the_scene_samples_of_their_windows(labels_dir):
         assert store.rows[row].record == replace(record, labels=WindowLabels(record.scenario_id))  # prompts kept
         assert store.rows[row].record.prompts == record.prompts and record.prompts
         _same(store.sample(row), scene_sample(load_window(record), SMALL))
+
+
+def test_stored_target_actions_are_the_inverse_dynamics_of_their_windows(labels_dir):
+    """The store fits each window's target actions once, as the model would fit them in every step."""
+    store = build_store(labelled_jobs(labels_dir, SMALL), default_store_path(labels_dir, SMALL), say=_quiet)
+    rows = [store.sample(row) for row in range(len(store))]
+    batch = collate_scenes(rows)
+    assert batch.target_actions is not None and batch.target_actions.shape == (24, 8, 16, 2)
+    assert batch.target_valid.any() and not batch.target_valid.all()  # padded agents and invalid steps
+    model = LangTraj(ModelConfig(hidden_dim=16, num_heads=2, encoder_layers=0, denoiser_blocks=1, use_text=False))
+    stored, stored_valid = model.target_actions(batch)
+    fitted, fitted_valid = model.fit_actions(batch.current_state, batch.future, batch.future_valid, batch.agent_valid)
+    assert torch.equal(stored_valid, fitted_valid)
+    torch.testing.assert_close(stored, fitted, rtol=0, atol=1e-6)
+    physical, _ = fit_actions(model.dynamics, batch.current_state, batch.future, batch.future_valid,
+                              batch.agent_valid, 16)  # fmt: skip
+    torch.testing.assert_close(batch.target_actions, physical, rtol=0, atol=1e-5)
+    # a model of another horizon (closed-loop training's 8 actions) refits rather than read 16-action targets
+    short = LangTraj(ModelConfig(hidden_dim=16, num_heads=2, encoder_layers=0, denoiser_blocks=1, use_text=False,
+                                 num_actions=8))  # fmt: skip
+    eight, _ = short.target_actions(batch)
+    assert eight.shape == (24, 8, 8, 2)
+    # a batch without stored targets (decoded windows) fits them in the step, with the same result
+    decoded = collate_scenes([scene_sample(load_window(r.record), SMALL) for r in store.rows])
+    assert decoded.target_actions is None
+    torch.testing.assert_close(model.target_actions(decoded)[0], stored, rtol=0, atol=1e-6)
 
 
 def test_a_dataset_reads_the_labels_folders_store_and_gives_the_same_items(labels_dir):

@@ -39,6 +39,8 @@ class SceneBatch:
     origin: torch.Tensor  # float [B, 3]: scene frame in world coordinates (x, y, heading)
     agent_id: torch.Tensor  # long [B, A]: track ids, -1 for padding
     scenario_id: list[str]  # [B]
+    target_actions: torch.Tensor | None = None  # float [B, A, N, 2]: fitted actions (physical), `model.targets`
+    target_valid: torch.Tensor | None = None  # bool [B, A, N]: where `target_actions` are defined
 
     @property
     def batch_size(self) -> int:
@@ -68,7 +70,8 @@ class SceneBatch:
         """The batch S steps later, after every agent executed `executed` [B, A, S, 4] (x, y, heading, speed
         in the scene frame, at 10 Hz): those steps join the history (its last H steps kept, all valid for
         real agents), the last of them becomes the current state, and the future moves on by S steps
-        (its last S steps invalid). What closed-loop training feeds back to the model (docs/model.md)."""
+        (its last S steps invalid), so its stored target actions no longer apply (dropped). What closed-loop
+        training feeds back to the model (docs/model.md)."""
         s = executed.shape[2]
         heading, speed = executed[..., 2], executed[..., 3]
         steps = torch.stack(
@@ -97,4 +100,6 @@ class SceneBatch:
             current_state=torch.where(real, executed[:, :, -1], self.current_state),
             future=torch.cat([self.future[:, :, s:], pad_future], dim=2),
             future_valid=torch.cat([self.future_valid[:, :, s:], pad_valid], dim=2),
+            target_actions=None,
+            target_valid=None,
         )

@@ -83,7 +83,8 @@ class SampleConfig:
     after it. `map_selection` "agents" covers every agent's surroundings and the road ahead of it (the
     greater of `map_ahead_min` m and `map_ahead_s` seconds at its current speed); "origin" keeps the
     pieces nearest the scene origin (checkpoints from before map coverage). Simulation scales
-    `max_polylines` with the number of agents it drives (docs/model.md, 'Inputs').
+    `max_polylines` with the number of agents it drives (docs/model.md, 'Inputs'). A feature store also
+    keeps each sample's target actions, fitted by `dynamics`' inverse (`model.targets`).
     `text` False is stage 1 (no text at all). The remaining fields are training-time choices that the
     features themselves never read: probabilities per sample (dropouts), a share of a scene's labelled
     agents (`heuristic_label_fraction`) and a share of each batch (`interaction_fraction`); they live here
@@ -99,6 +100,9 @@ class SampleConfig:
     map_selection: str = "agents"
     map_ahead_s: float = 8.0
     map_ahead_min: float = 20.0
+    dynamics: str = "unicycle"
+    """The dynamics model (`model.dynamics.DYNAMICS`) whose inverse fits a stored sample's target actions
+    (`langtraj.training.store`); it must be the model's (`model.dynamics`)."""
     text: bool = True
     text_dropout: float = 0.5
     history_dropout: float = 0.5

@@ -24,6 +24,7 @@ from langtraj.angles import wrap_angle
 from langtraj.frames import Origin, points_to_frame
 from langtraj.model.batch import AGENT_HISTORY_FEATURES, SceneBatch
 from langtraj.model.config import SampleConfig
+from langtraj.model.targets import TARGET_ARRAYS
 from langtraj.scenario.model import STEP_SECONDS, RoadMap, Scenario
 from langtraj.scenario.selection import prioritized_agents
 from langtraj.scenario.types import MapFeatureType, StateField
@@ -368,7 +369,7 @@ SAMPLE_ARRAYS: dict[str, type[np.generic]] = {
 }
 """The fixed-size arrays of a `scene_sample` and their dtypes: what a sample holds besides text, labels and id."""
 
-FEATURES_VERSION = 1
+FEATURES_VERSION = 2
 """Bumped whenever `scene_sample` would give different arrays for the same scene and config, so stored
 samples (`langtraj.training.store`) built by older code are refused rather than silently reused."""
 
@@ -392,10 +393,12 @@ _TORCH_DTYPES = {np.float32: torch.float32, np.bool_: torch.bool, np.int64: torc
 
 def collate_scenes(samples: Sequence[dict[str, Any]]) -> SceneBatch:
     """Stack samples of one `SampleConfig` (equal sizes) into a `SceneBatch`; usable as a DataLoader
-    `collate_fn`."""
+    `collate_fn`. Stored target actions (`model.targets.TARGET_ARRAYS`) come along when every sample has them."""
     if not samples:
         raise ValueError("cannot collate an empty list of samples")
     arrays = SAMPLE_ARRAYS | {"interaction_labelled": np.bool_}
+    if all(name in s for s in samples for name in TARGET_ARRAYS):
+        arrays = arrays | TARGET_ARRAYS
     tensors = {
         name: torch.as_tensor(np.stack([s[name] for s in samples]), dtype=_TORCH_DTYPES[dtype])
         for name, dtype in arrays.items()

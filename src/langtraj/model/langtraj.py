@@ -23,6 +23,7 @@ from langtraj.model.diffusion import Guidance, classifier_free_guidance, cosine_
 from langtraj.model.dynamics import DYNAMICS
 from langtraj.model.layers import mlp
 from langtraj.model.scene_encoder import MapContext, SceneContext, SceneEncoder
+from langtraj.model.targets import fit_actions
 from langtraj.model.text_encoder import TextEncoder
 from langtraj.scenario.types import AgentType
 
@@ -76,7 +77,11 @@ class LangTraj(nn.Module):
 
     def target_actions(self, batch: SceneBatch) -> tuple[Tensor, Tensor]:
         """Clean actions fitted to the logged future's first `horizon_steps` steps by inverse dynamics, in
-        network units, and where they are defined: [B, A, N, 2], bool [B, A, N]."""
+        network units, and where they are defined: [B, A, N, 2], bool [B, A, N]. Read from the batch when it
+        carries them for this horizon (a feature store fits them once, `model.targets`), else fitted here."""
+        stored = batch.target_actions
+        if stored is not None and batch.target_valid is not None and stored.shape[-2] == self.config.num_actions:
+            return self.to_units(stored).clamp(-4.0, 4.0), batch.target_valid & batch.agent_valid[..., None]
         return self.fit_actions(batch.current_state, batch.future, batch.future_valid, batch.agent_valid)
 
     def fit_actions(
@@ -84,10 +89,8 @@ class LangTraj(nn.Module):
     ) -> tuple[Tensor, Tensor]:
         """Network-unit actions [B, A, N, 2] that take `current` [B, A, 4] along the first `horizon_steps`
         steps of `future` [B, A, >= T, 3], and where they are defined (bool [B, A, N])."""
-        t = self.horizon_steps
-        with torch.no_grad():
-            actions, valid = self.dynamics.inverse(current, future[:, :, :t], future_valid[:, :, :t])
-        return self.to_units(actions).clamp(-4.0, 4.0), valid & agent_valid[..., None]
+        actions, valid = fit_actions(self.dynamics, current, future, future_valid, agent_valid, self.config.num_actions)
+        return self.to_units(actions).clamp(-4.0, 4.0), valid
 
     def rollout(self, batch: SceneBatch, x0: Tensor) -> Tensor:
         """States [B, A, T, 4] (x, y, heading, speed) from network-unit actions [B, A, N, 2]."""
@@ -204,6 +207,6 @@ def _repeat_batch(batch: SceneBatch, times: int) -> SceneBatch:
     for name, value in vars(batch).items():
         if isinstance(value, Tensor):
             fields[name] = _repeat(value, times)
-        else:
+        elif value is not None:
             fields[name] = list(value) * times
     return replace(batch, **fields)

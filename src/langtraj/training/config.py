@@ -162,6 +162,12 @@ class TrainConfig:
             " (model.history_steps): they must agree",
         )
         require(
+            self.model.dynamics == self.data.dynamics,
+            "data.dynamics",
+            f"samples fit target actions with {self.data.dynamics!r}, the model integrates {self.model.dynamics!r}"
+            " (model.dynamics): they must agree",
+        )
+        require(
             self.keep_every_steps is None or self.keep_every_steps >= 1,
             "keep_every_steps",
             f"must be >= 1, got {self.keep_every_steps}",

@@ -53,4 +53,11 @@ def perturb_pasts(
     )
     history = torch.where(valid & chosen[..., None, None], moved, history)
     state = torch.cat([centre + shift, (heading + turn)[..., None], current[..., 3:4]], dim=-1)
-    return replace(batch, agent_history=history, current_state=torch.where(chosen[..., None], state, current))
+    # The targets are refitted from the moved current states (the stored ones start from the logged state).
+    return replace(
+        batch,
+        agent_history=history,
+        current_state=torch.where(chosen[..., None], state, current),
+        target_actions=None,
+        target_valid=None,
+    )

@@ -5,7 +5,8 @@ memory-mapped arrays, so a training sample costs a copy instead of a window deco
 A store folder holds `store.json` (the features key it was built for, its chunks and their row counts)
 and one folder per chunk: `index.jsonl` (one `WindowRecord` per row with its prompts, which training
 draws sentences from, but not its labels, which it never reads; and the row's deciders) and one
-`FIELD.npy` per `SAMPLE_ARRAYS` field, [rows, ...]. A store is built from an InterDrive labels folder
+`FIELD.npy` per `SAMPLE_ARRAYS` and `TARGET_ARRAYS` field, [rows, ...]: the samples, and the target actions
+their futures ask for (`model.targets`), fitted once here instead of at every training step. A store is built from an InterDrive labels folder
 (`labelled_jobs`: every stage) or straight from scenario files without labels (`scenario_jobs`: stage 1
 needs none). `build_store` writes each chunk into `STORE.partial/` as a whole
 (temporary folder, then rename), so a killed build resumes with the chunks not yet done; the folder
@@ -34,6 +35,7 @@ from langtraj.interdrive.dataset import WindowRecord, file_windows, iter_records
 from langtraj.interdrive.labels import WindowLabels
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import SAMPLE_ARRAYS, features_key, sample_of, scene_sample
+from langtraj.model.targets import TARGET_ARRAYS, stored_targets
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.selection import deciders
 
@@ -50,6 +52,9 @@ CHUNK_FILES = 8
 
 _STORED_DTYPES: dict[str, type[np.generic]] = {"agent_type": np.int8, "map_type": np.int8}
 """Fields stored narrower than the sample holds them (exact: type enums fit in int8)."""
+
+STORED_ARRAYS: dict[str, type[np.generic]] = SAMPLE_ARRAYS | TARGET_ARRAYS
+"""Every array of a stored row, with the dtype a sample holds it in."""
 
 
 def store_digest(config: SampleConfig) -> str:
@@ -124,7 +129,7 @@ class FeatureStore:
         arrays = self._maps.get(number)
         if arrays is None:
             arrays = {}
-            for name in SAMPLE_ARRAYS:
+            for name in STORED_ARRAYS:
                 file = self.path / self.chunks[number] / f"{name}.npy"
                 try:
                     arrays[name] = np.load(file, mmap_mode="r")
@@ -134,12 +139,13 @@ class FeatureStore:
         return arrays
 
     def sample(self, row: int) -> dict[str, Any]:
-        """Row `row` as a fresh `scene_sample` dict (own arrays, no text, not interaction-labelled)."""
+        """Row `row` as a fresh `scene_sample` dict (own arrays, no text, not interaction-labelled) with its
+        target actions (`TARGET_ARRAYS`)."""
         if not 0 <= row < len(self.rows):
             raise IndexError(f"row {row} of a store of {len(self.rows)}")
         number = bisect.bisect_right(self.starts, row) - 1
         arrays, offset = self._chunk_arrays(number), row - int(self.starts[number])
-        own = {name: np.array(arrays[name][offset], dtype) for name, dtype in SAMPLE_ARRAYS.items()}
+        own = {name: np.array(arrays[name][offset], dtype) for name, dtype in STORED_ARRAYS.items()}
         return sample_of(own, self.rows[row].record.scenario_id)
 
     def rows_by_key(self) -> dict[tuple[str, int, int], int]:
@@ -237,8 +243,12 @@ def _build_chunk(job: StoreJob, partial: Path) -> None:
     tmp = partial / f".{job.folder}.tmp"
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
-    for name, dtype in SAMPLE_ARRAYS.items():
-        values = np.stack([s[name] for s in samples]) if samples else np.zeros((0,), dtype)
+    targets = stored_targets(samples, job.config.dynamics) if samples else {}
+    for name, dtype in STORED_ARRAYS.items():
+        if name in targets:
+            values = targets[name]
+        else:
+            values = np.stack([s[name] for s in samples]) if samples else np.zeros((0,), dtype)
         np.save(tmp / f"{name}.npy", values.astype(_STORED_DTYPES.get(name, dtype)))
     (tmp / INDEX_FILE).write_text("".join(line + "\n" for line in lines))
     os.replace(tmp, partial / job.folder)
