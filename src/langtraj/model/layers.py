@@ -113,18 +113,16 @@ class RelPoseAttention(nn.Module):
             key_pose = gather_keys(key_pose, index)
         rel = self.rel(relative_pose_features(query_pose, key_pose))  # [B0, Nq, K, D]
         b0, nq, width, _ = rel.shape
-        rel = rel.view(b0, nq, width, self.heads, self.head_dim)
-        keys = values = rel
-        if key is not None:
-            k = self.k(key).view(b0, -1, self.heads, self.head_dim)
-            v = self.v(key).view(b0, -1, self.heads, self.head_dim)
-            if index is None:
-                keys, values = rel + k[:, None], rel + v[:, None]
-            else:
-                keys, values = rel + gather_keys(k, index), rel + gather_keys(v, index)
-        return PoseTerms(
-            keys.permute(0, 1, 3, 4, 2).contiguous(), values.permute(0, 1, 3, 2, 4).contiguous(), key is not None
-        )
+        h, hd = self.heads, self.head_dim
+        rel = rel.view(b0, nq, width, h, hd)
+        as_keys, as_values = rel.permute(0, 1, 3, 4, 2), rel.permute(0, 1, 3, 2, 4)  # views, laid out below
+        if key is None:
+            return PoseTerms(as_keys.contiguous(), as_values.contiguous())
+        # The key tokens are taken straight into each layout (gathered per query, or broadcast), and the sum of a
+        # laid-out operand and a view comes out laid out: one pass per tensor.
+        k = self.k(key).view(b0, -1, h, hd)
+        v = self.v(key).view(b0, -1, h, hd)
+        return PoseTerms(_per_query(k, index, nq, 4) + as_keys, _per_query(v, index, nq, 3) + as_values, True)
 
     def forward(
         self,
@@ -156,29 +154,56 @@ class RelPoseAttention(nn.Module):
         if b % b0:
             raise ValueError(f"{b} query rows are not a multiple of the {b0} rows of the pose embeddings")
         g, h, hd = b // b0, self.heads, self.head_dim
+        # Everything per query is laid out pose-major, [B0, Nq, h, g, K]: the pose terms' layout, so that the
+        # costly products against them are batched matrix products without a copy of their operands or results.
         q = self.q(query).view(g, b0, nq, h, hd)
-        # The pose part: per query, its samples' queries [g, hd] against its K pose terms.
         logits = torch.matmul(q.permute(1, 2, 3, 0, 4), terms.keys)  # [B0, Nq, h, g, K]
-        logits = logits.permute(3, 0, 2, 1, 4).reshape(b, h, nq, width)
         if not terms.tokens:
-            k = self.k(key).view(b, -1, h, hd)
-            plain = torch.einsum("bqhd,bkhd->bhqk", q.view(b, nq, h, hd), k)
+            k = self.k(key).view(g, b0, -1, h, hd)
+            plain = torch.matmul(q.transpose(2, 3), k.permute(0, 1, 3, 4, 2))  # [g, B0, h, Nq, Nk], dense
             if index is not None:
-                columns = index.repeat(b // index.shape[0], 1, 1)[:, None].expand(b, h, nq, width)
+                columns = _per_sample(index, g, b0)[:, :, None].expand(g, b0, h, nq, width)
                 plain = torch.gather(plain, -1, columns)
-            logits = logits + plain
-        logits = logits.masked_fill(~mask[:, None], float("-inf")) / math.sqrt(hd)
-        any_key = mask.any(-1)[:, None, :, None]  # [B, 1, Nq, 1]
-        weights = self.drop(torch.softmax(logits.masked_fill(~any_key, 0.0), dim=-1) * any_key)
-        out = torch.matmul(weights.view(g, b0, h, nq, width).permute(1, 3, 2, 0, 4), terms.values)  # [B0, Nq, h, g, hd]
-        out = out.permute(3, 0, 1, 2, 4).reshape(b, nq, h, hd)
+            logits = logits + plain.permute(1, 3, 2, 0, 4)
+        # Masked keys get the dtype's lowest value, whose weight underflows to exactly 0 as -inf's would; a row
+        # with no key left comes out uniform instead of NaN and is zeroed at the output. The logits are fresh
+        # (a product or a sum), so they are masked and scaled in place: no copy of the largest tensor here.
+        keep = _per_sample(mask, g, b0).permute(1, 2, 0, 3)[:, :, None]  # [B0, Nq, 1, g, K]
+        logits = logits.masked_fill_(~keep, torch.finfo(logits.dtype).min).div_(math.sqrt(hd))
+        weights = self.drop(torch.softmax(logits, dim=-1))
+        out = torch.matmul(weights, terms.values)  # [B0, Nq, h, g, hd]
+        out = out.permute(3, 0, 1, 2, 4)  # [g, B0, Nq, h, hd]
         if not terms.tokens:
-            v = self.v(key).view(b, -1, h, hd)
+            v = self.v(key).view(g, b0, -1, h, hd)
+            by_sample = weights.permute(3, 0, 2, 1, 4)  # [g, B0, h, Nq, K]
             dense = (
-                weights if index is None else weights.new_zeros(b, h, nq, v.shape[1]).scatter_add(-1, columns, weights)
+                by_sample
+                if index is None
+                else by_sample.new_zeros(g, b0, h, nq, v.shape[2]).scatter_add_(-1, columns, by_sample)
             )
-            out = out + torch.einsum("bhqk,bkhd->bqhd", dense, v)
-        return self.out(out.reshape(b, nq, d))
+            out = out + torch.matmul(dense, v.transpose(2, 3)).transpose(2, 3)
+        any_key = _per_sample(mask, g, b0).any(-1)[..., None, None]  # [g, B0, Nq, 1, 1]
+        return self.out((out * any_key).reshape(b, nq, d))
+
+
+def _per_query(tokens: Tensor, index: Tensor | None, queries: int, key_axis: int) -> Tensor:
+    """Key tokens [B0, Nk, h, hd] for each query, with its K keys (its `index` [B0, Nq, K], or all Nk) on axis
+    `key_axis`: 4 gives [B0, Nq, h, hd, K] (`PoseTerms.keys`), 3 gives [B0, Nq, h, K, hd] (`PoseTerms.values`).
+    Gathered tokens come out contiguous; without `index` the result is a broadcast view."""
+    per_head = tokens.permute(0, 2, 3, 1) if key_axis == 4 else tokens.permute(0, 2, 1, 3)  # [B0, h, ., .]
+    if index is None:
+        return per_head[:, None].expand(-1, queries, -1, -1, -1)
+    b0, h, hd = tokens.shape[0], tokens.shape[2], tokens.shape[3]
+    shape = (b0, queries, h, hd, index.shape[-1]) if key_axis == 4 else (b0, queries, h, index.shape[-1], hd)
+    rows = index[:, :, None, None, :] if key_axis == 4 else index[:, :, None, :, None]
+    return torch.gather(per_head[:, None].expand(*shape[:2], *per_head.shape[1:]), key_axis, rows.expand(shape))
+
+
+def _per_sample(rows: Tensor, samples: int, scenes: int) -> Tensor:
+    """`rows` [B0 or B, ...] (one row per scene, or per sample and scene, sample-major) as [samples, B0, ...]."""
+    if rows.shape[0] == scenes:
+        return rows[None].expand(samples, *rows.shape)
+    return rows.view(samples, scenes, *rows.shape[1:])
 
 
 class AttentionBlock(nn.Module):
