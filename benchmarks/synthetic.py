@@ -15,12 +15,15 @@ def synthetic_batch(
     agents: int | None = None,
     text_fraction: float | None = None,
     sentence: str | None = None,
+    targets: bool = True,
 ):
     """A full batch of the preset's sizes: agents on a square of the map radius driving straight at 0-15
     m/s, straight map pieces of 2-m spacing, and in stage 2 a distinct sentence for the data's
     `heuristic_label_fraction` of each scene's agents (text dropout off: the most sentences a step meets).
     `agents` overrides the preset's `max_agents` (a scene to sample), `text_fraction` the share of agents with a
-    sentence, and `sentence` gives them all that one sentence (the text encoder then encodes it once)."""
+    sentence, and `sentence` gives them all that one sentence (the text encoder then encodes it once). With
+    `targets` the batch carries its target actions, as batches from a feature store do (`model.targets`; code
+    from before stored targets gets none)."""
     from langtraj.model.batch import AGENT_HISTORY_FEATURES, SceneBatch
 
     data, model = config.data, config.model
@@ -47,7 +50,7 @@ def synthetic_batch(
     fraction = data.heuristic_label_fraction if text_fraction is None else text_fraction
     texted = max(1, round(a * fraction)) if model.use_text else 0
     text = [[(sentence or f"scene {i}: agent {j} yields") if j < texted else None for j in range(a)] for i in range(b)]
-    return SceneBatch(
+    batch = SceneBatch(
         agent_history=history,
         history_valid=torch.ones(b, a, h, dtype=torch.bool),
         agent_type=torch.ones(b, a, dtype=torch.long),
@@ -65,3 +68,21 @@ def synthetic_batch(
         agent_id=torch.arange(a).expand(b, a).clone(),
         scenario_id=[f"bench{i}" for i in range(b)],
     )
+    return with_targets(batch, data.future_steps, data.dynamics) if targets else batch
+
+
+def with_targets(batch, future_steps: int, dynamics_name: str = "unicycle"):
+    """`batch` with the target actions a feature store would hold for it, where this code stores them."""
+    from dataclasses import fields, replace
+
+    if "target_actions" not in {f.name for f in fields(batch)}:
+        return batch  # code from before stored targets (a baseline checkout)
+    from langtraj.model.dynamics import DYNAMICS
+    from langtraj.model.targets import fit_actions
+
+    dynamics = DYNAMICS.create(dynamics_name)
+    actions, valid = fit_actions(
+        dynamics, batch.current_state, batch.future, batch.future_valid, batch.agent_valid,
+        future_steps // dynamics.steps_per_action,
+    )  # fmt: skip
+    return replace(batch, target_actions=actions, target_valid=valid)

@@ -1,43 +1,71 @@
 """Operations per training step of a preset, counted with `torch.profiler` (docs/benchmarks.md, 'Operations per
-step'): how many aten operations (nested calls counted, as `key_averages` counts them) one step issues, which
-bounds a GPU step when each launches a small kernel. Counting, not timing: the figure is the same on any machine
-and device up to the optimizer's implementation (`--device`; CUDA's AdamW is multi-tensor, CPU's too since this
-benchmark's first version, both through `training.module.make_optimizer`).
+step'): how many aten operations one step issues (nested calls counted, as `key_averages` counts them). Each is at
+least one kernel launch on a GPU, and a step of small operations is bound by launching them, not by arithmetic.
+Counting, not timing: the figure does not depend on the machine's speed.
 
-One step is what training runs for a fixed batch: `LangTrajModule.objective` (the denoising loss, or Algorithm
-1's closed-loop loss), backward, gradient clipping by norm and the AdamW step, under the preset's precision
-(bf16-mixed: autocast to bfloat16). The batch is synthetic and of the preset's full size (`synthetic.py`). Two
-warm-up steps run first (and compile the step where the preset or `--compile` asks for it). The last line is
+One step is what training runs on a batch: `LangTrajModule.objective` (the denoising loss, or Algorithm 1's
+closed-loop loss) under the preset's precision (bf16-mixed: autocast to bfloat16), backward, gradient clipping by
+norm and the optimizer training configures (`make_optimizer`: fused AdamW). The batch is synthetic, of the
+preset's full size, and carries its target actions as a feature store's batches do (`synthetic.py`). With the
+preset's `compile: true` (or `--compile`) the network part is compiled (`LangTraj.compile_steps`) during two
+warm-up steps. The count is printed per part: the network (forward and backward), clipping and the optimizer. On
+CUDA the last two are multi-tensor or fused (a few operations); on a CPU torch runs them tensor by tensor (some
+2,300 and 2,600 operations for 377 parameter tensors), so compare GPU counts with GPU counts. The last line is
 `aten ops per step: X`.
 
     python benchmarks/train_ops.py --config configs/gpu-short.yaml [--batch B] [--device cpu|cuda] [--top 15]
-        [--compile | --no-compile]
+        [--compile | --no-compile] [--precision 32-true|bf16-mixed]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
+from collections.abc import Callable
 from dataclasses import replace
-from pathlib import Path
 
 import torch
 from synthetic import synthetic_batch
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+LAUNCHES = ("cudaLaunchKernel", "cuLaunchKernel", "cudaLaunchKernelExC", "cudaGraphLaunch")
 
 
-def count_ops(profile: torch.profiler.profile, steps: int) -> tuple[int, list[tuple[str, float]]]:
-    """Aten operations per step, and the operators with their calls per step, most frequent first."""
-    rows = [(e.key, e.count / steps) for e in profile.key_averages() if e.key.startswith("aten::")]
-    rows.sort(key=lambda r: -r[1])
-    return round(sum(c for _, c in rows)), rows
+def aten_ops(profile: torch.profiler.profile) -> dict[str, int]:
+    """Calls of each aten operator in a profile, nested calls counted."""
+    return {e.key: e.count for e in profile.key_averages() if e.key.startswith("aten::")}
 
 
-def kernel_launches(profile: torch.profiler.profile, steps: int) -> int | None:
-    """CUDA kernel launches per step (None on CPU)."""
-    launches = [e for e in profile.key_averages() if e.key in ("cudaLaunchKernel", "cuLaunchKernel", "cudaLaunchKernelExC")]
-    return round(sum(e.count for e in launches) / steps) if launches else None
+def launches(profile: torch.profiler.profile) -> int | None:
+    """CUDA kernel (and graph) launches in a profile (None on a CPU)."""
+    found = [e.count for e in profile.key_averages() if e.key in LAUNCHES]
+    return sum(found) if found else None
+
+
+def step_parts(config, batch_size: int, device: str) -> dict[str, Callable[[], None]]:
+    """One training step of `config` on a fixed synthetic batch of `batch_size` on `device`, in its three parts
+    (network, clipping, optimizer; run in this order), each a function (`step_speed.py` times them too)."""
+    from langtraj.training.module import LangTrajModule
+
+    module = LangTrajModule(config.to_dict()).to(device)
+    module.train()
+    optimizer = module.configure_optimizers()["optimizer"]
+    device_type = "cuda" if device.startswith("cuda") else "cpu"
+    autocast = config.precision in ("bf16-mixed", "16-mixed")
+    batch = synthetic_batch(config, batch_size).to(device)
+    params = [p for p in module.parameters() if p.requires_grad]
+
+    def network() -> None:
+        with torch.autocast(device_type, dtype=torch.bfloat16, enabled=autocast):
+            loss = module.objective(batch)["loss"]
+        loss.backward()
+
+    def clip() -> None:
+        torch.nn.utils.clip_grad_norm_(params, config.optim.grad_clip)
+
+    def update() -> None:
+        optimizer.step()
+        optimizer.zero_grad()
+
+    return {"network (forward, backward)": network, "gradient clipping": clip, "optimizer": update}
 
 
 def main() -> None:
@@ -45,53 +73,54 @@ def main() -> None:
     parser.add_argument("--config", required=True, help="a training preset (YAML)")
     parser.add_argument("--batch", type=int, help="batch size (default: the preset's)")
     parser.add_argument("--device", default="cuda" if torch.cuda.is_available() else "cpu")
-    parser.add_argument("--steps", type=int, default=1, help="profiled steps (the count is per step)")
+    parser.add_argument("--precision", help="override the preset's precision (32-true, bf16-mixed)")
     parser.add_argument("--top", type=int, default=15, help="operators listed")
     compile_flag = parser.add_mutually_exclusive_group()
-    compile_flag.add_argument("--compile", dest="compile", action="store_true", default=None)
-    compile_flag.add_argument("--no-compile", dest="compile", action="store_false")
+    compile_flag.add_argument("--compile", dest="compile", action="store_true", default=None, help="compile")
+    compile_flag.add_argument("--no-compile", dest="compile", action="store_false", help="run eagerly")
     args = parser.parse_args()
 
     from langtraj.training.config import load_config
-    from langtraj.training.module import LangTrajModule
 
     config = load_config(args.config)
+    if args.compile is not None:
+        config = replace(config, compile=args.compile)
+    if args.precision:
+        config = replace(config, precision=args.precision)
     batch_size = args.batch or config.batch_size
-    module = LangTrajModule(config.to_dict()).to(args.device)
-    module.train()
-    batch = synthetic_batch(config, batch_size).to(args.device)
-    optimizer = module.configure_optimizers()["optimizer"]
-    autocast = config.precision in ("bf16-mixed", "16-mixed")
+    parts = step_parts(config, batch_size, args.device)
     device_type = "cuda" if args.device.startswith("cuda") else "cpu"
-
-    def step(batch) -> None:
-        with torch.autocast(device_type, dtype=torch.bfloat16, enabled=autocast):
-            loss = module.objective(batch)["loss"]
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_(module.parameters(), config.optim.grad_clip)
-        optimizer.step()
-        optimizer.zero_grad()
-
-    for _ in range(2):
-        step(batch)
+    for _ in range(2):  # warm-up: lazily built state, and compilation
+        for run in parts.values():
+            run()
     activities = [torch.profiler.ProfilerActivity.CPU]
-    if args.device.startswith("cuda"):
+    if device_type == "cuda":
         activities.append(torch.profiler.ProfilerActivity.CUDA)
-    with torch.profiler.profile(activities=activities) as profile:
-        for _ in range(args.steps):
-            step(batch)
-    total, rows = count_ops(profile, args.steps)
+    counts: dict[str, int] = {}
+    totals: dict[str, int] = {}
+    kernel_launches = 0
+    for name, run in parts.items():
+        with torch.profiler.profile(activities=activities) as profile:
+            run()
+            if device_type == "cuda":
+                torch.cuda.synchronize()
+        ops = aten_ops(profile)
+        counts[name] = sum(ops.values())
+        for op, calls in ops.items():
+            totals[op] = totals.get(op, 0) + calls
+        kernel_launches += launches(profile) or 0
     print(
         f"{config.name}: batch {batch_size}, {args.device}, precision {config.precision}, "
-        f"stage {config.stage} ({config.objective})"
+        f"compile {config.compile_mode if config.compile else 'off'}, stage {config.stage} ({config.objective})"
     )
-    print(f"top operators (calls per step):")
-    for name, calls in rows[: args.top]:
-        print(f"  {name:40s} {calls:10.0f}")
-    launches = kernel_launches(profile, args.steps)
-    if launches is not None:
-        print(f"kernel launches per step: {launches}")
-    print(f"aten ops per step: {total}")
+    print("top operators (calls per step):")
+    for op, calls in sorted(totals.items(), key=lambda item: -item[1])[: args.top]:
+        print(f"  {op:40s} {calls:8d}")
+    for name, count in counts.items():
+        print(f"{name}: {count} aten ops")
+    if device_type == "cuda":
+        print(f"kernel launches per step: {kernel_launches}")
+    print(f"aten ops per step: {sum(counts.values())}")
 
 
 if __name__ == "__main__":

@@ -2,10 +2,14 @@
 when one is present), and sampling time for one 64-agent scene with K = 5 and K = 100 DDIM steps.
 
 Batches are synthetic scenes of the preset's full size (every agent and map slot filled, random
-plausible geometry), so the figures are an upper bound for real data with padding. Each preset runs
-in its own process so its peak resident memory is its own.
+plausible geometry), so the figures are an upper bound for real data with padding; they carry their target
+actions, as batches from a feature store do. A step is what training runs: the loss, backward and the
+optimizer the training module configures (`LangTrajModule.configure_optimizers`; plain AdamW where a
+baseline's module has none to offer). Each preset runs in its own process so its peak resident memory is
+its own. `--baseline-src DIR` also measures another checkout's code (its `src` folder) in the same run,
+preset by preset, and prints the ratio.
 
-    python benchmarks/train_speed.py [--presets tiny base] [--steps 10] [--base-batch 4]
+    python benchmarks/train_speed.py [--presets tiny base] [--steps 10] [--base-batch 4] [--baseline-src DIR]
 """
 
 from __future__ import annotations
@@ -39,7 +43,7 @@ def measure(preset: str, steps: int, base_batch: int) -> dict:
 
     model = LangTraj(config.model).to(device)
     batch = synthetic_batch(config, batch_size, text_fraction=1.0, sentence=SENTENCE).to(device)
-    optimizer = torch.optim.AdamW([p for p in model.parameters() if p.requires_grad], lr=1e-4)
+    optimizer = make_optimizer(model)
     times = []
     for step in range(steps + 2):
         start = time.perf_counter()
@@ -80,40 +84,64 @@ def measure(preset: str, steps: int, base_batch: int) -> dict:
     }
 
 
+def make_optimizer(model) -> torch.optim.Optimizer:
+    """The optimizer training uses for `model` (`training.module.make_optimizer`), or AdamW as configured before
+    it existed (code from before, through --baseline-src)."""
+    params = [p for p in model.parameters() if p.requires_grad]
+    try:
+        from langtraj.training.module import make_optimizer as training_optimizer
+    except ImportError:
+        return torch.optim.AdamW(params, lr=1e-4)
+    return training_optimizer(params, lr=1e-4, weight_decay=0.01)
+
+
+def run_one(preset: str, args: argparse.Namespace, src: str | None) -> dict:
+    """`measure(preset)` in a fresh process, on this checkout's code or on `src`'s."""
+    cmd = [sys.executable, __file__, "--one", preset, "--steps", str(args.steps), "--base-batch", str(args.base_batch)]
+    env = {**os.environ, "HF_HUB_OFFLINE": "1"}
+    if src:
+        env["PYTHONPATH"] = os.pathsep.join([str(Path(src).resolve()), env.get("PYTHONPATH", "")])
+    out = subprocess.run(cmd, capture_output=True, text=True, check=True, env=env)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def describe(r: dict, label: str) -> str:
+    return (
+        f"{r['preset']:5s} {label}({r['trainable_parameters'] / 1e6:.2f} M trainable, {r['agents']} agents, "
+        f"{r['polylines']} polylines, batch {r['batch_size']}, {r['device']}): "
+        f"{r['samples_per_second']:.2f} samples/s ({r['step_seconds']:.2f} s/step), "
+        f"peak RSS {r['peak_rss_mb']:.0f} MB"
+        + (f", peak GPU {r['peak_gpu_mb']:.0f} MB" if r["peak_gpu_mb"] else "")
+        + f"; one 64-agent scene: K=5 {r['sample_64_agents_k5_seconds']:.2f} s, "
+        f"K=100 {r['sample_64_agents_k100_seconds']:.2f} s"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--presets", nargs="+", default=["tiny", "base"])
     parser.add_argument("--steps", type=int, default=10, help="timed training steps (after 2 warm-up steps)")
     parser.add_argument("--base-batch", type=int, default=4, help="batch size of base on CPU (memory)")
+    parser.add_argument("--baseline-src", help="also measure this checkout's src folder (code before a change)")
     parser.add_argument("--one", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one:
+        import langtraj
+
+        print(f"code: {Path(langtraj.__file__).parent}", file=sys.stderr)
         print(json.dumps(measure(args.one, args.steps, args.base_batch)))
         return
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__},"
           f" threads {torch.get_num_threads()}, cuda {torch.cuda.is_available()}")  # fmt: skip
     for preset in args.presets:
-        cmd = [
-            sys.executable,
-            __file__,
-            "--one",
-            preset,
-            "--steps",
-            str(args.steps),
-            "--base-batch",
-            str(args.base_batch),
-        ]
-        out = subprocess.run(cmd, capture_output=True, text=True, check=True, env={**os.environ, "HF_HUB_OFFLINE": "1"})
-        r = json.loads(out.stdout.strip().splitlines()[-1])
-        print(
-            f"{r['preset']:5s} ({r['trainable_parameters'] / 1e6:.2f} M trainable, {r['agents']} agents, "
-            f"{r['polylines']} polylines, batch {r['batch_size']}, {r['device']}): "
-            f"{r['samples_per_second']:.2f} samples/s ({r['step_seconds']:.2f} s/step), "
-            f"peak RSS {r['peak_rss_mb']:.0f} MB"
-            + (f", peak GPU {r['peak_gpu_mb']:.0f} MB" if r["peak_gpu_mb"] else "")
-            + f"; one 64-agent scene: K=5 {r['sample_64_agents_k5_seconds']:.2f} s, "
-            f"K=100 {r['sample_64_agents_k100_seconds']:.2f} s"
-        )
+        if args.baseline_src:
+            before = run_one(preset, args, args.baseline_src)
+            print(describe(before, f"[baseline {args.baseline_src}] "))
+        after = run_one(preset, args, None)
+        print(describe(after, ""))
+        if args.baseline_src:
+            ratio = after["samples_per_second"] / before["samples_per_second"]
+            print(f"{preset}: {ratio:.2f}x the baseline's samples/s")
 
 
 if __name__ == "__main__":

@@ -26,6 +26,11 @@ Guidance = Callable[[Tensor, Tensor, Tensor], Tensor]
 the hook for cost guidance (`langtraj.guidance.step`)."""
 
 
+DENOISING_STEP = "langtraj.denoising_step"
+GUIDANCE_STEP = "langtraj.guidance_step"
+"""Profiler ranges around each sampling step's network call and its guidance (`benchmarks/sample_ops.py`)."""
+
+
 def _index(values: Tensor, k: Tensor | int, like: Tensor) -> Tensor:
     """values[k] as `like`'s dtype/device, with trailing singleton dims so it broadcasts against `like`.
 
@@ -181,9 +186,11 @@ def sample(
     for i, k in enumerate(steps):
         k_prev = steps[i + 1] if i + 1 < len(steps) else -1
         k_batch = torch.full(shape[:1], k, dtype=torch.long, device=x.device)
-        x0 = denoise(x, k_batch)
+        with torch.profiler.record_function(DENOISING_STEP):
+            x0 = denoise(x, k_batch)
         if guidance is not None:
-            x0 = guidance(x0, k_batch, x)
+            with torch.profiler.record_function(GUIDANCE_STEP):
+                x0 = guidance(x0, k_batch, x)
         if k_prev < 0:
             break
         if sampler == "ddim":

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
+from typing import Any
 
 import torch
 from torch import Tensor, nn
@@ -19,7 +20,7 @@ from langtraj.angles import wrap_angle
 from langtraj.model.batch import SceneBatch
 from langtraj.model.config import LocalAttention, ModelConfig
 from langtraj.model.denoiser import Denoiser
-from langtraj.model.diffusion import Guidance, classifier_free_guidance, cosine_schedule, sample
+from langtraj.model.diffusion import DiffusionSchedule, Guidance, classifier_free_guidance, cosine_schedule, sample
 from langtraj.model.dynamics import DYNAMICS
 from langtraj.model.layers import mlp
 from langtraj.model.scene_encoder import MapContext, SceneContext, SceneEncoder
@@ -38,11 +39,40 @@ class LangTraj(nn.Module):
         self.encoder = SceneEncoder(config)
         self.denoiser = Denoiser(config)
         self.dynamics = DYNAMICS.create(config.dynamics)
-        self.schedule = cosine_schedule(config.diffusion_steps)
+        # The schedule's tables live on the model's device (buffers), so no step copies them there.
+        schedule = cosine_schedule(config.diffusion_steps)
+        for name, table in vars(schedule).items():
+            self.register_buffer(f"schedule_{name}", table, persistent=False)
         self.text_encoder = TextEncoder(config.text, d) if config.use_text else None
         self.null_condition = nn.Parameter(torch.zeros(d))
         self.fuse = mlp(2 * d, d, d)
         self.register_buffer("action_scale", torch.tensor(config.action_scale, dtype=torch.float32), persistent=False)
+        self._compiled: dict[str, Callable[..., Any]] = {}  # `compile_steps`: plain functions, not submodules
+
+    @property
+    def schedule(self) -> DiffusionSchedule:
+        """The diffusion schedule (cosine, K = `diffusion_steps`), its tables on the model's device."""
+        return DiffusionSchedule(self.schedule_betas, self.schedule_alphas, self.schedule_alphas_cumprod)
+
+    def compile_steps(self, *, training: bool = True, sampling: bool = True, mode: str = "default") -> LangTraj:
+        """Compile, in place, with `torch.compile` (`mode`: "reduce-overhead" adds CUDA graphs): with `training`,
+        the training step's network part (`loss` past its target actions, random draws and text encoder); with
+        `sampling`, the denoiser that every sampling step calls. Weights, their names and results (to float
+        rounding) stay; the first call of each shape compiles. See docs/model.md, 'Fewer, bigger kernels'."""
+        if training:
+            self._compiled["loss"] = torch.compile(self._denoising_loss, mode=mode)
+        if sampling:
+            self._compiled["denoise"] = torch.compile(self.denoiser.forward, mode=mode)
+        return self
+
+    @property
+    def compiled(self) -> bool:
+        """Whether `compile_steps` compiled this model's steps."""
+        return bool(self._compiled)
+
+    def _denoise(self, *args: Any) -> Tensor:
+        """The denoiser, compiled when `compile_steps` asked for it."""
+        return self._compiled.get("denoise", self.denoiser)(*args)
 
     # ------------------------------------------------------------------ conditioning
     def language(
@@ -100,7 +130,7 @@ class LangTraj(nn.Module):
         """States from the current states [B, A, 4], agent types [B, A] and network-unit actions [B, A, N, 2];
         vehicles turn no tighter than `vehicle_max_curvature` (without it, an undertrained model's small
         yaw rates turn a stopped car on the spot, and in closed loop such errors add up)."""
-        limit = torch.where(agent_type == AgentType.VEHICLE, self.config.vehicle_max_curvature, torch.inf)
+        limit = torch.where(agent_type == int(AgentType.VEHICLE), self.config.vehicle_max_curvature, torch.inf)
         return self.dynamics(current_state, self.from_units(x0), limit.to(x0.dtype))
 
     # ------------------------------------------------------------------ training
@@ -115,16 +145,35 @@ class LangTraj(nn.Module):
         b = x0.shape[0]
         k = torch.randint(0, self.schedule.num_steps, (b,), device=x0.device, generator=generator)
         noise = torch.randn(x0.shape, device=x0.device, generator=generator)
+        embedded = self.text_encoder(batch.text) if self.text_encoder is not None else None
+        text_weight_of = None
+        if text_weight != 1.0 and embedded is not None:
+            text_weight_of = torch.where(embedded[1] & batch.agent_valid, text_weight, 1.0)
+        core = self._compiled.get("loss", self._denoising_loss)
+        return core(_tensors_only(batch), x0, k, noise, embedded, text_weight_of)
+
+    def _denoising_loss(
+        self,
+        batch: SceneBatch,
+        x0: Tensor,
+        k: Tensor,
+        noise: Tensor,
+        embedded: tuple[Tensor, Tensor] | None,
+        text_weight_of: Tensor | None,
+    ) -> dict[str, Tensor]:
+        """`loss` from its draws on: tensors in, tensors out, the part `compile_steps` compiles. `embedded`: the
+        text encoder's output for the batch's sentences; `text_weight_of` [B, A]: each agent's loss weight."""
         x_k = self.schedule.q_sample(x0, k, noise)
         scene = self.encoder(batch)
-        pred = self.denoiser(x_k, k, scene, self.language(batch, scene))
+        language = self.language(batch, scene, drop_text=embedded is None, embedded=embedded)
+        pred = self.denoiser(x_k, k, scene, language)
         states = self.rollout(batch, pred)
         horizon = self.horizon_steps
         future = batch.future[:, :, :horizon]
         mask = batch.future_valid[:, :, :horizon] & batch.agent_valid[..., None]
         weight = mask.float()
-        if text_weight != 1.0 and self.text_encoder is not None:
-            weight = weight * torch.where(batch.has_text & batch.agent_valid, text_weight, 1.0)[..., None]
+        if text_weight_of is not None:
+            weight = weight * text_weight_of[..., None]
         count = weight.sum().clamp(min=1.0)
         position = ((states[..., :2] - future[..., :2]) ** 2).sum(-1)
         dh = wrap_angle(states[..., 2] - future[..., 2])
@@ -170,9 +219,9 @@ class LangTraj(nn.Module):
         cache = self.denoiser.pose_cache(base)  # per scene, shared by every step and sample
 
         def denoise(x_k: Tensor, k: Tensor) -> Tensor:
-            x0 = self.denoiser(x_k, k, scene, conditional, cache)
+            x0 = self._denoise(x_k, k, scene, conditional, cache)
             if unconditional is not None:
-                uncond = self.denoiser(x_k, k, scene, unconditional, cache)
+                uncond = self._denoise(x_k, k, scene, unconditional, cache)
                 x0 = classifier_free_guidance(x0, uncond, guidance_weight)
             return x0
 
@@ -192,6 +241,12 @@ class LangTraj(nn.Module):
         states = self.rollout(expanded, x0)
         n = batch.batch_size
         return states.reshape(num_samples, n, *states.shape[1:]), self.from_units(x0).reshape(num_samples, n, a, -1, 2)
+
+
+def _tensors_only(batch: SceneBatch) -> SceneBatch:
+    """The batch without its per-scene Python lists (sentences, ids): what the network reads, so that a compiled
+    step depends on tensors alone (a list's contents would be guarded on, and change every batch)."""
+    return replace(batch, text=[], scenario_id=[])
 
 
 def _repeat(value: Tensor, times: int) -> Tensor:

@@ -54,6 +54,9 @@ class ValConfig:
         require(self.wosac_scenes >= 0, "val.wosac_scenes", f"must be >= 0, got {self.wosac_scenes}")
 
 
+COMPILE_MODES = ("default", "reduce-overhead", "max-autotune", "max-autotune-no-cudagraphs")
+"""`torch.compile` modes a preset may name (`TrainConfig.compile_mode`)."""
+
 OBJECTIVES = ("denoising", "closed_loop")
 """What a stage minimises: the denoising loss at a random noise level (stages 1 and 2, and distillation
 to fewer steps), or Algorithm 1's closed-loop loss (`training.closed_loop`)."""
@@ -151,6 +154,14 @@ class TrainConfig:
     num_nodes: int = 1
     strategy: str = "auto"
     precision: str = "32-true"
+    compile: bool = False
+    """Compile the training step's network part with `torch.compile` (`LangTraj.compile_steps`): the forward
+    and backward passes become a few fused kernels instead of some 12,000 small operations, what a GPU step
+    is bound by (docs/model.md, 'Fewer, bigger kernels'). Same loss to float rounding; the first steps
+    compile (a minute or so)."""
+    compile_mode: str = "default"
+    """`torch.compile`'s mode: "default", "reduce-overhead" (CUDA graphs: shapes must stay fixed),
+    "max-autotune" or "max-autotune-no-cudagraphs"."""
 
     def __post_init__(self) -> None:
         for name in ("batch_size", "max_steps", "val_every_steps", "checkpoint_every_steps", "num_nodes"):
@@ -171,6 +182,11 @@ class TrainConfig:
             self.keep_every_steps is None or self.keep_every_steps >= 1,
             "keep_every_steps",
             f"must be >= 1, got {self.keep_every_steps}",
+        )
+        require(
+            self.compile_mode in COMPILE_MODES,
+            "compile_mode",
+            f"must be one of {', '.join(COMPILE_MODES)}, got {self.compile_mode!r}",
         )
         require(self.num_workers >= 0, "num_workers", f"must be >= 0, got {self.num_workers}")
         require(self.text_loss_weight >= 0, "text_loss_weight", f"must be >= 0, got {self.text_loss_weight}")

@@ -6,9 +6,9 @@ A store folder holds `store.json` (the features key it was built for, its chunks
 and one folder per chunk: `index.jsonl` (one `WindowRecord` per row with its prompts, which training
 draws sentences from, but not its labels, which it never reads; and the row's deciders) and one
 `FIELD.npy` per `SAMPLE_ARRAYS` and `TARGET_ARRAYS` field, [rows, ...]: the samples, and the target actions
-their futures ask for (`model.targets`), fitted once here instead of at every training step. A store is built from an InterDrive labels folder
-(`labelled_jobs`: every stage) or straight from scenario files without labels (`scenario_jobs`: stage 1
-needs none). `build_store` writes each chunk into `STORE.partial/` as a whole
+their futures ask for (`model.targets`), fitted once here instead of at every training step. A store is
+built from an InterDrive labels folder (`labelled_jobs`: every stage) or straight from scenario files without
+labels (`scenario_jobs`: stage 1 needs none). `build_store` writes each chunk into `STORE.partial/` as a whole
 (temporary folder, then rename), so a killed build resumes with the chunks not yet done; the folder
 becomes STORE only when every chunk is there.
 """
