@@ -43,7 +43,6 @@ def main() -> None:
         sys.exit(f"benchmark scene not found: {SCENE}")
 
     from langtraj.model.checkpoint import load_model
-    from langtraj.model.diffusion import DENOISING_STEP, GUIDANCE_STEP
     from langtraj.scenario.io import read_scenario
     from langtraj.sim.checkpoints import shipped_checkpoint
     from langtraj.sim.engine import SimConfig, simulate
@@ -52,6 +51,17 @@ def main() -> None:
     device = "cuda" if torch.cuda.is_available() else "cpu"
     model, data = load_model(args.checkpoint or shipped_checkpoint())
     model.to(device)
+    try:
+        from langtraj.model.diffusion import DENOISING_STEP, GUIDANCE_STEP
+    except ImportError:  # code from before the ranges (a baseline checkout): label the denoiser's calls here
+        DENOISING_STEP, GUIDANCE_STEP = "denoising step", "guidance step"
+        forward = model.denoiser.forward
+
+        def labelled(*inputs, **options):
+            with torch.profiler.record_function(DENOISING_STEP):
+                return forward(*inputs, **options)
+
+        model.denoiser.forward = labelled
     if args.compile:
         model.compile_steps(training=False)
     name, scene = next(scenes(read_scenario(SCENE), [args.agents]))

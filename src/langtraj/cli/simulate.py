@@ -93,6 +93,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="every driven agent attends to every agent and map piece (default: in scenes larger than the model's "
         "training scenes, each attends to a neighbourhood of the size it was trained on; docs/model.md)",
     )
+    p.add_argument(
+        "--compile",
+        action="store_true",
+        help="compile the denoiser with torch.compile (the first replan compiles, a minute or so: pays on a GPU, "
+        "where a denoising step is bound by launching small kernels; docs/model.md)",
+    )
     p.add_argument("--guidance-scale", type=float, default=1.0, help="step size alpha of reconstruction guidance")
     p.add_argument("--cfg", type=float, default=0.0, help="classifier-free guidance weight w (-1: ignore text)")
     p.add_argument("--rollouts", type=int, default=32, help="joint rollouts (default 32, as WOSAC)")
@@ -150,6 +156,7 @@ def run(args: argparse.Namespace) -> int:
         no_collision=args.no_collision,
         dense_attention=args.dense_attention,
         guided_steps=args.guided_steps,
+        compile=args.compile,
         levers=PromptLevers(args.prompt_text, args.prompt_guidance, args.prompt_selection),
     )
     policy, described = build_policy(scenario, request)  # every check happens here, before any write

@@ -80,6 +80,7 @@ class SimRequest:
     dense_attention: bool = False  # every agent attends to every token, however large the scene (slower)
     guided_steps: int | None = None  # the last N denoising steps get on-road / no-collision guidance; None: default
     levers: PromptLevers = ALL_LEVERS  # how prompts steer (text, guidance toward targets, adherence-first selection)
+    compile: bool = False  # compile the denoiser (torch.compile; pays on a GPU, docs/model.md 'Fewer, bigger kernels')
 
     def __post_init__(self) -> None:
         if self.max_driven is not None and self.max_driven < 1:
@@ -104,4 +105,5 @@ class SimRequest:
             or self.dense_attention
             or self.guided_steps is not None
             or self.levers != ALL_LEVERS
+            or self.compile
         )

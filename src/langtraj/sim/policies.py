@@ -96,7 +96,7 @@ class Policy(ABC):
             model_policies = ", ".join(c.name for c in POLICIES.classes() if c.uses_model)
             raise InputError(
                 "prompts, guidance, --selector, --on-road, --no-collision, --guided-steps, --dense-attention, "
-                f"--max-driven and --undriven need a model policy ({model_policies}), not {cls.name}"
+                f"--compile, --max-driven and --undriven need a model policy ({model_policies}), not {cls.name}"
             )
         return cls()
 
@@ -283,6 +283,8 @@ class LangTrajPolicy(Policy):
     def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> LangTrajPolicy:
         checkpoint = request.checkpoint or shipped_checkpoint()
         model, data = loaded or load_model(checkpoint)
+        if request.compile and not model.compiled:
+            model.compile_steps(training=False)
         slots = slots_of(scenario, model_agents(scenario, request.max_driven))
         terms = collision_terms(scenario, slots, request) + scene_wide_terms(request.guidance)
         free = [slots[t] for t in (request.adversary, request.target) if t is not None]  # the collision's pair

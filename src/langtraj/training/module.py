@@ -32,12 +32,18 @@ from langtraj.training.perturbation import perturb_pasts
 FUSED_DEVICES = frozenset({"cpu", "cuda"})
 """Devices with a fused AdamW kernel that this project has run (`make_optimizer`)."""
 
+FULL_PRECISIONS = frozenset({"32-true", "32", "64-true", "64"})
+"""Lightning precisions without mixed-precision plugins (`make_optimizer`'s `fused`)."""
 
-def make_optimizer(params: list[torch.nn.Parameter], *, lr: float, weight_decay: float) -> torch.optim.AdamW:
-    """AdamW for `params`, fused (one kernel updates every parameter) on devices that have it, else multi-tensor:
-    the update is then a handful of operations per step instead of some 30 per parameter tensor (docs/model.md,
-    'Fewer, bigger kernels')."""
-    fused = bool(params) and all(p.device.type in FUSED_DEVICES for p in params)
+
+def make_optimizer(
+    params: list[torch.nn.Parameter], *, lr: float, weight_decay: float, fused: bool = True
+) -> torch.optim.AdamW:
+    """AdamW for `params`: fused (one kernel updates every parameter) when asked and the parameters' device has
+    it, else multi-tensor; either way a handful of operations per step on a GPU instead of some 30 per parameter
+    tensor (docs/model.md, 'Fewer, bigger kernels'). Lightning refuses a fused optimizer with gradient clipping
+    under mixed precision (it unscales internally), so training asks for it at full precision only."""
+    fused = fused and bool(params) and all(p.device.type in FUSED_DEVICES for p in params)
     return torch.optim.AdamW(params, lr=lr, weight_decay=weight_decay, fused=fused, foreach=None if fused else True)
 
 
@@ -144,7 +150,8 @@ class LangTrajModule(pl.LightningModule):
     def configure_optimizers(self):
         optim = self.train_config.optim
         params = [p for p in self.model.parameters() if p.requires_grad]
-        optimizer = make_optimizer(params, lr=optim.lr, weight_decay=optim.weight_decay)
+        fused = self.train_config.precision in FULL_PRECISIONS
+        optimizer = make_optimizer(params, lr=optim.lr, weight_decay=optim.weight_decay, fused=fused)
         total = max(self.train_config.max_steps, 1)
 
         def factor(step: int) -> float:
