@@ -68,7 +68,7 @@ def synthetic_batch(
         agent_id=torch.arange(a).expand(b, a).clone(),
         scenario_id=[f"bench{i}" for i in range(b)],
     )
-    return with_targets(batch, data.future_steps, data.dynamics) if targets else batch
+    return with_targets(batch, data.future_steps, getattr(data, "dynamics", "unicycle")) if targets else batch
 
 
 def with_targets(batch, future_steps: int, dynamics_name: str = "unicycle"):

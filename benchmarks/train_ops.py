@@ -111,7 +111,8 @@ def main() -> None:
         kernel_launches += launches(profile) or 0
     print(
         f"{config.name}: batch {batch_size}, {args.device}, precision {config.precision}, "
-        f"compile {config.compile_mode if config.compile else 'off'}, stage {config.stage} ({config.objective})"
+        f"compile {config.compile_mode if getattr(config, 'compile', False) else 'off'}, "  # older code: no option
+        f"stage {config.stage} ({config.objective})"
     )
     print("top operators (calls per step):")
     for op, calls in sorted(totals.items(), key=lambda item: -item[1])[: args.top]:

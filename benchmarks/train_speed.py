@@ -101,7 +101,9 @@ def run_one(preset: str, args: argparse.Namespace, src: str | None) -> dict:
     env = {**os.environ, "HF_HUB_OFFLINE": "1"}
     if src:
         env["PYTHONPATH"] = os.pathsep.join([str(Path(src).resolve()), env.get("PYTHONPATH", "")])
-    out = subprocess.run(cmd, capture_output=True, text=True, check=True, env=env)
+    out = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    if out.returncode:
+        sys.exit(f"{preset} ({src or 'this checkout'}) failed:\n{out.stderr[-2000:]}")
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 

@@ -18,7 +18,7 @@ from torch import Tensor
 from langtraj.errors import InputError
 from langtraj.guidance.base import GuidanceTerm
 from langtraj.guidance.scene import GuidanceScene
-from langtraj.model.diffusion import Guidance
+from langtraj.model.diffusion import GUIDANCE_STEP, Guidance
 
 
 def reconstruction_guidance(
@@ -67,7 +67,7 @@ def reconstruction_guidance(
         if not active or scale == 0:
             return x0
         x = x0.detach()
-        with torch.enable_grad():
+        with torch.enable_grad(), torch.profiler.record_function(GUIDANCE_STEP):
             for _ in range(iterations):
                 x = x.detach().requires_grad_(True)
                 states = rollout(x)

@@ -28,7 +28,8 @@ the hook for cost guidance (`langtraj.guidance.step`)."""
 
 DENOISING_STEP = "langtraj.denoising_step"
 GUIDANCE_STEP = "langtraj.guidance_step"
-"""Profiler ranges around each sampling step's network call and its guidance (`benchmarks/sample_ops.py`)."""
+"""Profiler ranges around each sampling step's network call (`sample`) and around each step's cost guidance
+where it applies (`guidance.step`), which `benchmarks/sample_ops.py` counts the operations of."""
 
 
 def _index(values: Tensor, k: Tensor | int, like: Tensor) -> Tensor:
@@ -189,8 +190,7 @@ def sample(
         with torch.profiler.record_function(DENOISING_STEP):
             x0 = denoise(x, k_batch)
         if guidance is not None:
-            with torch.profiler.record_function(GUIDANCE_STEP):
-                x0 = guidance(x0, k_batch, x)
+            x0 = guidance(x0, k_batch, x)
         if k_prev < 0:
             break
         if sampler == "ddim":

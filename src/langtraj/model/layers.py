@@ -118,11 +118,12 @@ class RelPoseAttention(nn.Module):
         as_keys, as_values = rel.permute(0, 1, 3, 4, 2), rel.permute(0, 1, 3, 2, 4)  # views, laid out below
         if key is None:
             return PoseTerms(as_keys.contiguous(), as_values.contiguous())
-        # The key tokens are taken straight into each layout (gathered per query, or broadcast), and the sum of a
-        # laid-out operand and a view comes out laid out: one pass per tensor.
+        # The key tokens are gathered per query straight into each layout, and the sum of a laid-out operand and a
+        # view comes out laid out: one pass per tensor (`contiguous` is then free; it lays out the dense case).
         k = self.k(key).view(b0, -1, h, hd)
         v = self.v(key).view(b0, -1, h, hd)
-        return PoseTerms(_per_query(k, index, nq, 4) + as_keys, _per_query(v, index, nq, 3) + as_values, True)
+        keys = (_per_query(k, index, nq, 4) + as_keys).contiguous()
+        return PoseTerms(keys, (_per_query(v, index, nq, 3) + as_values).contiguous(), True)
 
     def forward(
         self,
