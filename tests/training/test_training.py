@@ -188,3 +188,19 @@ def test_a_checkpoint_with_the_obsolete_null_embedding_still_loads(labels, tmp_p
     model, _ = load_model(older)
     for key, value in load_model(last)[0].state_dict().items():
         assert torch.equal(model.state_dict()[key], value), key
+
+
+def test_a_compiled_stage_two_run_trains_validates_and_saves_what_an_eager_run_does(labels, tmp_path):
+    """`compile: true` through Lightning: the compiled step (with text and LoRA), eager validation, checkpoints
+    whose weights carry their usual names and match an eager run's."""
+    config = replace(CONFIG, stage=2, model=replace(CONFIG.model, use_text=True), max_steps=3, val_every_steps=3)
+    eager = train(config, labels, tmp_path / "eager", progress=False)
+    compiled = train(replace(config, compile=True), labels, tmp_path / "compiled", progress=False)
+    a, b = read_checkpoint(eager)["state_dict"], read_checkpoint(compiled)["state_dict"]
+    assert a.keys() == b.keys()
+    for key, value in a.items():
+        torch.testing.assert_close(b[key], value, atol=1e-4, rtol=1e-3, msg=key)
+    model, _ = load_model(compiled)
+    assert not model.compiled  # a checkpoint loads eager; compiling is the caller's choice
+    rows = list(csv.DictReader((tmp_path / "compiled" / "logs" / "csv" / "version_0" / "metrics.csv").open()))
+    assert [r for r in rows if r.get("val/loss")] and len(_losses(tmp_path / "compiled")) > 0  # validated, trained
