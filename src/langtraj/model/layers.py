@@ -204,7 +204,7 @@ def _per_sample(rows: Tensor, samples: int, scenes: int) -> Tensor:
     """`rows` [B0 or B, ...] (one row per scene, or per sample and scene, sample-major) as [samples, B0, ...]."""
     if rows.shape[0] == scenes:
         return rows[None].expand(samples, *rows.shape)
-    return rows.view(samples, scenes, *rows.shape[1:])
+    return rows.reshape(samples, scenes, *rows.shape[1:])
 
 
 class AttentionBlock(nn.Module):
