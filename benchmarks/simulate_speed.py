@@ -14,7 +14,10 @@ Medians over --repeats runs.
 
     python benchmarks/simulate_speed.py [--scenes 64 128 real] [--settings paper defaults prompt]
         [--checkpoint CKPT] [--candidates 4] [--repeats 3] [--rollouts 32] [--guided-steps N]
-        [--prompt "@{id} slows down"] [--dense-attention]
+        [--prompt "@{id} slows down"] [--dense-attention] [--compile]
+
+With --compile the denoiser is compiled (`LangTraj.compile_steps`, as `langtraj simulate --compile`) and one
+untimed simulation per scene and setting compiles it first.
 """
 
 from __future__ import annotations
@@ -147,6 +150,7 @@ def main() -> None:
     parser.add_argument("--guided-steps", type=int, help="the defaults' guided denoising steps (default: simulate's)")
     parser.add_argument("--prompt", default="@{id} slows down", help="the prompt ({id}: the most important agent)")
     parser.add_argument("--dense-attention", action="store_true", help="dense attention (default: local, as simulate)")
+    parser.add_argument("--compile", action="store_true", help="compile the denoiser; an untimed run compiles it")
     args = parser.parse_args()
     if not SCENE.is_file():
         sys.exit(f"benchmark scene not found: {SCENE}")
@@ -162,13 +166,16 @@ def main() -> None:
     checkpoint = args.checkpoint or shipped_checkpoint()
     model, data = load_model(checkpoint)
     model.to(device)
+    if args.compile:
+        model.compile_steps(training=False)
     guided = LangTrajPolicy(model, data, steps=5, guided_steps=args.guided_steps).guided_steps
     print(
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, torch threads "
         f"{torch.get_num_threads()}, device {device}; checkpoint {Path(checkpoint).name} "
         f"(trained on {data.max_agents}-agent scenes; drives every sim agent); {args.rollouts} rollouts x 8 s, "
         f"K = 5, replanning at 1 Hz, {args.candidates} candidates per replan, "
-        f"{'dense' if args.dense_attention else 'local'} attention; defaults guided at the last "
+        f"{'dense' if args.dense_attention else 'local'} attention, "
+        f"denoiser {'compiled' if args.compile else 'eager'}; defaults guided at the last "
         f"{guided} of 5 denoising steps; medians of {args.repeats} runs"
     )
 
@@ -188,6 +195,8 @@ def main() -> None:
         medians = {}
         for setting in args.settings:
             times = []
+            if args.compile:  # compiling for this scene's shapes is not what is timed
+                simulate(scene, policy(setting, scene), SimConfig(rollouts=args.rollouts, seed=0))
             for repeat in range(args.repeats):
                 result = simulate(scene, policy(setting, scene), SimConfig(rollouts=args.rollouts, seed=repeat))
                 times.append(result.seconds)
