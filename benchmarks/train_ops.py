@@ -5,12 +5,14 @@ Counting, not timing: the figure does not depend on the machine's speed.
 
 One step is what training runs on a batch: `LangTrajModule.objective` (the denoising loss, or Algorithm 1's
 closed-loop loss) under the preset's precision (bf16-mixed: autocast to bfloat16), backward, gradient clipping by
-norm and the optimizer training configures (`make_optimizer`: fused AdamW). The batch is synthetic, of the
+norm and the optimizer training configures (`make_optimizer`: AdamW, fused at full precision, multi-tensor under
+mixed precision). The batch is synthetic, of the
 preset's full size, and carries its target actions as a feature store's batches do (`synthetic.py`). With the
 preset's `compile: true` (or `--compile`) the network part is compiled (`LangTraj.compile_steps`) during two
 warm-up steps. The count is printed per part: the network (forward and backward), clipping and the optimizer. On
-CUDA the last two are multi-tensor or fused (a few operations); on a CPU torch runs them tensor by tensor (some
-2,300 and 2,600 operations for 377 parameter tensors), so compare GPU counts with GPU counts. The last line is
+CUDA the last two are multi-tensor or fused (a few operations); on a CPU torch runs them tensor by tensor underneath
+(for gpu-short's 377 parameter tensors: 2,282 for clipping, 2,641 fused or 11,700 multi-tensor for AdamW), so
+compare GPU counts with GPU counts. The last line is
 `aten ops per step: X`.
 
     python benchmarks/train_ops.py --config configs/gpu-short.yaml [--batch B] [--device cpu|cuda] [--top 15]
