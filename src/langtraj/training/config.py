@@ -156,7 +156,7 @@ class TrainConfig:
     precision: str = "32-true"
     compile: bool = False
     """Compile the training step's network part with `torch.compile` (`LangTraj.compile_steps`): the forward
-    and backward passes become a few fused kernels instead of some 12,000 small operations, what a GPU step
+    and backward passes become a few fused kernels instead of some 15,000 small operations, what a GPU step
     is bound by (docs/model.md, 'Fewer, bigger kernels'). Same loss to float rounding; the first steps
     compile (a minute or so)."""
     compile_mode: str = "default"
