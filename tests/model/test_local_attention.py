@@ -7,14 +7,17 @@ from dataclasses import replace
 
 import pytest
 import torch
+from batch_builders import toy_batch
 from scenario_builders import make_scenario
 
 from langtraj.errors import InputError
 from langtraj.model import LangTraj, ModelConfig
+from langtraj.model.checkpoint import load_model
 from langtraj.model.config import LocalAttention, SampleConfig
 from langtraj.model.features import collate_scenes, scene_sample
 from langtraj.model.layers import RelPoseAttention
 from langtraj.model.scene_encoder import nearest_neighbours
+from langtraj.sim.checkpoints import shipped_checkpoint
 
 DATA = SampleConfig(max_agents=8, max_polylines=12, points_per_polyline=10, text=False, map_selection="origin")
 MODEL = ModelConfig(hidden_dim=32, num_heads=4, encoder_layers=1, denoiser_blocks=1, dropout=0.0, use_text=False)
@@ -136,3 +139,93 @@ def test_within_the_budgets_local_attention_is_dense(model):
 def test_budgets_below_one_are_refused():
     with pytest.raises(InputError, match="local attention agents: must be >= 1"):
         LocalAttention(agents=0, map_pieces=4)
+
+
+SHIPPED_BEFORE_DENSE = [
+    57.995300,
+    -10.318781,
+    51.541367,
+    -5.043102,
+    74.988121,
+    -26.776720,
+    57.435143,
+    0.315774,
+    45.149536,
+    -1.677148,
+    66.191040,
+    -0.711770,
+    63.197838,
+    -5.451823,
+    44.700264,
+    16.988119,
+    86.485413,
+    -28.378292,
+    30.238331,
+    2.538637,
+    64.730034,
+    -4.399478,
+    69.386360,
+    -3.557725,
+    61.695663,
+    -10.354245,
+    66.110168,
+    -8.933033,
+    85.008896,
+    -29.582489,
+    31.227922,
+    0.894979,
+    51.830505,
+    -3.709744,
+    86.679993,
+    -5.505182,
+]
+SHIPPED_BEFORE_LOCAL = [
+    89.101944,
+    -29.324757,
+    51.729507,
+    -5.746799,
+    76.577950,
+    -26.444246,
+    65.170815,
+    0.923383,
+    56.664864,
+    -2.755396,
+    97.746353,
+    -0.965754,
+    98.156639,
+    -5.518046,
+    41.203331,
+    11.495838,
+    91.966385,
+    -28.419544,
+    46.701202,
+    2.085116,
+    76.035988,
+    -4.928341,
+    96.613785,
+    -2.971462,
+    93.452576,
+    -17.474598,
+    62.206535,
+    -18.477352,
+    88.402397,
+    -29.454052,
+    49.459869,
+    -0.230912,
+    66.984245,
+    -5.202347,
+    108.542923,
+    -4.978594,
+]
+"""End positions (every 4th agent) of the shipped checkpoint's samples of a toy batch, dense and local, computed by
+the code before the pose-major attention (3245b18): equal bit for bit there and then; pinned here to 1e-4 m so that
+another CPU's matrix-product kernels may round differently."""
+
+
+def test_the_shipped_checkpoint_samples_what_it_sampled_before_the_attention_was_laid_out_anew():
+    torch.set_num_threads(1)
+    model, _ = load_model(shipped_checkpoint())
+    batch = toy_batch(b=2, a=12, m=10)
+    for local, before in ((None, SHIPPED_BEFORE_DENSE), (LocalAttention(agents=5, map_pieces=4), SHIPPED_BEFORE_LOCAL)):
+        states, _ = model.sample(batch, 3, steps=5, local=local, generator=torch.Generator().manual_seed(0))
+        assert states[:, :, ::4, -1, :2].flatten().tolist() == pytest.approx(before, abs=1e-4)

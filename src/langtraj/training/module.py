@@ -30,7 +30,7 @@ from langtraj.training.evaluation import constant_velocity, min_ade
 from langtraj.training.perturbation import perturb_pasts
 
 FUSED_DEVICES = frozenset({"cpu", "cuda"})
-"""Devices with a fused AdamW kernel that this project has run (`make_optimizer`)."""
+"""Devices for which torch has a fused AdamW kernel (`make_optimizer`); CUDA's is not run here (no GPU)."""
 
 FULL_PRECISIONS = frozenset({"32-true", "32", "64-true", "64"})
 """Lightning precisions without mixed-precision plugins (`make_optimizer`'s `fused`)."""
