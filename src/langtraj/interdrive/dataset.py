@@ -40,6 +40,7 @@ from langtraj.interdrive.prompts import (
     llm_phrase_bank,
     role_rephrase,
 )
+from langtraj.scenario.ids import map_group
 from langtraj.scenario.io import read_scenario, read_scenarios
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.windowing import WindowSpec, cut_window, iter_windows
@@ -170,12 +171,10 @@ VAL_FRACTION = 0.1
 
 
 def split_of(record: WindowRecord, val_fraction: float = VAL_FRACTION) -> str:
-    """The split ("val" or "train") of a record, fixed by a hash of its scene's id: the window id without the
-    `_w{start}` suffix that windows cut from a longer scene carry, so those windows stay together."""
-    key = record.scenario_id
-    suffix = f"_w{record.window_start}"
-    if key.endswith(suffix):
-        key = key[: -len(suffix)]
+    """The split ("val" or "train") of a record, fixed by a hash of its map group (`scenario.ids.map_group`:
+    the SUMO run of a synthesized window, the scene of a real one), so no road network and its traffic is on
+    both sides."""
+    key = map_group(record.scenario_id, record.window_start)
     value = int.from_bytes(hashlib.sha256(key.encode()).digest()[:8], "little") / 2.0**64
     return "val" if value < val_fraction else "train"
 

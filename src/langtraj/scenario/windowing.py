@@ -7,6 +7,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from langtraj.scenario.ids import cut_window_id
 from langtraj.scenario.model import FUTURE_STEPS, HISTORY_STEPS, Scenario
 
 
@@ -46,7 +47,7 @@ def cut_window(scenario: Scenario, start: int, spec: WindowSpec = WindowSpec()) 
 
     Keeps agents with at least one valid step in the window (and the SDC always); tracks to predict
     and objects of interest stay only if still valid at the window's current step. The window's id
-    is `{scenario_id}_w{start}`; metadata records the parent scene and start step.
+    is `scenario.ids.cut_window_id`; metadata records the parent scene and start step.
     """
     stop = start + spec.length
     if start < 0 or stop > scenario.num_steps:
@@ -68,7 +69,7 @@ def cut_window(scenario: Scenario, start: int, spec: WindowSpec = WindowSpec()) 
     )
     return replace(
         window,
-        scenario_id=f"{scenario.scenario_id}_w{start}",
+        scenario_id=cut_window_id(scenario.scenario_id, start),
         agents=agents,
         metadata={**window.metadata, "window": {"parent_id": scenario.scenario_id, "start": start}},
     )

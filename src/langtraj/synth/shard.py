@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from langtraj.fileio import ZSTD_SUFFIX, atomic_open
+from langtraj.scenario.ids import synth_window_id
 from langtraj.scenario.io import write_scenarios
 from langtraj.scenario.model import STEP_SECONDS, BehaviorEvent, RoadMap, Scenario
 from langtraj.synth.demand import write_demand
@@ -218,7 +219,7 @@ def cut_windows(
             "start_step": start,
             "interaction": None if event is None else event.kind,
         }
-        scenario_id = f"{task.kind}-{task.seed:010d}-{c}-{start:05d}"
+        scenario_id = synth_window_id(task.kind, task.seed, c, start)
         scenario = cutter.scenario(members, ooi, start, scenario_id, road_map, metadata)
         if isinstance(scenario, Rejection):
             rejections[scenario.reason] += 1
