@@ -135,12 +135,18 @@ class LangTraj(nn.Module):
 
     # ------------------------------------------------------------------ training
     def loss(
-        self, batch: SceneBatch, *, text_weight: float = 1.0, generator: torch.Generator | None = None
+        self,
+        batch: SceneBatch,
+        *,
+        text_weight: float = 1.0,
+        generator: torch.Generator | None = None,
+        with_states: bool = False,
     ) -> dict[str, Tensor]:
         """Diffusion loss at a random step per scene: position (and heading) error of the states that
         the predicted clean actions produce, against the log, masked by validity. Agents that carry a
         sentence count `text_weight` times (their share of the batch is small, and they alone teach
-        the model to follow text)."""
+        the model to follow text). `with_states`: the dict also holds those states [B, A, T, 4] under
+        "states" (for penalties on them, `training.penalties`)."""
         x0, _ = self.target_actions(batch)
         b = x0.shape[0]
         k = torch.randint(0, self.schedule.num_steps, (b,), device=x0.device, generator=generator)
@@ -150,7 +156,10 @@ class LangTraj(nn.Module):
         if text_weight != 1.0 and embedded is not None:
             text_weight_of = torch.where(embedded[1] & batch.agent_valid, text_weight, 1.0)
         core = self._compiled.get("loss", self._denoising_loss)
-        return core(_tensors_only(batch), x0, k, noise, embedded, text_weight_of)
+        out = core(_tensors_only(batch), x0, k, noise, embedded, text_weight_of)
+        if not with_states:
+            del out["states"]
+        return out
 
     def _denoising_loss(
         self,
@@ -180,7 +189,8 @@ class LangTraj(nn.Module):
         position_loss = (position * weight).sum() / count
         heading_loss = (dh**2 * weight).sum() / count
         ade = (torch.sqrt(position + 1e-9) * weight).sum() / count
-        return {"loss": position_loss + heading_loss, "position": position_loss, "heading": heading_loss, "ade": ade}
+        parts = {"position": position_loss, "heading": heading_loss, "ade": ade, "states": states}
+        return {"loss": position_loss + heading_loss, **parts}
 
     # ------------------------------------------------------------------ sampling
     @torch.no_grad()
@@ -197,6 +207,8 @@ class LangTraj(nn.Module):
         noise: Callable[[tuple[int, ...]], Tensor] | None = None,
         map_context: MapContext | None = None,
         local: LocalAttention | None = None,
+        start: Tensor | None = None,
+        start_steps: int | None = None,
     ) -> tuple[Tensor, Tensor]:
         """`num_samples` joint futures per scene: states [S, B, A, T, 4] and actions [S, B, A, N, 2].
 
@@ -205,7 +217,9 @@ class LangTraj(nn.Module):
         are sample-major (all scenes of sample 0, then sample 1, ...), as are the rows `noise(shape)`
         must draw when given (instead of `generator`). `map_context` is the encoded map when the caller
         keeps it (`SceneEncoder.encode_map`; a simulation's map is fixed). `local`: attend locally in
-        scenes larger than its budgets (a model driving more agents than it was trained with).
+        scenes larger than its budgets (a model driving more agents than it was trained with). `start`
+        (actions [B, A, N, 2], physical, one plan per scene) warm-starts every sample of a scene: the last
+        `start_steps` of the `steps` run from it, noised (`model.diffusion.sample`).
         """
         # The scene and its sentences are encoded once; the samples share them (sample-major repeats).
         base = self.encoder(batch, map_context, local)
@@ -227,6 +241,8 @@ class LangTraj(nn.Module):
 
         b, a = expanded.agent_valid.shape
         shape = (b, a, self.config.num_actions, 2)
+        if start is not None:
+            start = _repeat(self.to_units(start), num_samples)
         x0 = sample(
             denoise,
             shape,
@@ -237,6 +253,8 @@ class LangTraj(nn.Module):
             generator=generator,
             noise=noise,
             device=expanded.agent_valid.device,
+            start=start,
+            start_steps=start_steps,
         )
         states = self.rollout(expanded, x0)
         n = batch.batch_size

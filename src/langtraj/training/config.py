@@ -10,6 +10,7 @@ See docs/model.md.
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -125,6 +126,28 @@ class PerturbationConfig:
 
 
 @dataclass(frozen=True)
+class PenaltyConfig:
+    """Map- and contact-aware training (not in the paper): penalties on the trajectory the predicted clean
+    actions produce, beside the denoising loss (`training/penalties.py`, docs/model.md, 'Scene penalties').
+    `road_weight` weighs leaving the road further than the logged future does (m^2 per vehicle step; the
+    log may come within `road_margin` m of an edge), `contact_weight` the disk overlap between agents
+    (guidance's no-collision cost, per agent). Both 0: off, the default."""
+
+    road_weight: float = 0.0
+    contact_weight: float = 0.0
+    road_margin: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("road_weight", "contact_weight", "road_margin"):
+            value = getattr(self, name)
+            require(math.isfinite(value) and value >= 0, f"penalties.{name}", f"must be finite and >= 0, got {value}")
+
+    @property
+    def active(self) -> bool:
+        return self.road_weight > 0 or self.contact_weight > 0
+
+
+@dataclass(frozen=True)
 class TrainConfig:
     """One training stage. Stage 1 learns without text; stage 2 adds text (and LoRA), starting from
     `init_from` (a stage-1 checkpoint) when given."""
@@ -149,6 +172,7 @@ class TrainConfig:
     objective: str = "denoising"
     closed_loop: ClosedLoopConfig = field(default_factory=ClosedLoopConfig)
     perturbation: PerturbationConfig = field(default_factory=PerturbationConfig)
+    penalties: PenaltyConfig = field(default_factory=PenaltyConfig)
     accelerator: str = "auto"
     devices: int | str = "auto"
     num_nodes: int = 1
@@ -225,6 +249,7 @@ class TrainConfig:
                 "perturbation": PerturbationConfig(
                     **dataclass_kwargs(PerturbationConfig, data.pop("perturbation", {}), "perturbation")
                 ),
+                "penalties": PenaltyConfig(**dataclass_kwargs(PenaltyConfig, data.pop("penalties", {}), "penalties")),
             }
             config = cls(**sections, **data)
         except TypeError as exc:

@@ -27,6 +27,7 @@ from langtraj.training.closed_loop import closed_loop_loss
 from langtraj.training.config import TrainConfig
 from langtraj.training.data import MixingSampler, SceneDataset
 from langtraj.training.evaluation import constant_velocity, min_ade
+from langtraj.training.penalties import scene_penalties
 from langtraj.training.perturbation import perturb_pasts
 
 FUSED_DEVICES = frozenset({"cpu", "cuda"})
@@ -77,7 +78,12 @@ class LangTrajModule(pl.LightningModule):
                 out["loss"] = out["loss"] + config.denoising_weight * out["denoising"]
             return out
         batch = perturb_pasts(batch, self.train_config.perturbation)  # recovery training (off by default)
-        return self.model.loss(batch, text_weight=self.train_config.text_loss_weight)
+        penalties = self.train_config.penalties  # map- and contact-aware training (off by default)
+        out = self.model.loss(batch, text_weight=self.train_config.text_loss_weight, with_states=penalties.active)
+        if penalties.active:
+            extra = scene_penalties(batch, out.pop("states"), penalties)
+            out = {**out, **extra, "loss": out["loss"] + extra["penalty"]}
+        return out
 
     def training_step(self, batch, batch_idx: int) -> torch.Tensor:
         out = self.objective(batch)
