@@ -83,6 +83,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "measurement, docs/experiments.md; --steps: every step)",
     )
     p.add_argument(
+        "--warm-steps",
+        type=int,
+        metavar="N",
+        help="each replan starts from the plan executed so far, noised to the last N of the --steps denoising "
+        "steps (N network calls instead of --steps; docs/simulation.md, 'Warm-started replans'); default: fresh noise",
+    )
+    p.add_argument(
         "--selector",
         help="candidate selection: per_agent (default without guidance), min_guidance (default with it), "
         "min_collision (the paper's), min_collision_offroad, first",
@@ -156,6 +163,7 @@ def run(args: argparse.Namespace) -> int:
         no_collision=args.no_collision,
         dense_attention=args.dense_attention,
         guided_steps=args.guided_steps,
+        warm_steps=args.warm_steps,
         compile=args.compile,
         levers=PromptLevers(args.prompt_text, args.prompt_guidance, args.prompt_selection),
     )

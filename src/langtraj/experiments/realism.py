@@ -11,7 +11,8 @@ with and without teacher forcing) beside the baselines, and the selection and gu
 SPEC is `constant_velocity`, `stationary`, `log_replay` (a labelled baseline that reads the future), or
 a checkpoint (`shipped`: the one inside the package), optionally followed by `|selector=NAME`,
 `|guidance=COST:WEIGHT[+COST:WEIGHT]`, `|guided_steps=N` (the defaults' guidance at the last N denoising steps
-only), `|defaults` and `|dense`.
+only), `|warm_steps=N` (replans warm-started from the executed plan, `sim.policies.LangTrajPolicy`), `|defaults`
+and `|dense`.
 A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says otherwise;
 `|defaults` adds `langtraj simulate`'s default guidance and selection (on-road guidance, no-collision
 guidance per agent pair, `per_agent` selection; `sim.policies`). Every model row attends locally in
@@ -71,6 +72,7 @@ class Method:
     defaults: bool = False  # `langtraj simulate`'s default guidance and selection besides the spec's
     dense: bool = False  # dense attention in scenes larger than the training scenes (default: local)
     guided_steps: int | None = None  # the last N denoising steps get the defaults' guidance (None: the default)
+    warm_steps: int | None = None  # replans start from the executed plan noised to the last N steps (None: fresh)
 
     def __post_init__(self) -> None:
         if (self.baseline is None) == (self.checkpoint is None):
@@ -79,7 +81,7 @@ class Method:
             if self.baseline not in BASELINE_POLICIES + ROLLOUT_BASELINES:
                 known = ", ".join(BASELINE_POLICIES + ROLLOUT_BASELINES)
                 raise InputError(f"unknown baseline {self.baseline!r}; known: {known}", where="--method")
-            options = (self.selector, self.guidance, self.defaults, self.dense, self.guided_steps)
+            options = (self.selector, self.guidance, self.defaults, self.dense, self.guided_steps, self.warm_steps)
             if any(o not in (None, (), False) for o in options):
                 raise InputError(f"baseline {self.baseline} takes no options", where="--method")
         scene_wide_terms(self.guidance)  # checked now, before anything runs
@@ -97,9 +99,10 @@ class Method:
         flags = {"defaults", "dense"}
         for option in (o for o in options if o not in flags):
             key, eq, value = option.partition("=")
-            if not eq or key not in ("selector", "guidance", "guided_steps"):
+            if not eq or key not in ("selector", "guidance", "guided_steps", "warm_steps"):
                 raise InputError(
-                    f"expected selector=NAME, guidance=COST:WEIGHT, guided_steps=N, defaults or dense, got {option!r}",
+                    "expected selector=NAME, guidance=COST:WEIGHT, guided_steps=N, warm_steps=N, defaults or dense, "
+                    f"got {option!r}",
                     where="--method",
                 )
             settings[key] = value
@@ -111,6 +114,7 @@ class Method:
             defaults="defaults" in options,
             dense="dense" in options,
             guided_steps=_int_option(settings, "guided_steps"),
+            warm_steps=_int_option(settings, "warm_steps"),
         )
 
     def load(self) -> LoadedModel | None:
@@ -133,6 +137,8 @@ class Method:
                 paper["selector"] = self.selector
             if self.guided_steps is not None:
                 paper["guided_steps"] = self.guided_steps
+            if self.warm_steps is not None:
+                paper["warm_steps"] = self.warm_steps
             policy = LangTrajPolicy(
                 model,
                 data,

@@ -79,6 +79,7 @@ class SimRequest:
     no_collision: float | None = None  # weight per pair of the no-collision guidance; None: the policy's default
     dense_attention: bool = False  # every agent attends to every token, however large the scene (slower)
     guided_steps: int | None = None  # the last N denoising steps get on-road / no-collision guidance; None: default
+    warm_steps: int | None = None  # replans start from the executed plan, noised to the last N steps; None: fresh
     levers: PromptLevers = ALL_LEVERS  # how prompts steer (text, guidance toward targets, adherence-first selection)
     compile: bool = False  # compile the denoiser (torch.compile; pays on a GPU, docs/model.md 'Fewer, bigger kernels')
 

@@ -191,6 +191,9 @@ class LangTrajRun:
     kept: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
     """Per rollout: the step and the states [A, T, 4] (scene frame) of the plan executed from it, which the
     next replan offers again as a candidate for the prompted agents (`LangTrajPolicy._with_kept_plans`)."""
+    executed: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
+    """Per rollout: the step and the actions [A, N, 2] (physical) of the plan executed from it, which the next
+    replan warm-starts from (`LangTrajPolicy.warm_steps`)."""
 
 
 @POLICIES.register
@@ -210,6 +213,10 @@ class LangTrajPolicy(Policy):
     (`SampleConfig.local_attention`); otherwise to all of them. The realism guidance (`on_road`,
     `no_collision`) applies at the last `guided_steps` of the `steps` denoising steps (None: the default,
     `DEFAULT_GUIDED_STEPS`), on a road field built once per simulation (`GuidanceScene.with_road_field`).
+    With `warm_steps` n, a replan starts from what is left of the plan each agent executed (its actions shifted
+    by the steps since, the freed end held at zero acceleration and yaw rate), noised to the n-th last of the
+    `steps` denoising steps and denoised from there: plans that agree across replans, in n network calls
+    (docs/simulation.md, 'Warm-started replans'). None: every replan starts from fresh noise.
     """
 
     name = "langtraj"
@@ -240,6 +247,7 @@ class LangTrajPolicy(Policy):
         guided_steps: int | None = None,
         levers: PromptLevers = ALL_LEVERS,
         prompt_texts: Sequence[str] | None = None,
+        warm_steps: int | None = None,
     ):
         if candidates < 1 or steps < 1 or rollout_batch < 0:
             raise InputError(
@@ -278,6 +286,9 @@ class LangTrajPolicy(Policy):
         if guided_steps is not None and not 1 <= guided_steps <= steps:
             raise InputError(f"must be in [1, {steps}] (the DDIM steps), got {guided_steps}", where="--guided-steps")
         self.guided_steps = guided_steps or min(DEFAULT_GUIDED_STEPS or steps, steps)
+        if warm_steps is not None and not 1 <= warm_steps <= steps:
+            raise InputError(f"must be in [1, {steps}] (the DDIM steps), got {warm_steps}", where="--warm-steps")
+        self.warm_steps = warm_steps
 
     @classmethod
     def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> LangTrajPolicy:
@@ -310,6 +321,7 @@ class LangTrajPolicy(Policy):
             "guided_steps": request.guided_steps,
             "levers": request.levers,
             "prompt_texts": request.prompts,
+            "warm_steps": request.warm_steps,
         }
 
     # ------------------------------------------------------------------ which agents
@@ -332,6 +344,7 @@ class LangTrajPolicy(Policy):
             "selector": self.selector_name or self.default_selector(),
             "attention": "local" if self.local_attention else "dense",
             "prompt_levers": self.levers.names() if self.prompt is not None else [],
+            "warm_steps": self.warm_steps,
         }
 
     # ------------------------------------------------------------------ simulation
@@ -480,7 +493,8 @@ class LangTrajPolicy(Policy):
             hook = guidance(state.terms, self.max_grad_norm) if state.terms else None
             if prompt_terms:  # toward the prompt's target: its own, larger step after the scene's guidance
                 hook = _then(hook, guidance(prompt_terms, PROMPT_MAX_GRAD_NORM, PROMPT_ITERATIONS))
-        states, _ = self.model.sample(
+        start = self._warm_start(state, step, rollouts)
+        states, actions = self.model.sample(
             batch,
             m,
             steps=self.steps,
@@ -489,16 +503,49 @@ class LangTrajPolicy(Policy):
             noise=noise,
             map_context=state.map_context,
             local=self.data.local_attention() if self.local_attention else None,
+            start=start,
+            start_steps=None if start is None else self.warm_steps,
         )
         if state.judge is not None:
             states = self._with_kept_plans(state, step, rollouts, states)
+            if states.shape[0] > actions.shape[0]:  # the kept plan's actions: what is left of them (`_warm_start`)
+                judged = self._judged_slots(state, actions)
+                kept = actions[0] if start is None else torch.where(judged, start, actions[0])
+                actions = torch.cat([actions, kept[None]])
         first = self._adherence(world, state, step, rollouts, states, steered)
         choice = state.selector.select(states, state.scene, terms, first)  # states [M, R, A, T, 4], scene frame
         executed = chosen_states(states, choice)
         if state.judge is not None:
             state.kept.update({r: (step, executed[n].detach()) for n, r in enumerate(rollouts)})
+        if self.warm_steps is not None:
+            chosen_actions = chosen_states(actions, choice)
+            state.executed.update({r: (step, chosen_actions[n].detach()) for n, r in enumerate(rollouts)})
         chosen = executed[:, : len(world.driven)].double().cpu().numpy()
         return poses_to_world(chosen, state.origin)
+
+    def _warm_start(self, state: LangTrajRun, step: int, rollouts: list[int]) -> Tensor | None:
+        """Each rollout's executed actions [R, A, N, 2] shifted to `step` (zero actions after their end), or None:
+        no warm start asked, a rollout without a plan yet, or a replan between two actions."""
+        if self.warm_steps is None or any(r not in state.executed for r in rollouts):
+            return None
+        per_action = self.model.dynamics.steps_per_action
+        shifted = []
+        for r in rollouts:
+            before, actions = state.executed[r]
+            done, rest = divmod(step - before, per_action)
+            if rest or done >= actions.shape[1]:
+                return None
+            shifted.append(torch.cat([actions[:, done:], torch.zeros_like(actions[:, :done])], dim=1))
+        return torch.stack(shifted)
+
+    def _judged_slots(self, state: LangTrajRun, like: Tensor) -> Tensor:
+        """bool [1, A, 1, 1]: the slots `_with_kept_plans` gives the kept plan (the prompted agents and pairs)."""
+        mask = torch.zeros(like.shape[2], dtype=torch.bool, device=like.device)
+        for ask in state.judge.asks if state.judge else ():
+            for slot in (ask.slot, ask.other_slot):
+                if slot is not None:
+                    mask[slot] = True
+        return mask[None, :, None, None]
 
     def _with_kept_plans(self, state: LangTrajRun, step: int, rollouts: list[int], states: Tensor) -> Tensor:
         """The candidates [M, R, A, T, 4] with one more: for each prompted agent (and the other agent of a pair

@@ -1,0 +1,52 @@
+"""Warm-started replans (`LangTrajPolicy(warm_steps=N)`, docs/simulation.md): the first plan is the cold one,
+later replans start from the executed plan and call the network N times instead of `steps`; a replan between
+two actions falls back to fresh noise; a bad N is a one-line error."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scenario_builders import make_scenario
+
+from langtraj.errors import InputError
+from langtraj.model.checkpoint import load_model
+from langtraj.sim import LangTrajPolicy, SimConfig, simulate
+
+
+def _run(model, data, monkeypatch, replan_s: float = 1.0, **kwargs):
+    calls = []
+    forward = model.denoiser.forward
+    monkeypatch.setattr(model.denoiser, "forward", lambda *a, **k: calls.append(1) or forward(*a, **k))
+    policy = LangTrajPolicy(model, data, candidates=3, steps=4, selector="min_collision", on_road=0.0,
+                            no_collision=0.0, **kwargs)  # fmt: skip
+    rollouts = simulate(make_scenario(5), policy, SimConfig(rollouts=2, replan_s=replan_s, seed=3)).rollouts
+    monkeypatch.undo()
+    return rollouts, len(calls)
+
+
+def test_warm_replans_keep_the_first_plan_and_call_the_network_less(tiny_run, monkeypatch):
+    model, data = load_model(tiny_run[0])
+    cold, cold_calls = _run(model, data, monkeypatch)
+    warm, warm_calls = _run(model, data, monkeypatch, warm_steps=2)
+    np.testing.assert_allclose(warm.x[..., :10], cold.x[..., :10], atol=1e-5)  # the first second: a cold plan
+    assert not np.allclose(warm.x[..., 10:], cold.x[..., 10:], atol=1e-3)
+    assert np.isfinite(warm.x).all() and np.isfinite(warm.heading).all()
+    assert cold_calls == 8 * 4 and warm_calls == 4 + 7 * 2  # 8 replans; the first cold
+    again, _ = _run(model, data, monkeypatch, warm_steps=2)
+    np.testing.assert_allclose(again.x, warm.x, atol=1e-6)  # seeded: the same run again
+
+
+def test_a_replan_between_two_actions_starts_cold(tiny_run, monkeypatch):
+    model, data = load_model(tiny_run[0])
+    per_action = model.dynamics.steps_per_action
+    assert per_action > 1  # so that replanning every 0.1 s falls between actions
+    _, calls = _run(model, data, monkeypatch, replan_s=0.1 * (per_action + 1), warm_steps=1)
+    replans = -(-80 // (per_action + 1))
+    assert calls == replans * 4  # never a whole number of actions since the last plan: every replan is cold
+
+
+def test_bad_warm_steps_are_refused(tiny_run):
+    model, data = load_model(tiny_run[0])
+    for bad in (0, 5):
+        with pytest.raises(InputError, match="warm-steps"):
+            LangTrajPolicy(model, data, steps=4, warm_steps=bad)
