@@ -55,7 +55,9 @@ def test_the_road_penalty_is_zero_on_the_road_and_pushes_back_across_an_edge():
     assert float(road_penalty(batch, _states(batch, dy=4.0), 0.5)) == 0.0  # 1 m inside: beyond the margin
     states = _states(batch, dy=6.0)  # 1 m past the upper edge
     value = road_penalty(batch, states, 0.5)
-    assert float(value) == pytest.approx(1.5**2, rel=1e-3)  # relu(1 - (-0.5))^2 at every step
+    assert float(value) == pytest.approx(1.5 - 0.5, rel=1e-3)  # huber(relu(1 - (-0.5))), linear past 1 m
+    near = road_penalty(batch, _states(batch, dy=4.75), 0.5)  # 0.25 m inside: 0.25 m too near
+    assert float(near) == pytest.approx(0.5 * 0.25**2, rel=1e-3)
     value.backward()
     assert (states.grad[..., 1] > 0).all()  # descent (-grad) moves back toward the road
     assert states.grad[..., 0].abs().max() < 1e-4
@@ -68,7 +70,7 @@ def test_the_road_penalty_never_charges_the_log_and_skips_other_agents():
     batch = _road_batch()
     batch = replace(batch, future=batch.future + torch.tensor([0.0, 6.0, 0.0]))  # the log itself is off the road
     assert float(road_penalty(batch, _states(batch), 0.5)) == 0.0  # no further out than the log
-    assert float(road_penalty(batch, _states(batch, dy=1.0), 0.5)) == pytest.approx(1.0, rel=1e-3)
+    assert float(road_penalty(batch, _states(batch, dy=1.0), 0.5)) == pytest.approx(0.5, rel=1e-3)
     walkers = replace(batch, agent_type=torch.full((1, 2), int(AgentType.PEDESTRIAN)))
     assert float(road_penalty(walkers, _states(batch, dy=1.0), 0.5)) == 0.0
     hidden = replace(batch, future_valid=torch.zeros_like(batch.future_valid))
@@ -90,9 +92,13 @@ def test_the_contact_penalty_is_zero_apart_and_pushes_overlapping_agents_apart()
 def test_scene_penalties_weigh_and_name_their_parts():
     batch = _road_batch()
     states = _states(batch, dy=6.0)
-    out = scene_penalties(batch, states, PenaltyConfig(road_weight=2.0, contact_weight=0.5))
+    config = PenaltyConfig(road_weight=2.0, contact_weight=0.5)
+    out = scene_penalties(batch, states, config)
     assert set(out) == {"road", "contact", "penalty"}
     assert float(out["penalty"]) == pytest.approx(2.0 * float(out["road"]) + 0.5 * float(out["contact"]))
+    half = scene_penalties(batch, states, config, signal=torch.tensor([0.5]))  # a scene weighs its abar_k
+    assert float(half["road"]) == pytest.approx(0.5 * float(out["road"]))
+    assert float(scene_penalties(batch, states, config, signal=torch.zeros(1))["penalty"]) == 0.0
     assert not PenaltyConfig().active and set(scene_penalties(batch, states, PenaltyConfig())) == {"penalty"}
 
 

@@ -146,7 +146,8 @@ class LangTraj(nn.Module):
         the predicted clean actions produce, against the log, masked by validity. Agents that carry a
         sentence count `text_weight` times (their share of the batch is small, and they alone teach
         the model to follow text). `with_states`: the dict also holds those states [B, A, T, 4] under
-        "states" (for penalties on them, `training.penalties`)."""
+        "states" and each scene's signal level abar_k [B] under "signal" (for penalties on the states,
+        `training.penalties`, which weigh a scene by how much of its clean sample the network saw)."""
         x0, _ = self.target_actions(batch)
         b = x0.shape[0]
         k = torch.randint(0, self.schedule.num_steps, (b,), device=x0.device, generator=generator)
@@ -157,8 +158,9 @@ class LangTraj(nn.Module):
             text_weight_of = torch.where(embedded[1] & batch.agent_valid, text_weight, 1.0)
         core = self._compiled.get("loss", self._denoising_loss)
         out = core(_tensors_only(batch), x0, k, noise, embedded, text_weight_of)
-        if not with_states:
-            del out["states"]
+        if with_states:
+            return {**out, "signal": self.schedule_alphas_cumprod[k].to(x0.dtype)}
+        del out["states"]
         return out
 
     def _denoising_loss(

@@ -81,7 +81,7 @@ class LangTrajModule(pl.LightningModule):
         penalties = self.train_config.penalties  # map- and contact-aware training (off by default)
         out = self.model.loss(batch, text_weight=self.train_config.text_loss_weight, with_states=penalties.active)
         if penalties.active:
-            extra = scene_penalties(batch, out.pop("states"), penalties)
+            extra = scene_penalties(batch, out.pop("states"), penalties, out.pop("signal"))
             out = {**out, **extra, "loss": out["loss"] + extra["penalty"]}
         return out
 
