@@ -34,6 +34,10 @@ class ModelConfig:
     map_attention_radius: float = 50.0  # map polylines attend to polylines within this distance (m)
     text: TextEncoderConfig = field(default_factory=TextEncoderConfig)
     use_text: bool = True  # build the language branch (stage 2); stage 1 can skip it
+    lane_inputs: bool = False
+    """Each agent token also reads its history's lateral offset and heading error to the nearest lane of its
+    map pieces (`scene_encoder.lane_relative_history`; docs/model.md, 'Lane-relative inputs'). Off: the paper's
+    inputs, and checkpoints trained before it."""
     gradient_checkpointing: bool = False
     """Training only: recompute each attention block in backward instead of keeping its activations
     (docs/model.md, 'Training memory'); the weights and every output stay the same."""

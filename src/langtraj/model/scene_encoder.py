@@ -11,6 +11,7 @@ from torch import Tensor, nn
 from langtraj.model.batch import SceneBatch
 from langtraj.model.config import LocalAttention, ModelConfig
 from langtraj.model.layers import AttentionBlock, mlp, recomputing, run_block
+from langtraj.scenario.types import MapFeatureType
 
 _AGENT_TYPES = 5  # padding + AgentType 1..4
 _MAP_TYPES = 40  # padding + MapFeatureType values (< 40)
@@ -119,6 +120,62 @@ def agent_local_history(batch: SceneBatch) -> Tensor:
     return local * valid[..., None]
 
 
+LANE_FEATURES = 4
+"""Per history step: lateral offset to the nearest lane (m / 2, within +-4 m), the cos and sin of the heading
+error to it, and whether a lane is within `LANE_REACH` m (the others zero when not)."""
+
+LANE_REACH = 10.0
+LANE_TURN_M = 2.0  # choosing the nearest lane, a heading error of 90 degrees counts as this many metres
+LANE_STEPS = 3  # history steps read: the first, the middle and the current one (the drift, at a third of the cost)
+_LANE_TYPES = tuple(int(t) for t in MapFeatureType if t.is_lane)
+
+
+def lane_steps(history_steps: int) -> list[int]:
+    """The `LANE_STEPS` history indices `lane_relative_history` reads (fewer for a shorter history)."""
+    return sorted({0, (history_steps - 1) // 2, history_steps - 1})
+
+
+def lane_relative_history(batch: SceneBatch) -> Tensor:
+    """[B, A, len(lane_steps), LANE_FEATURES]: the pose at each of `lane_steps` history steps against the
+    nearest lane segment of the scene's map pieces, nearest by distance plus `LANE_TURN_M` x (1 - cos heading
+    error), so that at a junction a lane crossing the agent's path loses to the one it follows. Zero where the
+    step is invalid or no lane is near."""
+    steps = lane_steps(batch.agent_history.shape[2])
+    history, history_valid = batch.agent_history[:, :, steps], batch.history_valid[:, :, steps]
+    lane = torch.isin(batch.map_type, torch.tensor(_LANE_TYPES, device=batch.map_type.device))
+    seg_valid = batch.map_valid[..., :-1] & batch.map_valid[..., 1:] & lane[..., None]  # [B, M, P-1]
+    start = batch.map_points[..., :-1, :].flatten(1, 2)  # [B, S, 2]
+    delta = (batch.map_points[..., 1:, :] - batch.map_points[..., :-1, :]).flatten(1, 2)
+    seg_valid = seg_valid.flatten(1, 2)
+    b, a, h = history.shape[:3]
+    if seg_valid.shape[1] == 0:
+        return history.new_zeros(b, a, h, LANE_FEATURES)
+    xy = history[..., 0:2].reshape(b, a * h, 2)
+    heading = history[..., 2:4].reshape(b, a * h, 2)  # cos, sin
+    length2 = (delta * delta).sum(-1).clamp(min=1e-6)  # [B, S]
+    rel = xy[:, :, None, :] - start[:, None, :, :]  # [B, N, S, 2]
+    along = ((rel * delta[:, None]).sum(-1) / length2[:, None]).clamp(0.0, 1.0)
+    offset = rel - along[..., None] * delta[:, None]
+    distance = offset.norm(dim=-1)
+    direction = delta / length2.sqrt()[..., None]  # [B, S, 2]
+    cos_err = (heading[:, :, None, :] * direction[:, None]).sum(-1)
+    score = distance + LANE_TURN_M * (1.0 - cos_err)
+    score = score.masked_fill(~seg_valid[:, None, :], float("inf"))
+    best = score.argmin(-1, keepdim=True)  # [B, N, 1]
+    pick = lambda t: t.gather(-1, best)[..., 0]  # noqa: E731
+    dirs = direction[:, None].expand(-1, a * h, -1, -1)
+    dx, dy = (pick(dirs[..., i]) for i in (0, 1))
+    ox, oy = (pick(offset[..., i]) for i in (0, 1))
+    lateral = dx * oy - dy * ox  # > 0: left of the lane (the agent's point minus its nearest lane point)
+    cos_h, sin_h = heading[..., 0], heading[..., 1]
+    near = (pick(distance) <= LANE_REACH) & torch.isfinite(pick(score))
+    features = torch.stack(
+        [(lateral / 2.0).clamp(-2.0, 2.0), cos_h * dx + sin_h * dy, sin_h * dx - cos_h * dy, near.float()], dim=-1
+    )
+    features = features * near[..., None]
+    return features.reshape(b, a, h, LANE_FEATURES) * history_valid[..., None]
+
+
 def polyline_pose(points: Tensor, valid: Tensor) -> Tensor:
     """Pose [B, M, 3] of each polyline: the mean of its valid points, heading from its first to its last
     valid point (0 for a single point)."""
@@ -145,6 +202,11 @@ class SceneEncoder(nn.Module):
         self.radius = config.map_attention_radius
         self.checkpointing = config.gradient_checkpointing
         self.agent_embed = mlp(config.history_steps * 7, d, d)
+        self.lane_embed = None
+        if config.lane_inputs:  # added to the agent token; zero at first, so a fine-tune starts from its source
+            self.lane_embed = mlp(len(lane_steps(config.history_steps)) * LANE_FEATURES, d, d)
+            nn.init.zeros_(self.lane_embed[-1].weight)
+            nn.init.zeros_(self.lane_embed[-1].bias)
         self.agent_type = nn.Embedding(_AGENT_TYPES, d)
         self.agent_size = mlp(2, d, d)
         self.point_embed = mlp(4, d, d)
@@ -184,6 +246,8 @@ class SceneEncoder(nn.Module):
         b, a = batch.agent_valid.shape
         agent_pose = batch.current_state[..., :3]
         agent = self.agent_embed(agent_local_history(batch).reshape(b, a, -1))
+        if self.lane_embed is not None:
+            agent = agent + self.lane_embed(lane_relative_history(batch).reshape(b, a, -1))
         agent = agent + self.agent_type(batch.agent_type.clamp(0, _AGENT_TYPES - 1)) + self.agent_size(batch.agent_size)
         encoded = map_context if map_context is not None else self.encode_map(batch)
         polylines, map_pose, map_mask = (
