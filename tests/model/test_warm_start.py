@@ -8,13 +8,11 @@ import torch
 from scenario_builders import make_scenario
 
 from langtraj.errors import InputError
-from langtraj.model import LangTraj, ModelConfig
-from langtraj.model.config import SampleConfig
+from langtraj.model import LangTraj
 from langtraj.model.diffusion import sample, timestep_sequence
 from langtraj.model.features import collate_scenes, scene_sample
-
-DATA = SampleConfig(max_agents=8, max_polylines=12, points_per_polyline=10, text=False, map_selection="origin")
-MODEL = ModelConfig(hidden_dim=32, num_heads=4, encoder_layers=1, denoiser_blocks=1, dropout=0.0, use_text=False)
+from tests.model.test_langtraj import SMALL_DATA as DATA
+from tests.model.test_langtraj import SMALL_MODEL as MODEL
 
 
 @pytest.fixture(scope="module")
