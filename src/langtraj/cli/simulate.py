@@ -90,6 +90,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "steps (N network calls instead of --steps; docs/simulation.md, 'Warm-started replans'); default: fresh noise",
     )
     p.add_argument(
+        "--temperature",
+        type=float,
+        default=1.0,
+        metavar="T",
+        help="scale the sampler's noise by T in (0, 2] (below 1: nearer the model's most likely future, less "
+        "diverse; docs/simulation.md)",
+    )
+    p.add_argument(
         "--selector",
         help="candidate selection: per_agent (default without guidance), min_guidance (default with it), "
         "min_collision (the paper's), min_collision_offroad, first",
@@ -164,6 +172,7 @@ def run(args: argparse.Namespace) -> int:
         dense_attention=args.dense_attention,
         guided_steps=args.guided_steps,
         warm_steps=args.warm_steps,
+        temperature=args.temperature,
         compile=args.compile,
         levers=PromptLevers(args.prompt_text, args.prompt_guidance, args.prompt_selection),
     )

@@ -11,8 +11,8 @@ with and without teacher forcing) beside the baselines, and the selection and gu
 SPEC is `constant_velocity`, `stationary`, `log_replay` (a labelled baseline that reads the future), or
 a checkpoint (`shipped`: the one inside the package), optionally followed by `|selector=NAME`,
 `|guidance=COST:WEIGHT[+COST:WEIGHT]`, `|guided_steps=N` (the defaults' guidance at the last N denoising steps
-only), `|warm_steps=N` (replans warm-started from the executed plan, `sim.policies.LangTrajPolicy`), `|defaults`
-and `|dense`.
+only), `|warm_steps=N` (replans warm-started from the executed plan, `sim.policies.LangTrajPolicy`),
+`|temperature=T` (the sampler's noise scaled by T), `|defaults` and `|dense`.
 A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says otherwise;
 `|defaults` adds `langtraj simulate`'s default guidance and selection (on-road guidance, no-collision
 guidance per agent pair, `per_agent` selection; `sim.policies`). Every model row attends locally in
@@ -73,6 +73,7 @@ class Method:
     dense: bool = False  # dense attention in scenes larger than the training scenes (default: local)
     guided_steps: int | None = None  # the last N denoising steps get the defaults' guidance (None: the default)
     warm_steps: int | None = None  # replans start from the executed plan noised to the last N steps (None: fresh)
+    temperature: float = 1.0  # the sampler's noise scaled by this
 
     def __post_init__(self) -> None:
         if (self.baseline is None) == (self.checkpoint is None):
@@ -82,7 +83,7 @@ class Method:
                 known = ", ".join(BASELINE_POLICIES + ROLLOUT_BASELINES)
                 raise InputError(f"unknown baseline {self.baseline!r}; known: {known}", where="--method")
             options = (self.selector, self.guidance, self.defaults, self.dense, self.guided_steps, self.warm_steps)
-            if any(o not in (None, (), False) for o in options):
+            if any(o not in (None, (), False) for o in options) or self.temperature != 1.0:
                 raise InputError(f"baseline {self.baseline} takes no options", where="--method")
         scene_wide_terms(self.guidance)  # checked now, before anything runs
 
@@ -99,10 +100,10 @@ class Method:
         flags = {"defaults", "dense"}
         for option in (o for o in options if o not in flags):
             key, eq, value = option.partition("=")
-            if not eq or key not in ("selector", "guidance", "guided_steps", "warm_steps"):
+            if not eq or key not in ("selector", "guidance", "guided_steps", "warm_steps", "temperature"):
                 raise InputError(
-                    "expected selector=NAME, guidance=COST:WEIGHT, guided_steps=N, warm_steps=N, defaults or dense, "
-                    f"got {option!r}",
+                    "expected selector=NAME, guidance=COST:WEIGHT, guided_steps=N, warm_steps=N, temperature=T, "
+                    f"defaults or dense, got {option!r}",
                     where="--method",
                 )
             settings[key] = value
@@ -115,6 +116,7 @@ class Method:
             dense="dense" in options,
             guided_steps=_int_option(settings, "guided_steps"),
             warm_steps=_int_option(settings, "warm_steps"),
+            temperature=_float_option(settings, "temperature", 1.0),
         )
 
     def load(self) -> LoadedModel | None:
@@ -139,6 +141,8 @@ class Method:
                 paper["guided_steps"] = self.guided_steps
             if self.warm_steps is not None:
                 paper["warm_steps"] = self.warm_steps
+            if self.temperature != 1.0:
+                paper["temperature"] = self.temperature
             policy = LangTrajPolicy(
                 model,
                 data,
@@ -159,6 +163,16 @@ def _int_option(settings: dict[str, str], key: str) -> int | None:
         return int(settings[key])
     except ValueError:
         raise InputError(f"{key} must be an integer, got {settings[key]!r}", where="--method") from None
+
+
+def _float_option(settings: dict[str, str], key: str, default: float) -> float:
+    """`settings[key]` as a number (`default` when absent), or a one-line InputError."""
+    if key not in settings:
+        return default
+    try:
+        return float(settings[key])
+    except ValueError:
+        raise InputError(f"{key} must be a number, got {settings[key]!r}", where="--method") from None
 
 
 def windows_of(spec: DatasetSpec, limit: int | None) -> list[Scenario]:

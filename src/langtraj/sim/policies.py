@@ -216,7 +216,8 @@ class LangTrajPolicy(Policy):
     With `warm_steps` n, a replan starts from what is left of the plan each agent executed (its actions shifted
     by the steps since, the freed end held at zero acceleration and yaw rate), noised to the n-th last of the
     `steps` denoising steps and denoised from there: plans that agree across replans, in n network calls
-    (docs/simulation.md, 'Warm-started replans'). None: every replan starts from fresh noise.
+    (docs/simulation.md, 'Warm-started replans'). None: every replan starts from fresh noise. `temperature`
+    scales the sampler's noise (below 1: samples nearer the model's most likely future, less diverse).
     """
 
     name = "langtraj"
@@ -248,6 +249,7 @@ class LangTrajPolicy(Policy):
         levers: PromptLevers = ALL_LEVERS,
         prompt_texts: Sequence[str] | None = None,
         warm_steps: int | None = None,
+        temperature: float = 1.0,
     ):
         if candidates < 1 or steps < 1 or rollout_batch < 0:
             raise InputError(
@@ -289,6 +291,9 @@ class LangTrajPolicy(Policy):
         if warm_steps is not None and not 1 <= warm_steps <= steps:
             raise InputError(f"must be in [1, {steps}] (the DDIM steps), got {warm_steps}", where="--warm-steps")
         self.warm_steps = warm_steps
+        if not (math.isfinite(temperature) and 0 < temperature <= 2):
+            raise InputError(f"must be in (0, 2], got {temperature}", where="--temperature")
+        self.temperature = float(temperature)
 
     @classmethod
     def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> LangTrajPolicy:
@@ -322,6 +327,7 @@ class LangTrajPolicy(Policy):
             "levers": request.levers,
             "prompt_texts": request.prompts,
             "warm_steps": request.warm_steps,
+            "temperature": request.temperature,
         }
 
     # ------------------------------------------------------------------ which agents
@@ -345,6 +351,7 @@ class LangTrajPolicy(Policy):
             "attention": "local" if self.local_attention else "dense",
             "prompt_levers": self.levers.names() if self.prompt is not None else [],
             "warm_steps": self.warm_steps,
+            "temperature": self.temperature,
         }
 
     # ------------------------------------------------------------------ simulation
@@ -467,7 +474,8 @@ class LangTrajPolicy(Policy):
 
         def noise(shape: tuple[int, ...]) -> Tensor:  # sample-major rows: [M * R, ...]
             per_rollout = [torch.randn((m, *shape[1:]), generator=g) for g in generators]
-            return torch.stack(per_rollout, dim=1).reshape(shape).to(device)
+            drawn = torch.stack(per_rollout, dim=1).reshape(shape).to(device)
+            return drawn if self.temperature == 1.0 else drawn * self.temperature
 
         elapsed, horizon = step - world.start, self.data.future_steps
         steered = [s.terms(elapsed, horizon) for s in state.steering.steerings]

@@ -1,11 +1,13 @@
-"""Warm-started replans (`LangTrajPolicy(warm_steps=N)`, docs/simulation.md): the first plan is the cold one,
-later replans start from the executed plan and call the network N times instead of `steps`; a replan between
-two actions falls back to fresh noise; a bad N is a one-line error."""
+"""How a replan samples (docs/simulation.md). Warm starts (`LangTrajPolicy(warm_steps=N)`): the first plan is
+the cold one, later replans start from the executed plan and call the network N times instead of `steps`; a
+replan between two actions falls back to fresh noise. The temperature scales the noise. Bad settings are
+one-line errors."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 from scenario_builders import make_scenario
 
 from langtraj.errors import InputError
@@ -50,3 +52,21 @@ def test_bad_warm_steps_are_refused(tiny_run):
     for bad in (0, 5):
         with pytest.raises(InputError, match="warm-steps"):
             LangTrajPolicy(model, data, steps=4, warm_steps=bad)
+
+
+def test_the_temperature_scales_the_noise(tiny_run, monkeypatch):
+    model, data = load_model(tiny_run[0])
+    plain, _ = _run(model, data, monkeypatch)
+    same, _ = _run(model, data, monkeypatch, temperature=1.0)
+    np.testing.assert_allclose(same.x, plain.x, atol=1e-6)
+    seen = []
+    sample = model.sample
+    monkeypatch.setattr(model, "sample", lambda *a, **k: seen.append(k["noise"]((6, 8, 16, 2))) or sample(*a, **k))
+    policy = LangTrajPolicy(model, data, candidates=3, steps=4, temperature=0.5)
+    simulate(make_scenario(5), policy, SimConfig(rollouts=2, replan_s=8.0, seed=3))
+    policy.temperature = 1.0
+    simulate(make_scenario(5), policy, SimConfig(rollouts=2, replan_s=8.0, seed=3))
+    torch.testing.assert_close(seen[0], 0.5 * seen[1])
+    for bad in (0.0, -1.0, 3.0, float("nan")):
+        with pytest.raises(InputError, match="temperature"):
+            LangTrajPolicy(model, data, temperature=bad)
