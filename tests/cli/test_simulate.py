@@ -64,7 +64,7 @@ def test_a_capped_model_leaves_the_rest_to_constant_velocity_and_says_so(tiny_ru
     out = tmp_path / "capped"
     code = main(["simulate", str(scenes), "--checkpoint", str(checkpoint), "--max-driven", "2", "--rollouts", "2",
                  "--candidates", "2", "--steps", "2", "--replan-s", "4", "--no-video", "--dense-attention",
-                 "--out", str(out)])  # fmt: skip
+                 "--warm-steps", "1", "--temperature", "0.8", "--out", str(out)])  # fmt: skip
     assert code == 0, capsys.readouterr().err
     assert "2 agents moved by langtraj; 2 agents moved by constant_velocity" in capsys.readouterr().out
     summary = json.loads((out / "summary.json").read_text())
@@ -72,6 +72,7 @@ def test_a_capped_model_leaves_the_rest_to_constant_velocity_and_says_so(tiny_ru
     assert summary["agents_by_policy"] == {"langtraj": [7, 17], "constant_velocity": [37, 47]}
     assert summary["on_road"] == 1.0 and summary["selector"] == "per_agent"  # the defaults without guidance
     assert summary["guided_steps"] in (1, 2)  # of --steps 2: the defaults' guidance at the last ones
+    assert summary["warm_steps"] == 1 and summary["temperature"] == 0.8
     assert not Rollouts.load(out / "rollouts.npz").reads_future_log
 
 
@@ -124,6 +125,9 @@ def test_baseline_policies_need_no_checkpoint(tiny_run, tmp_path):
         (["--on-road", "-1"], "must be finite and >= 0"),
         (["--guided-steps", "6"], "--guided-steps: must be in [1, 5]"),
         (["--policy", "constant_velocity", "--guided-steps", "1"], "need a model policy"),
+        (["--warm-steps", "6"], "--warm-steps: must be in [1, 5]"),
+        (["--temperature", "0"], "--temperature: must be in"),
+        (["--policy", "constant_velocity", "--warm-steps", "1"], "need a model policy"),
         (["--selector", "best"], "best"),
         (["--policy", "constant_velocity", "--selector", "per_agent"], "need a model policy"),
         (["--policy", "constant_velocity", "--dense-attention"], "need a model policy"),

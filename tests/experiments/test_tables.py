@@ -24,12 +24,15 @@ def test_method_specs():
     assert not model.defaults and Method.parse("m=runs/x.ckpt|defaults").defaults
     assert not model.dense and Method.parse("m=runs/x.ckpt|dense|defaults").dense
     assert model.guided_steps is None and Method.parse("m=x.ckpt|defaults|guided_steps=2").guided_steps == 2
+    assert model.warm_steps is None and Method.parse("m=x.ckpt|warm_steps=2").warm_steps == 2
+    assert model.temperature == 1.0 and Method.parse("m=x.ckpt|temperature=0.5").temperature == 0.5
     for bad, message in (
         ("nothing", "expected NAME=SPEC"),
         ("cv=constant_velocity|selector=first", "takes no options"),
         ("m=x.ckpt|speed=3", "expected selector=NAME"),
         ("m=x.ckpt|guidance=goal:1", "'goal' cannot be given here"),
         ("m=x.ckpt|guided_steps=two", "guided_steps must be an integer"),
+        ("m=x.ckpt|temperature=cold", "temperature must be a number"),
     ):
         with pytest.raises(InputError, match=message):
             Method.parse(bad)
