@@ -1,7 +1,7 @@
 """How a replan samples (docs/simulation.md). Warm starts (`LangTrajPolicy(warm_steps=N)`): the first plan is
 the cold one, later replans start from the executed plan and call the network N times instead of `steps`; a
-replan between two actions falls back to fresh noise. The temperature scales the noise. Bad settings are
-one-line errors."""
+replan between two actions falls back to fresh noise. The temperature scales the noise. With `refresh_map` a
+replan reads the map around where the agents are then. Bad settings are one-line errors."""
 
 from __future__ import annotations
 
@@ -70,3 +70,23 @@ def test_the_temperature_scales_the_noise(tiny_run, monkeypatch):
     for bad in (0.0, -1.0, 3.0, float("nan")):
         with pytest.raises(InputError, match="temperature"):
             LangTrajPolicy(model, data, temperature=bad)
+
+
+def test_a_refreshed_map_follows_the_agents(tiny_run, monkeypatch):
+    model, data = load_model(tiny_run[0])
+    maps = []
+    encode = model.encoder.forward
+    monkeypatch.setattr(
+        model.encoder, "forward", lambda b, *a, **k: maps.append(b.map_points.clone()) or encode(b, *a, **k)
+    )
+    policy = LangTrajPolicy(model, data, candidates=2, steps=2, refresh_map=True)
+    scenario = make_scenario(5)
+    kept = LangTrajPolicy(model, data, candidates=2, steps=2)
+    plain = simulate(scenario, kept, SimConfig(rollouts=2, replan_s=4.0, seed=3)).rollouts
+    maps.clear()
+    fresh = simulate(scenario, policy, SimConfig(rollouts=2, replan_s=4.0, seed=3)).rollouts
+    monkeypatch.undo()
+    np.testing.assert_allclose(fresh.x[..., :40], plain.x[..., :40], atol=1e-5)  # the first plan reads the start's map
+    assert len(maps) == 2 and maps[1].shape[0] == 2  # the second replan encodes each rollout's own map
+    assert not torch.equal(maps[1][0], maps[0][0])  # chosen around where the agents are by then
+    assert policy.describe()["refresh_map"] is True

@@ -98,6 +98,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "diverse; docs/simulation.md)",
     )
     p.add_argument(
+        "--refresh-map",
+        action="store_true",
+        help="each replan chooses the model's map pieces around where the agents are then (default: the start's "
+        "map for every replan; docs/simulation.md, 'The map at each replan')",
+    )
+    p.add_argument(
         "--selector",
         help="candidate selection: per_agent (default without guidance), min_guidance (default with it), "
         "min_collision (the paper's), min_collision_offroad, first",
@@ -173,6 +179,7 @@ def run(args: argparse.Namespace) -> int:
         guided_steps=args.guided_steps,
         warm_steps=args.warm_steps,
         temperature=args.temperature,
+        refresh_map=args.refresh_map,
         compile=args.compile,
         levers=PromptLevers(args.prompt_text, args.prompt_guidance, args.prompt_selection),
     )

@@ -12,7 +12,8 @@ SPEC is `constant_velocity`, `stationary`, `log_replay` (a labelled baseline tha
 a checkpoint (`shipped`: the one inside the package), optionally followed by `|selector=NAME`,
 `|guidance=COST:WEIGHT[+COST:WEIGHT]`, `|guided_steps=N` (the defaults' guidance at the last N denoising steps
 only), `|warm_steps=N` (replans warm-started from the executed plan, `sim.policies.LangTrajPolicy`),
-`|temperature=T` (the sampler's noise scaled by T), `|defaults` and `|dense`.
+`|temperature=T` (the sampler's noise scaled by T), `|refresh_map` (each replan's map around the agents then),
+`|defaults` and `|dense`.
 A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says otherwise;
 `|defaults` adds `langtraj simulate`'s default guidance and selection (on-road guidance, no-collision
 guidance per agent pair, `per_agent` selection; `sim.policies`). Every model row attends locally in
@@ -74,6 +75,7 @@ class Method:
     guided_steps: int | None = None  # the last N denoising steps get the defaults' guidance (None: the default)
     warm_steps: int | None = None  # replans start from the executed plan noised to the last N steps (None: fresh)
     temperature: float = 1.0  # the sampler's noise scaled by this
+    refresh_map: bool = False  # each replan's map around the agents' positions then (else the start's)
 
     def __post_init__(self) -> None:
         if (self.baseline is None) == (self.checkpoint is None):
@@ -82,7 +84,8 @@ class Method:
             if self.baseline not in BASELINE_POLICIES + ROLLOUT_BASELINES:
                 known = ", ".join(BASELINE_POLICIES + ROLLOUT_BASELINES)
                 raise InputError(f"unknown baseline {self.baseline!r}; known: {known}", where="--method")
-            options = (self.selector, self.guidance, self.defaults, self.dense, self.guided_steps, self.warm_steps)
+            options = (self.selector, self.guidance, self.defaults, self.dense, self.guided_steps, self.warm_steps,
+                       self.refresh_map)  # fmt: skip
             if any(o not in (None, (), False) for o in options) or self.temperature != 1.0:
                 raise InputError(f"baseline {self.baseline} takes no options", where="--method")
         scene_wide_terms(self.guidance)  # checked now, before anything runs
@@ -97,13 +100,13 @@ class Method:
                 raise InputError(f"baseline {head} takes no options, got {options}", where="--method")
             return cls(name, baseline=head)
         settings: dict[str, str] = {}
-        flags = {"defaults", "dense"}
+        flags = {"defaults", "dense", "refresh_map"}
         for option in (o for o in options if o not in flags):
             key, eq, value = option.partition("=")
             if not eq or key not in ("selector", "guidance", "guided_steps", "warm_steps", "temperature"):
                 raise InputError(
                     "expected selector=NAME, guidance=COST:WEIGHT, guided_steps=N, warm_steps=N, temperature=T, "
-                    f"defaults or dense, got {option!r}",
+                    f"defaults, dense or refresh_map, got {option!r}",
                     where="--method",
                 )
             settings[key] = value
@@ -114,6 +117,7 @@ class Method:
             guidance=tuple(g.replace(":", "=") for g in settings.get("guidance", "").split("+") if g),
             defaults="defaults" in options,
             dense="dense" in options,
+            refresh_map="refresh_map" in options,
             guided_steps=_int_option(settings, "guided_steps"),
             warm_steps=_int_option(settings, "warm_steps"),
             temperature=_float_option(settings, "temperature", 1.0),
@@ -143,6 +147,8 @@ class Method:
                 paper["warm_steps"] = self.warm_steps
             if self.temperature != 1.0:
                 paper["temperature"] = self.temperature
+            if self.refresh_map:
+                paper["refresh_map"] = True
             policy = LangTrajPolicy(
                 model,
                 data,

@@ -81,6 +81,7 @@ class SimRequest:
     guided_steps: int | None = None  # the last N denoising steps get on-road / no-collision guidance; None: default
     warm_steps: int | None = None  # replans start from the executed plan, noised to the last N steps; None: fresh
     temperature: float = 1.0  # the sampler's noise is drawn this many times N(0, I)'s standard deviation
+    refresh_map: bool = False  # each replan chooses the map around the agents' positions then (else: the start's)
     levers: PromptLevers = ALL_LEVERS  # how prompts steer (text, guidance toward targets, adherence-first selection)
     compile: bool = False  # compile the denoiser (torch.compile; pays on a GPU, docs/model.md 'Fewer, bigger kernels')
 
@@ -108,6 +109,7 @@ class SimRequest:
             or self.guided_steps is not None
             or self.warm_steps is not None
             or self.temperature != 1.0
+            or self.refresh_map
             or self.levers != ALL_LEVERS
             or self.compile
         )

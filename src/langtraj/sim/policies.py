@@ -217,7 +217,10 @@ class LangTrajPolicy(Policy):
     by the steps since, the freed end held at zero acceleration and yaw rate), noised to the n-th last of the
     `steps` denoising steps and denoised from there: plans that agree across replans, in n network calls
     (docs/simulation.md, 'Warm-started replans'). None: every replan starts from fresh noise. `temperature`
-    scales the sampler's noise (below 1: samples nearer the model's most likely future, less diverse).
+    scales the sampler's noise (below 1: samples nearer the model's most likely future, less diverse). With
+    `refresh_map`, each replan chooses its map pieces around where each rollout's agents are then, as training
+    chose them around the agents at the window's current step; otherwise the start's map serves every replan
+    (encoded once; agents that drive out of it see no road; docs/simulation.md, 'The map at each replan').
     """
 
     name = "langtraj"
@@ -250,6 +253,7 @@ class LangTrajPolicy(Policy):
         prompt_texts: Sequence[str] | None = None,
         warm_steps: int | None = None,
         temperature: float = 1.0,
+        refresh_map: bool = False,
     ):
         if candidates < 1 or steps < 1 or rollout_batch < 0:
             raise InputError(
@@ -294,6 +298,7 @@ class LangTrajPolicy(Policy):
         if not (math.isfinite(temperature) and 0 < temperature <= 2):
             raise InputError(f"must be in (0, 2], got {temperature}", where="--temperature")
         self.temperature = float(temperature)
+        self.refresh_map = bool(refresh_map)
 
     @classmethod
     def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> LangTrajPolicy:
@@ -328,6 +333,7 @@ class LangTrajPolicy(Policy):
             "prompt_texts": request.prompts,
             "warm_steps": request.warm_steps,
             "temperature": request.temperature,
+            "refresh_map": request.refresh_map,
         }
 
     # ------------------------------------------------------------------ which agents
@@ -352,6 +358,7 @@ class LangTrajPolicy(Policy):
             "prompt_levers": self.levers.names() if self.prompt is not None else [],
             "warm_steps": self.warm_steps,
             "temperature": self.temperature,
+            "refresh_map": self.refresh_map,
         }
 
     # ------------------------------------------------------------------ simulation
@@ -452,14 +459,13 @@ class LangTrajPolicy(Policy):
         return np.concatenate(plans, axis=0)[:, :, : max(horizon, 1)]
 
     def _sample(self, world: SimWorld, state: LangTrajRun, step: int, rollout: int) -> dict[str, Any]:
-        """The model's input for one rollout at `step`: its simulated past in the start's frame and map."""
-        sample = scene_sample(
-            world.scenario_at(rollout, step),
-            state.data,
-            agents=world.driven,
-            origin=state.origin,
-            map_arrays=state.map_arrays,
-        )
+        """The model's input for one rollout at `step`: its simulated past in the start's frame, and the start's
+        map or (`refresh_map`) the map around where its agents are now."""
+        scenario = world.scenario_at(rollout, step)
+        map_arrays = state.map_arrays
+        if self.refresh_map and step != world.start:
+            map_arrays = sample_map(scenario, world.driven, state.origin, state.data)
+        sample = scene_sample(scenario, state.data, agents=world.driven, origin=state.origin, map_arrays=map_arrays)
         if self.prompt is not None and self.levers.text:
             for slot, sentence in self.prompt.sentences(sample["agent_id"][: len(world.driven)].tolist()).items():
                 sample["text"][slot] = sentence
@@ -509,7 +515,7 @@ class LangTrajPolicy(Policy):
             guidance_weight=self.guidance_weight,
             guidance=hook,
             noise=noise,
-            map_context=state.map_context,
+            map_context=None if self.refresh_map and step != world.start else state.map_context,
             local=self.data.local_attention() if self.local_attention else None,
             start=start,
             start_steps=None if start is None else self.warm_steps,
