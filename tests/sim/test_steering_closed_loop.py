@@ -3,13 +3,17 @@ constructed junction: a stop shortens the prompted car's drive, a right turn tur
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from interdrive.test_counterfactual import LEFT_LANE_STRAIGHT, RIGHT_LANE_STRAIGHT, drive, four_way
 from interdrive.test_heuristics import scene
 
+from langtraj.guidance.steering import Steering
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
+from langtraj.model import LangTraj
 from langtraj.model.checkpoint import load_model
 from langtraj.scenario.types import StateField
 from langtraj.sim.checkpoints import shipped_checkpoint
@@ -68,3 +72,17 @@ def test_without_the_text_lever_the_model_sees_no_sentence(loaded, junction):
         world = SimWorld(junction, policy.drives(junction, np.arange(2)), 1)
         sample = policy._sample(world, policy.reset(world, 0), world.start, 0)
         assert (sample["text"][0] is not None) is seen
+
+
+def test_a_model_with_a_shorter_horizon_is_steered_within_it(loaded, junction, monkeypatch):
+    """An 8-action model plans 4 s: its steering terms cover those 4 s (targets later than that are left to
+    later replans), not the 8 s of the samples it was trained on."""
+    model, data = loaded
+    short = LangTraj(replace(model.config, num_actions=8, use_text=False)).eval()
+    assert short.horizon_steps == 40
+    horizons = []
+    terms = Steering.terms
+    monkeypatch.setattr(Steering, "terms", lambda self, e, h: horizons.append(h) or terms(self, e, h))
+    states = _run((short, data), junction, "@1 stops")
+    assert horizons and set(horizons) == {40}
+    assert np.isfinite(states[..., StateField.X]).all()

@@ -483,7 +483,7 @@ class LangTrajPolicy(Policy):
             drawn = torch.stack(per_rollout, dim=1).reshape(shape).to(device)
             return drawn if self.temperature == 1.0 else drawn * self.temperature
 
-        elapsed, horizon = step - world.start, self.data.future_steps
+        elapsed, horizon = step - world.start, self.model.horizon_steps  # what the model plans
         steered = [s.terms(elapsed, horizon) for s in state.steering.steerings]
         prompt_terms = tuple(t for group in steered for t in group)
         terms = state.terms + prompt_terms
