@@ -14,10 +14,11 @@ Medians over --repeats runs.
 
     python benchmarks/simulate_speed.py [--scenes 64 128 real] [--settings paper defaults prompt]
         [--checkpoint CKPT] [--candidates 4] [--repeats 3] [--rollouts 32] [--guided-steps N]
-        [--prompt "@{id} slows down"] [--dense-attention] [--compile]
+        [--prompt "@{id} slows down"] [--dense-attention] [--compile] [--warm-steps N] [--refresh-map]
 
 With --compile the denoiser is compiled (`LangTraj.compile_steps`, as `langtraj simulate --compile`) and one
-untimed simulation per scene and setting compiles it first.
+untimed simulation per scene and setting compiles it first. --warm-steps and --refresh-map time the replan
+options of the same names (`langtraj simulate`; docs/simulation.md).
 """
 
 from __future__ import annotations
@@ -151,6 +152,8 @@ def main() -> None:
     parser.add_argument("--prompt", default="@{id} slows down", help="the prompt ({id}: the most important agent)")
     parser.add_argument("--dense-attention", action="store_true", help="dense attention (default: local, as simulate)")
     parser.add_argument("--compile", action="store_true", help="compile the denoiser; an untimed run compiles it")
+    parser.add_argument("--warm-steps", type=int, help="replans warm-started at the last N denoising steps")
+    parser.add_argument("--refresh-map", action="store_true", help="each replan chooses its own map")
     args = parser.parse_args()
     if not SCENE.is_file():
         sys.exit(f"benchmark scene not found: {SCENE}")
@@ -175,12 +178,14 @@ def main() -> None:
         f"(trained on {data.max_agents}-agent scenes; drives every sim agent); {args.rollouts} rollouts x 8 s, "
         f"K = 5, replanning at 1 Hz, {args.candidates} candidates per replan, "
         f"{'dense' if args.dense_attention else 'local'} attention, "
-        f"denoiser {'compiled' if args.compile else 'eager'}; defaults guided at the last "
+        f"denoiser {'compiled' if args.compile else 'eager'}, warm steps {args.warm_steps}, "
+        f"map {'each replan' if args.refresh_map else 'of the start'}; defaults guided at the last "
         f"{guided} of 5 denoising steps; medians of {args.repeats} runs"
     )
 
     def policy(setting: str, scene) -> LangTrajPolicy:
         options = {"candidates": args.candidates, "steps": 5, "local_attention": not args.dense_attention}
+        options |= {"warm_steps": args.warm_steps, "refresh_map": args.refresh_map}
         if setting == "paper":
             options |= {"on_road": 0.0, "no_collision": 0.0, "selector": "min_collision"}
         else:
