@@ -163,22 +163,22 @@ class Method:
 
 def _int_option(settings: dict[str, str], key: str) -> int | None:
     """`settings[key]` as an integer (None when absent), or a one-line InputError."""
-    if key not in settings:
-        return None
-    try:
-        return int(settings[key])
-    except ValueError:
-        raise InputError(f"{key} must be an integer, got {settings[key]!r}", where="--method") from None
+    return _number_option(settings, key, int, "an integer")
 
 
 def _float_option(settings: dict[str, str], key: str, default: float) -> float:
     """`settings[key]` as a number (`default` when absent), or a one-line InputError."""
+    value = _number_option(settings, key, float, "a number")
+    return default if value is None else value
+
+
+def _number_option(settings: dict[str, str], key: str, kind: type, what: str):
     if key not in settings:
-        return default
+        return None
     try:
-        return float(settings[key])
+        return kind(settings[key])
     except ValueError:
-        raise InputError(f"{key} must be a number, got {settings[key]!r}", where="--method") from None
+        raise InputError(f"{key} must be {what}, got {settings[key]!r}", where="--method") from None
 
 
 def windows_of(spec: DatasetSpec, limit: int | None) -> list[Scenario]:
