@@ -86,3 +86,17 @@ def test_a_model_with_a_shorter_horizon_is_steered_within_it(loaded, junction, m
     states = _run((short, data), junction, "@1 stops")
     assert horizons and set(horizons) == {40}
     assert np.isfinite(states[..., StateField.X]).all()
+
+
+def test_a_prompted_run_warm_starts_with_its_kept_plan_on_offer(loaded, junction, monkeypatch):
+    """With every lever and a warm start, the kept plan's actions join the candidates' (one more than sampled),
+    so whichever a prompted agent keeps, the next replan starts from what it executed."""
+    model, data = loaded
+    prompt = PromptEntry.of(parse_user_prompt("@1 stops", [1, 2]))
+    policy = LangTrajPolicy(model, data, prompt=prompt, candidates=2, warm_steps=2)
+    starts = []
+    sample = model.sample
+    monkeypatch.setattr(model, "sample", lambda *a, **k: starts.append(k["start"]) or sample(*a, **k))
+    result = simulate(junction, policy, SimConfig(rollouts=2, replan_s=1.0, seed=0))
+    assert starts[0] is None and all(s is not None for s in starts[1:])  # the first replan is cold
+    assert np.isfinite(result.world.states[..., StateField.X]).all()

@@ -226,7 +226,8 @@ def sample_map(scenario: Scenario, agents: np.ndarray, origin: Origin, config: S
     return map_polylines(scenario.road_map, origin, config, map_anchors(scenario, agents, config))
 
 
-_LANE_TYPES = np.array([int(t) for t in MapFeatureType if t.is_lane], np.int64)
+LANE_TYPES = tuple(int(t) for t in MapFeatureType if t.is_lane)
+"""The MapFeatureType values of lane centre lines (map coverage, lane-relative inputs)."""
 
 
 def map_coverage(
@@ -236,7 +237,7 @@ def map_coverage(
     `radius`: bool [...], False where `valid` is False. Reported as map coverage by training and
     simulation (docs/model.md, 'Inputs')."""
     points, point_valid, types = map_arrays
-    lane = point_valid & np.isin(types, _LANE_TYPES)[:, None]
+    lane = point_valid & np.isin(types, LANE_TYPES)[:, None]
     lane_xy = np.asarray(points, np.float64)[lane]  # [L, 2]
     flat = np.asarray(positions, np.float64).reshape(-1, 2)
     if not len(lane_xy) or not len(flat):

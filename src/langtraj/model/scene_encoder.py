@@ -10,8 +10,8 @@ from torch import Tensor, nn
 
 from langtraj.model.batch import SceneBatch
 from langtraj.model.config import LocalAttention, ModelConfig
+from langtraj.model.features import LANE_TYPES
 from langtraj.model.layers import AttentionBlock, mlp, recomputing, run_block
-from langtraj.scenario.types import MapFeatureType
 
 _AGENT_TYPES = 5  # padding + AgentType 1..4
 _MAP_TYPES = 40  # padding + MapFeatureType values (< 40)
@@ -126,12 +126,11 @@ error to it, and whether a lane is within `LANE_REACH` m (the others zero when n
 
 LANE_REACH = 10.0
 LANE_TURN_M = 2.0  # choosing the nearest lane, a heading error of 90 degrees counts as this many metres
-LANE_STEPS = 3  # history steps read: the first, the middle and the current one (the drift, at a third of the cost)
-_LANE_TYPES = tuple(int(t) for t in MapFeatureType if t.is_lane)
 
 
 def lane_steps(history_steps: int) -> list[int]:
-    """The `LANE_STEPS` history indices `lane_relative_history` reads (fewer for a shorter history)."""
+    """The history indices `lane_relative_history` reads: the first, the middle and the current step (the drift,
+    at a fraction of the cost of every step; fewer for a history shorter than 3)."""
     return sorted({0, (history_steps - 1) // 2, history_steps - 1})
 
 
@@ -142,7 +141,7 @@ def lane_relative_history(batch: SceneBatch) -> Tensor:
     step is invalid or no lane is near."""
     steps = lane_steps(batch.agent_history.shape[2])
     history, history_valid = batch.agent_history[:, :, steps], batch.history_valid[:, :, steps]
-    lane = torch.isin(batch.map_type, torch.tensor(_LANE_TYPES, device=batch.map_type.device))
+    lane = torch.isin(batch.map_type, torch.tensor(LANE_TYPES, device=batch.map_type.device))
     seg_valid = batch.map_valid[..., :-1] & batch.map_valid[..., 1:] & lane[..., None]  # [B, M, P-1]
     start = batch.map_points[..., :-1, :].flatten(1, 2)  # [B, S, 2]
     delta = (batch.map_points[..., 1:, :] - batch.map_points[..., :-1, :]).flatten(1, 2)

@@ -523,8 +523,9 @@ class LangTrajPolicy(Policy):
         if state.judge is not None:
             states = self._with_kept_plans(state, step, rollouts, states)
             if states.shape[0] > actions.shape[0]:  # the kept plan's actions: what is left of them (`_warm_start`)
-                judged = self._judged_slots(state, actions)
-                kept = actions[0] if start is None else torch.where(judged, start, actions[0])
+                kept = actions[0].clone()
+                if start is not None:
+                    kept[:, _judged_slots(state)] = start[:, _judged_slots(state)]
                 actions = torch.cat([actions, kept[None]])
         first = self._adherence(world, state, step, rollouts, states, steered)
         choice = state.selector.select(states, state.scene, terms, first)  # states [M, R, A, T, 4], scene frame
@@ -552,15 +553,6 @@ class LangTrajPolicy(Policy):
             shifted.append(torch.cat([actions[:, done:], torch.zeros_like(actions[:, :done])], dim=1))
         return torch.stack(shifted)
 
-    def _judged_slots(self, state: LangTrajRun, like: Tensor) -> Tensor:
-        """bool [1, A, 1, 1]: the slots `_with_kept_plans` gives the kept plan (the prompted agents and pairs)."""
-        mask = torch.zeros(like.shape[2], dtype=torch.bool, device=like.device)
-        for ask in state.judge.asks if state.judge else ():
-            for slot in (ask.slot, ask.other_slot):
-                if slot is not None:
-                    mask[slot] = True
-        return mask[None, :, None, None]
-
     def _with_kept_plans(self, state: LangTrajRun, step: int, rollouts: list[int], states: Tensor) -> Tensor:
         """The candidates [M, R, A, T, 4] with one more: for each prompted agent (and the other agent of a pair
         behaviour), what is left of the plan executed at the previous replan (continued at constant speed and
@@ -580,10 +572,8 @@ class LangTrajPolicy(Policy):
             travel = tail[..., 3] * STEP_SECONDS * steps
             tail[..., 0] = tail[..., 0] + travel * torch.cos(tail[..., 2])
             tail[..., 1] = tail[..., 1] + travel * torch.sin(tail[..., 2])
-            for ask in state.judge.asks if state.judge else ():
-                for slot in (ask.slot, ask.other_slot):  # a pair's other agent keeps its side of the plan too
-                    if slot is not None:
-                        extra[n, slot] = torch.cat([left[slot], tail[slot]])
+            for slot in _judged_slots(state):
+                extra[n, slot] = torch.cat([left[slot], tail[slot]])
         return torch.cat([states, extra[None]])
 
     def _adherence(
@@ -621,6 +611,13 @@ class LangTrajPolicy(Policy):
                 if ask.other_slot is not None:  # a pair behaviour is the pair's: the other makes way, or leads
                     first[:, :, ask.other_slot] += miss
         return first
+
+
+def _judged_slots(state: LangTrajRun) -> list[int]:
+    """The slots whose kept plan `_with_kept_plans` offers: each prompted agent, and a pair behaviour's other agent
+    (it keeps its side of the plan too)."""
+    asks = state.judge.asks if state.judge else ()
+    return sorted({slot for ask in asks for slot in (ask.slot, ask.other_slot) if slot is not None})
 
 
 def _then(first: Guidance | None, second: Guidance) -> Guidance:

@@ -23,12 +23,25 @@ def _huber(excess: Tensor) -> Tensor:
     return torch.nn.functional.huber_loss(excess, torch.zeros_like(excess), reduction="none", delta=1.0)
 
 
-def road_penalty(batch: SceneBatch, states: Tensor, margin: float, weight: Tensor | None = None) -> Tensor:
+def batch_scenes(batch: SceneBatch) -> list[GuidanceScene]:
+    """Each row's map pieces and agents as guidance geometry (`GuidanceScene.from_batch`), built once per batch."""
+    return [GuidanceScene.from_batch(batch, row) for row in range(batch.batch_size)]
+
+
+def road_penalty(
+    batch: SceneBatch,
+    states: Tensor,
+    margin: float,
+    weight: Tensor | None = None,
+    scenes: list[GuidanceScene] | None = None,
+) -> Tensor:
     """Weighted mean over (valid vehicle, valid future step) of huber(relu(s_pred - max(s_log, -margin))),
     where s is the signed distance to the nearest road edge (positive off the road): zero wherever the
     prediction is no further out than the log or than `margin` m inside the edge, so the log itself never
-    pays (also where the map crop or a parked car puts the log near or past an edge). `states` [B, A, T, >= 2];
-    `weight` [B]: each scene's weight (default 1)."""
+    pays (also where the map crop or a parked car puts the log near or past an edge); a scene without road edges
+    costs nothing. `states` [B, A, T, >= 2]; `weight` [B]: each scene's weight (default 1); `scenes`: `batch_scenes`
+    when the caller has them."""
+    scenes = scenes or batch_scenes(batch)
     horizon = states.shape[2]
     mask = batch.future_valid[:, :, :horizon] & batch.agent_valid[..., None]
     mask = mask & (batch.agent_type == int(AgentType.VEHICLE))[..., None]
@@ -37,7 +50,7 @@ def road_penalty(batch: SceneBatch, states: Tensor, margin: float, weight: Tenso
         keep = mask[row]
         if not keep.any():
             continue
-        edges = GuidanceScene.from_batch(batch, row).road_edges.to(states)
+        edges = scenes[row].road_edges.to(states)
         if edges.shape[0] == 0:
             continue
         predicted = signed_edge_distance(states[row, :, :, :2][keep], edges)
@@ -48,14 +61,18 @@ def road_penalty(batch: SceneBatch, states: Tensor, margin: float, weight: Tenso
     return total / mask.sum().clamp(min=1)
 
 
-def contact_penalty(batch: SceneBatch, states: Tensor, weight: Tensor | None = None) -> Tensor:
+def contact_penalty(
+    batch: SceneBatch, states: Tensor, weight: Tensor | None = None, scenes: list[GuidanceScene] | None = None
+) -> Tensor:
     """Weighted mean over scenes of the disk overlap between their valid agents (`NoCollisionCost`: each
     overlapping pair's mean overlap over its overlapping steps, in [0, 1]), summed over pairs and divided by
-    the number of agents: per agent, so it does not shrink in crowded scenes. `weight` [B] as `road_penalty`'s."""
+    the number of agents: per agent, so it does not shrink in crowded scenes. `weight` [B] and `scenes` as
+    `road_penalty`'s."""
+    scenes = scenes or batch_scenes(batch)
     cost = NoCollisionCost()
     total = states.new_zeros(())
     for row in range(batch.batch_size):
-        scene = GuidanceScene.from_batch(batch, row)
+        scene = scenes[row]
         agents = int(scene.agent_valid.sum())
         if agents < 2:
             continue
@@ -73,10 +90,11 @@ def scene_penalties(
     around an island and so leave the road, as it should)."""
     parts: dict[str, Tensor] = {}
     total = states.new_zeros(())
+    scenes = batch_scenes(batch) if config.active else []
     if config.road_weight > 0:
-        parts["road"] = road_penalty(batch, states, config.road_margin, signal)
+        parts["road"] = road_penalty(batch, states, config.road_margin, signal, scenes)
         total = total + config.road_weight * parts["road"]
     if config.contact_weight > 0:
-        parts["contact"] = contact_penalty(batch, states, signal)
+        parts["contact"] = contact_penalty(batch, states, signal, scenes)
         total = total + config.contact_weight * parts["contact"]
     return {**parts, "penalty": total}
