@@ -62,7 +62,7 @@ def test_counterfactuals_the_map_gives_a_target_come_first(tiny_run, monkeypatch
 
     def no_lane_change(scenario, track_id, behaviour, index, *, other_id=None):
         if behaviour is Behaviour.LANE_CHANGE_RIGHT:
-            raise TargetUnavailable(f"@{track_id} has no lane on its right along its road", where="target")
+            raise TargetUnavailable(track_id, behaviour, "infeasible", "no lane on its right along its road")
         return object()
 
     monkeypatch.setattr(demo, "derive_target", no_lane_change)

@@ -14,9 +14,7 @@ from langtraj.errors import InputError
 from langtraj.interdrive.adherence import label_facts, lane_change_key, lane_change_side, prompt_facts
 from langtraj.interdrive.behaviour import BEHAVIOURS, PAIR_SUBTYPES, Behaviour, behaviour_facts, opposite_subtype
 from langtraj.interdrive.counterfactual import (
-    CounterfactualConfig,
     asked_behaviours,
-    behaviour_feasibility,
     feasible_alternatives,
     infeasible_manoeuvres,
     logged_facts,
@@ -27,6 +25,7 @@ from langtraj.interdrive.labels import AgentLabel
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.prompts import Prompt, mentions_in, parse_user_prompt
 from langtraj.interdrive.prompts.user import recognize_prompt
+from langtraj.interdrive.targets import CounterfactualConfig, behaviour_feasibility
 from langtraj.interdrive.taxonomy import LABELS_BY_KEY, SUBTYPES_BY_ID
 from langtraj.scenario import AgentType, LaneNeighbor, MapFeature, MapFeatureType, RoadMap, Scenario
 

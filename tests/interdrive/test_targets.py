@@ -1,5 +1,5 @@
 """Targets from the map (`interdrive.targets`): per behaviour kind on constructed maps, the target is the right
-lanes, stop point, kerb line or conflict point."""
+lanes, stop point, kerb line or conflict point; a behaviour is feasible exactly when it has a target."""
 
 from __future__ import annotations
 
@@ -8,9 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from langtraj.interdrive.behaviour import Behaviour
+from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.mapindex import MapIndex
-from langtraj.interdrive.targets import TargetUnavailable, derive_target, point_at_station, stations
+from langtraj.interdrive.targets import TargetUnavailable, behaviour_feasibility, derive_target, feasibility
+from langtraj.polylines import point_at
+from langtraj.scenario import AgentType
 
 from .test_counterfactual import HALF, LEFT_LANE_STRAIGHT, RIGHT_LANE_STRAIGHT, drive, four_way, two_lane_road
 from .test_heuristics import TIME, along, scene
@@ -39,16 +41,15 @@ def test_a_right_turn_follows_the_right_turn_lane_and_its_exit_and_its_goal_lies
 
 def test_a_turn_the_lane_does_not_allow_has_no_target():
     s = scene(four_way(), drive(RIGHT_LANE_STRAIGHT))
-    with pytest.raises(TargetUnavailable, match="@1 cannot turn left: no such branch"):
+    with pytest.raises(TargetUnavailable, match="@1 cannot turn left: no left turn from its lane at the next junction"):
         _target(s, 1, Behaviour.TURN_LEFT)
 
 
 def test_a_left_lane_change_targets_the_left_neighbour_lane_and_a_right_one_is_unavailable():
     s = scene(two_lane_road(), _eastbound(y=0.0))
     target = _target(s, 1, Behaviour.LANE_CHANGE_LEFT)
-    arc = stations(target.path)
-    on_lane = target.path[arc > target.lateral_from + 1.0]
-    assert np.allclose(on_lane[:, 1], 3.5, atol=0.05)  # the left lane's centreline
+    on_lane = target.path[np.abs(target.path[:, 1] - 3.5) < 0.05]  # after the lead-in from the agent
+    assert len(on_lane) > 20 and np.allclose(target.path[-1, 1], 3.5, atol=0.05)  # the left lane's centreline
     assert on_lane[0, 0] > s.agents.states[0, s.current_index, 0] + 4.0  # from where a change can begin
     with pytest.raises(TargetUnavailable, match="no lane on its right"):
         _target(s, 1, Behaviour.LANE_CHANGE_RIGHT)
@@ -70,7 +71,7 @@ def test_a_pull_over_shifts_to_the_kerb_side_and_stops_ahead():
     goal = target.goal_point
     assert target.stop and goal[1] > s.agents.states[0, s.current_index, 1] + 5.0
     assert goal[0] > HALF + 0.75  # right of the lane centre (no road edges here: half a lane)
-    start = point_at_station(target.path, 0.0)
+    start = point_at(target.path, 0.0)
     assert abs(start[0] - HALF) < 0.1  # the shift starts from the lane centre
 
 
@@ -78,10 +79,14 @@ def test_yielding_and_going_first_meet_at_the_conflict_point_of_crossing_lanes()
     eastbound = _track(line(-80, -HALF, -10, -HALF), 8.0, 40.0)  # on lane 41 at x = -32 (8 m/s)
     s = scene(four_way(), drive(LEFT_LANE_STRAIGHT), eastbound)
     give = _target(s, 1, Behaviour.YIELD, other=2)
-    go = _target(s, 1, Behaviour.GO_FIRST, other=2)
     assert give.conflict is not None and np.allclose(give.conflict, [-HALF, -HALF], atol=1.5)
-    assert give.first is False and go.first is True and give.other_id == 2
+    assert give.first is False and give.other_id == 2
     assert give.other_eta == pytest.approx((80.0 - 48.0 - HALF) / 8.0, abs=0.3)  # at x = -32 now, 8 m/s to x = -1.75
+    later = scene(four_way(), drive(LEFT_LANE_STRAIGHT), _track(line(-80, -HALF, -10, -HALF), 8.0, 10.0))
+    go = _target(later, 1, Behaviour.GO_FIRST, other=2)  # the other is 7.5 s from the crossing: it can go first
+    assert go.first is True and np.allclose(go.conflict, give.conflict)
+    with pytest.raises(TargetUnavailable, match=r"@1 cannot go first: @2 gets to the crossing in 3\.7 s"):
+        _target(s, 1, Behaviour.GO_FIRST, other=2)  # feasible exactly when there is a target
 
 
 def _eastbound(y: float, speed: float = 10.0):
@@ -99,7 +104,8 @@ def _track(path: np.ndarray, speed: float, start: float):
 
 
 def test_going_first_is_feasible_only_where_the_agent_can_get_to_the_crossing_first():
-    from langtraj.interdrive.targets import order_feasibility
+    def order_feasibility(s, track, other, behaviour, index):
+        return feasibility(s, track, behaviour, index, other_id=other)
 
     far = scene(four_way(), drive(LEFT_LANE_STRAIGHT), _track(line(-80, -HALF, -10, -HALF), 8.0, 10.0))
     near = scene(four_way(), drive(LEFT_LANE_STRAIGHT), _track(line(-80, -HALF, -10, -HALF), 8.0, 50.0))
@@ -111,13 +117,89 @@ def test_going_first_is_feasible_only_where_the_agent_can_get_to_the_crossing_fi
 
 
 def test_a_lane_change_needs_room_before_the_junction_for_the_change_to_settle():
-    def change_starts(s):
-        target = _target(s, 1, Behaviour.LANE_CHANGE_LEFT)
-        on_lane = target.path[stations(target.path) > target.lateral_from + 1.0]
-        assert np.allclose(on_lane[:, 0], -HALF, atol=0.2)  # the left lane, before or after the junction
-        return on_lane[0, 1]
-
     far = scene(four_way(), drive(RIGHT_LANE_STRAIGHT, speed=6.0, start=0.0))  # 64 m before the junction
     near = scene(four_way(), drive(RIGHT_LANE_STRAIGHT, speed=6.0, start=50.0))  # 14 m before it
-    assert change_starts(far) < -30.0  # into the left approach lane, well before the junction at y = -10
-    assert change_starts(near) > 10.0  # too close to settle before it: into the left lane beyond the junction
+    target = _target(far, 1, Behaviour.LANE_CHANGE_LEFT)
+    on_lane = target.path[np.abs(target.path[:, 0] + HALF) < 0.2]
+    assert len(on_lane) and on_lane[0, 1] < -30.0  # into the left approach lane, well before the junction at y = -10
+    with pytest.raises(TargetUnavailable, match="runs into a junction before a change could settle"):
+        _target(near, 1, Behaviour.LANE_CHANGE_LEFT)  # too close to settle before it
+    assert feasibility(near, 1, Behaviour.LANE_CHANGE_LEFT, MapIndex.build(near.road_map)).status == "infeasible"
+
+
+# ---------------------------------------------------------------------------------------------- one answer each
+
+
+def test_an_agent_just_inside_a_junction_gets_a_target_for_every_turn_called_feasible():
+    s = scene(four_way(), drive(LEFT_LANE_STRAIGHT, start=64.0))  # 2 m into the junction at the current step
+    index = MapIndex.build(s.road_map)
+    verdicts = behaviour_feasibility(s, 1, index)
+    assert verdicts[Behaviour.TURN_LEFT].status == "feasible" and verdicts[Behaviour.GO_STRAIGHT].status == "feasible"
+    assert verdicts[Behaviour.TURN_RIGHT].status == "infeasible"  # its entry lane has no right branch
+    for behaviour in (Behaviour.TURN_LEFT, Behaviour.GO_STRAIGHT):
+        target = derive_target(s, 1, behaviour, index)
+        heading = _end_heading(target.path)
+        assert abs(heading - (math.pi if behaviour is Behaviour.TURN_LEFT else math.pi / 2)) < 0.15
+
+
+@pytest.mark.parametrize("inferred", [False, True], ids=["map neighbours", "inferred neighbours"])
+def test_the_lane_on_the_left_is_one_lane_for_the_map_index_the_feasibility_and_the_target(inferred):
+    road = two_lane_road(neighbours=not inferred)
+    s = scene(road, _eastbound(y=0.0))
+    index = MapIndex.build(road, infer_neighbors=inferred)
+    right, left = index.lane_row[1], index.lane_row[2]
+    station = 20.0 + 100.0  # the car is at x = 10 at the current step; lane 1 starts at x = -100
+    assert index.neighbour_lane(right, station, "left") == (left, pytest.approx(station, abs=0.5))
+    assert index.neighbour_lane(right, station, "right") is None and index.lane_position(right, station) == "rightmost"
+    verdict = feasibility(s, 1, Behaviour.LANE_CHANGE_LEFT, index)
+    assert verdict.status == "feasible" and np.allclose(verdict.target.path[-30:, 1], 3.5, atol=0.05)  # lane 2
+    assert feasibility(s, 1, Behaviour.LANE_CHANGE_RIGHT, index).status == "infeasible"
+
+
+def _all_verdicts(s, index, tracks):
+    """(track, behaviour, other) -> (status, whether derive_target gives a target) for every behaviour kind."""
+    out = {}
+    for track in tracks:
+        others = [t for t in tracks if t != track][:2]
+        for behaviour, spec in BEHAVIOURS.items():
+            for other in others if spec.is_pair else [None]:
+                verdict = feasibility(s, track, behaviour, index, other_id=other)
+                try:
+                    derive_target(s, track, behaviour, index, other_id=other)
+                    has_target = True
+                except TargetUnavailable:
+                    has_target = False
+                out[track, behaviour, other] = verdict.status, has_target
+    return out
+
+
+def _assert_feasible_iff_target(verdicts):
+    for key, (status, has_target) in verdicts.items():
+        assert (status == "feasible") == has_target, key
+
+
+def test_feasible_exactly_when_a_target_exists_on_constructed_scenes():
+    eastbound = _track(line(-80, -HALF, -10, -HALF), 8.0, 10.0)
+    scenes = [
+        scene(four_way(), drive(LEFT_LANE_STRAIGHT), drive(RIGHT_LANE_STRAIGHT), eastbound),
+        scene(four_way(), drive(LEFT_LANE_STRAIGHT, start=64.0), drive(RIGHT_LANE_STRAIGHT, speed=0.0, start=50.0)),
+        scene(two_lane_road(), _eastbound(y=0.0), _eastbound(y=3.5, speed=6.0)),
+        scene(four_way(connectivity=False), drive(LEFT_LANE_STRAIGHT), drive(RIGHT_LANE_STRAIGHT)),
+    ]
+    seen = set()
+    for s in scenes:
+        verdicts = _all_verdicts(s, MapIndex.build(s.road_map), s.agents.ids.tolist())
+        _assert_feasible_iff_target(verdicts)
+        seen |= {status for status, _ in verdicts.values()}
+    assert seen == {"feasible", "infeasible", "undecided"}  # the scenes exercise every answer
+
+
+def test_feasible_exactly_when_a_target_exists_on_the_real_scenes(real_files):
+    from langtraj.scenario.io import read_scenarios
+
+    for path in real_files[:4]:
+        s = next(iter(read_scenarios(path)))
+        valid = s.agents.valid[:, s.current_index]
+        vehicles = s.agents.types == AgentType.VEHICLE
+        tracks = s.agents.ids[valid & vehicles][:4].tolist() + s.agents.ids[valid & ~vehicles][:1].tolist()
+        _assert_feasible_iff_target(_all_verdicts(s, MapIndex.build(s.road_map), tracks))

@@ -117,9 +117,8 @@ def choose_counterfactual(
 
     Behaviours for which the map gives a target (`has_target`) come first: a prompt steers by its text, by
     guidance toward that target and by adherence-first selection, and without a target it loses the guidance.
-    Feasibility (`feasible_alternatives`) is looser than a target: a lane beside the agent's for a few metres
-    before a junction makes a lane change feasible, yet leaves no room to change into it, and the target
-    looks for the neighbour lane only from 1 s (at least 4 m) ahead."""
+    A feasible single-agent behaviour always has one (`interdrive.targets`); going first where the map shows no
+    crossing is offered as undecided, without one."""
     index = MapIndex.build(scenario.road_map)
     checker = AdherenceChecker.build(scenario, map_index=index)
     options = [

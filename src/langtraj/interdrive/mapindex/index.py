@@ -196,24 +196,50 @@ class MapIndex:
 
     # ------------------------------------------------------------------ neighbours and lane position
     def lane_position(self, lane: int, station: float, with_ending: bool = False) -> LanePosition:
-        """Position of `lane` among its same-direction neighbours at `station`: "unknown" where the map has no
-        neighbour information (and none is inferred) or the lane is a junction lane. Only lanes of the same
-        kind count: a bike lane beside the rightmost car lane does not make that lane a middle one; nor does a
-        lane that ends beside it (an acceleration lane, a lane drop: `is_ending`), unless this lane ends too or
-        `with_ending` (a change into or out of such a lane is placed among all the lanes there)."""
+        """Position of `lane` among its same-direction neighbours at `station` (`lanes_beside` on each side):
+        "unknown" where the map has no neighbour information (and none is inferred) or the lane is a junction
+        lane."""
         if self.neighbor_source == "none" or self.is_junction[lane]:
             return "unknown"
-        if self.neighbor_source == "map":
-            left = tuple(s for s in self.left_spans[lane] if self._counts_beside(lane, s.lane, with_ending))
-            right = tuple(s for s in self.right_spans[lane] if self._counts_beside(lane, s.lane, with_ending))
-            has_left, has_right = _covers(left, station), _covers(right, station)
-        else:
-            has_left, has_right = self._geometric_sides(lane, station, with_ending)
+        has_left = bool(self.lanes_beside(lane, station, "left", with_ending))
+        has_right = bool(self.lanes_beside(lane, station, "right", with_ending))
         if has_left and has_right:
             return "middle"
         if has_left:
             return "rightmost"
         return "leftmost" if has_right else "single"
+
+    def lanes_beside(self, lane: int, station: float, side: Side, with_ending: bool = False) -> tuple[int, ...]:
+        """The lanes beside `lane` on `side` at `station`, nearest first: the one definition of a neighbour lane,
+        read by `lane_position` (both labelers), the counterfactual feasibility and the lane-change target.
+
+        With map neighbour lists, the listed lanes whose span covers `station`; with inferred neighbours, the
+        same-direction lanes whose centreline runs 2.5-4.5 m to that side there; none without neighbour
+        information or on a junction lane. Only lanes of the same kind count: a bike lane beside the rightmost car
+        lane is no neighbour; nor is a lane that ends beside it (an acceleration lane, a lane drop: `is_ending`),
+        unless this lane ends too or `with_ending` (a change into or out of such a lane is placed among all the
+        lanes there)."""
+        if self.neighbor_source == "none" or self.is_junction[lane]:
+            return ()
+        if self.neighbor_source == "map":
+            spans = self.left_spans[lane] if side == "left" else self.right_spans[lane]
+            found = {s.lane for s in spans if self._counts_beside(lane, s.lane, with_ending) and _covers((s,), station)}
+            if len(found) < 2:
+                return tuple(found)
+            point = self.point_at(lane, station)
+            return tuple(sorted(found, key=lambda x: abs(float(self.project_to_lane(x, point)[1][0]))))
+        return self._geometric_beside(lane, station, side, with_ending)
+
+    def neighbour_lane(
+        self, lane: int, station: float, side: Side, with_ending: bool = False
+    ) -> tuple[int, float] | None:
+        """The nearest lane beside `lane` on `side` at `station` (`lanes_beside`) and the station on it level
+        with that point; None where there is none."""
+        beside = self.lanes_beside(lane, station, side, with_ending)
+        if not beside:
+            return None
+        stations, _ = self.project_to_lane(beside[0], self.point_at(lane, station))
+        return beside[0], float(stations[0])
 
     def _counts_beside(self, lane: int, other: int, with_ending: bool) -> bool:
         """Whether lane `other` beside `lane` counts for `lane`'s position (see `lane_position`)."""
@@ -304,8 +330,8 @@ class MapIndex:
         t = (station - self.lanes.station[seg]) / max(float(np.linalg.norm(direction)), 1e-9)
         return self.lanes.start[seg] + np.clip(t, 0.0, 1.0) * direction
 
-    def _geometric_sides(self, lane: int, station: float, with_ending: bool = False) -> tuple[bool, bool]:
-        """Whether a same-direction lane runs 2.5-4.5 m to the left / right of `lane` at `station`."""
+    def _geometric_beside(self, lane: int, station: float, side: Side, with_ending: bool) -> tuple[int, ...]:
+        """The same-direction lanes 2.5-4.5 m to `side` of `lane` at `station`, nearest first."""
         point = self.point_at(lane, station)[None]
         heading = self.heading_at(lane, station)
         _, seg = self.lanes.candidates(point, NEIGHBOR_MAX_OFFSET_M)
@@ -316,9 +342,11 @@ class MapIndex:
         _, lateral, _ = self.lanes.project(np.repeat(point, len(seg), axis=0), seg)
         same = np.abs(wrap_angle(self.lanes.heading[seg] - heading)) <= NEIGHBOR_MAX_HEADING_DIFF
         apart = (np.abs(lateral) >= NEIGHBOR_MIN_OFFSET_M) & (np.abs(lateral) <= NEIGHBOR_MAX_OFFSET_M)
-        beside = lateral[same & apart]
         # The point lies right of a lane on its left, so that lane's lateral offset of the point is negative.
-        return bool((beside < 0).any()), bool((beside > 0).any())
+        wanted = lateral < 0 if side == "left" else lateral > 0
+        keep = same & apart & wanted
+        order = np.argsort(np.abs(lateral[keep]), kind="stable")
+        return tuple(dict.fromkeys(int(x) for x in self.lanes.owner[seg[keep]][order]))
 
     # ------------------------------------------------------------------ parked vehicles
     def parked_decision(

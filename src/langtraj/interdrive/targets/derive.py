@@ -1,0 +1,535 @@
+"""Targets from the map: where a behaviour asked of an agent takes it, derived from the scene at the current step,
+and the one answer to whether the agent can do it (a behaviour is feasible exactly when it has a target).
+
+A prompt names a behaviour kind (`interdrive.behaviour`); guidance and candidate selection need something concrete
+to steer toward, and counterfactual prompts need to know what the map allows. `assess` reads the agent's lane and
+the lane graph (`lanes_ahead`) and returns either a `BehaviourTarget` in world coordinates or why there is none,
+"infeasible" (the map rules it out) or "undecided" (the map lacks what it takes to tell):
+
+- a turn or going straight: the lanes of the branch of the next junction in that direction, from the agent to past
+  its exit;
+- a lane change: the neighbour lane on that side (`MapIndex.neighbour_lane`) along its road ahead, with room before
+  its next junction for the change to settle;
+- a stop: the agent's lane ahead (off lanes, the line along its heading) and a stop station that comfortable braking
+  reaches (a stop line or crosswalk when one lies a little beyond);
+- pulling over: the agent moves in the lane next to the kerb with room before the next junction; the lane ahead
+  shifted toward the kerb, and a stop station;
+- speeding up or slowing down (the agent moves): the lane ahead and a target speed;
+- going first or yielding: both agents' ways ahead, the conflict point where they cross, and the order; going first
+  needs a crossing the agent can reach first;
+- following: the other agent's lane ahead.
+
+Only the current step and the past are read (never the logged future), so a simulation may use the target.
+See docs/interdrive.md ('Targets and feasibility').
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from langtraj.angles import wrap_angle
+from langtraj.errors import InputError
+from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour, Side
+from langtraj.interdrive.mapindex import MapIndex
+from langtraj.interdrive.targets.config import CounterfactualConfig
+from langtraj.interdrive.targets.lanes_ahead import AgentOnLane, branch_direction, junction_ahead, stations_ahead
+from langtraj.interdrive.targets.routes import ROUTE_SPACING, route, straight_line
+from langtraj.interdrive.taxonomy import LABELS_BY_KEY
+from langtraj.polylines import arc_lengths, point_at, project_on_polyline, resample
+from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
+from langtraj.scenario.types import AgentType, StateField
+
+Status = Literal["feasible", "infeasible", "undecided"]
+
+COMFORT_DECELERATION = 2.0
+"""Comfortable braking (m/s^2): a stop lies where it brings the agent to rest, and a pull-over needs room to stop
+this way before the next junction."""
+PULL_OVER_DECELERATION = 1.5
+"""Braking a pull-over is planned with (m/s^2): gentler, as it also moves sideways."""
+SPEED_CHANGE = 3.0
+"""Speed gained or lost by speeding up or slowing down (m/s; the labelers need at least 1 m/s)."""
+HORIZON_S = FUTURE_STEPS * STEP_SECONDS
+"""The simulated future the target must fit in (s)."""
+LANE_CHANGE_S = 3.0
+"""Time a lane change takes to settle in its new lane (s)."""
+LANE_CHANGE_MIN_M = 15.0
+"""Least length of the new lane before its next junction that a lane change needs (m)."""
+KERB_CLEARANCE = 0.4
+"""Gap left between a pulled-over vehicle's side and the road edge (m)."""
+CROSSING_RADIUS = 2.0
+"""Two paths ahead cross where they come this close (m) at more than `CROSSING_ANGLE` (a target's conflict point,
+on map paths, before anything is driven; the judge's yield rule is the detector's, on driven tracks)."""
+CROSSING_ANGLE = math.radians(20.0)
+GO_FIRST_ACCELERATION = 2.5
+"""The most an agent asked to go first is assumed to speed up by (m/s^2), up to `GO_FIRST_TOP_SPEED`."""
+GO_FIRST_TOP_SPEED = 15.0
+GO_FIRST_MARGIN_S = 0.5
+"""Going first must get the agent to the crossing this much earlier than the other agent at its speed (s)."""
+
+
+@dataclass(frozen=True)
+class BehaviourTarget:
+    """Where `behaviour` takes agent `track_id` (world frame, metres, seconds from the current step).
+
+    `path` [N, 2] is the centreline to drive along (empty when the map gives none); `station_of_goal` is how far
+    along it the agent must get (a turn: past the junction's exit) or must not pass (a stop, a pull-over, a
+    yield: the stop or conflict point). `speed` is a target speed where the behaviour sets one (0: it stops). A pair
+    behaviour names `other_id`, the `conflict` point [2] of the two paths (None when they do not cross) and the
+    `other_eta` (s) at which the other agent reaches it at its current speed. `reason` says how the target was
+    derived."""
+
+    track_id: int
+    behaviour: Behaviour
+    path: np.ndarray
+    reason: str
+    station_of_goal: float | None = None
+    speed: float | None = None
+    other_id: int | None = None
+    conflict: np.ndarray | None = None
+    other_eta: float | None = None
+    current_speed: float = 0.0
+    other_speed: float | None = None
+
+    @property
+    def stop(self) -> bool:
+        """Whether the agent must come to rest at `station_of_goal`."""
+        return self.speed == 0.0
+
+    @property
+    def first(self) -> bool | None:
+        """Whether the agent passes the conflict point first (None for a single-agent behaviour)."""
+        return None if self.other_id is None else self.behaviour is Behaviour.GO_FIRST
+
+    @property
+    def goal_point(self) -> np.ndarray | None:
+        """The point of `path` at `station_of_goal` [2] (None without one)."""
+        if self.station_of_goal is None or len(self.path) < 2:
+            return None
+        return point_at(self.path, self.station_of_goal)
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready: the path every 2 m and the points rounded to centimetres (world frame)."""
+        goal = self.goal_point
+        return {
+            "track_id": self.track_id,
+            "behaviour": self.behaviour.value,
+            "reason": self.reason,
+            "path": np.round(self.path[:: max(1, round(2.0 / ROUTE_SPACING))], 2).tolist(),
+            "goal": None if goal is None else [round(float(v), 2) for v in goal],
+            "stop": self.stop,
+            "speed": self.speed,
+            "other_id": self.other_id,
+            "conflict": None if self.conflict is None else [round(float(v), 2) for v in self.conflict],
+            "first": self.first,
+        }
+
+
+class TargetUnavailable(InputError):
+    """The map gives no target for the behaviour: it is "infeasible" there (the map rules it out) or "undecided"
+    (the map lacks what it takes to tell); `reason` says why, without naming the agent."""
+
+    def __init__(self, track_id: int, behaviour: Behaviour, status: Status, reason: str):
+        self.track_id, self.behaviour, self.status, self.reason = track_id, behaviour, status, reason
+        super().__init__(f"@{track_id} cannot {BEHAVIOURS[behaviour].manoeuvre}: {reason}", where="target")
+
+
+# ---------------------------------------------------------------------------------------------- the agent
+
+
+@dataclass(frozen=True)
+class _Agent:
+    track_id: int
+    kind: AgentType
+    here: AgentOnLane
+    xy: np.ndarray
+    heading: float
+    length: float
+    width: float
+    search: float
+    """How far along the lane graph the map is searched (`CounterfactualConfig.reach`)."""
+
+    @property
+    def reach(self) -> float:
+        """How far a path ahead is drawn (m): beyond what the horizon can cover."""
+        return max(60.0, (self.here.speed + SPEED_CHANGE) * HORIZON_S + 20.0)
+
+    @property
+    def on_lane(self) -> bool:
+        return self.here.lane >= 0
+
+
+class _Context:
+    """One assessment's scene, map index and settings, and the agents read so far."""
+
+    def __init__(self, scenario: Scenario, index: MapIndex, config: CounterfactualConfig):
+        self.scenario, self.index, self.config = scenario, index, config
+
+    def agent(self, track_id: int, behaviour: Behaviour) -> _Agent:
+        row = self.scenario.agents.index_of(track_id)
+        c = self.scenario.current_index
+        if not self.scenario.agents.valid[row, c]:
+            raise TargetUnavailable(track_id, behaviour, "undecided", "it is not valid at the current step")
+        state = self.scenario.agents.states[row, c]
+        here = AgentOnLane.of(self.scenario, row, self.index, self.config.heuristics)
+        return _Agent(
+            track_id,
+            AgentType(int(self.scenario.agents.types[row])),
+            here,
+            state[[StateField.X, StateField.Y]].astype(np.float64),
+            float(state[StateField.HEADING]),
+            float(state[StateField.LENGTH]),
+            float(state[StateField.WIDTH]),
+            self.config.reach(here.speed),
+        )
+
+    def moving(self, agent: _Agent) -> bool:
+        """Faster than the labelers' standing speed by their least speed change."""
+        cfg = self.config.heuristics
+        return agent.here.speed > cfg.static_speed + cfg.min_speed_change
+
+    def need_lane(self, agent: _Agent, behaviour: Behaviour, what: str) -> None:
+        """Undecided when the map has no lanes or the agent is on none."""
+        if not self.index.has_lanes:
+            raise TargetUnavailable(agent.track_id, behaviour, "undecided", "the map has no lanes")
+        if not agent.on_lane:
+            reason = f"it is on no lane at the current step, so its {what} are unknown"
+            raise TargetUnavailable(agent.track_id, behaviour, "undecided", reason)
+
+    def ahead(self, agent: _Agent) -> np.ndarray:
+        """The agent's lane ahead by the straightest exits, or, off lanes (a pedestrian, a cyclist, a map without
+        lanes), the line along its heading."""
+        if self.index.has_lanes and agent.on_lane:
+            return route(self.index, [agent.here.lane], agent.here.station, agent.reach)
+        return straight_line(agent.xy, agent.heading, max(20.0, agent.here.speed * HORIZON_S + 10.0))
+
+    def ways_ahead(self, agent: _Agent) -> list[np.ndarray]:
+        """Every way the agent may go: its lane ahead first, then each branch of the next junction."""
+        first = self.ahead(agent)
+        if not (self.index.has_lanes and self.index.has_connectivity and agent.on_lane):
+            return [first]
+        found = junction_ahead(self.index, agent.here, agent.search, self.config)
+        return [first] + [
+            route(self.index, branch.lanes, agent.here.station, max(agent.reach, branch.exit_at + 25.0))
+            for branch in found.branches
+        ]
+
+
+# ---------------------------------------------------------------------------------------------- assessment
+
+
+def derive_target(
+    scenario: Scenario,
+    track_id: int,
+    behaviour: Behaviour,
+    index: MapIndex,
+    *,
+    other_id: int | None = None,
+    config: CounterfactualConfig | None = None,
+) -> BehaviourTarget:
+    """The target of `behaviour` for `track_id` at the scenario's current step (see the module docstring).
+    Raises `TargetUnavailable` (an InputError) naming the agent, the behaviour and the reason where the map gives
+    none: then the behaviour is not feasible there (`feasibility`)."""
+    spec = BEHAVIOURS[behaviour]
+    if spec.is_pair and other_id is None:
+        raise InputError(f"behaviour {behaviour.value!r} needs another agent", where="target")
+    ctx = _Context(scenario, index, config or CounterfactualConfig())
+    agent = ctx.agent(track_id, behaviour)
+    if spec.label is not None and agent.kind not in LABELS_BY_KEY[spec.label].applies_to:
+        reason = f"the labelers give {spec.label!r} to no {agent.kind.name.lower()}"
+        raise TargetUnavailable(track_id, behaviour, "undecided", reason)
+    if spec.is_turn:
+        return _turn(ctx, agent, behaviour)
+    if spec.is_lane_change:
+        return _lane_change(ctx, agent, behaviour, spec.side)  # type: ignore[arg-type]
+    if behaviour is Behaviour.STOP:
+        return _stop(ctx, agent)
+    if behaviour is Behaviour.PULL_OVER:
+        return _pull_over(ctx, agent)
+    if behaviour in (Behaviour.SPEED_UP, Behaviour.SLOW_DOWN):
+        return _speed_change(ctx, agent, behaviour)
+    other = ctx.agent(int(other_id), behaviour)  # type: ignore[arg-type]
+    if behaviour is Behaviour.FOLLOW:
+        path = ctx.ahead(other) if other.on_lane else np.zeros((0, 2))
+        return BehaviourTarget(
+            track_id, behaviour, path, f"behind @{other_id} along its lane", other_id=other.track_id,
+            current_speed=agent.here.speed, other_speed=other.here.speed,
+        )  # fmt: skip
+    return _order(ctx, agent, other, behaviour)
+
+
+def _turn(ctx: _Context, agent: _Agent, behaviour: Behaviour) -> BehaviourTarget:
+    """The nearest branch of the next junction in the asked direction: the lanes to it, the junction lanes, and past
+    the exit; the goal station lies 5 m past the junction."""
+    index = ctx.index
+    ctx.need_lane(agent, behaviour, "junction directions")
+    if not index.has_connectivity:
+        reason = "the map has no lane connectivity to follow its lane to a junction"
+        raise TargetUnavailable(agent.track_id, behaviour, "undecided", reason)
+    reach = agent.search
+    found = junction_ahead(index, agent.here, reach, ctx.config)
+    if not found.branches:
+        if found.ends:
+            reason = f"its lanes end within {reach:.0f} m with no junction (the map stops there)"
+            raise TargetUnavailable(agent.track_id, behaviour, "undecided", reason)
+        if behaviour is Behaviour.GO_STRAIGHT:
+            reason = f"no junction within {reach:.0f} m: going straight is its road"
+            raise TargetUnavailable(agent.track_id, behaviour, "undecided", reason)
+        raise TargetUnavailable(
+            agent.track_id, behaviour, "infeasible", f"no junction within {reach:.0f} m along its lanes"
+        )
+    directions = {b: branch_direction(b.turn, ctx.config) for b in found.branches}
+    mine = [b for b in found.branches if directions[b] is behaviour]
+    if not mine:
+        words = {
+            Behaviour.TURN_LEFT: "left turn",
+            Behaviour.GO_STRAIGHT: "straight on",
+            Behaviour.TURN_RIGHT: "right turn",
+        }
+        allowed = ", ".join(w for b, w in words.items() if b in directions.values()) or "only U-turns or bends"
+        reason = f"no {words[behaviour]} from its lane at the next junction (it allows: {allowed})"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    branch = min(mine, key=lambda b: b.exit_at)
+    goal = branch.exit_at + 5.0
+    path = route(index, branch.lanes, agent.here.station, max(agent.reach, goal + 25.0))
+    return BehaviourTarget(
+        agent.track_id,
+        behaviour,
+        path,
+        f"the {BEHAVIOURS[behaviour].manoeuvre} branch of the next junction, its exit {branch.exit_at:.0f} m ahead",
+        station_of_goal=goal,
+        current_speed=agent.here.speed,
+    )
+
+
+def _lane_change(ctx: _Context, agent: _Agent, behaviour: Behaviour, side: Side) -> BehaviourTarget:
+    """The neighbour lane on `side` (`MapIndex.neighbour_lane`, the labelers' definition) at the first station of
+    the agent's road ahead from where a change can begin (1 s or 4 m ahead), where that lane runs on without a
+    junction long enough for a change begun there to settle in it (`LANE_CHANGE_S` at the agent's speed, at least
+    `LANE_CHANGE_MIN_M`: the labelers count no change into a junction lane)."""
+    index = ctx.index
+    ctx.need_lane(agent, behaviour, "neighbour lanes")
+    if index.neighbor_source == "none":
+        raise TargetUnavailable(agent.track_id, behaviour, "undecided", "the map has no lane neighbour information")
+    begin = max(4.0, 1.0 * agent.here.speed)
+    room_needed = max(LANE_CHANGE_MIN_M, LANE_CHANGE_S * agent.here.speed)
+    ahead = stations_ahead(index, agent.here, agent.search, ctx.config)
+    if not ahead:
+        reason = "it is inside a junction, where lanes have no neighbours"
+        raise TargetUnavailable(agent.track_id, behaviour, "undecided", reason)
+    cramped = False
+    for point in ahead:
+        if point.distance < begin:
+            continue
+        found = index.neighbour_lane(point.lane, point.station, side)
+        if found is None or index.is_junction[found[0]]:
+            continue
+        lane, station = found
+        room = index.distance_to_junction(lane, station) if index.has_connectivity else math.inf
+        if round(point.distance + room - begin, 2) < round(room_needed, 2):  # to the centimetre
+            cramped = True  # the lane beside it runs into a junction before a change could settle in it
+            continue
+        path = route(index, [lane], station, agent.reach)
+        lead_in = resample(np.stack([agent.xy, path[0]]), ROUTE_SPACING)
+        return BehaviourTarget(
+            agent.track_id,
+            behaviour,
+            np.concatenate([lead_in[:-1], path]),
+            f"the lane on its {side}, from {point.distance:.0f} m ahead",
+            current_speed=agent.here.speed,
+        )
+    reason = f"no lane on its {side} along its road (within {agent.search:.0f} m)"
+    if cramped:
+        reason = f"the lane on its {side} runs into a junction before a change could settle in it"
+    raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+
+
+def _stop(ctx: _Context, agent: _Agent) -> BehaviourTarget:
+    """A stop on the way ahead where comfortable braking brings the agent to rest; at a stop line (the start of the
+    next junction or a signal's stop point) or before a crosswalk when one lies a little beyond that, but no farther
+    than the agent gets braking evenly over 7 s."""
+    index = ctx.index
+    path = ctx.ahead(agent)
+    v = agent.here.speed
+    comfort = v * v / (2 * COMFORT_DECELERATION) + 0.5 * agent.length
+    latest = max(comfort, 0.5 * v * 7.0)
+    reason, station = f"where braking at {COMFORT_DECELERATION:g} m/s^2 brings it to rest", comfort
+    marks: list[tuple[float, str]] = []
+    if agent.on_lane and index.has_connectivity and not index.is_junction[agent.here.lane]:
+        marks.append((index.distance_to_junction(agent.here.lane, agent.here.station) - 1.0, "at the stop line"))
+    lights = ctx.scenario.traffic_lights
+    if lights is not None and len(lights.stop_points):
+        found = project_on_polyline(np.asarray(lights.stop_points)[:, :2], path)
+        marks += [
+            (float(s) - 1.0, "at the signal's stop line")
+            for s, d in zip(found.station, found.distance, strict=True)
+            if d < 2.5
+        ]
+    crossing = index.in_crosswalk(path) if index.has_crosswalks else np.zeros(len(path), bool)
+    if crossing.any():
+        marks.append((float(arc_lengths(path)[int(np.argmax(crossing))]) - 2.0, "before the crosswalk"))
+    for s, why in sorted(marks):
+        if comfort <= s + 0.5 * agent.length <= latest + 0.5 * agent.length:
+            station, reason = s, why
+            break
+    return BehaviourTarget(
+        agent.track_id,
+        Behaviour.STOP,
+        path,
+        f"a stop {station:.0f} m ahead, {reason}",
+        station_of_goal=float(station),
+        speed=0.0,
+        current_speed=v,
+    )
+
+
+def _pull_over(ctx: _Context, agent: _Agent) -> BehaviourTarget:
+    """The agent moves in the lane next to the kerb on its right (the rightmost or only lane) with room to stop
+    comfortably before the next junction (the labeler does not call a stop at a junction a pull-over): the lane ahead
+    shifted to the right, to the kerb (the road edge less half the width and a clearance, at least 0.8 m off the
+    centre) or half a lane where the map has no road edges, and a stop where gentle braking brings it to rest."""
+    index, behaviour = ctx.index, Behaviour.PULL_OVER
+    if not ctx.moving(agent):
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", "it is (nearly) stopped at the current step")
+    ctx.need_lane(agent, behaviour, "lane position")
+    position = index.lane_position(agent.here.lane, agent.here.station)
+    if position == "unknown":
+        reason = (
+            "the map has no lane neighbour information"
+            if index.neighbor_source == "none"
+            else "it is inside a junction, where lanes have no neighbours"
+        )
+        raise TargetUnavailable(agent.track_id, behaviour, "undecided", reason)
+    if position not in ("rightmost", "single"):
+        reason = "a lane lies on its right: it is not in the lane next to the kerb"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    v = agent.here.speed
+    room = v**2 / (2 * COMFORT_DECELERATION) + ctx.config.heuristics.pull_over_junction_distance
+    junction = index.distance_to_junction(agent.here.lane, agent.here.station) if index.has_connectivity else math.inf
+    if junction < room:
+        reason = f"the next junction is {junction:.0f} m ahead, too close to stop at the kerb before it"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    lane_path = ctx.ahead(agent)
+    stop = max(v * v / (2 * PULL_OVER_DECELERATION), 2.0 * v, 8.0)
+    stop = min(stop, max(0.5 * v * 5.5, 8.0))
+    point = point_at(lane_path, stop)
+    offset, reason = 1.2, "half a lane to its right (the map has no road edges)"
+    if index.has_road_edges:
+        k = min(int(stop / ROUTE_SPACING), len(lane_path) - 2)
+        d = lane_path[k + 1] - lane_path[k]
+        right = np.array([d[1], -d[0]]) / max(float(np.linalg.norm(d)), 1e-9)
+        probes = point[None] + np.arange(0.5, 8.01, 0.25)[:, None] * right[None]
+        near = index.distance_to_road_edge(probes, 1.0)
+        hit = np.flatnonzero(np.isfinite(near))
+        if hit.size:
+            kerb = 0.5 + 0.25 * int(hit[0])
+            offset = float(np.clip(kerb - 0.5 * agent.width - KERB_CLEARANCE, 0.8, 3.0))
+            reason = f"the kerb {kerb:.1f} m to its right"
+    arc = arc_lengths(lane_path)
+    begin = min(max(0.3 * stop, 3.0), stop)
+    shift = offset * np.clip((arc - begin) / max(stop - begin, 1.0), 0.0, 1.0)
+    tangent = np.gradient(lane_path, axis=0)
+    tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-9)
+    right = np.stack([tangent[:, 1], -tangent[:, 0]], -1)
+    return BehaviourTarget(
+        agent.track_id,
+        behaviour,
+        lane_path + shift[:, None] * right,
+        f"a stop {stop:.0f} m ahead, {reason}",
+        station_of_goal=float(stop),
+        speed=0.0,
+        current_speed=v,
+    )
+
+
+def _speed_change(ctx: _Context, agent: _Agent, behaviour: Behaviour) -> BehaviourTarget:
+    """The way ahead at 3 m/s more or less (slowing down keeps at least 35 % of the speed; it needs the agent to
+    move)."""
+    v = agent.here.speed
+    if behaviour is Behaviour.SLOW_DOWN and not ctx.moving(agent):
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", "it is (nearly) stopped at the current step")
+    speed = v + SPEED_CHANGE if behaviour is Behaviour.SPEED_UP else max(v - SPEED_CHANGE, 0.35 * v)
+    return BehaviourTarget(
+        agent.track_id, behaviour, ctx.ahead(agent), f"its way ahead at {speed:.1f} m/s", speed=speed,
+        current_speed=v,
+    )  # fmt: skip
+
+
+def _crossing(mine: np.ndarray, theirs: np.ndarray) -> tuple[int, float] | None:
+    """The index of the first point of path `mine` within `CROSSING_RADIUS` of path `theirs` at more than
+    `CROSSING_ANGLE` to it, and the other's distance along `theirs` to there; None when they do not cross."""
+    if len(mine) < 2 or len(theirs) < 2:
+        return None
+    gaps = np.linalg.norm(mine[:, None] - theirs[None], axis=-1)
+    hm = np.arctan2(*np.gradient(mine, axis=0).T[::-1])
+    ht = np.arctan2(*np.gradient(theirs, axis=0).T[::-1])
+    crossing = (gaps < CROSSING_RADIUS) & (np.abs(wrap_angle(hm[:, None] - ht[None, :])) > CROSSING_ANGLE)
+    rows = np.flatnonzero(crossing.any(axis=1))
+    if not rows.size:
+        return None
+    i = int(rows[0])
+    j = int(np.argmin(np.where(crossing[i], gaps[i], np.inf)))
+    return i, float(arc_lengths(theirs)[j])
+
+
+def _order(ctx: _Context, agent: _Agent, other: _Agent, behaviour: Behaviour) -> BehaviourTarget:
+    """Going first or yielding: the first point of the agent's ways ahead (`_Context.ways_ahead`) that a way of the
+    other agent crosses, and when the other gets there at its current speed: the agent's first way that any of the
+    other's crosses is taken, with its earliest crossing. Yielding is always possible (it can wait; without a
+    crossing its target slows it); going first is infeasible when a pedestrian or cyclist other is already within
+    3 m of the crossing (it is crossing) or gets there before the agent can even speeding up at
+    `GO_FIRST_ACCELERATION`, and undecided without a crossing."""
+    mine = ctx.ahead(agent)
+    conflict, eta, reason = None, None, f"no crossing of its way with @{other.track_id}'s ahead"
+    theirs = ctx.ways_ahead(other)
+    for path in ctx.ways_ahead(agent):
+        crossings = [c for c in (_crossing(path, t) for t in theirs) if c is not None]
+        if crossings:
+            i, distance = min(crossings)
+            mine, conflict = path, path[i]
+            eta = distance / max(other.here.speed, 1.0)
+            order = "before" if behaviour is Behaviour.GO_FIRST else "after"
+            reason = f"it passes the conflict point {arc_lengths(path)[i]:.0f} m ahead {order} @{other.track_id}"
+            break
+    station = None if conflict is None else float(project_on_polyline(conflict, mine).station)
+    target = BehaviourTarget(
+        agent.track_id,
+        behaviour,
+        mine,
+        reason,
+        station_of_goal=station,
+        other_id=other.track_id,
+        conflict=conflict,
+        other_eta=eta,
+        current_speed=agent.here.speed,
+        other_speed=other.here.speed,
+    )
+    if behaviour is Behaviour.GO_FIRST:
+        _check_going_first(agent, other, target)
+    return target
+
+
+def _check_going_first(agent: _Agent, other: _Agent, target: BehaviourTarget) -> None:
+    """Raise where the agent cannot get to the crossing first (see `_order`)."""
+    if target.conflict is None or target.station_of_goal is None or target.other_eta is None:
+        raise TargetUnavailable(agent.track_id, target.behaviour, "undecided", target.reason)
+    if other.kind != AgentType.VEHICLE and np.linalg.norm(other.xy - target.conflict) < 3.0:
+        reason = f"@{other.track_id} is already crossing its path"
+        raise TargetUnavailable(agent.track_id, target.behaviour, "infeasible", reason)
+    need = _time_to_cover(target.station_of_goal, target.current_speed)
+    if need + GO_FIRST_MARGIN_S >= target.other_eta:
+        reason = f"@{other.track_id} gets to the crossing in {target.other_eta:.1f} s; it needs {need:.1f} s"
+        raise TargetUnavailable(agent.track_id, target.behaviour, "infeasible", reason)
+
+
+def _time_to_cover(distance: float, speed: float) -> float:
+    """Seconds to cover `distance` m from `speed`, speeding up at `GO_FIRST_ACCELERATION` to the top speed."""
+    a, top = GO_FIRST_ACCELERATION, max(GO_FIRST_TOP_SPEED, speed)
+    ramp = (top - speed) / a
+    ramp_distance = speed * ramp + 0.5 * a * ramp**2
+    if distance <= ramp_distance:
+        return (-speed + math.sqrt(speed**2 + 2 * a * distance)) / a
+    return ramp + (distance - ramp_distance) / top

@@ -1,0 +1,65 @@
+"""Paths drawn along the lane graph for targets: a lane's centreline from a station, a route along given lanes
+continued by the straightest exits, and the line along an agent's heading off lanes (world frame, points every
+`ROUTE_SPACING` m; docs/interdrive.md, 'Targets and feasibility')."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from langtraj.angles import wrap_angle
+from langtraj.interdrive.mapindex import MapIndex
+from langtraj.polylines import arc_lengths, point_at, resample
+
+ROUTE_SPACING = 1.0
+"""Spacing of a target's path points (m)."""
+
+
+def lane_piece(index: MapIndex, lane: int, start: float = 0.0) -> np.ndarray:
+    """Lane `lane`'s centreline from `start` (m) to its end."""
+    points = np.asarray(index.lane_features[lane].points[:, :2], np.float64)
+    keep = arc_lengths(points) > start
+    head = point_at(points, start)[None]
+    return np.concatenate([head, points[keep]]) if keep.any() else head
+
+
+def join(pieces: list[np.ndarray]) -> np.ndarray:
+    """Pieces of centreline joined and resampled at `ROUTE_SPACING`."""
+    out = [p for p in pieces if len(p)]
+    return resample(np.concatenate(out), ROUTE_SPACING) if out else np.zeros((0, 2))
+
+
+def straightest_exit(index: MapIndex, lane: int) -> int | None:
+    """The exit of `lane` whose heading changes least (None at a dead end)."""
+    exits = index.exits[lane]
+    if not exits:
+        return None
+    end = index.heading_at(lane, float(index.lane_lengths[lane]))
+    return min(exits, key=lambda e: abs(float(wrap_angle(index.heading_at(e, 0.0) - end))))
+
+
+def route(index: MapIndex, lanes: list[int] | tuple[int, ...], start: float, length: float) -> np.ndarray:
+    """The centreline along `lanes` from `start` on the first, continued by the straightest exits until `length` m."""
+    pieces = [lane_piece(index, lanes[0], start)]
+    done = float(index.lane_lengths[lanes[0]]) - start
+    for lane in lanes[1:]:
+        pieces.append(lane_piece(index, lane))
+        done += float(index.lane_lengths[lane])
+    last, seen = lanes[-1], set(lanes)
+    while done < length:
+        nxt = straightest_exit(index, last) if index.has_connectivity else None
+        if nxt is None or nxt in seen:
+            break
+        pieces.append(lane_piece(index, nxt))
+        done += float(index.lane_lengths[nxt])
+        last = nxt
+        seen.add(nxt)
+    path = join(pieces)
+    return path[: int(length / ROUTE_SPACING) + 2]
+
+
+def straight_line(xy: np.ndarray, heading: float, length: float) -> np.ndarray:
+    """The line of `length` m from `xy` along `heading`, a point every `ROUTE_SPACING` m."""
+    forward = np.array([math.cos(heading), math.sin(heading)])
+    return xy[None] + np.arange(0.0, length, ROUTE_SPACING)[:, None] * forward[None]
