@@ -12,7 +12,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "langtraj"
 
 LAYERS = (
     ("errors",),
-    ("angles", "frames", "fileio", "registry", "settings"),
+    ("angles", "frames", "polylines", "fileio", "registry", "settings"),
     ("executors", "runs"),
     ("scenario",),
     ("rollouts", "viz", "synth", "interdrive"),

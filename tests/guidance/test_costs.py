@@ -85,6 +85,18 @@ def test_no_collision_covers_only_the_chosen_pairs_and_valid_agents():
     assert NoCollisionCost()(states, invalid).item() == pytest.approx(2 * 0.25 / 4, abs=1e-4)
 
 
+def test_no_collision_sums_the_pairs_with_the_sum_reduction_whatever_the_scenes_size():
+    # Agents 0 and 1 overlap (mean overlap 0.25 each way); the others stand far apart.
+    for count in (2, 5):
+        states = standing([[0.0, 0.0], [0.0, 1.5]] + [[100.0 * k, 50.0] for k in range(1, count - 1)])
+        scene = make_scene(count)
+        summed, grad = cost_gradient(NoCollisionCost(reduction="sum"), states, scene)
+        mean, mean_grad = cost_gradient(NoCollisionCost(), states, scene)
+        assert summed.item() == pytest.approx(2 * 0.25, abs=1e-4)  # the two ordered pairs, undivided
+        assert summed.item() == pytest.approx(mean.item() * count**2, rel=1e-6)
+        assert torch.allclose(grad, mean_grad * count**2, atol=1e-6)
+
+
 def _no_collision_by_hand(states, scene, slots, others, num_disks=5):
     """The paper's cost over every ordered pair and step, without the search's shortcuts."""
     size = scene.agent_size
@@ -189,6 +201,7 @@ def test_keep_lane_pulls_towards_the_nearest_lane_centre():
         (lambda: NoCollisionCost(others=[-3]), "others must be a non-negative agent slot"),
         (lambda: NoCollisionCost(num_disks=0), "num_disks must be an integer >= 1"),
         (lambda: NoCollisionCost(buffer=-1.0), "buffer must be finite and >= 0"),
+        (lambda: NoCollisionCost(reduction="max"), "reduction must be 'mean' or 'sum', got 'max'"),  # type: ignore[arg-type]
         (lambda: GoalCost(0, (1.0,)), "goal must be two finite numbers"),
         (lambda: GoalCost(0, (1.0, float("nan"))), "goal must be two finite numbers"),
         (lambda: GoalCost(0, (1.0, 2.0), step=-1), "step must be >= 0"),

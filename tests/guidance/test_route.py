@@ -3,12 +3,15 @@ steps on the costs move a trajectory toward the target's path, past a goal stati
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 import torch
 
 from langtraj.errors import InputError
 from langtraj.guidance import GuidanceTerm, NoCollisionCost, RouteCost, StationCost, TargetSpeedCost
+from langtraj.guidance.route import RoutePath
 from langtraj.guidance.steering import ClearOfOthersCost, Steering
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.targets import BehaviourTarget
@@ -76,12 +79,27 @@ def test_steering_terms_are_timed_from_the_start_of_the_simulation():
     assert isinstance(clear.cost, ClearOfOthersCost)  # every step toward a target keeps clear of the others
     later, _ = change.terms(elapsed=30, horizon=80)
     assert (later.cost.start, later.cost.end) == (9, 50)  # the same simulated steps, 3 s later
-    stop = _steering(Behaviour.STOP, station_of_goal=20.0, stop=True, speed=0.0)
+    stop = _steering(Behaviour.STOP, station_of_goal=20.0, speed=0.0)
     kinds = {type(t.cost) for t in stop.terms(elapsed=0, horizon=80)}
     assert kinds == {StationCost, TargetSpeedCost, RouteCost, ClearOfOthersCost}
     speed = next(t.cost for t in stop.terms(0, 80) if isinstance(t.cost, TargetSpeedCost))
     assert speed.speeds == (0.0,) and speed.start == 39  # even braking over 20 m from 10 m/s takes 4 s
     assert _steering(Behaviour.LANE_CHANGE_LEFT).terms(elapsed=80, horizon=80) == []  # nothing left to steer
+
+
+def test_a_steering_targets_path_is_built_once_and_moved_to_a_device_once_for_every_replan():
+    stop = _steering(Behaviour.STOP, station_of_goal=20.0, speed=0.0)
+    first, later = stop.terms(elapsed=0, horizon=80), stop.terms(elapsed=30, horizon=80)
+    routes = [t.cost for t in first + later if isinstance(t.cost, RouteCost | StationCost)]
+    assert len(routes) == 4 and all(cost.route is stop.route for cost in routes)  # one path, new windows
+    states = _driving(steps=80, speed=0.5, y=1.0)
+    scene = make_scene(1)
+    assert stop.route.like(states) is stop.route.like(states)  # copied to the states' device and dtype once
+    for cost in routes:  # the same values as the cost on a path of its own
+        fresh = copy.copy(cost)
+        fresh.route = RoutePath(stop.target.path)
+        assert torch.equal(cost(states, scene), fresh(states, scene))
+        assert torch.equal(cost(states.double(), scene), fresh(states.double(), scene))
 
 
 def test_keeping_clear_of_others_is_an_agents_total_overlap_whatever_the_scenes_size():

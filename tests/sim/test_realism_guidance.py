@@ -16,7 +16,8 @@ def test_the_realism_guidance_applies_at_the_last_guided_steps(tiny_run):
     on_road, no_collision = LangTrajPolicy(model, data, steps=5, guided_steps=2, free=[2]).realism_terms(4)
     assert isinstance(on_road.cost, OnRoadCost) and isinstance(no_collision.cost, NoCollisionCost)
     assert on_road.schedule == FinalSteps(2, 5) == no_collision.schedule
-    assert no_collision.cost.slots == (0, 1, 3) and no_collision.weight == 9.0  # 1 per pair x 3 agents squared
+    assert no_collision.cost.slots == (0, 1, 3) and no_collision.weight == 1.0  # 1 per overlapping pair ...
+    assert no_collision.cost.reduction == "sum"  # ... summed, not divided by 3 agents squared
     assert all(t.schedule == "all" for t in LangTrajPolicy(model, data, steps=5, guided_steps=5).realism_terms(4))
     # The default never asks for more steps than the sampler takes.
     assert LangTrajPolicy(model, data, steps=1).guided_steps == 1

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
+from typing import Literal
 
 import torch
 from torch import Tensor
@@ -88,10 +89,14 @@ class NoCollisionCost(GuidanceCost):
     Each agent is `num_disks` disks of radius width / 2 spread along its length. For a pair (i, j) at a
     step, d is the least distance between their disk centres and J_pair = 1 - d / (r_i + r_j + buffer)
     when positive. Pairs are (i in `slots`, j in `others`), i != j, both valid (None: all valid agents);
-    the cost is (1/N^2) sum over pairs of sum_t J_pair / max(1, overlapping steps), N the number of
-    agents involved. The paper prints max(1, sum_t J_pair), which read literally costs every pair at
-    least 1 and has no gradient below 1; we read the max(1, .) as the usual safe divisor, which keeps
-    each pair's cost in [0, 1] (its mean overlap) and zero without overlap.
+    a pair costs sum_t J_pair / max(1, overlapping steps). The paper prints max(1, sum_t J_pair), which
+    read literally costs every pair at least 1 and has no gradient below 1; we read the max(1, .) as the
+    usual safe divisor, which keeps each pair's cost in [0, 1] (its mean overlap) and zero without overlap.
+
+    `reduction` says how the pairs' costs add up: "mean" (the paper's) divides their sum by N^2, N the
+    number of valid agents involved, so the cost of one overlapping pair shrinks as the scene grows; "sum"
+    does not divide, so a weight is a weight per overlapping pair whatever the scene's size (what the
+    simulation's realism guidance and a prompted agent's keep-clear term use).
     """
 
     name = "no_collision"
@@ -104,6 +109,7 @@ class NoCollisionCost(GuidanceCost):
         others: int | Iterable[int] | None = None,
         num_disks: int = 5,
         buffer: float = 0.0,
+        reduction: Literal["mean", "sum"] = "mean",
     ):
         self.slots = as_slots(self.name, slots)
         self.others = as_slots(self.name, others, "others")
@@ -111,6 +117,9 @@ class NoCollisionCost(GuidanceCost):
             raise InputError(f"{self.name}: num_disks must be an integer >= 1, got {num_disks!r}")
         self.num_disks = num_disks
         self.buffer = _finite(self.name, buffer, "buffer")
+        if reduction not in ("mean", "sum"):
+            raise InputError(f"{self.name}: reduction must be 'mean' or 'sum', got {reduction!r}")
+        self.reduction = reduction
 
     def __call__(self, states: Tensor, scene: GuidanceScene) -> Tensor:
         steered = self.steered(states, scene)
@@ -124,7 +133,6 @@ class NoCollisionCost(GuidanceCost):
         pairs = steered[:, None] & others[None, :] & ~torch.eye(num_agents, dtype=torch.bool, device=states.device)
         if not pairs.any():
             return _zero(states)
-        involved = int((steered | others).sum())
         layout = DiskLayout.of(scene, self.num_disks, states)
         # J_pair is symmetric: each unordered pair is computed once and counted as often as it is asked for.
         unordered = (pairs | pairs.T).triu(diagonal=1)
@@ -167,7 +175,10 @@ class NoCollisionCost(GuidanceCost):
         total = states.new_zeros(num_samples * num_pairs).index_add(0, row, penalty)
         overlapping = states.new_zeros(num_samples * num_pairs).index_add(0, row, (penalty.detach() > 0).to(states))
         per_pair = (total / overlapping.clamp(min=1.0)).view(num_samples, num_pairs)
-        return (per_pair * multiplicity).sum(-1) / involved**2
+        summed = (per_pair * multiplicity).sum(-1)
+        if self.reduction == "sum":
+            return summed
+        return summed / int((steered | others).sum()) ** 2  # N: the valid agents involved
 
 
 @GUIDANCE.register

@@ -1,4 +1,5 @@
-"""Nearest points on line segments, differentiable in the query points, for the map costs.
+"""Nearest points on line segments, differentiable in the query points, for the map and route costs (the torch
+counterpart of `langtraj.polylines`).
 
 The nearest segment is searched without autograd (an STR-tree over the segments where the points x
 segments table is large); the distance to the chosen segment is then recomputed with autograd, so the
@@ -62,3 +63,15 @@ def offset_to_segments(points: Tensor, start: Tensor, end: Tensor) -> tuple[Tens
     index = nearest_segment(points, start, end)
     closest = closest_on_segments(points, start[index], end[index])
     return points - closest, index
+
+
+def offset_and_station(points: Tensor, start: Tensor, end: Tensor, arc: Tensor) -> tuple[Tensor, Tensor]:
+    """For each of `points` [..., 2]: the vector [..., 2] from its nearest segment (among start, end [K, 2] of one
+    polyline, K > 0) to it, and its station [...]: `arc[k]` (the station of segment k's start, [K]) plus its
+    projection on the line of that segment, not clamped (beyond the polyline's ends it keeps counting);
+    differentiable in `points`."""
+    index = nearest_segment(points, start, end)
+    closest = closest_on_segments(points, start[index], end[index])
+    direction = end[index] - start[index]
+    along = ((points - start[index]) * direction).sum(-1) / direction.norm(dim=-1).clamp(min=1e-9)
+    return points - closest, arc[index] + along

@@ -30,6 +30,7 @@ from scipy.spatial import cKDTree
 from torch import Tensor
 
 from langtraj.errors import InputError
+from langtraj.polylines import project_on_segments
 
 RESOLUTION = 0.5
 """Grid spacing in metres."""
@@ -189,21 +190,12 @@ def polyline_neighbours(start: np.ndarray, end: np.ndarray) -> np.ndarray:
 
 def signed_distance(points: np.ndarray, start: np.ndarray, end: np.ndarray, options: np.ndarray) -> np.ndarray:
     """Signed distance of points [n, 2] to the nearest of their candidate segments `options` (long [n, c]
-    into start, end [K, 2]): negative on the segment's left (the road side), as `OnRoadCost`."""
+    into start, end [K, 2]): negative on the segment's left (the road side), as `OnRoadCost`; a point on the
+    line of its segment (beyond an end) counts as off the road."""
     if len(points) == 0:
         return np.zeros(0)
-    a, b = start[options], end[options]  # [n, c, 2]
-    direction = b - a
-    relative = points[:, None] - a
-    along = np.clip((relative * direction).sum(-1) / np.maximum((direction**2).sum(-1), 1e-12), 0.0, 1.0)
-    distance = np.linalg.norm(relative - along[..., None] * direction, axis=-1)
-    pick = distance.argmin(-1)
+    found = project_on_segments(points[:, None], start[options], end[options])  # [n, c]
+    pick = found.distance.argmin(-1)
     rows = np.arange(len(points))
-    left = _left_of(points, a[rows, pick], b[rows, pick])
-    return np.where(left, -distance[rows, pick], distance[rows, pick])
-
-
-def _left_of(points: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
-    """bool [n]: whether points [n, 2] lie left of the lines through start -> end [n, 2] (the road side)."""
-    d, rel = end - start, points - start
-    return d[:, 0] * rel[:, 1] - d[:, 1] * rel[:, 0] > 0
+    distance = found.distance[rows, pick]
+    return np.where(found.side[rows, pick] > 0, -distance, distance)

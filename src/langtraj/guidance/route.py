@@ -19,7 +19,7 @@ from torch import Tensor
 
 from langtraj.errors import InputError
 from langtraj.guidance.base import GUIDANCE, GuidanceCost, as_slot, check_slots, check_states, window
-from langtraj.guidance.geometry import closest_on_segments, nearest_segment
+from langtraj.guidance.geometry import offset_and_station
 from langtraj.guidance.scene import GuidanceScene
 
 _EPS = 1e-6
@@ -32,16 +32,42 @@ def _path(cost: str, points: Sequence[Sequence[float]] | Tensor) -> Tensor:
     return path
 
 
+class RoutePath:
+    """A route's polyline (float32 points [P, 2], P >= 2, scene frame) and the station [P] of each point, built
+    once (per steering target: `guidance.steering.Steering.route`) and copied to a device and dtype once, so
+    the costs built on it at every replan only set their step windows."""
+
+    def __init__(self, points: Sequence[Sequence[float]] | Tensor, *, cost: str = "route"):
+        self.points = _path(cost, points)
+        lengths = (self.points[1:] - self.points[:-1]).norm(dim=-1)
+        self.arc = torch.cat([lengths.new_zeros(1), lengths.cumsum(0)])
+        self._copies: dict[tuple[torch.device, torch.dtype], tuple[Tensor, Tensor, Tensor]] = {}
+
+    def like(self, xy: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """Segment starts, ends [P - 1, 2] and the stations of the starts [P - 1] on `xy`'s device and in its
+        dtype (copied there on first use)."""
+        key = (xy.device, xy.dtype)
+        if key not in self._copies:
+            points = self.points.to(xy)
+            self._copies[key] = (points[:-1], points[1:], self.arc.to(xy)[:-1])
+        return self._copies[key]
+
+
 class _RouteCost(GuidanceCost):
     """What both route costs share: one steered slot, a path and a window of steps [start, end)."""
 
-    def __init__(self, slot: int, path: Sequence[Sequence[float]] | Tensor, *, start: int = 0, end: int | None = None):
+    def __init__(
+        self,
+        slot: int,
+        path: Sequence[Sequence[float]] | Tensor | RoutePath,
+        *,
+        start: int = 0,
+        end: int | None = None,
+    ):
         self.slot = as_slot(self.name, slot)
         self.slots = (self.slot,)
-        self.path = _path(self.name, path)
+        self.route = path if isinstance(path, RoutePath) else RoutePath(path, cost=self.name)
         self.start, self.end = window(self.name, start, end)
-        lengths = (self.path[1:] - self.path[:-1]).norm(dim=-1)
-        self.arc = torch.cat([lengths.new_zeros(1), lengths.cumsum(0)])
 
     def __call__(self, states: Tensor, scene: GuidanceScene) -> Tensor:
         check_states(self.name, states, scene)
@@ -55,14 +81,8 @@ class _RouteCost(GuidanceCost):
         """The cost [S] of the slot's positions [S, W, 2] in the window."""
 
     def _offset_and_station(self, xy: Tensor) -> tuple[Tensor, Tensor]:
-        """Offset vectors [..., 2] from the path and arc length [...] along it of points `xy` [..., 2]."""
-        path = self.path.to(xy)
-        start, end = path[:-1], path[1:]
-        index = nearest_segment(xy, start, end)
-        closest = closest_on_segments(xy, start[index], end[index])
-        direction = end[index] - start[index]
-        along = ((xy - start[index]) * direction).sum(-1) / direction.norm(dim=-1).clamp(min=1e-9)
-        return xy - closest, self.arc.to(xy)[index] + along
+        """Offset vectors [..., 2] from the path and station [...] along it of points `xy` [..., 2]."""
+        return offset_and_station(xy, *self.route.like(xy))
 
 
 @GUIDANCE.register
@@ -76,7 +96,7 @@ class RouteCost(_RouteCost):
     def __init__(
         self,
         slot: int,
-        path: Sequence[Sequence[float]] | Tensor,
+        path: Sequence[Sequence[float]] | Tensor | RoutePath,
         *,
         start: int = 0,
         end: int | None = None,
@@ -105,7 +125,7 @@ class StationCost(_RouteCost):
     def __init__(
         self,
         slot: int,
-        path: Sequence[Sequence[float]] | Tensor,
+        path: Sequence[Sequence[float]] | Tensor | RoutePath,
         station: float,
         *,
         mode: Literal["reach", "hold"] = "reach",

@@ -14,6 +14,7 @@ See docs/simulation.md ('Prompts that steer').
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -21,7 +22,7 @@ from langtraj.frames import Origin, points_to_frame
 from langtraj.guidance.base import GuidanceTerm
 from langtraj.guidance.costs import NoCollisionCost, TargetSpeedCost
 from langtraj.guidance.library import AVOID_WEIGHT, SPEED_WEIGHT
-from langtraj.guidance.route import RouteCost, StationCost
+from langtraj.guidance.route import RouteCost, RoutePath, StationCost
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.targets import BehaviourTarget
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS
@@ -34,17 +35,13 @@ CLEAR_BUFFER = 0.5  # m kept beyond touching
 
 
 class ClearOfOthersCost(NoCollisionCost):
-    """`NoCollisionCost` of one agent against every other, summed over the pairs (not divided by the square of
+    """`NoCollisionCost` of one agent against every other with the "sum" reduction (not divided by the square of
     the agents involved): the agent's total disk overlap, whatever the scene's size."""
 
     name = "clear_of_others"
 
     def __init__(self, slot: int, *, buffer: float = 0.0):
-        super().__init__(slot, buffer=buffer)
-
-    def __call__(self, states, scene):  # type: ignore[no-untyped-def]
-        involved = int(scene.agent_valid.sum())
-        return super().__call__(states, scene) * involved**2
+        super().__init__(slot, buffer=buffer, reduction="sum")
 
 
 @dataclass(frozen=True)
@@ -65,6 +62,11 @@ class Steering:
         )
         other = None if target.other_id is None else slots.get(target.other_id)
         return cls(moved, slots[target.track_id], other)
+
+    @cached_property
+    def route(self) -> RoutePath:
+        """The target's path as the route costs take it, built once for every replan's terms."""
+        return RoutePath(self.target.path)
 
     def terms(self, elapsed: int, horizon: int) -> list[GuidanceTerm]:
         """The terms for a plan of `horizon` steps made after `elapsed` simulated steps: toward the target, and
@@ -93,14 +95,14 @@ def _route(s: Steering, clock: _Clock, first: int = 1, last: int = FUTURE_STEPS,
     span = clock.window(first, last)
     if span is None or len(s.target.path) < 2:
         return []
-    return [GuidanceTerm(RouteCost(s.slot, s.target.path, start=span[0], end=span[1]), weight)]
+    return [GuidanceTerm(RouteCost(s.slot, s.route, start=span[0], end=span[1]), weight)]
 
 
 def _station(s: Steering, clock: _Clock, station: float, mode: str, first: int, last: int, weight: float) -> list:
     span = clock.window(first, last)
     if span is None or len(s.target.path) < 2:
         return []
-    cost = StationCost(s.slot, s.target.path, station, mode=mode, start=span[0], end=span[1])  # type: ignore[arg-type]
+    cost = StationCost(s.slot, s.route, station, mode=mode, start=span[0], end=span[1])  # type: ignore[arg-type]
     return [GuidanceTerm(cost, weight)]
 
 

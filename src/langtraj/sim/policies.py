@@ -415,17 +415,17 @@ class LangTrajPolicy(Policy):
 
     def realism_terms(self, num_driven: int) -> tuple[GuidanceTerm, ...]:
         """The default guidance on every driven agent: on-road, and no-collision between every pair except
-        the agents in `free` (an adversary and its target). The paper's no-collision cost divides by the
-        square of the agents involved, so its weight is `no_collision` x that square: a fixed weight per
-        pair, whatever the scene's size. Both apply at the last `guided_steps` denoising steps."""
+        the agents in `free` (an adversary and its target). The no-collision cost sums its pairs (its "sum"
+        reduction, not the paper's mean over the square of the agents involved), so `no_collision` is a fixed
+        weight per pair, whatever the scene's size. Both apply at the last `guided_steps` denoising steps."""
         when = "all" if self.guided_steps == self.steps else FinalSteps(self.guided_steps, self.steps)
         terms = []
         if self.on_road > 0:
             terms.append(GuidanceTerm(OnRoadCost(), self.on_road, when))
         kept = [slot for slot in range(num_driven) if slot not in self.free]
         if self.no_collision > 0 and len(kept) > 1:
-            cost = NoCollisionCost(kept, others=kept)
-            terms.append(GuidanceTerm(cost, self.no_collision * len(kept) ** 2, when))
+            cost = NoCollisionCost(kept, others=kept, reduction="sum")
+            terms.append(GuidanceTerm(cost, self.no_collision, when))
         return tuple(terms)
 
     def report(self, world: SimWorld, state: LangTrajRun) -> dict[str, Any]:

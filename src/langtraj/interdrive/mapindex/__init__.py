@@ -23,7 +23,8 @@ Modules: `segments` (`SegmentSet`, the grid of short segments), `records` (`Lane
 
 from langtraj.interdrive.mapindex.index import MapIndex
 from langtraj.interdrive.mapindex.records import LaneChange, LaneMatch
-from langtraj.interdrive.mapindex.segments import SEGMENT_SPACING_M, SegmentSet, arc_lengths
+from langtraj.interdrive.mapindex.segments import SEGMENT_SPACING_M, SegmentSet
+from langtraj.polylines import arc_lengths  # re-exported for the modules that still import it from here
 
 __all__ = [
     "SEGMENT_SPACING_M",

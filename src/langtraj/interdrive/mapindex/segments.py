@@ -8,31 +8,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from langtraj.polylines import arc_lengths, project_on_segments, resample
+
 SEGMENT_SPACING_M = 1.0
 """Longest segment after resampling lane and edge polylines (m)."""
 
 GRID_CELL_M = 3.0
 """Side of a grid cell of the segment index (m)."""
-
-
-def _resample(points: np.ndarray, spacing: float) -> np.ndarray:
-    """A 2-D polyline resampled at equal steps of at most `spacing`; duplicates dropped; [0, 2] if degenerate."""
-    xy = points[:, :2]
-    if len(xy) >= 2:
-        keep = np.concatenate([[True], np.linalg.norm(np.diff(xy, axis=0), axis=1) > 1e-6])
-        xy = xy[keep]
-    if len(xy) < 2:
-        return np.zeros((0, 2))
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
-    num = max(1, math.ceil(s[-1] / spacing))
-    s_new = np.linspace(0.0, s[-1], num + 1)
-    return np.stack([np.interp(s_new, s, xy[:, 0]), np.interp(s_new, s, xy[:, 1])], axis=1)
-
-
-def arc_lengths(points: np.ndarray) -> np.ndarray:
-    """Arc length at each point of a polyline."""
-    steps = np.linalg.norm(np.diff(points[:, :2], axis=0), axis=1)
-    return np.concatenate([[0.0], np.cumsum(steps)])
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,7 +41,7 @@ class SegmentSet:
         stop = np.zeros(len(polylines), np.int64)
         count = 0
         for i, line in enumerate(polylines):
-            pts = _resample(line, spacing)
+            pts = resample(line, spacing)
             first[i] = count
             if len(pts) >= 2:
                 starts.append(pts[:-1])
@@ -118,14 +100,8 @@ class SegmentSet:
 
     def project(self, xy: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Distance, signed lateral offset (left of the segment positive) and station of each point on its segment."""
-        a, b = self.start[segments], self.end[segments]
-        d = b - a
-        length = np.maximum(np.linalg.norm(d, axis=1), 1e-9)
-        rel = xy - a
-        t = np.clip((rel * d).sum(axis=1) / length**2, 0.0, 1.0)
-        dist = np.linalg.norm(rel - t[:, None] * d, axis=1)
-        side = np.where(d[:, 0] * rel[:, 1] - d[:, 1] * rel[:, 0] >= 0, 1.0, -1.0)
-        return dist, side * dist, self.station[segments] + t * length
+        found = project_on_segments(xy, self.start[segments], self.end[segments], self.station[segments])
+        return found.distance, found.offset, found.station
 
     def segments_of(self, owner: int) -> np.ndarray:
         """Segment indices of polyline `owner`."""
