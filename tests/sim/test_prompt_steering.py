@@ -1,7 +1,10 @@
-"""What a typed prompt steers (`sim.prompts.prompt_steering`): the behaviour read, its target as guidance, the
-candidate judge's ask, and one line per prompt saying so; each lever can be switched off."""
+"""What a typed prompt steers (`sim.prompts.prompt_steering`, from its one reading `read_prompts`): the behaviour
+read, its target as guidance, the candidate judge's ask, and one line per prompt saying so; each lever can be switched
+off."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -12,9 +15,16 @@ from interdrive.test_mapindex import line
 from langtraj.errors import InputError
 from langtraj.guidance import RouteCost
 from langtraj.interdrive.behaviour import Behaviour
+from langtraj.interdrive.dataset import PromptEntry
+from langtraj.interdrive.prompts import parse_user_prompt
+from langtraj.model.checkpoint import load_model
 from langtraj.scenario import AgentType
+from langtraj.sim import prompts
+from langtraj.sim.checkpoints import shipped_checkpoint
 from langtraj.sim.config import ALL_LEVERS, PromptLevers
-from langtraj.sim.prompts import prompt_steering
+from langtraj.sim.policies import GUIDANCE_ONLY, GuidanceBaselinePolicy
+from langtraj.sim.prompts import prompt_steering, read_prompts
+from langtraj.sim.world import SimWorld
 
 ORIGIN = (0.0, 0.0, 0.0)
 
@@ -27,7 +37,7 @@ def _crossing_scene():
 def test_a_read_prompt_steers_by_its_target_and_is_judged_by_selection():
     s = _crossing_scene()
     rows = np.arange(3)
-    steering = prompt_steering(s, ["@2, take the next right"], rows, ORIGIN, ALL_LEVERS)
+    steering = prompt_steering(s, read_prompts(["@2, take the next right"]), rows, ORIGIN, ALL_LEVERS)
     (reading,) = steering.readings
     assert reading.behaviour is Behaviour.TURN_RIGHT and reading.agent == 2
     (steer,) = steering.steerings
@@ -41,21 +51,22 @@ def test_a_read_prompt_steers_by_its_target_and_is_judged_by_selection():
 
 def test_a_yield_also_steers_the_other_agent_through_first():
     s = _crossing_scene()
-    steering = prompt_steering(s, ["@1 yields to @3"], np.arange(3), ORIGIN, ALL_LEVERS)
+    steering = prompt_steering(s, read_prompts(["@1 yields to @3"]), np.arange(3), ORIGIN, ALL_LEVERS)
     assert [x.target.behaviour for x in steering.steerings] == [Behaviour.YIELD, Behaviour.GO_FIRST]
     assert [x.slot for x in steering.steerings] == [0, 2]
     assert "@3 toward it passes the conflict point" in steering.notes[0]
-    undriven = prompt_steering(s, ["@1 yields to @3"], np.arange(2), ORIGIN, ALL_LEVERS)  # @3 is not driven
+    undriven = prompt_steering(s, read_prompts(["@1 yields to @3"]), np.arange(2), ORIGIN, ALL_LEVERS)  # @3: undriven
     assert [x.slot for x in undriven.steerings] == [0]
     assert "@3 unsteered (the model does not drive it)" in undriven.notes[0]
 
 
 def test_unread_prompts_and_missing_targets_say_what_steers_them():
     s = _crossing_scene()
-    unread = prompt_steering(s, ["@1 does a little dance"], np.arange(3), ORIGIN, ALL_LEVERS)
+    unread = prompt_steering(s, read_prompts(["@1 does a little dance"]), np.arange(3), ORIGIN, ALL_LEVERS)
     assert not unread.steerings and not unread.asks
     assert unread.notes[0].startswith("not read:") and "it steers by its text alone" in unread.notes[0]
-    no_target = prompt_steering(s, ["@2 turns left at the next intersection"], np.arange(3), ORIGIN, ALL_LEVERS)
+    left = read_prompts(["@2 turns left at the next intersection"])
+    no_target = prompt_steering(s, left, np.arange(3), ORIGIN, ALL_LEVERS)
     assert not no_target.steerings and len(no_target.asks) == 1  # the judge still asks; the map gives no target
     assert any("no target: @2 cannot turn left" in n for n in no_target.notes)
 
@@ -65,11 +76,61 @@ def test_unread_prompts_and_missing_targets_say_what_steers_them():
     [(PromptLevers(guidance=False), 0, 1), (PromptLevers(selection=False), 1, 0), (PromptLevers(text=False), 1, 1)],
 )
 def test_each_lever_can_be_switched_off(levers, guided, judged):
-    steering = prompt_steering(_crossing_scene(), ["@2 stops"], np.arange(3), ORIGIN, levers)
+    steering = prompt_steering(_crossing_scene(), read_prompts(["@2 stops"]), np.arange(3), ORIGIN, levers)
     assert (len(steering.steerings), len(steering.asks)) == (guided, judged)
     assert ("text" in steering.notes[0]) is levers.text
 
 
 def test_a_prompt_about_an_agent_the_model_does_not_drive_is_refused():
     with pytest.raises(InputError, match="@3 is not among the agents the model drives"):
-        prompt_steering(_crossing_scene(), ["@3 stops"], np.arange(2), ORIGIN, ALL_LEVERS)
+        prompt_steering(_crossing_scene(), read_prompts(["@3 stops"]), np.arange(2), ORIGIN, ALL_LEVERS)
+
+
+def test_the_warnings_come_from_the_same_reading():
+    no_target = prompt_steering(_crossing_scene(), read_prompts(["@2 turns left"]), np.arange(3), ORIGIN, ALL_LEVERS)
+    assert [w.split(":")[0] for w in no_target.warnings] == ["@2 cannot turn left"]
+    assert not prompt_steering(_crossing_scene(), read_prompts(["@2 stops"]), np.arange(3), ORIGIN, ALL_LEVERS).warnings
+
+
+@pytest.fixture(scope="module")
+def loaded():
+    return load_model(shipped_checkpoint())
+
+
+def _typed(text: str) -> PromptEntry:
+    return PromptEntry.of(parse_user_prompt(text, [1, 2, 3]))
+
+
+def _baseline_state(policy, s):
+    world = SimWorld(s, policy.drives(s, np.arange(3)), 1)
+    return policy.reset(world, 0)
+
+
+def test_the_guidance_baseline_reads_a_typed_prompt_once_and_takes_no_other_levers(loaded, monkeypatch):
+    model, data = loaded
+    typed = _typed("@2 stops")
+    for levers in (ALL_LEVERS, PromptLevers(guidance=False)):
+        with pytest.raises(InputError, match=r"levers.*takes no other levers"):
+            GuidanceBaselinePolicy(model, data, prompt=typed, levers=levers)
+    read = prompts.read_prompt
+    texts: list[str] = []
+    monkeypatch.setattr(prompts, "read_prompt", lambda text: texts.append(text) or read(text))
+    policy = GuidanceBaselinePolicy(model, data, prompt=typed, levers=GUIDANCE_ONLY)
+    state = _baseline_state(policy, _crossing_scene())
+    assert texts == ["@2 stops"]  # read once: the refusal check, the steering and the warnings take that reading
+    assert [s.slot for s in state.prompt.steering.steerings] == [1]
+    assert policy.describe()["prompt_read_as"] == {"behaviour": "stop", "subtype": None, "labels": ["static"]}
+
+
+def test_the_guidance_baseline_falls_back_to_the_label_library_for_a_labelled_prompt_only(loaded):
+    model, data = loaded
+    unread = _typed("@2 does a little dance")
+    with pytest.raises(InputError, match="needs a prompt whose behaviour it can read"):
+        GuidanceBaselinePolicy(model, data, prompt=unread)
+    labelled = GuidanceBaselinePolicy(model, data, prompt=replace(unread, labels=("slowing_down",)))
+    realism = labelled.realism_terms(3)
+    state = _baseline_state(labelled, _crossing_scene())
+    assert not state.prompt.steering.steerings and len(state.terms) > len(realism)  # the library's terms steer
+    no_target = GuidanceBaselinePolicy(model, data, prompt=_typed("@2 turns left"))
+    state = _baseline_state(no_target, _crossing_scene())
+    assert not state.prompt.steering.steerings and len(state.terms) == len(realism)  # typed: its reading alone

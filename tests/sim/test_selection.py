@@ -1,5 +1,6 @@
 """Candidate selectors on constructed candidates: the joint choice, and each agent's own choice."""
 
+import pytest
 import torch
 
 from langtraj.guidance import GuidanceScene
@@ -100,15 +101,52 @@ def test_per_agent_chooses_as_scoring_every_assembled_trial_scene_would():
         assert torch.equal(selector.select(states, scene.with_road_field(), ()), expected)
 
 
-def test_a_prompted_agents_adhering_candidate_comes_first_then_road_and_collisions():
-    # Agent 0's candidate 1 follows its prompt (first = 0) but runs nearer the road edge; candidate 0 does not.
-    # Agent 1 is not prompted (first = 0 for both) and keeps the road-and-collision choice.
+def _prompted_case() -> tuple[torch.Tensor, torch.Tensor]:
+    """Candidates [M=2, R=1, A=2, T, 4] and their `first` [M, R, A]: agent 0's candidate 1 follows its prompt
+    (first = 0) but runs nearer the road edge; its candidate 0 does not (first = 1). Agent 1 is not prompted."""
     a_keep, a_follow = _track(0.0, 0.0), _track(0.0, 3.5)
     b_on, b_edge = _track(30.0, 0.0), _track(30.0, 4.5)
     states = torch.stack([torch.stack([a_keep, b_on]), torch.stack([a_follow, b_edge])])[:, None]
-    first = torch.tensor([[[1.0, 0.0]], [[0.0, 0.0]]])  # [M, R, A]
+    return states, torch.tensor([[[1.0, 0.0]], [[0.0, 0.0]]])
+
+
+def _per_agent_choice(choice: torch.Tensor, num_agents: int) -> list[list[int]]:
+    """A selector's choice ([R] joint or [R, A] per agent) as each rollout's candidate per agent."""
+    return (choice[:, None].expand(-1, num_agents) if choice.dim() == 1 else choice).tolist()
+
+
+def test_a_prompted_agents_adhering_candidate_comes_first_then_road_and_collisions():
+    # Agent 1 is not prompted (first = 0 for both) and keeps the road-and-collision choice.
+    states, first = _prompted_case()
     scene = _scene()
     assert SELECTORS.create("per_agent").select(states, scene, ()).tolist() == [[0, 0]]
     assert SELECTORS.create("per_agent").select(states, scene, (), first).tolist() == [[1, 0]]
-    for joint in ("min_collision", "min_collision_offroad", "min_guidance"):  # a joint choice follows it too
-        assert SELECTORS.create(joint).select(states, scene, (), first).tolist() == [1]
+
+
+@pytest.mark.parametrize("name", SELECTORS.names())
+def test_every_selector_takes_the_adhering_candidate_of_a_prompted_agent(name):
+    states, first = _prompted_case()
+    choice = SELECTORS.create(name).select(states, _scene(), (), first)
+    assert _per_agent_choice(choice, 2)[0][0] == 1
+
+
+@pytest.mark.parametrize("name", SELECTORS.names())
+def test_every_selector_chooses_as_without_first_when_no_agent_is_prompted(name):
+    from guidance.helpers import crowd
+
+    states, scene = crowd(5, 4, 3, 20, seed=1)
+    selector = SELECTORS.create(name)
+    alone = selector.select(states, scene, ())
+    assert torch.equal(selector.select(states, scene, (), torch.zeros(states.shape[:3])), alone)
+
+
+def test_first_takes_the_least_missing_candidate_and_candidate_0_among_equals():
+    states = torch.stack([_track(0.0, 0.0)[None, None].expand(1, 2, STEPS, 4)] * 3)  # [M=3, R=1, A=2, T, 4]
+    scene = _scene()
+    first = SELECTORS.create("first")
+    assert first.select(states, scene, ()).tolist() == [0]
+    misses = torch.tensor([[[1.0, 0.0]], [[0.5, 0.25]], [[0.0, 0.5]]])  # sums 1, 0.75, 0.5: candidate 2
+    assert first.select(states, scene, (), misses).tolist() == [2]
+    equal = torch.tensor([[[1.0, 0.0]], [[0.0, 0.0]], [[0.0, 0.0]]])  # candidates 1 and 2 miss nothing
+    assert first.select(states, scene, (), equal).tolist() == [1]
+    assert first.select(states, scene, (), torch.zeros(3, 1, 2)).tolist() == [0]

@@ -160,6 +160,34 @@ def test_a_killed_build_resumes_with_the_chunks_not_yet_done(labels_dir, monkeyp
         build_store(jobs, out, say=_quiet)
 
 
+def test_a_resumed_build_rebuilds_a_chunk_whose_windows_changed_under_the_same_first_id(labels_dir, monkeypatch):
+    jobs = labelled_jobs(labels_dir, SMALL)
+    out = labels_dir / "store"
+    real = store_module._build_chunk
+
+    def dies_on_the_second(job, partial):
+        if job.number == 1:
+            raise KeyboardInterrupt
+        return real(job, partial)
+
+    monkeypatch.setattr(store_module, "_build_chunk", dies_on_the_second)
+    with pytest.raises(KeyboardInterrupt):
+        build_store(jobs, out, say=_quiet)
+    assert (out.with_name("store.partial") / "chunk-00000").is_dir()
+    # The labels rebuilt since: chunk 0 holds the same first window and as many, but others after it.
+    first, *rest = jobs[0].records
+    others = jobs[1].records[: len(rest)]
+    changed = [replace(jobs[0], records=(first, *others)), *jobs[1:]]
+    monkeypatch.setattr(store_module, "_build_chunk", real)
+    said: list[str] = []
+    store = build_store(changed, out, say=said.append)
+    assert not any("resuming" in line for line in said)  # the chunk on disk is of other windows: built anew
+    assert [r.record.scenario_id for r in store.rows[: len(rest) + 1]] == [x.scenario_id for x in (first, *others)]
+    fresh = build_store(changed, labels_dir / "fresh", say=_quiet)
+    for row in range(len(store)):
+        _same(store.sample(row), fresh.sample(row))
+
+
 def test_stage_one_stores_every_window_of_scenario_files_without_labels(tmp_path):
     decision = BehaviorEvent("decision", 7, 40, 60, -1, {"executed": True, "decision_step": 40, "decision": "turn"})
     scenes = [make_scenario(5, scenario_id=f"s{n}", seed=n) for n in range(3)]

@@ -4,13 +4,13 @@
 Closed-loop simulation of one scene. DIR receives `rollouts.npz` (for `langtraj evaluate` and the
 WOSAC submission writer), `rollout0.mp4` (rollout 0, prompted agents highlighted, the prompt as caption,
 the target of each prompt marked on the map) and `summary.json` (per-agent collision, offroad and distance
-travelled; timing). Without `--checkpoint`
-the checkpoint shipped with LangTraj is used. Every input is checked before anything is written; a prompt
-asking for a turn or lane change the map does not allow is warned about on stderr (and in the summary's
-`prompt_warnings`) and simulated as typed. A prompt steers by its text, by guidance toward the target the map
-gives the behaviour read from it, and by adherence-first candidate selection (`--no-prompt-text`,
-`--no-prompt-guidance`, `--no-prompt-selection` switch each off); the summary's `prompt` says what was read and
-what steered.
+travelled; timing). Without `--checkpoint` the checkpoint shipped with LangTraj is used. Every input is checked
+before anything is written. A prompt steers by its text, by guidance toward the target the map gives the behaviour
+read from it, and by adherence-first candidate selection (`--no-prompt-text`, `--no-prompt-guidance`,
+`--no-prompt-selection` switch each off); the summary's `prompt` says what was read and what steered. A prompt whose
+reading asks for a manoeuvre the map does not allow (a turn or lane change with no lane for it, ...) is simulated as
+typed, and warned about on stderr once simulated (and in the summary's `prompt_warnings`): the policy reads each
+prompt once and asks the map about that reading at the start of the simulation, with the map index it steers by.
 
 See README.md.
 """
@@ -151,7 +151,6 @@ def run(args: argparse.Namespace) -> int:
     from langtraj.scenario.io import read_scenario
     from langtraj.sim.config import PromptLevers, SimConfig, SimRequest
     from langtraj.sim.engine import simulate
-    from langtraj.sim.prompts import prompt_warnings
     from langtraj.sim.setup import build_policy
     from langtraj.sim.summary import simulation_summary
     from langtraj.viz import RenderConfig, marks_from_prompt, save_video
@@ -184,10 +183,10 @@ def run(args: argparse.Namespace) -> int:
         levers=PromptLevers(args.prompt_text, args.prompt_guidance, args.prompt_selection),
     )
     policy, described = build_policy(scenario, request)  # every check happens here, before any write
-    warnings = prompt_warnings(scenario, request.prompts)
+    result = simulate(scenario, policy, config)
+    warnings = result.report.get("prompt_warnings", [])  # what the policy's reading of the prompts asks in vain
     for line in warnings:
         print(f"warning: {line}", file=sys.stderr)
-    result = simulate(scenario, policy, config)
     summary = simulation_summary(result, policy=args.policy, **described) | {"prompt_warnings": warnings}
     print("; ".join(f"{len(ids)} agents moved by {name}" for name, ids in summary["agents_by_policy"].items()))
     for line in summary.get("prompt", {}).get("steering", []):

@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -29,25 +29,23 @@ from langtraj.frames import Origin, poses_to_frame, poses_to_world
 from langtraj.guidance import GuidanceScene, GuidanceTerm, NoCollisionCost, OnRoadCost, reconstruction_guidance
 from langtraj.guidance.base import FinalSteps
 from langtraj.guidance.library import terms_for_prompt
+from langtraj.interdrive.behaviour import BEHAVIOURS
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.mapindex import MapIndex
-from langtraj.interdrive.prompts import Prompt
-from langtraj.interdrive.prompts.user import recognize_prompt
-from langtraj.interdrive.reader import read_prompt
 from langtraj.model.checkpoint import load_model
 from langtraj.model.config import SampleConfig
-from langtraj.model.diffusion import Guidance
 from langtraj.model.features import MapArrays, collate_scenes, map_coverage, sample_map, scene_frame, scene_sample
 from langtraj.model.langtraj import LangTraj
 from langtraj.model.scene_encoder import MapContext
 from langtraj.registry import Registry
 from langtraj.rollouts.baselines import BASELINES
-from langtraj.scenario.model import STEP_SECONDS, Scenario
+from langtraj.scenario.model import Scenario
 from langtraj.scenario.selection import prioritized_agents
 from langtraj.sim.adherence import CandidateJudge
 from langtraj.sim.checkpoints import shipped_checkpoint
 from langtraj.sim.config import ALL_LEVERS, PromptLevers, SimRequest
-from langtraj.sim.prompts import PromptSteering, check_prompt_driven, merged_prompt, prompt_steering
+from langtraj.sim.prompt_replan import PromptReplans, with_prompt_guidance
+from langtraj.sim.prompts import PromptSteering, check_prompt_driven, merged_prompt, prompt_steering, read_prompts
 from langtraj.sim.selection import SELECTORS, CandidateSelector, chosen_states
 from langtraj.sim.terms import collision_terms, scene_wide_terms
 from langtraj.sim.world import SimWorld
@@ -67,14 +65,6 @@ DEFAULT_SELECTOR = "per_agent"
 """Candidate selection without steering guidance (prompts' costs, collision or `--guidance` terms, which
 use `min_guidance`): chosen by measurement like `DEFAULT_ON_ROAD`; the paper's is `min_collision`."""
 
-PROMPT_MAX_GRAD_NORM = 2.0
-"""Largest gradient norm per agent of the guidance toward a prompt's target (the scene's realism guidance keeps
-its own, `max_grad_norm`): chosen on validation windows (docs/experiments.md, 'Prompts that steer')."""
-PROMPT_ITERATIONS = 2
-"""Gradient steps of the guidance toward a prompt's target at each guided denoising step."""
-NEAR_WEIGHT = 1e-4
-"""Weight of a prompted agent's distance from its target among candidates that follow its prompt (see
-`LangTrajPolicy._adherence`): times `selection.FIRST_WEIGHT`, 1 per unit of c / (1 + c)."""
 GUIDANCE_ONLY = PromptLevers(text=False, guidance=True, selection=False)
 """The levers of the CTG++-style baseline (`GuidanceBaselinePolicy`)."""
 
@@ -176,7 +166,7 @@ def slots_of(scenario: Scenario, driven: np.ndarray) -> dict[int, int]:
 class LangTrajRun:
     """What one simulation of a `LangTrajPolicy` keeps: the sample sizes for its driven agents, the start's
     scene frame, map and guidance scene (fixed across replans, so costs and the map stay put), the terms,
-    the selector, and one noise generator per rollout."""
+    the selector, one noise generator per rollout, and what its prompts steer (`sim.prompt_replan`)."""
 
     data: SampleConfig
     origin: Origin
@@ -186,11 +176,7 @@ class LangTrajRun:
     terms: tuple[GuidanceTerm, ...]
     selector: CandidateSelector
     generators: list[torch.Generator]
-    steering: PromptSteering = field(default_factory=PromptSteering)
-    judge: CandidateJudge | None = None
-    kept: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
-    """Per rollout: the step and the states [A, T, 4] (scene frame) of the plan executed from it, which the
-    next replan offers again as a candidate for the prompted agents (`LangTrajPolicy._with_kept_plans`)."""
+    prompt: PromptReplans = field(default_factory=PromptReplans)
     executed: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
     """Per rollout: the step and the actions [A, N, 2] (physical) of the plan executed from it, which the next
     replan warm-starts from (`LangTrajPolicy.warm_steps`)."""
@@ -270,6 +256,7 @@ class LangTrajPolicy(Policy):
         self.data = data.for_inference(text=prompt is not None and levers.text)
         self.prompt = prompt
         self.prompt_texts = tuple(prompt_texts) if prompt_texts is not None else (prompt.text,) if prompt else ()
+        self.readings = read_prompts(self.prompt_texts)  # the one reading of each prompt (`sim.prompts`)
         self.terms = tuple(terms)
         self.candidates, self.steps = candidates, steps
         self.guidance_weight, self.guidance_scale = guidance_weight, guidance_scale
@@ -373,7 +360,7 @@ class LangTrajPolicy(Policy):
         scene = GuidanceScene.from_scenario(start, origin, world.driven, num_agents=data.max_agents)
         index = MapIndex.build(start.road_map) if self.prompt_texts else None
         steering = (
-            prompt_steering(start, self.prompt_texts, world.driven, origin, self.levers, index)
+            prompt_steering(start, self.readings, world.driven, origin, self.levers, index)
             if self.prompt_texts
             else PromptSteering()
         )
@@ -397,8 +384,7 @@ class LangTrajPolicy(Policy):
             terms=terms,
             selector=selector,
             generators=[torch.Generator().manual_seed(seed * 1_000_003 + r) for r in range(world.num_rollouts)],
-            steering=steering,
-            judge=judge,
+            prompt=PromptReplans(steering, judge),
         )
 
     def default_selector(self) -> str:
@@ -439,7 +425,9 @@ class LangTrajPolicy(Policy):
             coverage[name] = float(covered.mean()) if covered.size else None
         out: dict[str, Any] = {"map_pieces": int(state.map_arrays[1].any(-1).sum()), "map_coverage": coverage}
         if self.prompt is not None:
-            out["prompt"] = state.steering.to_json()
+            out["prompt"] = state.prompt.steering.to_json()
+        if self.prompt_texts:
+            out["prompt_warnings"] = list(state.prompt.steering.warnings)
         return out
 
     def prompt_terms(
@@ -484,7 +472,7 @@ class LangTrajPolicy(Policy):
             return drawn if self.temperature == 1.0 else drawn * self.temperature
 
         elapsed, horizon = step - world.start, self.model.horizon_steps  # what the model plans
-        steered = [s.terms(elapsed, horizon) for s in state.steering.steerings]
+        steered = state.prompt.terms(elapsed, horizon)
         prompt_terms = tuple(t for group in steered for t in group)
         terms = state.terms + prompt_terms
         hook = None
@@ -505,8 +493,7 @@ class LangTrajPolicy(Policy):
                 )
 
             hook = guidance(state.terms, self.max_grad_norm) if state.terms else None
-            if prompt_terms:  # toward the prompt's target: its own, larger step after the scene's guidance
-                hook = _then(hook, guidance(prompt_terms, PROMPT_MAX_GRAD_NORM, PROMPT_ITERATIONS))
+            hook = with_prompt_guidance(hook, prompt_terms, guidance)  # its own, larger step after the scene's
         start = self._warm_start(state, step, rollouts)
         states, actions = self.model.sample(
             batch,
@@ -520,18 +507,11 @@ class LangTrajPolicy(Policy):
             start=start,
             start_steps=None if start is None else self.warm_steps,
         )
-        if state.judge is not None:
-            states = self._with_kept_plans(state, step, rollouts, states)
-            if states.shape[0] > actions.shape[0]:  # the kept plan's actions: what is left of them (`_warm_start`)
-                kept = actions[0].clone()
-                if start is not None:
-                    kept[:, _judged_slots(state)] = start[:, _judged_slots(state)]
-                actions = torch.cat([actions, kept[None]])
-        first = self._adherence(world, state, step, rollouts, states, steered)
+        states, actions = state.prompt.offer_kept_plans(step, rollouts, states, actions, start)
+        first = state.prompt.adherence(world, state.origin, state.scene, step, rollouts, states, steered)
         choice = state.selector.select(states, state.scene, terms, first)  # states [M, R, A, T, 4], scene frame
         executed = chosen_states(states, choice)
-        if state.judge is not None:
-            state.kept.update({r: (step, executed[n].detach()) for n, r in enumerate(rollouts)})
+        state.prompt.keep(step, rollouts, executed)
         if self.warm_steps is not None:
             chosen_actions = chosen_states(actions, choice)
             state.executed.update({r: (step, chosen_actions[n].detach()) for n, r in enumerate(rollouts)})
@@ -553,122 +533,74 @@ class LangTrajPolicy(Policy):
             shifted.append(torch.cat([actions[:, done:], torch.zeros_like(actions[:, :done])], dim=1))
         return torch.stack(shifted)
 
-    def _with_kept_plans(self, state: LangTrajRun, step: int, rollouts: list[int], states: Tensor) -> Tensor:
-        """The candidates [M, R, A, T, 4] with one more: for each prompted agent (and the other agent of a pair
-        behaviour), what is left of the plan executed at the previous replan (continued at constant speed and
-        heading to the horizon), and candidate 0 for the other agents. A plan that did what the prompt asks stays
-        on offer, so a replan that samples no such candidate keeps to it instead of putting the behaviour off
-        (plan reuse in receding-horizon control)."""
-        if any(r not in state.kept for r in rollouts):
-            return states
-        extra = states[0].clone()  # [R, A, T, 4]
-        for n, r in enumerate(rollouts):
-            before, plan = state.kept[r]
-            left = plan[:, step - before :]
-            if left.shape[1] == 0:
-                return states
-            tail = left[:, -1:].repeat(1, states.shape[3] - left.shape[1], 1)
-            steps = torch.arange(1, tail.shape[1] + 1, dtype=tail.dtype, device=tail.device)[None, :]
-            travel = tail[..., 3] * STEP_SECONDS * steps
-            tail[..., 0] = tail[..., 0] + travel * torch.cos(tail[..., 2])
-            tail[..., 1] = tail[..., 1] + travel * torch.sin(tail[..., 2])
-            for slot in _judged_slots(state):
-                extra[n, slot] = torch.cat([left[slot], tail[slot]])
-        return torch.cat([states, extra[None]])
-
-    def _adherence(
-        self,
-        world: SimWorld,
-        state: LangTrajRun,
-        step: int,
-        rollouts: list[int],
-        states: Tensor,
-        steered: list[list[GuidanceTerm]],
-    ) -> Tensor | None:
-        """`first` for selection [M, R, A]: 1 where a prompted agent's candidate does not follow its prompt
-        (`sim.adherence`), plus up to 0.5 by how far it is from its target (n, its guidance cost c as c / (1 + c)),
-        so that among candidates that all miss the nearest comes first; and `NEAR_WEIGHT` x n for every candidate,
-        so that among those that follow, one that does it now beats one that puts it off to a later replan (as
-        much as a tenth of a disk overlap weighs in `per_agent`). A pair behaviour's miss also counts for the other
-        agent's candidate (judged with the prompted agent's candidate of the same index): yielding to @7 or going
-        before it is something the two do together. None without a judge."""
-        if state.judge is None:
-            return None
-        m, r = states.shape[:2]
-        plans = poses_to_world(states[:, :, : len(world.driven)].detach().double().cpu().numpy(), state.origin)
-        misses = torch.as_tensor(state.judge.misses(rollouts, step, plans), dtype=states.dtype)  # [K, M, R]
-        first = states.new_zeros(states.shape[:3])
-        by_slot = {s.slot: terms for s, terms in zip(state.steering.steerings, steered, strict=True)}
-        flat = states.reshape(m * r, *states.shape[2:])
-        with torch.no_grad():
-            for ask, miss in zip(state.judge.asks, misses, strict=True):
-                near = states.new_zeros(m, r)
-                for term in by_slot.get(ask.slot, []):
-                    near = near + term.weight * term.cost(flat, state.scene).reshape(m, r)
-                nearness = near / (1.0 + near)
-                miss = miss.to(states.device)
-                first[:, :, ask.slot] += miss * (1.0 + 0.5 * nearness) + NEAR_WEIGHT * nearness
-                if ask.other_slot is not None:  # a pair behaviour is the pair's: the other makes way, or leads
-                    first[:, :, ask.other_slot] += miss
-        return first
-
-
-def _judged_slots(state: LangTrajRun) -> list[int]:
-    """The slots whose kept plan `_with_kept_plans` offers: each prompted agent, and a pair behaviour's other agent
-    (it keeps its side of the plan too)."""
-    asks = state.judge.asks if state.judge else ()
-    return sorted({slot for ask in asks for slot in (ask.slot, ask.other_slot) if slot is not None})
-
-
-def _then(first: Guidance | None, second: Guidance) -> Guidance:
-    """The sampler hook applying `first` (if any), then `second`, to the clean prediction."""
-    if first is None:
-        return second
-    return lambda x0, k, x_k: second(first(x0, k, x_k), k, x_k)
-
 
 @POLICIES.register
 class GuidanceBaselinePolicy(LangTrajPolicy):
     """The CTG++-style baseline: the model without text, steered by guidance alone, in place of the loss functions
     an LLM writes for each instruction in CTG++: toward the target the map gives the behaviour read from the
-    prompt (`guidance.steering`), or, for a prompt whose behaviour is not read, by the label library's terms for
-    its interaction subtype and single-agent labels (`guidance.library`). Selection keeps what guidance asks
-    (`min_guidance`), without judging adherence."""
+    prompt (`sim.prompts`, `guidance.steering`), or, for a labelled prompt (an InterDrive entry with an interaction
+    subtype or single-agent labels) whose reading gives no target, by the label library's terms for its subtype and
+    labels (`guidance.library`). A typed prompt is only read: one the reader cannot read is refused, and one whose
+    target the map does not give steers by nothing but the realism guidance. Selection keeps what guidance asks
+    (`min_guidance`), without judging adherence. Its levers are `GUIDANCE_ONLY`; it takes no others."""
 
     name = "guidance_baseline"
     steers_by_prompt = True
 
-    def __init__(self, model: LangTraj, data: SampleConfig, *, prompt: PromptEntry, **kwargs):
+    def __init__(
+        self,
+        model: LangTraj,
+        data: SampleConfig,
+        *,
+        prompt: PromptEntry,
+        levers: PromptLevers = GUIDANCE_ONLY,
+        **kwargs,
+    ):
+        if levers != GUIDANCE_ONLY:
+            raise InputError(
+                f"the guidance baseline steers by guidance alone (levers {GUIDANCE_ONLY.names()}); it takes no other "
+                f"levers, got {levers.names()}",
+                where="levers",
+            )
         texts = tuple(kwargs.pop("prompt_texts", None) or (prompt.text,))
-        kwargs.pop("levers", None)
-        if prompt.subtype is None and not prompt.labels:  # a typed prompt: read its labels from its words
-            read = recognize_prompt(Prompt(prompt.text, prompt.mentions, source=prompt.source))
-            prompt = replace(prompt, subtype=read.subtype_id, labels=read.label_keys)
-        if not any(read_prompt(t).behaviour for t in texts) and prompt.subtype is None and not prompt.labels:
+        super().__init__(model, data, levers=GUIDANCE_ONLY, prompt_texts=texts, **kwargs)
+        if not any(reading.read for reading in self.readings) and not _labelled(prompt):
             raise InputError(
                 "the guidance baseline needs a prompt whose behaviour it can read, or a labelled one (an InterDrive "
                 f"subtype or labels); neither was recognised in {prompt.text!r}",
                 where="prompt",
             )
-        super().__init__(model, data, levers=GUIDANCE_ONLY, prompt_texts=texts, **kwargs)
         self.labelled = prompt
 
     @staticmethod
     def _request_options(scenario: Scenario, request: SimRequest) -> dict[str, Any]:
+        """`LangTrajPolicy`'s, with the baseline's own levers for the default ones (every lever on, which the
+        baseline cannot honour); levers switched off otherwise reach `__init__`, which refuses all but its own."""
         if len(request.prompts) != 1:
             raise InputError(
                 f"the guidance baseline takes exactly one prompt, got {len(request.prompts)}", where="--prompt"
             )
-        return LangTrajPolicy._request_options(scenario, request)
+        options = LangTrajPolicy._request_options(scenario, request)
+        if request.levers == ALL_LEVERS:
+            options["levers"] = GUIDANCE_ONLY
+        return options
 
     def describe(self) -> dict[str, Any]:
-        read = {"subtype": self.labelled.subtype, "labels": list(self.labelled.labels)}
+        """`prompt_read_as`: the behaviour read (None when not read), and the interaction subtype and labels that
+        stand for the prompt: a labelled prompt's own, else those of the behaviour read (`BehaviourSpec`)."""
+        reading = next((r for r in self.readings if r.read), None)
+        behaviour = None if reading is None else reading.behaviour
+        if _labelled(self.labelled) or behaviour is None:
+            subtype, labels = self.labelled.subtype, list(self.labelled.labels)
+        else:
+            subtype, labels = BEHAVIOURS[behaviour].subtype, list(BEHAVIOURS[behaviour].label_keys)
+        read = {"behaviour": None if behaviour is None else behaviour.value, "subtype": subtype, "labels": labels}
         return {**super().describe(), "prompted_ids": list(self.labelled.mentions), "prompt_read_as": read}
 
     def prompt_terms(
         self, world: SimWorld, slots: dict[int, int], origin: Origin, num_agents: int, steering: PromptSteering
     ) -> tuple[GuidanceTerm, ...]:
-        if steering.steerings:  # the behaviour was read and the map gave its target: those terms steer
+        if steering.steerings or not _labelled(self.labelled):  # the read behaviour's target steers, if any
             return ()
         mentions = {i: slots[t] for i, t in enumerate(self.labelled.mentions[:2]) if t in slots}
         if 0 not in mentions:
@@ -681,3 +613,8 @@ class GuidanceBaselinePolicy(LangTrajPolicy):
         return tuple(
             terms_for_prompt(mentions, state, subtype_id=self.labelled.subtype, label_keys=self.labelled.labels)
         )
+
+
+def _labelled(prompt: PromptEntry) -> bool:
+    """Whether `prompt` carries an InterDrive interaction subtype or single-agent labels (a typed one does not)."""
+    return prompt.subtype is not None or bool(prompt.labels)

@@ -1,7 +1,9 @@
-"""Typed `@id` prompts in a simulation: parsed against the scene, merged into one prompt entry, checked
-against the agents the model drives and against the map (a turn or lane change it does not allow is warned
-about), turned into each driven agent's sentence, and read into the behaviour, target and criteria that steer
-the simulation (`prompt_steering`; docs/simulation.md, 'Prompts that steer')."""
+"""Typed `@id` prompts in a simulation: parsed against the scene, merged into one prompt entry (each driven agent's
+sentence), checked against the agents the model drives, and read once each (`read_prompts`, `interdrive.reader`).
+That one reading is what the map is asked about (a behaviour it does not allow where the agent is is warned about,
+`prompt_warnings`) and what steers the simulation: the behaviour's target and the criteria selection judges by
+(`prompt_steering`; docs/simulation.md, 'Prompts that steer'). What the steering does at each replan is
+`sim.prompt_replan`'s."""
 
 from __future__ import annotations
 
@@ -14,8 +16,8 @@ import numpy as np
 from langtraj.errors import InputError
 from langtraj.frames import Origin
 from langtraj.guidance.steering import Steering
-from langtraj.interdrive.behaviour import Behaviour
-from langtraj.interdrive.counterfactual import infeasible_manoeuvres
+from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
+from langtraj.interdrive.counterfactual import behaviour_feasibility
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.prompts import parse_user_prompt
@@ -65,32 +67,43 @@ def check_prompt_driven(prompt: PromptEntry, driven_ids: Sequence[int], max_driv
         )
 
 
-def prompt_warnings(scenario: Scenario, prompts: Sequence[str]) -> list[str]:
-    """One line per turn or lane change a typed prompt asks of its target agent that the map does not allow
-    there ("@12 cannot turn left: no left turn from its lane at the next junction ..."); empty without prompts.
-    A warning does not stop a simulation: the model is conditioned on the prompt as typed."""
-    if not prompts:
-        return []
-    index = MapIndex.build(scenario.road_map)
-    return [
-        warning.message
-        for text in prompts
-        for warning in infeasible_manoeuvres(scenario, user_prompt_entry(scenario, text), index)
-    ]
+def read_prompts(texts: Sequence[str]) -> tuple[PromptReading, ...]:
+    """Each typed prompt read once (`interdrive.reader.read_prompt`): the one reading its warnings, its guidance
+    and its selection take."""
+    return tuple(read_prompt(text) for text in texts)
+
+
+def prompt_warnings(scenario: Scenario, readings: Sequence[PromptReading], index: MapIndex) -> tuple[str, ...]:
+    """One line per reading that asks of its agent a single-agent behaviour the map (`index`) does not allow from
+    where it is at the current step (`interdrive.counterfactual.behaviour_feasibility`: a turn or lane change with
+    no lane for it, a pull-over away from the kerb lane or too near a junction, slowing down while stopped):
+    "@12 cannot turn left: no left turn from its lane at the next junction ...". Where the map cannot tell
+    (undecided), for a pair behaviour and for a prompt not read, nothing is said. A warning does not stop a
+    simulation: the model is conditioned on the prompt as typed."""
+    out = []
+    for reading in readings:
+        if reading.behaviour is None or reading.agent is None or BEHAVIOURS[reading.behaviour].is_pair:
+            continue
+        verdict = behaviour_feasibility(scenario, reading.agent, index)[reading.behaviour]
+        if verdict.status == "infeasible":
+            out.append(f"@{reading.agent} cannot {BEHAVIOURS[reading.behaviour].manoeuvre}: {verdict.reason}")
+    return tuple(out)
 
 
 @dataclass(frozen=True)
 class PromptSteering:
     """What typed prompts steer in one simulation: what the reader made of each (`readings`), the guidance toward
     each read behaviour's target (`steerings`, when the guidance lever is on; for yielding or going first also the
-    other agent's side of it), what selection judges
-    (`asks`, when the selection lever is on), and one line per prompt saying so (`notes`)."""
+    other agent's side of it), what selection judges (`asks`, when the selection lever is on), one line per prompt
+    saying so (`notes`), the targets, and what the map does not allow of what they ask (`warnings`,
+    `prompt_warnings`)."""
 
     readings: tuple[PromptReading, ...] = ()
     steerings: tuple[Steering, ...] = ()
     asks: tuple[Ask, ...] = ()
     notes: tuple[str, ...] = ()
     targets: tuple[BehaviourTarget, ...] = ()
+    warnings: tuple[str, ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -102,18 +115,20 @@ class PromptSteering:
 
 def prompt_steering(
     scenario: Scenario,
-    texts: Sequence[str],
+    readings: Sequence[PromptReading],
     rows: np.ndarray,
     origin: Origin,
     levers: PromptLevers,
     index: MapIndex | None = None,
 ) -> PromptSteering:
-    """Read each typed prompt (`interdrive.reader`), derive its behaviour's target from the map at the current
-    step (`interdrive.targets`) and turn it into guidance and selection criteria for the driven agents `rows`
-    (scenario rows in slot order). A prompt the reader cannot read, or whose target the map does not give,
-    steers by the levers it can (text; selection still judges a read behaviour), and its note says so."""
+    """From each typed prompt's reading (`read_prompts`): its behaviour's target, derived from the map (`index`,
+    built here when not given) at the current step (`interdrive.targets`), as guidance and selection criteria for
+    the driven agents `rows` (scenario rows in slot order), and the warnings about it (`prompt_warnings`). A prompt
+    the reader cannot read, or whose target the map does not give, steers by the levers it can (text; selection
+    still judges a read behaviour), and its note says so. A read agent the model does not drive is an InputError."""
     slots = {int(scenario.agents.ids[row]): slot for slot, row in enumerate(rows)}
-    readings = tuple(read_prompt(text) for text in texts)
+    readings = tuple(readings)
+    index = index if index is not None else MapIndex.build(scenario.road_map)
     steerings, asks, notes, targets = [], [], [], []
     for reading in readings:
         if reading.behaviour is None or reading.agent is None:
@@ -134,7 +149,6 @@ def prompt_steering(
         )
         used = ["text"] if levers.text else []
         if levers.guidance:
-            index = index or MapIndex.build(scenario.road_map)
             try:
                 target = derive_target(scenario, reading.agent, reading.behaviour, index, other_id=reading.other)
             except TargetUnavailable as exc:
@@ -153,7 +167,8 @@ def prompt_steering(
             asks.append(ask)
             used.append("adherence-first selection")
         notes.append(f"{reading.describe()}; steered by {', '.join(used) or 'nothing'}")
-    return PromptSteering(readings, tuple(steerings), tuple(asks), tuple(notes), tuple(targets))
+    warnings = prompt_warnings(scenario, readings, index)
+    return PromptSteering(readings, tuple(steerings), tuple(asks), tuple(notes), tuple(targets), warnings)
 
 
 _OPPOSITE = {Behaviour.YIELD: Behaviour.GO_FIRST, Behaviour.GO_FIRST: Behaviour.YIELD}

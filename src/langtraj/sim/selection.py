@@ -157,11 +157,15 @@ class MinGuidance(CandidateSelector):
 
 @SELECTORS.register
 class FirstCandidate(CandidateSelector):
-    """Candidate 0: plain sampling, no selection."""
+    """Candidate 0: plain sampling, no selection; with `first`, the joint candidate least short of what the prompts
+    ask (the least `first` summed over the agents), candidate 0 among equals."""
 
     name = "first"
 
     def select(
         self, states: Tensor, scene: GuidanceScene, terms: Sequence[GuidanceTerm], first: Tensor | None = None
     ) -> Tensor:
-        return torch.zeros(states.shape[1], dtype=torch.long, device=states.device)
+        if first is None:
+            return torch.zeros(states.shape[1], dtype=torch.long, device=states.device)
+        with torch.no_grad():
+            return _joint_first(first).argmin(dim=0)  # argmin takes the first of equal minima

@@ -9,7 +9,8 @@ draws sentences from, but not its labels, which it never reads; and the row's de
 their futures ask for (`model.targets`), fitted once here instead of at every training step. A store is
 built from an InterDrive labels folder (`labelled_jobs`: every stage) or straight from scenario files without
 labels (`scenario_jobs`: stage 1 needs none). `build_store` writes each chunk into `STORE.partial/` as a whole
-(temporary folder, then rename), so a killed build resumes with the chunks not yet done; the folder
+(temporary folder, then rename), so a killed build resumes with the chunks not yet done, provided it was planned
+from the same windows (`_plan`: every chunk's windows, in order, as its index stores them; or its files); the folder
 becomes STORE only when every chunk is there.
 """
 
@@ -233,13 +234,17 @@ def scenario_jobs(paths: Sequence[Path], config: SampleConfig) -> list[StoreJob]
     ]
 
 
+def _stored_record(record: WindowRecord) -> dict[str, Any]:
+    """What a chunk's index keeps of a window's record: all but its labels (prompts stay; labels are the folder's)."""
+    return replace(record, labels=WindowLabels(record.scenario_id)).to_json()
+
+
 def _build_chunk(job: StoreJob, partial: Path) -> None:
     """Write one chunk folder (arrays and index) into `partial`, atomically."""
     samples, lines = [], []
     for record, window in job.windows():
         samples.append(scene_sample(window, job.config))
-        kept = replace(record, labels=WindowLabels(record.scenario_id))  # prompts stay; labels are the folder's
-        lines.append(json.dumps({"record": kept.to_json(), "deciders": sorted(deciders(window))}))
+        lines.append(json.dumps({"record": _stored_record(record), "deciders": sorted(deciders(window))}))
     tmp = partial / f".{job.folder}.tmp"
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
@@ -256,6 +261,18 @@ def _build_chunk(job: StoreJob, partial: Path) -> None:
 
 def _run_job(item: tuple[StoreJob, Path]) -> None:
     _build_chunk(*item)
+
+
+def _plan(jobs: Sequence[StoreJob]) -> str:
+    """What a build of `jobs` makes, for a resumed build to compare: the features key and, per chunk, a digest of
+    every window's record as its index will store it (id, file, scene, start step, agents, prompts; in order) and
+    its scenario files. A chunk is reused only when its whole list of windows is the same, not merely its first
+    window and count (a labels folder rebuilt since may hold other windows or prompts under the same first id)."""
+    chunks = []
+    for job in jobs:
+        records = json.dumps([_stored_record(r) for r in job.records], sort_keys=True)
+        chunks.append([len(job.records), hashlib.sha256(records.encode()).hexdigest(), list(job.files)])
+    return json.dumps([features_key(jobs[0].config), chunks])
 
 
 def build_store(
@@ -275,8 +292,7 @@ def build_store(
         raise InputError("nothing to store", path=out)
     config = jobs[0].config
     partial = out.with_name(out.name + ".partial")
-    chunks = [[j.records[0].scenario_id if j.records else None, len(j.records), list(j.files)] for j in jobs]
-    plan = json.dumps([features_key(config), chunks])
+    plan = _plan(jobs)
     plan_file = partial / "plan.json"
     if partial.exists() and (not plan_file.is_file() or plan_file.read_text() != plan):
         shutil.rmtree(partial)  # an earlier build of other windows or settings: start over

@@ -1,0 +1,161 @@
+"""Typed prompts at each replan of a LangTraj simulation (docs/simulation.md, 'Prompts that steer'): the guidance
+terms toward each read behaviour's target for what is left of them (`PromptReplans.terms`), their own
+reconstruction-guidance step after the scene's (`with_prompt_guidance`), the plan executed at the previous replan
+offered again as a candidate (`PromptReplans.offer_kept_plans`), and the prompted agents' adherence that selection
+compares before anything else (`PromptReplans.adherence`, the selectors' `first`).
+
+What the prompts steer is derived once per simulation from their one reading (`sim.prompts.prompt_steering`); a
+`PromptReplans` holds it, with the candidate judge, and keeps what one replan leaves the next (the executed plans).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import torch
+from torch import Tensor
+
+from langtraj.frames import Origin, poses_to_world
+from langtraj.guidance import GuidanceScene, GuidanceTerm
+from langtraj.model.diffusion import Guidance
+from langtraj.scenario.model import STEP_SECONDS
+from langtraj.sim.adherence import CandidateJudge
+from langtraj.sim.prompts import PromptSteering
+from langtraj.sim.world import SimWorld
+
+PROMPT_MAX_GRAD_NORM = 2.0
+"""Largest gradient norm per agent of the guidance toward a prompt's target (the scene's realism guidance keeps
+its own, `max_grad_norm`): chosen on validation windows (docs/experiments.md, 'Prompts that steer')."""
+PROMPT_ITERATIONS = 2
+"""Gradient steps of the guidance toward a prompt's target at each guided denoising step."""
+NEAR_WEIGHT = 1e-4
+"""Weight of a prompted agent's distance from its target among candidates that follow its prompt (see
+`PromptReplans.adherence`): times `selection.FIRST_WEIGHT`, 1 per unit of c / (1 + c)."""
+
+GuidanceOf = Callable[[tuple[GuidanceTerm, ...], float | None, int], Guidance]
+"""Makes the sampler's guidance hook of some terms, with a largest gradient norm and a number of iterations."""
+
+
+def with_prompt_guidance(
+    hook: Guidance | None, terms: tuple[GuidanceTerm, ...], guidance: GuidanceOf
+) -> Guidance | None:
+    """The sampler hook applying `hook` (the scene's guidance, if any), then the terms toward the prompts' targets
+    (`terms`, if any) in a step of their own, larger than the scene's (`PROMPT_MAX_GRAD_NORM`, `PROMPT_ITERATIONS`),
+    made by `guidance`."""
+    if not terms:
+        return hook
+    return _then(hook, guidance(terms, PROMPT_MAX_GRAD_NORM, PROMPT_ITERATIONS))
+
+
+def _then(first: Guidance | None, second: Guidance) -> Guidance:
+    """The sampler hook applying `first` (if any), then `second`, to the clean prediction."""
+    if first is None:
+        return second
+    return lambda x0, k, x_k: second(first(x0, k, x_k), k, x_k)
+
+
+@dataclass
+class PromptReplans:
+    """What typed prompts steer in one simulation (`steering`, read at its start) and how its candidates are judged
+    (`judge`, None without the selection lever or a read behaviour), with what each replan leaves the next: per
+    rollout, the step and the states [A, T, 4] (scene frame) of the plan executed from it (`kept`), which the next
+    replan offers again as a candidate for the prompted agents. Without prompts it steers nothing."""
+
+    steering: PromptSteering = field(default_factory=PromptSteering)
+    judge: CandidateJudge | None = None
+    kept: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
+
+    def terms(self, elapsed: int, horizon: int) -> list[list[GuidanceTerm]]:
+        """The guidance terms toward each target (one list per `steering.steerings`) for a replan `elapsed` simulated
+        steps after the start, over the `horizon` steps the model plans."""
+        return [s.terms(elapsed, horizon) for s in self.steering.steerings]
+
+    def judged_slots(self) -> list[int]:
+        """The slots whose kept plan `offer_kept_plans` offers: each prompted agent, and a pair behaviour's other
+        agent (it keeps its side of the plan too)."""
+        asks = self.judge.asks if self.judge else ()
+        return sorted({slot for ask in asks for slot in (ask.slot, ask.other_slot) if slot is not None})
+
+    def offer_kept_plans(
+        self, step: int, rollouts: list[int], states: Tensor, actions: Tensor, start: Tensor | None
+    ) -> tuple[Tensor, Tensor]:
+        """The candidates' states [M, R, A, T, 4] and actions [M, R, A, N, 2] with one more candidate when a judge
+        is there and every rollout has a kept plan: for each judged slot what is left of the plan executed at the
+        previous replan (continued at constant speed and heading to the horizon), and candidate 0 for the other
+        agents; its actions are candidate 0's, with the judged slots' taken from `start` (what is left of the
+        executed actions, [R, A, N, 2]) when the replan is warm-started. A plan that did what the prompt asks stays
+        on offer, so a replan that samples no such candidate keeps to it instead of putting the behaviour off (plan
+        reuse in receding-horizon control). Otherwise the candidates unchanged."""
+        if self.judge is None:
+            return states, actions
+        states = self._with_kept_plans(step, rollouts, states)
+        if states.shape[0] > actions.shape[0]:
+            kept = actions[0].clone()
+            if start is not None:
+                slots = self.judged_slots()
+                kept[:, slots] = start[:, slots]
+            actions = torch.cat([actions, kept[None]])
+        return states, actions
+
+    def _with_kept_plans(self, step: int, rollouts: list[int], states: Tensor) -> Tensor:
+        if any(r not in self.kept for r in rollouts):
+            return states
+        extra = states[0].clone()  # [R, A, T, 4]
+        for n, r in enumerate(rollouts):
+            before, plan = self.kept[r]
+            left = plan[:, step - before :]
+            if left.shape[1] == 0:
+                return states
+            tail = left[:, -1:].repeat(1, states.shape[3] - left.shape[1], 1)
+            steps = torch.arange(1, tail.shape[1] + 1, dtype=tail.dtype, device=tail.device)[None, :]
+            travel = tail[..., 3] * STEP_SECONDS * steps
+            tail[..., 0] = tail[..., 0] + travel * torch.cos(tail[..., 2])
+            tail[..., 1] = tail[..., 1] + travel * torch.sin(tail[..., 2])
+            for slot in self.judged_slots():
+                extra[n, slot] = torch.cat([left[slot], tail[slot]])
+        return torch.cat([states, extra[None]])
+
+    def adherence(
+        self,
+        world: SimWorld,
+        origin: Origin,
+        scene: GuidanceScene,
+        step: int,
+        rollouts: list[int],
+        states: Tensor,
+        steered: list[list[GuidanceTerm]],
+    ) -> Tensor | None:
+        """`first` for selection [M, R, A] of candidates `states` [M, R, A, T, 4] (scene frame of `origin`) of
+        `rollouts` at `step`, with this replan's terms toward the targets (`steered`, from `terms`): 1 where a
+        prompted agent's candidate does not follow its prompt (`sim.adherence`), plus up to 0.5 by how far it is from
+        its target (n, its guidance cost c as c / (1 + c)), so that among candidates that all miss the nearest comes
+        first; and `NEAR_WEIGHT` x n for every candidate, so that among those that follow, one that does it now beats
+        one that puts it off to a later replan (as much as a tenth of a disk overlap weighs in `per_agent`). A pair
+        behaviour's miss also counts for the other agent's candidate (judged with the prompted agent's candidate of
+        the same index): yielding to @7 or going before it is something the two do together. None without a judge."""
+        if self.judge is None:
+            return None
+        m, r = states.shape[:2]
+        plans = poses_to_world(states[:, :, : len(world.driven)].detach().double().cpu().numpy(), origin)
+        misses = torch.as_tensor(self.judge.misses(rollouts, step, plans), dtype=states.dtype)  # [K, M, R]
+        first = states.new_zeros(states.shape[:3])
+        by_slot = {s.slot: terms for s, terms in zip(self.steering.steerings, steered, strict=True)}
+        flat = states.reshape(m * r, *states.shape[2:])
+        with torch.no_grad():
+            for ask, miss in zip(self.judge.asks, misses, strict=True):
+                near = states.new_zeros(m, r)
+                for term in by_slot.get(ask.slot, []):
+                    near = near + term.weight * term.cost(flat, scene).reshape(m, r)
+                nearness = near / (1.0 + near)
+                miss = miss.to(states.device)
+                first[:, :, ask.slot] += miss * (1.0 + 0.5 * nearness) + NEAR_WEIGHT * nearness
+                if ask.other_slot is not None:  # a pair behaviour is the pair's: the other makes way, or leads
+                    first[:, :, ask.other_slot] += miss
+        return first
+
+    def keep(self, step: int, rollouts: list[int], executed: Tensor) -> None:
+        """Keep the plans [R, A, T, 4] (scene frame) executed from `step` by `rollouts`, for the next replan to offer
+        (only with a judge: nothing else reads them)."""
+        if self.judge is not None:
+            self.kept.update({r: (step, executed[n].detach()) for n, r in enumerate(rollouts)})
