@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -11,14 +13,18 @@ from langtraj.interdrive.detector import (
     InteractionRule,
     SceneGeometry,
     detect_interactions,
+    following_runs,
+    pair_rows,
+    passing_runs,
+    yielding_runs,
 )
 from langtraj.interdrive.evaluation import TypeCounts, add_counts, macro_f1, match_interactions
 from langtraj.interdrive.labels import InteractionLabel, LabelSource
 from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID, InteractionType
-from langtraj.scenario import LaneNeighbor, MapFeature, MapFeatureType
-from langtraj.scenario.types import StateField
+from langtraj.scenario import LaneNeighbor, MapFeature, MapFeatureType, Scenario, TrafficLights
+from langtraj.scenario.types import StateField, TrafficLightState
 
-from .test_ground_truth import PED, VEH, T, crosswalk, scene, straight
+from .test_ground_truth import CYC, PED, VEH, T, crosswalk, scene, straight
 
 
 def pairs(labels, kind: str) -> set[tuple[int, int]]:
@@ -377,3 +383,102 @@ def test_car_standing_all_window_far_before_the_junction_yields_along_its_lanes(
     labels = detect_interactions(scene(tracks, features=lanes), config=on)
     assert pairs(labels, "yielding") == {(1, 2)} and pairs(labels, "passing") == {(2, 1)}
     assert not pairs(detect_interactions(scene(tracks, features=lanes)), "yielding")  # off by default
+
+
+# ---------------------------------------------------------------- one ordered pair at a time
+
+
+def _busy_junction(seed: int, n: int = 24) -> Scenario:
+    """`n` vehicles, cyclists and pedestrians on two crossing roads, each standing until a random step (some not at
+    all), a car standing on the eastbound lane and one parked beside it, a crosswalk over each road, and a light
+    over the eastbound approach (a lane into a signalled junction lane, and its stop point) showing red for the
+    first 4.5 s."""
+    rng = np.random.default_rng(seed)
+    tracks = {}
+    for i in range(n):
+        kind = rng.choice([VEH, VEH, VEH, CYC, PED])
+        heading = rng.choice([0.0, np.pi / 2, np.pi, -np.pi / 2])
+        d = rng.uniform(8, 50)
+        side = rng.choice([-1.75, 1.75]) if kind != PED else rng.choice([-6.0, 6.0])
+        x0, y0 = -d * np.cos(heading) - side * np.sin(heading), -d * np.sin(heading) + side * np.cos(heading)
+        v = 1.3 if kind == PED else rng.uniform(3, 12)
+        go = rng.integers(0, 80)
+        tracks[i + 1] = (kind, straight(x0, y0, heading, np.where((np.arange(T) >= go) | (rng.random() < 0.3), v, 0.0)))
+    tracks[n + 1] = (VEH, straight(-30, -1.75, 0.0, 0.0))  # stands on the eastbound lane all window
+    tracks[n + 2] = (VEH, straight(-30, -6.0, 0.0, 0.0))  # parked beside it
+    approach = np.stack([np.linspace(-80, -8, 73), np.full(73, -1.75), np.zeros(73)], 1)
+    inner = np.stack([np.linspace(-8, 8, 17), np.full(17, -1.75), np.zeros(17)], 1)
+    features = [
+        crosswalk(900, -10, 10, 8, 12),
+        crosswalk(901, 8, 12, -10, 10),
+        MapFeature(100, MapFeatureType.LANE_SURFACE_STREET, approach, exit_lanes=(101,)),
+        MapFeature(101, MapFeatureType.LANE_SURFACE_STREET, inner, entry_lanes=(100,), interpolating=True),
+    ]
+    s = scene(tracks, features=features)
+    states = np.where(np.arange(T) < 45, TrafficLightState.STOP, TrafficLightState.GO).astype(np.int8)[:, None]
+    lights = TrafficLights([101], states, np.ones((T, 1), bool), [[-8.0, -1.75, 0.0]])
+    return replace(s, traffic_lights=lights)
+
+
+def _detector_scenes() -> list[Scenario]:
+    wait = np.where(np.arange(T) < 50, 0.0, 5.0)
+    queue = {
+        1: (VEH, straight(-8, 0, 0, wait)),
+        3: (VEH, straight(-16, 0, 0, wait)),
+        2: (VEH, straight(0, -40, np.pi / 2, 10.0)),
+    }
+    walks = {1: (VEH, straight(20, 0, 0, 0.0)), 5: (PED, straight(28, -5, np.pi / 2, 1.2))}
+    stand = straight(30, -4.5, np.pi / 2, np.where(np.arange(T) < 50, 0.0, 1.2))
+    waits = {1: (VEH, straight(20, 0, 0, 3.0)), 5: (PED, stand), 6: (PED, straight(31, 4.5, -np.pi / 2, 0.0))}
+    return [
+        scene(queue),
+        scene(walks, features=[crosswalk(900, 26, 30, -3.5, 3.5)]),
+        scene(waits, features=[crosswalk(900, 29, 33, -3.5, 3.5)]),
+        *(_busy_junction(seed) for seed in range(2)),
+    ]
+
+
+PER_PAIR = {"yielding": yielding_runs, "passing": passing_runs, "following": following_runs}
+
+
+@pytest.mark.parametrize("index", range(5))
+def test_one_pair_judged_alone_gets_the_runs_of_the_whole_scene(index):
+    s = _detector_scenes()[index]
+    config = DetectorConfig()
+    expected: dict[tuple[int, int, str], list[tuple[int, int]]] = {}
+    for lab in detect_interactions(s, config=config):
+        expected.setdefault((lab.track_id, lab.other_id, lab.type.value), []).append((lab.start, lab.end))
+    assert {kind for *_, kind in expected} & set(PER_PAIR)
+    ids = s.agents.ids
+    whole = SceneGeometry(s, (), config)
+    xy, valid, types = s.agents.xy.astype(np.float64), s.agents.valid, s.agents.types
+    for a in range(s.num_agents):
+        for b in range(s.num_agents):
+            if a == b:
+                continue
+            want = {kind: sorted(expected.get((int(ids[a]), int(ids[b]), kind), [])) for kind in PER_PAIR}
+            got = {kind: sorted((p.start, p.end) for p in rule(whole, a, b)) for kind, rule in PER_PAIR.items()}
+            assert got == want, (a, b)
+            rows = pair_rows(xy, valid, types, a, b, config)  # a fresh scene of just the agents the rules read
+            agents = replace(
+                s.agents, ids=ids[rows], types=types[rows], states=s.agents.states[rows], valid=valid[rows]
+            )
+            cut = SceneGeometry(replace(s, agents=agents, sdc_index=-1), (), config)
+            at = {int(r): k for k, r in enumerate(rows)}
+            alone = {kind: sorted((p.start, p.end) for p in rule(cut, at[a], at[b])) for kind, rule in PER_PAIR.items()}
+            assert alone == want, (a, b)
+
+
+def test_per_agent_quantities_equal_those_of_every_agent_at_once():
+    s = _busy_junction(0)
+    steps = np.arange(0, T, 3)
+    whole, alone = SceneGeometry(s, (), DetectorConfig()), SceneGeometry(s, (), DetectorConfig())
+    assert whole.yields.red.any() and whole.static.sum() == 2 and whole.parked.sum() == 1
+    for a in range(s.num_agents):
+        fresh = SceneGeometry(s, (), DetectorConfig())
+        np.testing.assert_array_equal(fresh.yields.held_of(a), whole.yields.held[a])
+        np.testing.assert_array_equal(fresh.yields.red_of(a), whole.yields.red[a])
+        np.testing.assert_array_equal(fresh.lanes.lanes_at(a, steps), whole.lanes.per_step[a, steps])
+        np.testing.assert_array_equal(fresh.paths.leaders_at(a, steps), whole.paths.leaders[a, steps])
+        np.testing.assert_array_equal(alone.paths.leaders_of(a), whole.paths.leaders[a])
+        assert fresh.arrays.is_parked(a) == whole.parked[a] and fresh.arrays.is_static(a) == whole.static[a]

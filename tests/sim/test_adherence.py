@@ -1,12 +1,16 @@
 """Adherence of candidates (`sim.adherence`): on constructed trajectories that do and do not follow a prompt, the
-candidate judge that selection uses agrees with the judge that scores instruction following."""
+candidate judge that selection uses agrees with the judge that scores instruction following, also on the yields
+built around the thresholds an earlier rule of selection's own did not share with the detector (crossing radius,
+wait extension, the passing agent's length, joined held runs, red lights, queues)."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from interdrive.test_counterfactual import two_lane_road, x_junction_yield
-from interdrive.test_ground_truth import VEH, straight
+from interdrive.test_ground_truth import PED, VEH, crosswalk, straight
 from interdrive.test_ground_truth import scene as track_scene
 from interdrive.test_heuristics import TIME, scene
 
@@ -16,7 +20,8 @@ from langtraj.interdrive.counterfactual import make_alternative
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.metrics.instruction_following import judge_rollouts
 from langtraj.rollouts.container import Rollouts
-from langtraj.scenario import AgentType, Scenario
+from langtraj.scenario import AgentType, Scenario, TrafficLights
+from langtraj.scenario.types import StateField, TrafficLightState
 from langtraj.sim.adherence import Ask, CandidateJudge
 from langtraj.sim.world import SimWorld
 
@@ -36,16 +41,19 @@ def _future(s: Scenario, row: int) -> np.ndarray:
     return np.concatenate([st[:, :2], st[:, 3:4], speed[:, None]], 1)
 
 
-def _verdicts(candidates: list[Scenario], ask: Ask, driven: list[int]) -> tuple[list[bool], list[bool]]:
+def _verdicts(
+    candidates: list[Scenario], ask: Ask, driven: list[int], subtype: str | None = None
+) -> tuple[list[bool], list[bool]]:
     """(candidate judge, instruction-following judge) verdicts of each candidate scene: its logged future is the
-    candidate of every driven row."""
+    candidate of every driven row (and what the judge reads of every other row); the judge asks for the
+    interaction `subtype` (the behaviour's own by default)."""
     base = candidates[0]
     world = SimWorld(base, np.array(driven), 1)
     plans = np.stack([np.stack([_future(c, row) for row in driven])[None] for c in candidates])  # [M, 1, A, T, 4]
     judge = CandidateJudge(world, [ask], MapIndex.build(base.road_map))
     selection = (~judge.misses([0], world.start, plans)[0, :, 0]).tolist()
     checker = AdherenceChecker.build(base)
-    alternative = make_alternative(ask.behaviour, ask.track_id, frozenset(), ask.other_id)
+    alternative = make_alternative(ask.behaviour, ask.track_id, frozenset(), ask.other_id, subtype)
     scoring = []
     for c in candidates:
         rows = list(range(c.num_agents))
@@ -106,3 +114,117 @@ def test_the_copies_of_a_prompted_agent_form_a_valid_scene_whatever_its_self_dri
     plans = np.stack([np.stack([_future(s, 0), _future(s, 1)])[None]])
     judge = CandidateJudge(world, [Ask(1, 0, 0, Behaviour.STOP)], MapIndex.build(s.road_map))
     assert judge.misses([0], world.start, plans).tolist() == [[[True]]]
+
+
+# ------------------------------------------------------------------ yields at the thresholds of the detector
+# Each scene is judged both ways round, by selection (`CandidateJudge`, every agent driven, its candidate the logged
+# future) and by the experiment's judge (`judge_rollouts` on the same rollout): the prompted agent yields to the
+# other (car 1 to car 2 unless said), and the other goes first. `expected` is whether car 1 yields.
+
+STEPS = np.arange(len(TIME))
+WAIT = np.where(STEPS < 50, 0.0, 5.0)  # stands until 5 s, then drives on at 5 m/s
+NORTHBOUND = straight(0, -40, np.pi / 2, 10.0)  # crosses x = 0 northbound, at the centre at step 40
+
+
+JUNCTION = ("yielding/intersection", "passing/intersection_with_yielding")
+
+
+def _both_ways(s: Scenario, waiting: int, passing: int, subtypes: tuple[str, str]) -> tuple[list[bool], list[bool]]:
+    """(selection, scoring) of "@waiting yields to @passing" and "@passing goes first over @waiting", judged by the
+    `subtypes` the detector writes for each side of the yield."""
+    rows = list(range(s.num_agents))
+    w, p = s.agents.index_of(waiting), s.agents.index_of(passing)
+    yields = Ask(waiting, w, w, Behaviour.YIELD, other_id=passing, other_row=p, other_slot=p)
+    first = Ask(passing, p, p, Behaviour.GO_FIRST, other_id=waiting, other_row=w, other_slot=w)
+    verdicts = [_verdicts([s], ask, rows, sub) for ask, sub in zip((yields, first), subtypes, strict=True)]
+    return [v[0][0] for v in verdicts], [v[1][0] for v in verdicts]
+
+
+def _agree(s: Scenario, expected: bool, waiting: int = 1, passing: int = 2, subtypes=JUNCTION) -> None:
+    selection, scoring = _both_ways(s, waiting, passing, subtypes)
+    assert selection == scoring == [expected, expected]
+
+
+@pytest.mark.parametrize(("offset", "expected"), [(1.3, True), (1.7, False)])
+def test_a_foe_passing_between_the_detector_radius_and_the_old_one_is_judged_alike(offset, expected):
+    # car 2 sets off northbound `offset` m north of car 1's way: its path comes that close to car 1's
+    # (1.7 m: no conflict point at the detector's 1.5 m, one at the 2 m selection used to take)
+    slow = straight(0, offset, np.pi / 2, 1.0)
+    _agree(track_scene({1: (VEH, straight(-8, 0, 0, WAIT)), 2: (VEH, slow)}), expected)
+
+
+def _stop_before(distance: float) -> Scenario:
+    """Car 1 brakes evenly from 6 m/s at 2 m/s^2 to stand `distance` m before the crossing to the end."""
+    v = np.where(TIME < 1.0, 6.0, np.maximum(6.0 - 2.0 * (TIME - 1.0), 0.0))
+    return track_scene({1: (VEH, straight(-distance - 15.0, 0, 0, v)), 2: (VEH, NORTHBOUND)})
+
+
+@pytest.mark.parametrize(("distance", "expected"), [(8.0, True), (12.0, True), (17.0, False)])
+def test_a_car_standing_within_the_wait_extension_is_judged_alike(distance, expected):
+    # it never reaches the crossing: its way is extended 15 m (the detector's `wait_extension`, 10 m before)
+    _agree(_stop_before(distance), expected)
+
+
+@pytest.mark.parametrize(("length", "expected"), [(4.5, False), (12.0, True)])
+def test_a_long_foe_is_at_the_crossing_by_its_own_half_length(length, expected):
+    # car 2 creeps north and comes within 1.5 m + half its length of the crossing at 6 s; a 4.5 m car never
+    # does, and the 2.25 m selection used for every agent never came in time for a 12 m truck either
+    v = np.where(TIME < 2.0, 5.0, np.maximum(5.0 - 2.5 * (TIME - 2.0), 0.0))
+    s = track_scene({1: (VEH, straight(-20, 0, 0, v)), 2: (VEH, straight(0, -10.5, np.pi / 2, 0.5))})
+    s.agents.states[1, :, StateField.LENGTH] = length
+    _agree(s, expected)
+
+
+@pytest.mark.parametrize(("gap", "expected"), [(4, True), (7, False)])
+def test_held_runs_joined_by_merge_gap_and_not_are_judged_alike(gap, expected):
+    # car 1 slows to 1 m/s twice for 3 steps, `gap` steps apart, while car 2 crosses: two held runs of 4 steps,
+    # one yield where `merge_gap` (5) joins them, none where it does not (8 held steps in all either way)
+    v = np.full(len(TIME), 3.0)
+    v[30:33] = 1.0
+    v[33 + gap : 36 + gap] = 1.0
+    _agree(track_scene({1: (VEH, straight(-30, 0, 0, v)), 2: (VEH, NORTHBOUND)}), expected)
+
+
+@pytest.mark.parametrize(("light", "expected"), [(TrafficLightState.STOP, False), (TrafficLightState.GO, True)])
+def test_waiting_at_a_red_light_is_no_yield_for_either_judge(light, expected):
+    s = track_scene({1: (VEH, straight(-8, 0, 0, WAIT)), 2: (VEH, NORTHBOUND)})
+    stop_line = [[-4.0, 0.0, 0.0]]  # 1.75 m ahead of car 1's front
+    lights = TrafficLights([900], np.full((len(TIME), 1), light, np.int8), np.ones((len(TIME), 1), bool), stop_line)
+    _agree(replace(s, traffic_lights=lights), expected)
+
+
+def test_a_car_queued_behind_its_leader_yields_to_no_one_for_either_judge():
+    queue = {1: (VEH, straight(-8, 0, 0, WAIT)), 3: (VEH, straight(-16, 0, 0, WAIT)), 2: (VEH, NORTHBOUND)}
+    s = track_scene(queue)
+    _agree(s, True, waiting=1)
+    _agree(s, False, waiting=3)  # car 1, its leader, stands between it and the crossing
+
+
+TO_PEDESTRIAN = ("yielding/to_pedestrian", "passing/vru_crossing")  # a car waits, a pedestrian goes first
+PEDESTRIAN_WAITS = ("yielding/pedestrian_to_vehicle", "passing/pedestrian")  # a pedestrian waits, a car goes first
+
+
+def test_yields_between_a_car_and_a_pedestrian_are_judged_alike():
+    cw = [crosswalk(900, 26, 30, -3.5, 3.5)]
+    walks = track_scene({1: (VEH, straight(20, 0, 0, 0.0)), 5: (PED, straight(28, -5, np.pi / 2, 1.2))}, features=cw)
+    # the car waits for the pedestrian on the crosswalk ahead, and the pedestrian does not wait for the car
+    _agree(walks, True, waiting=1, passing=5, subtypes=TO_PEDESTRIAN)
+    _agree(walks, False, waiting=5, passing=1, subtypes=PEDESTRIAN_WAITS)
+    stand = straight(30, -4.5, np.pi / 2, np.where(STEPS < 50, 0.0, 1.2))
+    cw = [crosswalk(900, 29, 33, -3.5, 3.5)]
+    waits = track_scene({1: (VEH, straight(20, 0, 0, 3.0)), 5: (PED, stand)}, features=cw)
+    # the pedestrian waits while the car drives over its crosswalk
+    _agree(waits, True, waiting=5, passing=1, subtypes=PEDESTRIAN_WAITS)
+
+
+def test_selection_reads_the_detector_settings_it_is_given():
+    from langtraj.interdrive.detector import DetectorConfig
+
+    s = _stop_before(12.0)
+    world = SimWorld(s, np.array([0, 1]), 1)
+    plans = np.stack([np.stack([_future(s, 0), _future(s, 1)])[None]])
+    ask = Ask(1, 0, 0, Behaviour.YIELD, other_id=2, other_row=1, other_slot=1)
+    index = MapIndex.build(s.road_map)
+    assert not CandidateJudge(world, [ask], index).misses([0], world.start, plans).any()
+    short = DetectorConfig(wait_extension=10.0)  # the way on no longer reaches the crossing
+    assert CandidateJudge(world, [ask], index, detector=short).misses([0], world.start, plans).all()

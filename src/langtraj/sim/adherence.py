@@ -5,45 +5,52 @@ candidates that follow its prompt (`sim.selection`, `first`). A candidate's futu
 past followed by the candidate, up to the end of the simulated 8 s, exactly what the judge will read at the end
 (`metrics.instruction_following`). Single-agent behaviours are judged by the heuristic labelers themselves, on
 one scene holding a copy of the agent per candidate and rollout (one labelling per replan). Pair behaviours are
-judged by the interaction detector's rule for a yield at the crossing point of the two agents' paths (the one
-that comes second held back before it while the other is near; going first: the other yields), and by staying
-behind for following.
+judged by the interaction detector's own rule for one ordered pair (`interdrive.detector.yielding_runs`,
+`passing_runs`, `following_runs`, with the judge's `DetectorConfig`), the one `detect_interactions` runs over every
+pair, on each candidate's scene: every agent's past up to the replan, the driven agents' candidates after it, the
+undriven agents' simulated tracks, speeds from positions as the judge reads a rollout
+(`metrics.instruction_following.rollout_scenario`), cut to the agents the rule reads (`pair_rows`: the two, the
+vehicles near either that may lead it, and the pedestrians where one of them walks). Yielding: the prompted agent
+yields to the other; going first: the other yields to it (the passing side of that yield); following: it follows
+the other. Each is judged by its interaction type, whatever the subtype (a prompt read from text names none; the
+judge of an experiment's prompt asks for the subtype the log shows).
 
-Only simulated states are read: the executed past and the candidates (never the logged future).
+Only simulated states are read: the executed past, the candidates and the undriven agents' simulated tracks
+(never the logged future); traffic lights are held at their state at the start of the simulation.
 See docs/simulation.md ('Prompts that steer').
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from langtraj.angles import wrap_angle
 from langtraj.interdrive.adherence import label_facts
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour, behaviour_facts
-from langtraj.interdrive.detector import DetectorConfig
+from langtraj.interdrive.detector import (
+    DetectorConfig,
+    SceneGeometry,
+    following_runs,
+    pair_rows,
+    passing_runs,
+    yielding_runs,
+)
+from langtraj.interdrive.detector.parts import Pair
 from langtraj.interdrive.heuristics import HeuristicConfig, label_agents
 from langtraj.interdrive.mapindex import MapIndex
-from langtraj.scenario.model import STEP_SECONDS, Agents, Scenario
-from langtraj.scenario.types import AgentType, StateField
+from langtraj.interdrive.taxonomy import InteractionType
+from langtraj.scenario.model import Agents, Scenario, TrafficLights
+from langtraj.scenario.types import StateField
 from langtraj.sim.world import SimWorld
 
-CROSSING_RADIUS = 2.0
-"""Two positions this close (m), at more than `CROSSING_ANGLE` to each other, are the same crossing point."""
-CROSSING_ANGLE = np.radians(20.0)
-HELD_SPEED = DetectorConfig().held_speed
-"""A yielding vehicle is held (at or below this speed, m/s) somewhere before the crossing point."""
-STANDING_SPEED = DetectorConfig().stopped_speed
-"""A yielding pedestrian or cyclist stands (at or below this speed, m/s) somewhere before the crossing point."""
-FOE_HORIZON_S = DetectorConfig().foe_horizon_s
-"""The passing agent counts while at most this far, in time at its speed, from the crossing point (s)."""
-YIELD_MIN_STEPS = DetectorConfig().min_event_steps
-"""A yield holds for at least this many steps."""
-PASSING_HALF_LENGTH = 2.25
-"""Half a car's length: the passing agent is at the crossing point while its centre is this much beyond the radius."""
-WAIT_EXTENSION = 10.0
-"""A yielding agent that never reaches the crossing is extended straight this far (m), as the detector does."""
+PAIR_RUNS: dict[InteractionType, Callable[[SceneGeometry, int, int], list[Pair]]] = {
+    InteractionType.YIELDING: yielding_runs,
+    InteractionType.PASSING: passing_runs,
+    InteractionType.FOLLOWING: following_runs,
+}
+"""The detector's per-pair rule judging each pair behaviour's interaction type (`BehaviourSpec.interaction`)."""
 
 
 @dataclass(frozen=True)
@@ -61,25 +68,36 @@ class Ask:
 
 
 class CandidateJudge:
-    """Judges the candidates of every ask at a replan (see the module docstring)."""
+    """Judges the candidates of every ask at a replan (see the module docstring); `detector` is the interaction
+    detector's settings, the same the judge of instruction following uses (`DetectorConfig()` by default)."""
 
-    def __init__(self, world: SimWorld, asks: list[Ask], index: MapIndex, config: HeuristicConfig | None = None):
+    def __init__(
+        self,
+        world: SimWorld,
+        asks: list[Ask],
+        index: MapIndex,
+        config: HeuristicConfig | None = None,
+        detector: DetectorConfig | None = None,
+    ):
         self.world = world
         self.asks = asks
         self.index = index
         self.config = config or HeuristicConfig()
+        self.detector = detector or DetectorConfig()
+        self._base = _up_to(replace(world.scenario, traffic_lights=_held_lights(world)), world.end)
 
     def misses(self, rollouts: list[int], step: int, plans: np.ndarray) -> np.ndarray:
         """bool [len(asks), M, R]: the candidate does not follow the ask. `plans` [M, R, A_d, T, 4] are the
         candidates in the world frame (x, y, heading, speed) for steps step+1 ... of rollouts `rollouts`."""
         out = np.zeros((len(self.asks), *plans.shape[:2]), bool)
+        pairs = []
         for k, ask in enumerate(self.asks):
-            future = self._futures(ask.row, ask.slot, rollouts, step, plans)  # [M, R, T_all, 9]
             if not BEHAVIOURS[ask.behaviour].is_pair:
-                out[k] = self._single_misses(ask, future)
-            elif ask.other_slot is not None or ask.other_row is not None:
-                other = self._futures(ask.other_row, ask.other_slot, rollouts, step, plans)
-                out[k] = self._pair_misses(ask, future, other)
+                out[k] = self._single_misses(ask, self._futures(ask.row, ask.slot, rollouts, step, plans))
+            elif ask.other_row is not None:
+                pairs.append(k)
+        if pairs:
+            out[pairs] = self._pair_misses([self.asks[k] for k in pairs], rollouts, step, plans)
         return out
 
     def _futures(self, row: int | None, slot: int | None, rollouts: list[int], step: int, plans: np.ndarray):
@@ -123,18 +141,88 @@ class CandidateJudge:
         hits = np.array([wanted <= have.get(int(i), set()) for i in ids])
         return ~hits.reshape(m, r)
 
-    def _pair_misses(self, ask: Ask, mine: np.ndarray, theirs: np.ndarray) -> np.ndarray:
-        """Order at the crossing point (going first, yielding) or staying behind (following), per candidate."""
-        start, end = self.world.start + 1, self.world.end + 1
-        a = mine[:, :, start:end]
-        b = theirs[:, :, start:end]
-        out = np.ones(a.shape[:2], bool)
-        types = self.world.scenario.agents.types
-        held = [_held_speed(int(types[ask.row])), _held_speed(int(types[ask.other_row]))]  # type: ignore[index]
-        for i in range(a.shape[0]):
-            for j in range(a.shape[1]):
-                out[i, j] = not _follows(ask.behaviour, a[i, j], b[i, j], held)
+    def _pair_misses(self, asks: list[Ask], rollouts: list[int], step: int, plans: np.ndarray) -> np.ndarray:
+        """bool [len(asks), M, R]: the detector's rule for each ask's interaction type finds no run of the pair in
+        the candidate's scene (`candidate_scene`), cut to the agents the rules read (`pair_rows`)."""
+        out = np.ones((len(asks), *plans.shape[:2]), bool)
+        tracks, valid = self._tracks(rollouts)
+        xy = np.repeat(tracks[None, ..., : StateField.Y + 1].astype(np.float64), plans.shape[0], axis=0)
+        count = min(plans.shape[3], self.world.end - step)
+        driven = self.world.driven
+        xy[:, :, driven, step + 1 : step + 1 + count] = plans[:, :, : len(driven), :count, :2]
+        types = self._base.agents.types
+        for i in range(plans.shape[0]):
+            for r in range(len(rollouts)):
+                rows = np.unique(
+                    np.concatenate(
+                        [pair_rows(xy[i, r], valid[r], types, a.row, a.other_row, self.detector) for a in asks]  # type: ignore[arg-type]
+                    )
+                )
+                scenario = self.candidate_scene(tracks[r], valid[r], rows, step, plans[i, r])
+                scene = SceneGeometry(scenario, (), self.detector, self.index)
+                at = {int(row): k for k, row in enumerate(rows)}
+                for k, ask in enumerate(asks):
+                    rule = PAIR_RUNS[BEHAVIOURS[ask.behaviour].interaction]  # type: ignore[index]
+                    out[k, i, r] = not rule(scene, at[ask.row], at[ask.other_row])  # type: ignore[index]
         return out
+
+    def _tracks(self, rollouts: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """States [R, A, T, 9] and validity [R, A, T] of every agent of rollouts `rollouts` up to the end of the
+        simulated 8 s, agents that are not sim agents hidden after the start (`SimWorld.played`)."""
+        world, end = self.world, self.world.end
+        tracks = world.states[rollouts][:, :, : end + 1]
+        valid = world.valid[rollouts][:, :, : end + 1].copy()
+        valid[:, np.setdiff1d(np.arange(valid.shape[1]), world.sim_agents), world.start + 1 :] = False
+        return tracks, valid
+
+    def candidate_scene(
+        self, tracks: np.ndarray, valid: np.ndarray, rows: np.ndarray, step: int, plan: np.ndarray
+    ) -> Scenario:
+        """The scene of scenario rows `rows` up to the end of the simulated 8 s as the judge will read the rollout
+        of `tracks` [A, T, 9] and `valid` [A, T] (`_tracks`), had candidate `plan` [A_d, T, 4] been executed at
+        `step`: every agent's past up to `step`, the driven agents' candidate after it (their earlier plans where
+        it is shorter), the undriven agents' simulated tracks; speeds from positions over the simulated steps
+        (`rollout_scenario`); traffic lights as at the start."""
+        world, start, end = self.world, self.world.start, self.world.end
+        states = tracks[rows].copy()  # [K, T, 9]
+        slots = np.full(tracks.shape[0], -1, np.int64)
+        slots[world.driven] = np.arange(len(world.driven))
+        slot = slots[rows]
+        moved = np.flatnonzero(slot >= 0)
+        count = min(plan.shape[1], end - step)
+        block = states[moved, step + 1 : step + 1 + count]
+        Agents.write_poses(block, plan[slot[moved], :count].astype(np.float64))
+        states[moved, step + 1 : step + 1 + count] = block
+        sim = np.isin(rows, world.sim_agents)
+        xy = states[sim, start : end + 1, : StateField.Y + 1].astype(np.float64)
+        dt = np.diff(self._base.timestamps[start : end + 1])
+        speed = np.linalg.norm(np.diff(xy, axis=1), axis=-1) / np.maximum(dt, 1e-6)
+        heading = states[sim, start + 1 : end + 1, StateField.HEADING].astype(np.float64)
+        velocity = np.stack([speed * np.cos(heading), speed * np.sin(heading)], -1)
+        states[sim, start + 1 : end + 1, StateField.VX : StateField.VY + 1] = velocity
+        base = self._base
+        agents = replace(
+            base.agents,
+            ids=base.agents.ids[rows],
+            types=base.agents.types[rows],
+            states=states,
+            valid=valid[rows],
+            tracks_to_predict=np.zeros(0, np.int64),
+            prediction_difficulty=None,
+            objects_of_interest=np.zeros(0, np.int64),
+        )
+        return replace(base, agents=agents, sdc_index=-1)
+
+
+def _held_lights(world: SimWorld) -> TrafficLights:
+    """The world's traffic lights with every step after the start showing the start's states (the logged future
+    of the lights is not read)."""
+    lights = world.scenario.traffic_lights
+    assert lights is not None
+    states, valid = lights.states.copy(), lights.valid.copy()
+    states[world.start + 1 :] = states[world.start]
+    valid[world.start + 1 :] = valid[world.start]
+    return replace(lights, states=states, valid=valid)
 
 
 def _up_to(scenario: Scenario, end: int) -> Scenario:
@@ -148,62 +236,3 @@ def _up_to(scenario: Scenario, end: int) -> Scenario:
     if lights is not None:
         lights = replace(lights, states=lights.states[: end + 1], valid=lights.valid[: end + 1])
     return replace(scenario, agents=agents, timestamps=scenario.timestamps[: end + 1], traffic_lights=lights)
-
-
-def _pose(track: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    xy = track[:, [StateField.X, StateField.Y]].astype(np.float64)
-    heading = track[:, StateField.HEADING].astype(np.float64)
-    speed = np.hypot(track[:, StateField.VX], track[:, StateField.VY])
-    return xy, heading, speed
-
-
-def _held_speed(agent_type: int) -> float:
-    return HELD_SPEED if agent_type == AgentType.VEHICLE else STANDING_SPEED
-
-
-def _follows(behaviour: Behaviour, mine: np.ndarray, theirs: np.ndarray, held: list[float]) -> bool:
-    """Whether track `mine` [T, 9] does `behaviour` toward track `theirs` [T, 9] over the simulated steps; `held`
-    is the speed at or below which each of the two waits (`_held_speed` of its type)."""
-    xa, ha, va = _pose(mine)
-    xb, hb, vb = _pose(theirs)
-    if behaviour is Behaviour.FOLLOW:
-        gap = xb - xa
-        ahead = gap[:, 0] * np.cos(ha) + gap[:, 1] * np.sin(ha)
-        side = np.abs(-gap[:, 0] * np.sin(ha) + gap[:, 1] * np.cos(ha))
-        aligned = np.abs(wrap_angle(hb - ha)) < np.radians(30.0)
-        behind = (ahead > 0) & (ahead < 40.0) & (side < 2.5) & aligned
-        return bool(behind.mean() >= 0.5)
-    forward = np.array([np.cos(ha[-1]), np.sin(ha[-1])])
-    extension = xa[-1] + np.arange(1.0, WAIT_EXTENSION + 0.5, 1.0)[:, None] * forward[None]
-    path = np.concatenate([xa, extension])
-    heading = np.concatenate([ha, np.full(len(extension), ha[-1])])
-    gaps = np.linalg.norm(path[:, None] - xb[None], axis=-1)  # [T + E, T]
-    crossing = (gaps < CROSSING_RADIUS) & (np.abs(wrap_angle(heading[:, None] - hb[None])) > CROSSING_ANGLE)
-    rows = np.flatnonzero(crossing.any(axis=1))
-    if not rows.size:
-        return False
-    point = path[int(rows[0])]  # the first point of my path that the other's path crosses
-    if behaviour is Behaviour.GO_FIRST:  # first there, while the other is held back before it (it yields)
-        return _waits_for(xb, vb, held[1], xa, va, point)
-    return _waits_for(xa, va, held[0], xb, vb, point)
-
-
-def _waits_for(
-    waiting: np.ndarray, wait_speed: np.ndarray, held: float, passing: np.ndarray, pass_speed: np.ndarray, point
-) -> bool:
-    """The detector's yield (`detector.yields.YieldGeometry._yield_mask`) on two tracks' positions [T, 2] and speeds
-    [T]: the passing agent gets to `point` first, and the waiting one is held back (at or below `held`, or braking)
-    for at least `YIELD_MIN_STEPS` steps before it gets there while the passing one is near it (inside, or moving
-    and at most `FOE_HORIZON_S` away at its speed)."""
-    steps = np.arange(len(waiting))
-    at_waiting = np.flatnonzero(np.linalg.norm(waiting - point, axis=1) < CROSSING_RADIUS)
-    reach = int(at_waiting[0]) if at_waiting.size else len(waiting)
-    distance = np.linalg.norm(passing - point, axis=1)
-    inside = distance < CROSSING_RADIUS + PASSING_HALF_LENGTH
-    if not inside.any() or int(np.flatnonzero(inside)[0]) > reach:
-        return False
-    last_in = int(np.flatnonzero(inside)[-1])
-    approaching = (distance / np.maximum(pass_speed, 1.0) <= FOE_HORIZON_S) & (pass_speed > held)
-    braking = np.gradient(wait_speed) / STEP_SECONDS < DetectorConfig().braking
-    holding = ((wait_speed <= held) | braking) & (steps <= last_in) & (approaching | inside) & (steps < reach)
-    return int(holding.sum()) >= YIELD_MIN_STEPS

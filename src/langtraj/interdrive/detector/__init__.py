@@ -9,6 +9,13 @@ registered in `INTERACTION_RULES`; `detect_interactions` runs them all over one 
 merges, overtakes), `yields` (held vehicles, conflict points), `crosswalks` (pedestrians), `rules` (the rules); each
 part imports only the parts it reads, so no module imports one that imports it back. Lane primitives shared
 with the heuristic labeler (`LaneChange`, neighbour lanes, the road-side test of parked cars) are in `mapindex`.
+One ordered pair can be judged alone by the rules' own definitions: `yielding_runs`, `passing_runs` and
+`following_runs` give the runs of the pair's labels of that type that `detect_interactions` keeps, computing only
+what the pair needs (the two agents' paths, held steps, red lights and standing, and the leaders of the one that
+waits, per agent and only at the steps that decide); `pair_rows` names the agents they read, so a scene may be cut
+to those. The rules over all pairs run the same per-pair definitions (`YieldGeometry.pair_yields`,
+`CrosswalkGeometry.pedestrian_yield_runs` and `pedestrian_wait_runs`, `PathGeometry.following`) over every pair.
+Candidate selection in simulation judges pair prompts with them (`sim.adherence`).
 The rules mirror how `ground_truth.py` defines each type from SUMO's events, so the two can be compared with
 `evaluation.match_interactions`:
 
@@ -65,7 +72,15 @@ filter) and are sorted as the ground truth's.
 """
 
 from langtraj.interdrive.detector.config import DetectorConfig
-from langtraj.interdrive.detector.rules import INTERACTION_RULES, InteractionRule, detect_interactions
+from langtraj.interdrive.detector.rules import (
+    INTERACTION_RULES,
+    InteractionRule,
+    detect_interactions,
+    following_runs,
+    pair_rows,
+    passing_runs,
+    yielding_runs,
+)
 from langtraj.interdrive.detector.scene import SceneGeometry
 
 __all__ = [
@@ -74,4 +89,8 @@ __all__ = [
     "InteractionRule",
     "SceneGeometry",
     "detect_interactions",
+    "following_runs",
+    "pair_rows",
+    "passing_runs",
+    "yielding_runs",
 ]

@@ -16,8 +16,8 @@ from langtraj.scenario.types import StateField
 
 @dataclass(frozen=True, eq=False)
 class SceneArrays:
-    """The scene, the thresholds, the map index and the agents' per-step arrays; `static` and `parked` are
-    computed once on first use."""
+    """The scene, the thresholds, the map index and the agents' per-step arrays; who stands (`is_static`,
+    `is_parked`) is computed per agent on first use, and for every agent at once by `static` and `parked`."""
 
     scenario: Scenario
     config: DetectorConfig
@@ -70,23 +70,39 @@ class SceneArrays:
     # ------------------------------------------------------------ standing agents
     @cached_property
     def static(self) -> np.ndarray:
-        """[A]: the agent stands over the whole window, history included: its valid positions span at most
-        `static_displacement` (a parked car, or one waiting all window long)."""
-        out = np.zeros(len(self.ids), bool)
-        for a in range(len(self.ids)):
-            pts = self.xy[a, self.valid[a]]
-            if len(pts):
-                out[a] = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) <= self.config.static_displacement
-        return out
+        """[A]: `is_static` of every agent."""
+        return np.array([self.is_static(a) for a in range(len(self.ids))], bool)
 
     @cached_property
     def parked(self) -> np.ndarray:
-        """[A]: static and on no map lane at any step (the road side, a parking lot); every static agent where the
-        map has no lanes. The road-side test is `MapIndex.parked_decision` on the agent's lane match at every
-        valid step; undecided counts as parked."""
-        out = self.static.copy()
-        for a in np.flatnonzero(out).tolist():
-            steps = self.valid[a]
-            match = self.match_lanes(self.xy[a, steps], self.heading[a, steps], exclude_junctions=False)
-            out[a] = self.map_index.parked_decision(match, self.xy[a, steps])[0] is not False
-        return out
+        """[A]: `is_parked` of every agent."""
+        return np.array([self.is_parked(a) for a in range(len(self.ids))], bool)
+
+    @cached_property
+    def _standing(self) -> dict[tuple[str, int], bool]:
+        """`is_static` and `is_parked` of the agents asked about so far."""
+        return {}
+
+    def is_static(self, a: int) -> bool:
+        """Agent `a` stands over the whole window, history included: its valid positions span at most
+        `static_displacement` (a parked car, or one waiting all window long)."""
+        key = ("static", a)
+        if key not in self._standing:
+            pts = self.xy[a, self.valid[a]]
+            span = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) if len(pts) else np.inf
+            self._standing[key] = span <= self.config.static_displacement
+        return self._standing[key]
+
+    def is_parked(self, a: int) -> bool:
+        """Agent `a` is static and on no map lane at any step (the road side, a parking lot); every static agent
+        where the map has no lanes. The road-side test is `MapIndex.parked_decision` on the agent's lane match at
+        every valid step; undecided counts as parked."""
+        key = ("parked", a)
+        if key not in self._standing:
+            parked = self.is_static(a)
+            if parked:
+                steps = self.valid[a]
+                match = self.match_lanes(self.xy[a, steps], self.heading[a, steps], exclude_junctions=False)
+                parked = self.map_index.parked_decision(match, self.xy[a, steps])[0] is not False
+            self._standing[key] = parked
+        return self._standing[key]

@@ -51,6 +51,18 @@ class LaneGeometry(ScenePart):
             out[mask] = self.lane_ids(self.xy[mask], self.heading[mask], exclude_junctions=True)
         return out
 
+    def lanes_at(self, a: int, steps: np.ndarray) -> np.ndarray:
+        """Map lane id of agent `a` at `steps` [S], as in `per_step` (a lane match is per point): matched at those
+        steps alone unless `per_step` is already computed."""
+        if "per_step" in self.__dict__:
+            return self.per_step[a, steps]
+        out = np.full(len(steps), -1, np.int64)
+        keep = self.valid[a, steps] & self.movers[a]
+        if self.map_index.has_lanes and keep.any():
+            at = steps[keep]
+            out[keep] = self.lane_ids(self.xy[a, at], self.heading[a, at], exclude_junctions=True)
+        return out
+
     @cached_property
     def has_connectivity(self) -> bool:
         """Whether some lane of the map names a successor or a predecessor."""

@@ -69,72 +69,128 @@ class PathGeometry(ScenePart):
         return Path(points, np.arctan2(diff[:, 1], diff[:, 0]), sample, step_arc, real)
 
     @cached_property
+    def _per_agent(self) -> dict[tuple[str, int], object]:
+        """Per-agent paths and leader rows computed so far."""
+        return {}
+
+    def driven_path(self, a: int) -> Path | None:
+        """The path of vehicle or cyclist `a` (20 m back, `path_extension` ahead); None for other agents and one
+        never valid."""
+        key = ("driven", a)
+        if key not in self._per_agent:
+            self._per_agent[key] = self.path(a, 20.0, self.config.path_extension) if self.movers[a] else None
+        return self._per_agent[key]  # type: ignore[return-value]
+
+    def waiting_path(self, a: int) -> Path | None:
+        """The path of mover `a` as a yielding vehicle's: from its first step, `wait_extension` ahead (None where
+        `driven_path` is)."""
+        key = ("waiting", a)
+        if key not in self._per_agent:
+            keep = self.driven_path(a) is not None
+            self._per_agent[key] = self.path(a, 0.0, self.config.wait_extension) if keep else None
+        return self._per_agent[key]  # type: ignore[return-value]
+
+    @cached_property
     def driven(self) -> dict[int, Path]:
-        """The path of every vehicle and cyclist (20 m back, `path_extension` ahead)."""
-        out = {}
-        for a in np.flatnonzero(self.movers).tolist():
-            path = self.path(a, 20.0, self.config.path_extension)
-            if path is not None:
-                out[a] = path
-        return out
+        """`driven_path` of every vehicle and cyclist that has one."""
+        return {a: p for a in np.flatnonzero(self.movers).tolist() if (p := self.driven_path(a)) is not None}
 
     @cached_property
     def waiting(self) -> dict[int, Path]:
-        """The path of every mover as a yielding vehicle's: from its first step, `wait_extension` ahead."""
-        return {a: p for a in self.driven if (p := self.path(a, 0.0, self.config.wait_extension)) is not None}
+        """`waiting_path` of every mover in `driven`."""
+        return {a: p for a in self.driven if (p := self.waiting_path(a)) is not None}
 
     @cached_property
     def leaders(self) -> np.ndarray:
-        """Leader agent index of each agent per step [A, T] (-1 when none)."""
-        cfg = self.config
+        """Leader agent index of each agent per step [A, T] (-1 when none): `leaders_of` every agent."""
         out = np.full(self.valid.shape, -1, np.int64)
-        movers = np.flatnonzero(self.movers)
-        for f, path in self.driven.items():
-            others = movers[movers != f]
-            if others.size == 0:
-                continue
-            near = self.valid[others] & self.valid[f][None, :]
-            rel = self.xy[others] - self.xy[f][None]
-            cos, sin = np.cos(self.heading[f])[None], np.sin(self.heading[f])[None]
-            along = rel[..., 0] * cos + rel[..., 1] * sin
-            li, ti = np.nonzero(near & (along > 0.0) & (np.linalg.norm(rel, axis=-1) < cfg.leader_search))
-            if li.size == 0:
-                continue
-            lead = others[li]
-            half = 0.5 * (self.length[lead, ti] + self.length[f, ti])
-            arc, lateral, heading = project(path, self.xy[lead, ti])
-            on_path = (lateral < cfg.leader_lateral) & (arc - path.step_arc[ti] > 0.5)
-            same_heading = np.abs(wrap_angle(self.heading[lead, ti] - heading)) < cfg.leader_heading
-            gap = arc - path.step_arc[ti] - half
-            # straight ahead in the follower's own lane too (its path bends away before a lane change)
-            side = np.abs(rel[li, ti, 1] * cos[0, ti] - rel[li, ti, 0] * sin[0, ti])
-            ahead = (side < cfg.leader_lateral) & (along[li, ti] - half < cfg.straight_range)
-            ahead &= np.abs(wrap_angle(self.heading[lead, ti] - self.heading[f, ti])) < cfg.leader_heading
-            gap = np.where(on_path & same_heading, gap, along[li, ti] - half)
-            ok = ((on_path & same_heading) | ahead) & (gap > -1.0) & (gap < cfg.leader_range)
-            if not ok.any():
-                continue
-            lead, ti, gap = lead[ok], ti[ok], gap[ok]
-            order = np.lexsort((gap, ti))
-            first = np.concatenate([[True], np.diff(ti[order]) != 0])
-            out[f, ti[order][first]] = lead[order][first]
+        for f in self.driven:
+            out[f] = self.leaders_of(f)
+        return out
+
+    def leaders_of(self, f: int) -> np.ndarray:
+        """Leader agent index of agent `f` per step [T] (-1 when none): the nearest other mover on f's path (or
+        straight ahead in f's heading frame), heading along it (see the module)."""
+        key = ("leaders", f)
+        if key not in self._per_agent:
+            self._per_agent[key] = self._leaders_at(f, np.arange(self.num_steps))
+        return self._per_agent[key]  # type: ignore[return-value]
+
+    def leaders_at(self, f: int, steps: np.ndarray) -> np.ndarray:
+        """`leaders_of` agent `f` at `steps` [S] (each step's leader is found from that step alone)."""
+        key = ("leaders", f)
+        if key in self._per_agent:
+            return self._per_agent[key][steps]  # type: ignore[index]
+        return self._leaders_at(f, steps)
+
+    def _ahead(
+        self, f: int, others: np.ndarray, steps: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Where `others` [O] stand relative to agent f at `steps` [S]: offsets [O, S, 2], f's heading cos and sin
+        [1, S], distance along f's heading [O, S], and [O, S] whether each may lead f there (both valid, ahead of
+        f, within `leader_search`)."""
+        rel = self.xy[np.ix_(others, steps)] - self.xy[f, steps][None]
+        cos, sin = np.cos(self.heading[f, steps])[None], np.sin(self.heading[f, steps])[None]
+        along = rel[..., 0] * cos + rel[..., 1] * sin
+        near = self.valid[np.ix_(others, steps)] & self.valid[f, steps][None, :]
+        near &= (along > 0.0) & (np.linalg.norm(rel, axis=-1) < self.config.leader_search)
+        return rel, cos, sin, along, near
+
+    def _leaders_at(self, f: int, steps: np.ndarray, among: np.ndarray | None = None) -> np.ndarray:
+        """`leaders_at`, the leader chosen among agents `among` (every other mover by default)."""
+        cfg = self.config
+        out = np.full(len(steps), -1, np.int64)
+        path = self.driven_path(f)
+        movers = np.flatnonzero(self.movers) if among is None else among
+        others = movers[movers != f]
+        if path is None or others.size == 0 or steps.size == 0:
+            return out
+        rel, cos, sin, along, near = self._ahead(f, others, steps)
+        li, si = np.nonzero(near)
+        if li.size == 0:
+            return out
+        lead, ti = others[li], steps[si]  # si indexes `steps`, ti the scene's steps
+        half = 0.5 * (self.length[lead, ti] + self.length[f, ti])
+        arc, lateral, heading = project(path, self.xy[lead, ti])
+        on_path = (lateral < cfg.leader_lateral) & (arc - path.step_arc[ti] > 0.5)
+        same_heading = np.abs(wrap_angle(self.heading[lead, ti] - heading)) < cfg.leader_heading
+        gap = arc - path.step_arc[ti] - half
+        # straight ahead in the follower's own lane too (its path bends away before a lane change)
+        side = np.abs(rel[li, si, 1] * cos[0, si] - rel[li, si, 0] * sin[0, si])
+        ahead = (side < cfg.leader_lateral) & (along[li, si] - half < cfg.straight_range)
+        ahead &= np.abs(wrap_angle(self.heading[lead, ti] - self.heading[f, ti])) < cfg.leader_heading
+        gap = np.where(on_path & same_heading, gap, along[li, si] - half)
+        ok = ((on_path & same_heading) | ahead) & (gap > -1.0) & (gap < cfg.leader_range)
+        if not ok.any():
+            return out
+        lead, si, gap = lead[ok], si[ok], gap[ok]
+        order = np.lexsort((gap, si))
+        first = np.concatenate([[True], np.diff(si[order]) != 0])
+        out[si[order][first]] = lead[order][first]
         return out
 
     @cached_property
     def follows(self) -> list[Pair]:
-        """Runs of at least `min_follow_steps` behind one leader. A parked follower follows no one, nor does a
-        static one behind a static leader (cars parked in a row); a static follower is kept behind a leader that
-        moves in the window (queued at a junction)."""
-        cfg = self.config
+        """`following` runs of every agent behind each of its leaders."""
         pairs = []
         for f in range(len(self.ids)):
-            if self.parked[f]:
-                continue
-            leaders = self.leaders[f]
+            leaders = self.leaders_of(f)
             for lead in np.unique(leaders[leaders >= 0]).tolist():
-                if self.static[f] and self.parked[lead]:
-                    continue
-                for a, b in true_runs(leaders == lead, max_gap=cfg.follow_merge_gap):
-                    if b - a >= cfg.min_follow_steps:
-                        pairs.append(Pair(f, lead, a, b))
+                pairs.extend(self.following(f, lead))
         return pairs
+
+    def following(self, f: int, lead: int) -> list[Pair]:
+        """Runs of at least `min_follow_steps` of agent `f` behind leader `lead` (flickers up to
+        `follow_merge_gap` joined). A parked follower follows no one, nor does a static one behind a parked
+        leader (cars parked in a row); a static follower is kept behind a leader that is not parked (queued at a
+        junction). The leaders of f are looked up only at the steps where lead alone would lead it."""
+        cfg = self.config
+        if self.arrays.is_parked(f) or (self.arrays.is_static(f) and self.arrays.is_parked(lead)):
+            return []
+        steps = np.arange(self.num_steps)
+        if ("leaders", f) not in self._per_agent:  # only where lead alone would lead f
+            steps = steps[self._leaders_at(f, steps, np.array([lead])) == lead]
+        behind = np.zeros(self.num_steps, bool)
+        behind[steps] = self.leaders_at(f, steps) == lead
+        runs = true_runs(behind, max_gap=cfg.follow_merge_gap)
+        return [Pair(f, lead, a, b) for a, b in runs if b - a >= cfg.min_follow_steps]

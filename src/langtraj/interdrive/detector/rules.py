@@ -13,7 +13,7 @@ from typing import ClassVar
 import numpy as np
 
 from langtraj.angles import wrap_angle
-from langtraj.interdrive.detector.config import DetectorConfig
+from langtraj.interdrive.detector.config import MOVERS, DetectorConfig
 from langtraj.interdrive.detector.parts import Pair
 from langtraj.interdrive.detector.scene import SceneGeometry
 from langtraj.interdrive.ground_truth import filter_to_window, label_sort_key
@@ -214,6 +214,11 @@ class MergingRule(InteractionRule):
         return labels
 
 
+def _window_steps(config: DetectorConfig) -> int:
+    """Steps a label must overlap the current and future steps by (`min_window_s`)."""
+    return round(config.min_window_s / STEP_SECONDS)
+
+
 def detect_interactions(
     scenario: Scenario,
     agent_labels: Sequence[AgentLabel] = (),
@@ -224,5 +229,72 @@ def detect_interactions(
     pass the scene's `map_index` to share the one the heuristic labeler used."""
     scene = SceneGeometry(scenario, agent_labels, config or DetectorConfig(), map_index)
     labels = [lab for cls in INTERACTION_RULES.classes() for lab in cls().detect(scene)]
-    min_steps = round(scene.config.min_window_s / STEP_SECONDS)
-    return tuple(sorted(filter_to_window(labels, scenario, min_steps), key=label_sort_key))
+    return tuple(sorted(filter_to_window(labels, scenario, _window_steps(scene.config)), key=label_sort_key))
+
+
+# ---------------------------------------------------------------- one ordered pair
+
+
+def _kept(scene: SceneGeometry, pairs: Sequence[Pair], subtype: str) -> list[Pair]:
+    """The pairs whose labels `detect_interactions` keeps (`ground_truth.filter_to_window`); `subtype` only names
+    the labels' type, which the filter does not read."""
+    labels = _pair_labels(scene, pairs, subtype)
+    kept = {id(lab) for lab in filter_to_window(labels, scene.scenario, _window_steps(scene.config))}
+    return [p for p, lab in zip(pairs, labels, strict=True) if id(lab) in kept]
+
+
+def _pair_yields(scene: SceneGeometry, agent: int, other: int) -> list[tuple[Pair, Pair]]:
+    """(agent yields to other, other passes agent) for each yield of agent row `agent` to row `other` by the
+    yield rule of their types, as `YieldingRule` and `PassingRule` write its two sides: between vehicles and
+    cyclists `YieldGeometry.pair_yields`, a vehicle or cyclist to a pedestrian
+    `CrosswalkGeometry.pedestrian_yield_runs`, a pedestrian waiting at a crosswalk for a vehicle or cyclist
+    `CrosswalkGeometry.pedestrian_wait_runs` (the vehicle passes over its own steps on the crosswalk)."""
+    movers, walking = scene.movers, scene.types == AgentType.PEDESTRIAN
+    if movers[agent] and movers[other]:
+        found = scene.yields.pair_yields(agent, other)
+    elif movers[agent] and walking[other]:
+        found = scene.crossings.pedestrian_yield_runs(agent, other)
+    elif walking[agent] and movers[other]:
+        return scene.crossings.pedestrian_wait_runs(agent, other)
+    else:
+        return []
+    return [(p, Pair(p.other, p.agent, p.start, p.end)) for p in found]
+
+
+def yielding_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
+    """The steps over which agent row `agent` yields to row `other`: the runs of the "yielding/..." labels of
+    agent toward other that `detect_interactions` gives on `scene`'s scenario (any subtype), computed for the
+    pair alone."""
+    return _kept(scene, [y for y, _ in _pair_yields(scene, agent, other)], "yielding/intersection")
+
+
+def passing_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
+    """The steps over which agent row `agent` goes first while row `other` yields to it: the runs of the
+    "passing/..." labels of agent toward other that `detect_interactions` gives on `scene`'s scenario (any
+    subtype), computed for the pair alone."""
+    return _kept(scene, [p for _, p in _pair_yields(scene, other, agent)], "passing/intersection_with_yielding")
+
+
+def pair_rows(
+    xy: np.ndarray, valid: np.ndarray, types: np.ndarray, agent: int, other: int, config: DetectorConfig
+) -> np.ndarray:
+    """The sorted agent rows whose tracks (`xy` [A, T, 2], `valid` [A, T], `types` [A]) the per-pair rules of rows
+    `agent` and `other` read (`yielding_runs`, `passing_runs`, `following_runs`, either way round): the two, every
+    vehicle or cyclist that comes within `leader_search` of either at a step both are valid (a leader of theirs),
+    and, where one of the two is a pedestrian, every pedestrian (the nearest one on a crosswalk decides a yield to
+    a pedestrian). On the scene cut to these rows the rules give the same runs."""
+    rows = [np.array([agent, other])]
+    movers = np.isin(types, MOVERS)
+    for f in (agent, other):
+        near = valid & valid[f][None, :] & (np.linalg.norm(xy - xy[f][None], axis=-1) < config.leader_search + 1.0)
+        rows.append(np.flatnonzero(movers & near.any(axis=1)))
+    if (types[[agent, other]] == AgentType.PEDESTRIAN).any():
+        rows.append(np.flatnonzero(types == AgentType.PEDESTRIAN))
+    return np.unique(np.concatenate(rows))
+
+
+def following_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
+    """The steps over which agent row `agent` follows row `other` (`PathGeometry.following`): the runs of the
+    "following/..." labels of agent toward other that `detect_interactions` gives on `scene`'s scenario (any
+    subtype), computed for the pair alone."""
+    return _kept(scene, scene.paths.following(agent, other), "following/with_lead")
