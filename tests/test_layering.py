@@ -42,17 +42,7 @@ LAZY_ONLY = ("ray", "libsumo")
 TORCH_FROM = "model"
 """torch is imported from this package's layer upward; below it only for type hints (`angles` wraps tensors
 without importing torch)."""
-CYCLES_BEING_REMOVED: dict[frozenset[str], str] = {
-    frozenset(
-        {
-            "langtraj.experiments.base",
-            "langtraj.experiments.closed_loop",
-            "langtraj.experiments.instruction",
-            "langtraj.experiments.open_loop",
-            "langtraj.experiments.realism",
-        }
-    ): "experiments/base.py's registry loader (`_builtin`) imports the experiment modules, which import base",
-}
+CYCLES_BEING_REMOVED: dict[frozenset[str], str] = {}
 """Import cycles known and not yet removed (each with what ties it), the one allowance of
 `test_no_two_modules_import_each_other`: delete an entry when its cycle is gone (the test then says so)."""
 

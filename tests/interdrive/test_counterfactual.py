@@ -13,18 +13,14 @@ import pytest
 from langtraj.errors import InputError
 from langtraj.interdrive.adherence import label_facts, lane_change_key, lane_change_side, prompt_facts
 from langtraj.interdrive.behaviour import BEHAVIOURS, PAIR_SUBTYPES, Behaviour, behaviour_facts, opposite_subtype
-from langtraj.interdrive.counterfactual import (
-    asked_behaviours,
-    feasible_alternatives,
-    infeasible_manoeuvres,
-    logged_facts,
-)
+from langtraj.interdrive.counterfactual import feasible_alternatives, logged_facts
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.free_text import load_free_text_prompts
 from langtraj.interdrive.labels import AgentLabel
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.prompts import Prompt, mentions_in, parse_user_prompt
 from langtraj.interdrive.prompts.user import recognize_prompt
+from langtraj.interdrive.reader import read_prompt
 from langtraj.interdrive.targets import CounterfactualConfig, behaviour_feasibility
 from langtraj.interdrive.taxonomy import LABELS_BY_KEY, SUBTYPES_BY_ID
 from langtraj.scenario import AgentType, LaneNeighbor, MapFeature, MapFeatureType, RoadMap, Scenario
@@ -261,7 +257,6 @@ def test_without_lane_connectivity_turns_are_undecided_but_the_logged_one_is_kep
     assert "lane connectivity" in verdicts[Behaviour.TURN_LEFT].reason
     turns = {a.behaviour: a.logged for a in feasible_alternatives(s, 1, index) if a.behaviour in TURNS}
     assert turns == {Behaviour.GO_STRAIGHT: True}  # what the log shows needs no map to be feasible
-    assert infeasible_manoeuvres(s, _entry("@1 turns right"), index) == ()
 
 
 def test_without_neighbour_lists_lane_changes_are_undecided():
@@ -312,38 +307,26 @@ def test_an_interaction_pair_offers_both_going_first_and_yielding():
 # ---------------------------------------------------------------------------------------------- warnings
 
 
-def test_a_left_turn_prompt_on_a_right_only_lane_warns_naming_the_agent_and_the_manoeuvre():
+def test_an_infeasible_turn_says_which_agent_cannot_do_what_and_what_the_lane_allows():
     s = scene(four_way(right_lane_exits=(14,)), drive(LEFT_LANE_STRAIGHT), drive(RIGHT_LANE_RIGHT))
     index = MapIndex.build(s.road_map)
-    (warning,) = infeasible_manoeuvres(s, _entry("@2 turns left at the lights"), index)
-    assert warning.track_id == 2 and warning.behaviour is Behaviour.TURN_LEFT
-    assert warning.message.startswith("@2 cannot turn left: no left turn from its lane at the next junction")
-    assert "right turn" in warning.message and "straight" not in warning.message.split("allows:")[1]
-    (straight_on,) = infeasible_manoeuvres(s, _entry("@2 goes straight"), index)
-    assert straight_on.behaviour is Behaviour.GO_STRAIGHT
-    assert infeasible_manoeuvres(s, _entry("@2 turns right"), index) == ()
-    assert infeasible_manoeuvres(s, _entry("@1 hangs a left"), index) == ()  # the left lane allows it
-    assert infeasible_manoeuvres(s, _entry("@1 yields to @2"), index) == ()  # not a map manoeuvre
+    right_lane = behaviour_feasibility(s, 2, index)
+    left = right_lane[Behaviour.TURN_LEFT]
+    assert left.status == "infeasible" and left.target is None
+    assert left.message.startswith("@2 cannot turn left: no left turn from its lane at the next junction")
+    assert "right turn" in left.message and "straight" not in left.message.split("allows:")[1]
+    assert right_lane[Behaviour.GO_STRAIGHT].status == "infeasible"
+    assert right_lane[Behaviour.TURN_RIGHT].status == "feasible" and right_lane[Behaviour.TURN_RIGHT].message == ""
+    assert behaviour_feasibility(s, 1, index)[Behaviour.TURN_LEFT].status == "feasible"  # the left lane allows it
 
 
-def test_lane_change_prompts_warn_only_for_a_side_without_a_lane():
+def test_an_infeasible_lane_change_names_the_side_without_a_lane():
     s = scene(two_lane_road(), lane_change(0.0), lane_change(3.5, from_y=3.5))
-    index = MapIndex.build(s.road_map)
-    (warning,) = infeasible_manoeuvres(s, _entry("@1 changes lanes to the right"), index)
-    assert warning.message == "@1 cannot change lanes to the right: no lane on its right along its road (within 80 m)"
-    assert infeasible_manoeuvres(s, _entry("@1 changes lanes to the left"), index) == ()
-    assert infeasible_manoeuvres(s, _entry("@1 switches lanes"), index) == ()  # either side will do
-    assert asked_behaviours(_entry("@2 moves over to the right into the rightmost lane")) == (
-        Behaviour.LANE_CHANGE_RIGHT,
+    verdicts = behaviour_feasibility(s, 1, MapIndex.build(s.road_map))
+    assert verdicts[Behaviour.LANE_CHANGE_RIGHT].message == (
+        "@1 cannot change lanes to the right: no lane on its right along its road (within 80 m)"
     )
-    assert asked_behaviours(_entry("@2 changes lanes from the leftmost lane to the rightmost lane")) == (
-        Behaviour.LANE_CHANGE_RIGHT,
-    )
-    assert asked_behaviours(_entry("@2 speeds up")) == (Behaviour.SPEED_UP,)  # read by the prompt reader
-    assert asked_behaviours(_entry("@1 yields to @2")) == ()  # a pair behaviour is not a map manoeuvre
-    # a labelled prompt entry is read from its labels, not its words
-    labelled = PromptEntry("@2 does it", (2,), {2: "the target agent does it"}, None, ("turning_left",), "user")
-    assert asked_behaviours(labelled) == (Behaviour.TURN_LEFT,)
+    assert verdicts[Behaviour.LANE_CHANGE_LEFT].status == "feasible"
 
 
 # ---------------------------------------------------------------------------------------------- free text
@@ -364,8 +347,8 @@ def test_fifty_free_text_prompts_parse_name_known_kinds_and_render_to_valid_prom
         # phrased outside the template grammar: no phrase of the phrase tables is found in it
         read = recognize_prompt(Prompt(text, parsed.mentions, source="user"))
         assert read.subtype_id is None and read.label_keys == (), text
-        single = () if BEHAVIOURS[prompt.behaviour].is_pair else (prompt.behaviour,)
-        assert asked_behaviours(PromptEntry.of(parsed)) == single, text  # the prompt reader reads it
+        reading = read_prompt(text)  # the prompt reader reads it
+        assert reading.behaviour is prompt.behaviour and reading.agent == 5, text
 
 
 @pytest.mark.parametrize(

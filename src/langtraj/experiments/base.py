@@ -33,11 +33,8 @@ class Experiment(ABC):
         return results
 
 
-def _builtin() -> None:
-    from langtraj.experiments import closed_loop, instruction, open_loop, realism  # noqa: F401
-
-
-EXPERIMENTS: Registry[Experiment] = Registry("experiment", loader=_builtin)
+EXPERIMENTS: Registry[Experiment] = Registry("experiment")
+"""The experiments by name; the package (`langtraj.experiments`) registers the built-in ones on import."""
 
 
 def experiment_settings(name: str, config: str | Path | None, given: dict[str, Any]) -> Any:

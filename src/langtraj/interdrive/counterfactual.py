@@ -4,7 +4,7 @@ The behaviour kinds are those of `interdrive.behaviour`; whether an agent can do
 (a behaviour is feasible exactly when the map gives it a target, and says "undecided" where the map lacks what
 that needs, never guessing). `feasible_alternatives` turns the feasible single-agent behaviours, and going first or
 yielding in each interaction pair the log shows, into prompts, marking those the log itself shows (ground-truth
-prompts). `infeasible_manoeuvres` warns about a typed prompt asking for a behaviour the map does not allow.
+prompts).
 The hand-written free-text prompts (`FreeTextPrompt`, `load_free_text_prompts`) are in `free_text`.
 
 See docs/interdrive.md ('Counterfactual prompts and instruction following').
@@ -12,22 +12,18 @@ See docs/interdrive.md ('Counterfactual prompts and instruction following').
 
 from __future__ import annotations
 
-import functools
-import re
 from dataclasses import dataclass
 
-from langtraj.interdrive.adherence import AdherenceChecker, Fact, lane_change_side
+from langtraj.interdrive.adherence import AdherenceChecker, Fact
 from langtraj.interdrive.behaviour import (
     BEHAVIOURS,
     Behaviour,
-    Side,
     behaviour_facts,
     opposite_subtype,
 )
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.mapindex import MapIndex
-from langtraj.interdrive.prompts import Prompt, label_phrases, label_variants, mentions_in
-from langtraj.interdrive.reader import read_prompt
+from langtraj.interdrive.prompts import Prompt, mentions_in
 from langtraj.interdrive.targets import CounterfactualConfig, behaviour_feasibility, feasibility
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
@@ -116,83 +112,3 @@ def feasible_alternatives(
             if alternative.logged or verdict.status != "infeasible":
                 out.append(alternative)
     return tuple(out)
-
-
-# ---------------------------------------------------------------------------------------------- warnings
-
-
-@dataclass(frozen=True)
-class ManoeuvreWarning:
-    """A typed prompt asks agent `track_id` for a `behaviour` the map does not allow, because `reason`."""
-
-    track_id: int
-    behaviour: Behaviour
-    reason: str
-
-    @property
-    def message(self) -> str:
-        return f"@{self.track_id} cannot {BEHAVIOURS[self.behaviour].manoeuvre}: {self.reason}"
-
-
-_SIDE_WORDS = re.compile(r"\b(?:to|into|toward|towards) the (left|right)\b")
-
-
-def asked_behaviours(prompt: PromptEntry) -> tuple[Behaviour, ...]:
-    """The single-agent behaviours `prompt` asks of its target (the first agent it mentions): from its labels
-    (turns, lane changes, stopping, pulling over, speed changes), or, for a typed prompt that carries none, the
-    behaviour the prompt reader reads in its words (`interdrive.reader`). A labelled lane change asks for a side
-    when its words hold a directed lane-change phrase or say "to the left/right"; otherwise for either side."""
-    labels = prompt.labels
-    if not labels and prompt.subtype is None:
-        reading = read_prompt(prompt.text)
-        single = reading.behaviour is not None and not BEHAVIOURS[reading.behaviour].is_pair
-        return (reading.behaviour,) if single and reading.agent == (prompt.mentions or (None,))[0] else ()
-    out = [b for b, spec in BEHAVIOURS.items() if spec.label in labels and not spec.is_lane_change]
-    if "changing_lanes" in labels:
-        sides = _lane_change_sides(prompt.text) or ("left", "right")
-        out += [b for b, spec in BEHAVIOURS.items() if spec.is_lane_change and spec.side in sides]
-    return tuple(out)
-
-
-@functools.cache
-def _lane_change_phrases() -> tuple[tuple[str, tuple[Side, ...]], ...]:
-    """Every lane-change phrase of the phrase tables with the sides it names, longest first ("middle" to
-    "middle" gives the undirected ones)."""
-    out: dict[str, tuple[Side, ...]] = {}
-    for key, params in label_variants():
-        if key == "changing_lanes":
-            side = lane_change_side(params)
-            out.update({p.lower(): (side,) if side else ("left", "right") for p in label_phrases(key, params)})
-    generic = label_phrases("changing_lanes", {"from": "middle", "to": "middle"})
-    out.update({p.lower(): ("left", "right") for p in generic if p.lower() not in out})
-    return tuple(sorted(out.items(), key=lambda item: -len(item[0])))
-
-
-def _lane_change_sides(text: str) -> tuple[Side, ...]:
-    """The sides a lane change in `text` may go to: those of its longest lane-change phrase, narrowed by "to the
-    left/right"; empty when `text` holds no lane-change phrase."""
-    lowered = " ".join(text.lower().split())
-    sides = next((s for phrase, s in _lane_change_phrases() if re.search(rf"\b{re.escape(phrase)}\b", lowered)), ())
-    said = {m.group(1) for m in _SIDE_WORDS.finditer(lowered)}
-    if len(sides) == 2 and len(said) == 1:
-        return tuple(said)  # type: ignore[return-value]
-    return sides
-
-
-def infeasible_manoeuvres(
-    scenario: Scenario, prompt: PromptEntry, map_index: MapIndex, config: CounterfactualConfig | None = None
-) -> tuple[ManoeuvreWarning, ...]:
-    """A warning for each single-agent behaviour `prompt` asks of its target (`asked_behaviours`) that the map
-    does not allow from where it is (`behaviour_feasibility`: a turn or lane change with no lane for it, a pull-over
-    away from the kerb lane or too close to a junction, slowing down while stopped); an undecided one (no lane
-    connectivity, no neighbour lists) is not warned about. A lane change that asks for no side warns only when
-    neither side has a lane."""
-    asked = asked_behaviours(prompt)
-    if not asked or not prompt.mentions:
-        return ()
-    track = prompt.mentions[0]
-    verdicts = behaviour_feasibility(scenario, track, map_index, config)
-    changes = [b for b in asked if BEHAVIOURS[b].is_lane_change]
-    if len(changes) == 2 and any(verdicts[b].status != "infeasible" for b in changes):
-        asked = tuple(b for b in asked if b not in changes)
-    return tuple(ManoeuvreWarning(track, b, verdicts[b].reason) for b in asked if verdicts[b].status == "infeasible")

@@ -17,12 +17,11 @@ from langtraj.errors import InputError
 from langtraj.frames import Origin
 from langtraj.guidance.steering import Steering
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
-from langtraj.interdrive.counterfactual import behaviour_feasibility
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.prompts import parse_user_prompt
 from langtraj.interdrive.reader import PromptReading, read_prompt
-from langtraj.interdrive.targets import BehaviourTarget, TargetUnavailable, derive_target
+from langtraj.interdrive.targets import BehaviourTarget, Feasibility, TargetUnavailable, derive_target, feasibility
 from langtraj.scenario.model import Scenario
 from langtraj.sim.adherence import Ask
 from langtraj.sim.config import PromptLevers
@@ -75,19 +74,28 @@ def read_prompts(texts: Sequence[str]) -> tuple[PromptReading, ...]:
 
 def prompt_warnings(scenario: Scenario, readings: Sequence[PromptReading], index: MapIndex) -> tuple[str, ...]:
     """One line per reading that asks of its agent a single-agent behaviour the map (`index`) does not allow from
-    where it is at the current step (`interdrive.counterfactual.behaviour_feasibility`: a turn or lane change with
-    no lane for it, a pull-over away from the kerb lane or too near a junction, slowing down while stopped):
-    "@12 cannot turn left: no left turn from its lane at the next junction ...". Where the map cannot tell
-    (undecided), for a pair behaviour and for a prompt not read, nothing is said. A warning does not stop a
-    simulation: the model is conditioned on the prompt as typed."""
-    out = []
-    for reading in readings:
-        if reading.behaviour is None or reading.agent is None or BEHAVIOURS[reading.behaviour].is_pair:
-            continue
-        verdict = behaviour_feasibility(scenario, reading.agent, index)[reading.behaviour]
-        if verdict.status == "infeasible":
-            out.append(f"@{reading.agent} cannot {BEHAVIOURS[reading.behaviour].manoeuvre}: {verdict.reason}")
-    return tuple(out)
+    where it is at the current step (`interdrive.targets.feasibility`: a turn or lane change with no lane for it, a
+    pull-over away from the kerb lane or too near a junction, slowing down while stopped): "@12 cannot turn left: no
+    left turn from its lane at the next junction ...". Where the map cannot tell (undecided), for a pair behaviour
+    and for a prompt not read, nothing is said. A warning does not stop a simulation: the model is conditioned on
+    the prompt as typed."""
+    return tuple(w for r in readings if (w := _warning(r, _verdict(scenario, r, index))))
+
+
+def _verdict(scenario: Scenario, reading: PromptReading, index: MapIndex) -> Feasibility | None:
+    """The map's one answer for a read behaviour: its target, or why there is none (None for a prompt not read)."""
+    if reading.behaviour is None or reading.agent is None:
+        return None
+    if BEHAVIOURS[reading.behaviour].is_pair and reading.other is None:
+        return None
+    return feasibility(scenario, reading.agent, reading.behaviour, index, other_id=reading.other)
+
+
+def _warning(reading: PromptReading, verdict: Feasibility | None) -> str | None:
+    """The warning about an infeasible single-agent behaviour (see `prompt_warnings`), else None."""
+    if verdict is None or BEHAVIOURS[verdict.behaviour].is_pair or verdict.status != "infeasible":
+        return None
+    return verdict.message
 
 
 @dataclass(frozen=True)
@@ -129,8 +137,11 @@ def prompt_steering(
     slots = {int(scenario.agents.ids[row]): slot for slot, row in enumerate(rows)}
     readings = tuple(readings)
     index = index if index is not None else MapIndex.build(scenario.road_map)
-    steerings, asks, notes, targets = [], [], [], []
+    steerings, asks, notes, targets, warnings = [], [], [], [], []
     for reading in readings:
+        verdict = _verdict(scenario, reading, index)
+        if (warning := _warning(reading, verdict)) is not None:
+            warnings.append(warning)
         if reading.behaviour is None or reading.agent is None:
             alone = "it steers by its text alone" if levers.text else "nothing steers it (the text lever is off)"
             notes.append(f"{reading.describe()}; {alone}")
@@ -148,11 +159,10 @@ def prompt_steering(
             None if reading.other is None else slots.get(reading.other),
         )
         used = ["text"] if levers.text else []
-        if levers.guidance:
-            try:
-                target = derive_target(scenario, reading.agent, reading.behaviour, index, other_id=reading.other)
-            except TargetUnavailable as exc:
-                notes.append(f"{reading.describe()}; no target: {exc.detail}")
+        if levers.guidance and verdict is not None:
+            target = verdict.target
+            if target is None:
+                notes.append(f"{reading.describe()}; no target: {verdict.message}")
             else:
                 targets.append(target)
                 steerings.append(Steering.of(target, origin, slots))
@@ -167,8 +177,7 @@ def prompt_steering(
             asks.append(ask)
             used.append("adherence-first selection")
         notes.append(f"{reading.describe()}; steered by {', '.join(used) or 'nothing'}")
-    warnings = prompt_warnings(scenario, readings, index)
-    return PromptSteering(readings, tuple(steerings), tuple(asks), tuple(notes), tuple(targets), warnings)
+    return PromptSteering(readings, tuple(steerings), tuple(asks), tuple(notes), tuple(targets), tuple(warnings))
 
 
 _OPPOSITE = {Behaviour.YIELD: Behaviour.GO_FIRST, Behaviour.GO_FIRST: Behaviour.YIELD}
