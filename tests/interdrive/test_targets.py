@@ -104,16 +104,13 @@ def _track(path: np.ndarray, speed: float, start: float):
 
 
 def test_going_first_is_feasible_only_where_the_agent_can_get_to_the_crossing_first():
-    def order_feasibility(s, track, other, behaviour, index):
-        return feasibility(s, track, behaviour, index, other_id=other)
-
     far = scene(four_way(), drive(LEFT_LANE_STRAIGHT), _track(line(-80, -HALF, -10, -HALF), 8.0, 10.0))
     near = scene(four_way(), drive(LEFT_LANE_STRAIGHT), _track(line(-80, -HALF, -10, -HALF), 8.0, 50.0))
     index = MapIndex.build(far.road_map)
-    assert order_feasibility(far, 1, 2, Behaviour.GO_FIRST, index).status == "feasible"  # the other is 7.5 s out
-    verdict = order_feasibility(near, 1, 2, Behaviour.GO_FIRST, index)  # the other gets there in 2.5 s
+    assert feasibility(far, 1, Behaviour.GO_FIRST, index, other_id=2).status == "feasible"  # the other is 7.5 s out
+    verdict = feasibility(near, 1, Behaviour.GO_FIRST, index, other_id=2)  # the other gets there in 2.5 s
     assert verdict.status == "infeasible" and "@2 gets to the crossing in 2.5 s" in verdict.reason
-    assert order_feasibility(near, 1, 2, Behaviour.YIELD, index).status == "feasible"  # waiting is always possible
+    assert feasibility(near, 1, Behaviour.YIELD, index, other_id=2).status == "feasible"  # waiting is always possible
 
 
 def test_a_lane_change_needs_room_before_the_junction_for_the_change_to_settle():
