@@ -42,9 +42,6 @@ LAZY_ONLY = ("ray", "libsumo")
 TORCH_FROM = "model"
 """torch is imported from this package's layer upward; below it only for type hints (`angles` wraps tensors
 without importing torch)."""
-CYCLES_BEING_REMOVED: dict[frozenset[str], str] = {}
-"""Import cycles known and not yet removed (each with what ties it), the one allowance of
-`test_no_two_modules_import_each_other`: delete an entry when its cycle is gone (the test then says so)."""
 
 
 def _imports(path: Path) -> list[tuple[str, tuple[str, ...], str]]:
@@ -155,15 +152,11 @@ def test_no_two_modules_import_each_other():
         modules[name] = path
     names = set(modules)
     graph = {m: {t for t in _imported_modules(p, names) if t in names and t != m} for m, p in modules.items()}
-    cycles = _cycles(graph)
     found = [
         "modules importing each other: " + "; ".join(f"{m} imports {sorted(graph[m] & cycle)}" for m in sorted(cycle))
-        for cycle in cycles
-        if cycle not in CYCLES_BEING_REMOVED
+        for cycle in _cycles(graph)
     ]
     assert not found, "\n".join(found)
-    gone = [why for cycle, why in CYCLES_BEING_REMOVED.items() if cycle not in cycles]
-    assert not gone, f"these cycles are gone: delete them from CYCLES_BEING_REMOVED: {gone}"
 
 
 def test_heavy_third_party_packages_are_imported_where_the_design_says():

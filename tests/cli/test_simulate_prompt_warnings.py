@@ -15,7 +15,7 @@ from langtraj.interdrive.mapindex import MapIndex
 from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.io import write_scenarios
 from langtraj.sim.config import ALL_LEVERS
-from langtraj.sim.prompts import prompt_steering, prompt_warnings, read_prompts
+from langtraj.sim.prompts import prompt_steering, read_prompts
 
 ORIGIN = (0.0, 0.0, 0.0)
 LEFT_TURN_WARNING = "@2 cannot turn left: no left turn from its lane at the next junction (it allows: right turn)"
@@ -27,7 +27,8 @@ def _junction_scene():
 
 
 def _warnings(s, texts: list[str]) -> list[str]:
-    return list(prompt_warnings(s, read_prompts(texts), MapIndex.build(s.road_map)))
+    rows = np.arange(s.num_agents)
+    return list(prompt_steering(s, read_prompts(texts), rows, ORIGIN, ALL_LEVERS, MapIndex.build(s.road_map)).warnings)
 
 
 def test_prompt_warnings_name_each_agent_and_manoeuvre_the_map_does_not_allow():

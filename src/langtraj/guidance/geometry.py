@@ -70,8 +70,7 @@ def offset_and_station(points: Tensor, start: Tensor, end: Tensor, arc: Tensor) 
     polyline, K > 0) to it, and its station [...]: `arc[k]` (the station of segment k's start, [K]) plus its
     projection on the line of that segment, not clamped (beyond the polyline's ends it keeps counting);
     differentiable in `points`."""
-    index = nearest_segment(points, start, end)
-    closest = closest_on_segments(points, start[index], end[index])
+    offset, index = offset_to_segments(points, start, end)
     direction = end[index] - start[index]
     along = ((points - start[index]) * direction).sum(-1) / direction.norm(dim=-1).clamp(min=1e-9)
-    return points - closest, arc[index] + along
+    return offset, arc[index] + along

@@ -197,9 +197,10 @@ class CandidateJudge:
         xy = states[sim, start : end + 1, : StateField.Y + 1].astype(np.float64)
         dt = np.diff(self._base.timestamps[start : end + 1])
         speed = np.linalg.norm(np.diff(xy, axis=1), axis=-1) / np.maximum(dt, 1e-6)
-        heading = states[sim, start + 1 : end + 1, StateField.HEADING].astype(np.float64)
-        velocity = np.stack([speed * np.cos(heading), speed * np.sin(heading)], -1)
-        states[sim, start + 1 : end + 1, StateField.VX : StateField.VY + 1] = velocity
+        block = states[sim, start + 1 : end + 1]
+        heading = block[..., StateField.HEADING].astype(np.float64)
+        Agents.write_poses(block, np.concatenate([xy[:, 1:], heading[..., None], speed[..., None]], -1), wrap=False)
+        states[sim, start + 1 : end + 1] = block
         base = self._base
         agents = replace(
             base.agents,

@@ -1,7 +1,7 @@
 """Typed `@id` prompts in a simulation: parsed against the scene, merged into one prompt entry (each driven agent's
 sentence), checked against the agents the model drives, and read once each (`read_prompts`, `interdrive.reader`).
 That one reading is what the map is asked about (a behaviour it does not allow where the agent is is warned about,
-`prompt_warnings`) and what steers the simulation: the behaviour's target and the criteria selection judges by
+`PromptSteering.warnings`) and what steers the simulation: the behaviour's target and the criteria selection judges by
 (`prompt_steering`; docs/simulation.md, 'Prompts that steer'). What the steering does at each replan is
 `sim.prompt_replan`'s."""
 
@@ -72,16 +72,6 @@ def read_prompts(texts: Sequence[str]) -> tuple[PromptReading, ...]:
     return tuple(read_prompt(text) for text in texts)
 
 
-def prompt_warnings(scenario: Scenario, readings: Sequence[PromptReading], index: MapIndex) -> tuple[str, ...]:
-    """One line per reading that asks of its agent a single-agent behaviour the map (`index`) does not allow from
-    where it is at the current step (`interdrive.targets.feasibility`: a turn or lane change with no lane for it, a
-    pull-over away from the kerb lane or too near a junction, slowing down while stopped): "@12 cannot turn left: no
-    left turn from its lane at the next junction ...". Where the map cannot tell (undecided), for a pair behaviour
-    and for a prompt not read, nothing is said. A warning does not stop a simulation: the model is conditioned on
-    the prompt as typed."""
-    return tuple(w for r in readings if (w := _warning(r, _verdict(scenario, r, index))))
-
-
 def _verdict(scenario: Scenario, reading: PromptReading, index: MapIndex) -> Feasibility | None:
     """The map's one answer for a read behaviour: its target, or why there is none (None for a prompt not read)."""
     if reading.behaviour is None or reading.agent is None:
@@ -92,7 +82,11 @@ def _verdict(scenario: Scenario, reading: PromptReading, index: MapIndex) -> Fea
 
 
 def _warning(reading: PromptReading, verdict: Feasibility | None) -> str | None:
-    """The warning about an infeasible single-agent behaviour (see `prompt_warnings`), else None."""
+    """The warning about a reading: one line when it asks of its agent a single-agent behaviour the map does not
+    allow from where it is (a turn or lane change with no lane for it, a pull-over away from the kerb lane or too
+    near a junction, slowing down while stopped): "@12 cannot turn left: no left turn from its lane at the next
+    junction ...". Where the map cannot tell (undecided), for a pair behaviour and for a prompt not read, None. A
+    warning does not stop a simulation: the model is conditioned on the prompt as typed."""
     if verdict is None or BEHAVIOURS[verdict.behaviour].is_pair or verdict.status != "infeasible":
         return None
     return verdict.message
@@ -104,7 +98,7 @@ class PromptSteering:
     each read behaviour's target (`steerings`, when the guidance lever is on; for yielding or going first also the
     other agent's side of it), what selection judges (`asks`, when the selection lever is on), one line per prompt
     saying so (`notes`), the targets, and what the map does not allow of what they ask (`warnings`,
-    `prompt_warnings`)."""
+    `PromptSteering.warnings`)."""
 
     readings: tuple[PromptReading, ...] = ()
     steerings: tuple[Steering, ...] = ()
@@ -131,7 +125,7 @@ def prompt_steering(
 ) -> PromptSteering:
     """From each typed prompt's reading (`read_prompts`): its behaviour's target, derived from the map (`index`,
     built here when not given) at the current step (`interdrive.targets`), as guidance and selection criteria for
-    the driven agents `rows` (scenario rows in slot order), and the warnings about it (`prompt_warnings`). A prompt
+    the driven agents `rows` (scenario rows in slot order), and the warnings about it (`warnings`). A prompt
     the reader cannot read, or whose target the map does not give, steers by the levers it can (text; selection
     still judges a read behaviour), and its note says so. A read agent the model does not drive is an InputError."""
     slots = {int(scenario.agents.ids[row]): slot for slot, row in enumerate(rows)}

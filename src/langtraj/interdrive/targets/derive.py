@@ -36,7 +36,14 @@ from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour, Side
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets.config import CounterfactualConfig
-from langtraj.interdrive.targets.lanes_ahead import AgentOnLane, branch_direction, junction_ahead, stations_ahead
+from langtraj.interdrive.targets.lanes_ahead import (
+    AgentOnLane,
+    JunctionAhead,
+    StationAhead,
+    branch_direction,
+    junction_ahead,
+    stations_ahead,
+)
 from langtraj.interdrive.targets.routes import ROUTE_SPACING, route, straight_line
 from langtraj.interdrive.taxonomy import LABELS_BY_KEY
 from langtraj.polylines import arc_lengths, point_at, project_on_polyline, resample
@@ -162,17 +169,31 @@ class _Agent:
         return self.here.lane >= 0
 
 
-class _Context:
-    """One assessment's scene, map index and settings, and the agents read so far."""
+class TargetContext:
+    """One scene's map read for targets: the map index, the settings and, per agent, where it is, the next junction's
+    branches and its road ahead, each computed once, so that asking about every behaviour of an agent
+    (`feasibility.behaviour_feasibility`) reads the map once. `target` derives one target."""
 
-    def __init__(self, scenario: Scenario, index: MapIndex, config: CounterfactualConfig):
-        self.scenario, self.index, self.config = scenario, index, config
+    def __init__(self, scenario: Scenario, index: MapIndex, config: CounterfactualConfig | None = None):
+        self.scenario, self.index, self.config = scenario, index, config or CounterfactualConfig()
+        self._agents: dict[int, _Agent | None] = {}
+        self._junctions: dict[int, JunctionAhead] = {}
+        self._stations: dict[int, list[StationAhead]] = {}
 
     def agent(self, track_id: int, behaviour: Behaviour) -> _Agent:
+        """Agent `track_id` at the current step; `TargetUnavailable` (undecided) when it is not valid there."""
+        if track_id not in self._agents:
+            self._agents[track_id] = self._read(track_id)
+        found = self._agents[track_id]
+        if found is None:
+            raise TargetUnavailable(track_id, behaviour, "undecided", "it is not valid at the current step")
+        return found
+
+    def _read(self, track_id: int) -> _Agent | None:
         row = self.scenario.agents.index_of(track_id)
         c = self.scenario.current_index
         if not self.scenario.agents.valid[row, c]:
-            raise TargetUnavailable(track_id, behaviour, "undecided", "it is not valid at the current step")
+            return None
         state = self.scenario.agents.states[row, c]
         here = AgentOnLane.of(self.scenario, row, self.index, self.config.heuristics)
         return _Agent(
@@ -185,6 +206,23 @@ class _Context:
             float(state[StateField.WIDTH]),
             self.config.reach(here.speed),
         )
+
+    def junction(self, agent: _Agent) -> JunctionAhead:
+        """The branches of the agent's next junction within its search (`lanes_ahead.junction_ahead`)."""
+        if agent.track_id not in self._junctions:
+            self._junctions[agent.track_id] = junction_ahead(self.index, agent.here, agent.search, self.config)
+        return self._junctions[agent.track_id]
+
+    def stations(self, agent: _Agent) -> list[StationAhead]:
+        """The stations of the agent's road ahead within its search (`lanes_ahead.stations_ahead`)."""
+        if agent.track_id not in self._stations:
+            self._stations[agent.track_id] = stations_ahead(self.index, agent.here, agent.search, self.config)
+        return self._stations[agent.track_id]
+
+    def target(self, track_id: int, behaviour: Behaviour, other_id: int | None = None) -> BehaviourTarget:
+        """The target of `behaviour` for `track_id` (toward `other_id` for a pair behaviour), or
+        `TargetUnavailable` (see the module docstring)."""
+        return _target(self, track_id, behaviour, other_id)
 
     def moving(self, agent: _Agent) -> bool:
         """Faster than the labelers' standing speed by their least speed change."""
@@ -211,10 +249,9 @@ class _Context:
         first = self.ahead(agent)
         if not (self.index.has_lanes and self.index.has_connectivity and agent.on_lane):
             return [first]
-        found = junction_ahead(self.index, agent.here, agent.search, self.config)
         return [first] + [
             route(self.index, branch.lanes, agent.here.station, max(agent.reach, branch.exit_at + 25.0))
-            for branch in found.branches
+            for branch in self.junction(agent).branches
         ]
 
 
@@ -230,13 +267,17 @@ def derive_target(
     other_id: int | None = None,
     config: CounterfactualConfig | None = None,
 ) -> BehaviourTarget:
-    """The target of `behaviour` for `track_id` at the scenario's current step (see the module docstring).
-    Raises `TargetUnavailable` (an InputError) naming the agent, the behaviour and the reason where the map gives
-    none: then the behaviour is not feasible there (`feasibility`)."""
+    """The target of `behaviour` for `track_id` at the scenario's current step (see the module docstring;
+    `TargetContext.target`). Raises `TargetUnavailable` (an InputError) naming the agent, the behaviour and the
+    reason where the map gives none: then the behaviour is not feasible there (`feasibility`)."""
+    return TargetContext(scenario, index, config).target(track_id, behaviour, other_id)
+
+
+def _target(ctx: TargetContext, track_id: int, behaviour: Behaviour, other_id: int | None) -> BehaviourTarget:
+    """`TargetContext.target`."""
     spec = BEHAVIOURS[behaviour]
     if spec.is_pair and other_id is None:
         raise InputError(f"behaviour {behaviour.value!r} needs another agent", where="target")
-    ctx = _Context(scenario, index, config or CounterfactualConfig())
     agent = ctx.agent(track_id, behaviour)
     if spec.label is not None and agent.kind not in LABELS_BY_KEY[spec.label].applies_to:
         reason = f"the labelers give {spec.label!r} to no {agent.kind.name.lower()}"
@@ -261,7 +302,7 @@ def derive_target(
     return _order(ctx, agent, other, behaviour)
 
 
-def _turn(ctx: _Context, agent: _Agent, behaviour: Behaviour) -> BehaviourTarget:
+def _turn(ctx: TargetContext, agent: _Agent, behaviour: Behaviour) -> BehaviourTarget:
     """The nearest branch of the next junction in the asked direction: the lanes to it, the junction lanes, and past
     the exit; the goal station lies 5 m past the junction."""
     index = ctx.index
@@ -270,7 +311,7 @@ def _turn(ctx: _Context, agent: _Agent, behaviour: Behaviour) -> BehaviourTarget
         reason = "the map has no lane connectivity to follow its lane to a junction"
         raise TargetUnavailable(agent.track_id, behaviour, "undecided", reason)
     reach = agent.search
-    found = junction_ahead(index, agent.here, reach, ctx.config)
+    found = ctx.junction(agent)
     if not found.branches:
         if found.ends:
             reason = f"its lanes end within {reach:.0f} m with no junction (the map stops there)"
@@ -305,7 +346,7 @@ def _turn(ctx: _Context, agent: _Agent, behaviour: Behaviour) -> BehaviourTarget
     )
 
 
-def _lane_change(ctx: _Context, agent: _Agent, behaviour: Behaviour, side: Side) -> BehaviourTarget:
+def _lane_change(ctx: TargetContext, agent: _Agent, behaviour: Behaviour, side: Side) -> BehaviourTarget:
     """The neighbour lane on `side` (`MapIndex.neighbour_lane`, the labelers' definition) at the first station of
     the agent's road ahead from where a change can begin (1 s or 4 m ahead), where that lane runs on without a
     junction long enough for a change begun there to settle in it (`LANE_CHANGE_S` at the agent's speed, at least
@@ -316,7 +357,7 @@ def _lane_change(ctx: _Context, agent: _Agent, behaviour: Behaviour, side: Side)
         raise TargetUnavailable(agent.track_id, behaviour, "undecided", "the map has no lane neighbour information")
     begin = max(4.0, 1.0 * agent.here.speed)
     room_needed = max(LANE_CHANGE_MIN_M, LANE_CHANGE_S * agent.here.speed)
-    ahead = stations_ahead(index, agent.here, agent.search, ctx.config)
+    ahead = ctx.stations(agent)
     if not ahead:
         reason = "it is inside a junction, where lanes have no neighbours"
         raise TargetUnavailable(agent.track_id, behaviour, "undecided", reason)
@@ -347,7 +388,7 @@ def _lane_change(ctx: _Context, agent: _Agent, behaviour: Behaviour, side: Side)
     raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
 
 
-def _stop(ctx: _Context, agent: _Agent) -> BehaviourTarget:
+def _stop(ctx: TargetContext, agent: _Agent) -> BehaviourTarget:
     """A stop on the way ahead where comfortable braking brings the agent to rest; at a stop line (the start of the
     next junction or a signal's stop point) or before a crosswalk when one lies a little beyond that, but no farther
     than the agent gets braking evenly over 7 s."""
@@ -386,7 +427,7 @@ def _stop(ctx: _Context, agent: _Agent) -> BehaviourTarget:
     )
 
 
-def _pull_over(ctx: _Context, agent: _Agent) -> BehaviourTarget:
+def _pull_over(ctx: TargetContext, agent: _Agent) -> BehaviourTarget:
     """The agent moves in the lane next to the kerb on its right (the rightmost or only lane) with room to stop
     comfortably before the next junction (the labeler does not call a stop at a junction a pull-over): the lane ahead
     shifted to the right, to the kerb (the road edge less half the width and a clearance, at least 0.8 m off the
@@ -445,7 +486,7 @@ def _pull_over(ctx: _Context, agent: _Agent) -> BehaviourTarget:
     )
 
 
-def _speed_change(ctx: _Context, agent: _Agent, behaviour: Behaviour) -> BehaviourTarget:
+def _speed_change(ctx: TargetContext, agent: _Agent, behaviour: Behaviour) -> BehaviourTarget:
     """The way ahead at 3 m/s more or less (slowing down keeps at least 35 % of the speed; it needs the agent to
     move)."""
     v = agent.here.speed
@@ -475,17 +516,18 @@ def _crossing(mine: np.ndarray, theirs: np.ndarray) -> tuple[int, float] | None:
     return i, float(arc_lengths(theirs)[j])
 
 
-def _order(ctx: _Context, agent: _Agent, other: _Agent, behaviour: Behaviour) -> BehaviourTarget:
-    """Going first or yielding: the first point of the agent's ways ahead (`_Context.ways_ahead`) that a way of the
+def _order(ctx: TargetContext, agent: _Agent, other: _Agent, behaviour: Behaviour) -> BehaviourTarget:
+    """Going first or yielding: the first point of the agent's ways ahead (`TargetContext.ways_ahead`) that a way of the
     other agent crosses, and when the other gets there at its current speed: the agent's first way that any of the
     other's crosses is taken, with its earliest crossing. Yielding is always possible (it can wait; without a
     crossing its target slows it); going first is infeasible when a pedestrian or cyclist other is already within
     3 m of the crossing (it is crossing) or gets there before the agent can even speeding up at
     `GO_FIRST_ACCELERATION`, and undecided without a crossing."""
-    mine = ctx.ahead(agent)
+    ways = ctx.ways_ahead(agent)
+    mine = ways[0]
     conflict, eta, reason = None, None, f"no crossing of its way with @{other.track_id}'s ahead"
     theirs = ctx.ways_ahead(other)
-    for path in ctx.ways_ahead(agent):
+    for path in ways:
         crossings = [c for c in (_crossing(path, t) for t in theirs) if c is not None]
         if crossings:
             i, distance = min(crossings)
