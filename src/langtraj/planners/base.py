@@ -1,0 +1,119 @@
+"""The planner protocol: what a test engineer writes to drive the ego of the LangTraj environment
+(docs/testing.md, 'Planners').
+
+A planner sees one ego-centred observation per 0.1 s step (`langtraj.env.spaces`) and answers with one action of
+its `action_kind`. Built-in planners register in `PLANNERS`; a user's class is named "package.module:Class" and
+need not import LangTraj at all: any class with callable `reset` and `act` methods is accepted (duck typing).
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+from abc import ABC, abstractmethod
+from typing import Any, ClassVar, cast
+
+import numpy as np
+
+from langtraj.env.spaces import ACTION_KINDS
+from langtraj.errors import InputError, LangTrajError
+from langtraj.registry import Registry
+
+WHERE = "--planner"
+"""How errors name the option a planner spec comes from."""
+
+
+class PlannerError(LangTrajError):
+    """A planner broke the protocol: its process exited, or it answered something that is not a valid reply."""
+
+
+class PlannerTimeout(PlannerError):
+    """A planner did not answer within its time limit."""
+
+
+class Planner(ABC):
+    """Drives the ego: `reset` at the start of each episode, then one `act` per step (docs/testing.md,
+    'Planners'); `action_kind` says which action space `act` answers in (`langtraj.env.spaces.action_space`)."""
+
+    name: ClassVar[str]
+    action_kind: ClassVar[str] = "control"
+
+    def reset(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> None:  # noqa: B027
+        """Start of an episode: the first observation and the environment's reset info (`scenario_id`, `ego_id`,
+        `step_seconds`, `logged_ego`: [80, 4] logged future world x, y, heading, speed, NaN where unlogged, for
+        log-replay baselines only). Nothing by default."""
+
+    @abstractmethod
+    def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
+        """The action for the next 0.1 s: float32 (2,) control or (`TRAJECTORY_POSES`, 3) trajectory."""
+
+    def close(self) -> None:  # noqa: B027
+        """End of the run: release what the planner holds (processes, files). Nothing by default."""
+
+
+PLANNERS: Registry[Planner] = Registry("planner")
+
+
+def _first_line(error: BaseException) -> str:
+    text = str(error).strip().splitlines()
+    return f"{type(error).__name__}: {text[0]}" if text else type(error).__name__
+
+
+def load_planner(spec: str) -> type[Planner]:
+    """The planner class `spec` names: a registered name ("idm") or "package.module:Class", imported. An imported
+    class may subclass `Planner` or merely have callable `reset` and `act`; anything else raises a one-line
+    InputError naming `--planner` and the spec."""
+    spec = spec.strip()
+    if ":" not in spec:
+        return PLANNERS.get(spec, where=WHERE)
+    module_name, _, class_name = spec.partition(":")
+    if not module_name or not class_name:
+        raise InputError(f"{spec!r} is neither a planner name nor package.module:Class", where=WHERE)
+    try:
+        module = importlib.import_module(module_name)
+    except Exception as error:  # an import runs user code: any error is a bad spec
+        reason = _first_line(error)
+        raise InputError(f"cannot import module {module_name!r} of {spec!r} ({reason})", where=WHERE) from error
+    found: Any = module
+    for part in class_name.split("."):
+        if not hasattr(found, part):
+            raise InputError(f"module {module_name!r} has no {class_name!r} (from {spec!r})", where=WHERE)
+        found = getattr(found, part)
+    if not inspect.isclass(found):
+        raise InputError(f"{spec!r} is not a class", where=WHERE)
+    if not issubclass(found, Planner):
+        missing = [method for method in ("reset", "act") if not callable(getattr(found, method, None))]
+        if missing:
+            raise InputError(f"class {spec!r} has no {' or '.join(missing)} method", where=WHERE)
+    kind = getattr(found, "action_kind", "control")
+    if kind not in ACTION_KINDS:
+        raise InputError(f"{spec!r} has action_kind {kind!r}; expected one of {', '.join(ACTION_KINDS)}", where=WHERE)
+    return cast(type[Planner], found)
+
+
+def planner_action_kind(planner: Any) -> str:
+    """The planner's `action_kind` ("control" where it has none); anything but `ACTION_KINDS` raises InputError."""
+    kind = getattr(planner, "action_kind", "control")
+    if kind not in ACTION_KINDS:
+        raise InputError(f"action_kind {kind!r}; expected one of {', '.join(ACTION_KINDS)}", where=WHERE)
+    return str(kind)
+
+
+def reset_takes_info(reset: Any) -> bool:
+    """Whether a bound `reset` accepts the info as a second argument (`reset(observation, info)`), not only the
+    observation (`reset(observation)`); unknown signatures are given both."""
+    try:
+        parameters = inspect.signature(reset).parameters.values()
+    except (TypeError, ValueError):
+        return True
+    positional = [p for p in parameters if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    return len(positional) >= 2 or any(p.kind == p.VAR_POSITIONAL for p in parameters)
+
+
+def reset_planner(planner: Any, observation: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+    """Calls `planner.reset(observation, info)`, or `planner.reset(observation)` for planners whose `reset`
+    takes one argument (users may leave the info out)."""
+    if reset_takes_info(planner.reset):
+        planner.reset(observation, info)
+    else:
+        planner.reset(observation)

@@ -1,0 +1,199 @@
+"""The IDM lane follower: the Intelligent Driver Model along the observation's route, pure-pursuit steering
+(docs/testing.md, 'Built-in planners').
+
+A reference planner for the suites: it follows its route, keeps its distance to whatever occupies the route ahead
+(vehicles, cyclists, pedestrians alike), stops for red lights and slows for curves; it reads nothing but the
+observation, so it runs in or out of process. Pure numpy, well under a millisecond per step.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from langtraj.angles import wrap_angle
+from langtraj.env.spaces import MAX_ACCEL, MAX_YAW_RATE
+from langtraj.planners.base import PLANNERS, Planner
+from langtraj.polylines import arc_lengths, point_at, project_on_polyline
+
+STOP_STATES = (1, 4, 7)
+"""WOMD light states that mean stop: arrow stop, stop, flashing stop."""
+CAUTION_STATES = (2, 5)
+"""WOMD light states that mean caution (arrow, plain): stop only where a comfortable stop is still possible."""
+STEP_SECONDS = 0.1
+"""The control period unless the reset info says otherwise (`step_seconds`)."""
+_BEHIND_M = 50.0  # the route is extended this far behind its first point, so agents alongside get signed stations
+_MIN_GAP_M = 0.1  # the IDM gap never divides by less
+
+
+@dataclass(frozen=True)
+class IDMConfig:
+    """Parameters of `IDMPlanner`: the IDM's (Treiber et al. 2000), the obstacle corridor, curve speeds and the
+    pure-pursuit look-ahead."""
+
+    desired_speed: float = 13.9
+    """Speed on a free straight road, m/s (50 km/h, urban); curves ahead lower it (`max_lateral_accel`)."""
+    time_headway: float = 1.5
+    """Desired time gap to the leader, s."""
+    min_gap: float = 2.0
+    """Bumper-to-bumper gap kept when stopped behind a leader or before a stop line, m."""
+    max_accel: float = 1.5
+    """Largest acceleration, m/s^2."""
+    comfortable_decel: float = 2.0
+    """Comfortable deceleration, m/s^2: the IDM's b, the most a free road (a lower desired speed) brakes with, the
+    test for stopping at a caution light and the gentle stop where there is no route."""
+    exponent: float = 4.0
+    """The IDM's acceleration exponent (delta)."""
+    hard_brake: float = MAX_ACCEL
+    """Hardest braking, m/s^2 (the action bound): the IDM's deceleration is floored at -hard_brake."""
+    corridor_margin: float = 0.3
+    """An agent is on the route when its box comes within (ego width + its lateral extent) / 2 + this of it, m."""
+    light_lateral: float = 1.5
+    """A light's stop point is on the route when at most this far from it laterally, m."""
+    max_lateral_accel: float = 2.0
+    """Curves ahead cap the speed at sqrt(this / curvature), reached by braking at `comfortable_decel`."""
+    lookahead_min: float = 4.0
+    lookahead_time: float = 1.0
+    """Pure pursuit looks max(lookahead_min, lookahead_time x speed) metres ahead along the route."""
+    curvature_window: int = 2
+    """Route segments the curvature is measured over (heading change between segments this far apart)."""
+
+
+@PLANNERS.register
+class IDMPlanner(Planner):
+    """Follows the route at the IDM's speed behind the nearest obstacle on it (an agent or a stop line), steering
+    by pure pursuit; where the route is invalid, holds its heading and brakes gently to a stop."""
+
+    name = "idm"
+    action_kind = "control"
+
+    def __init__(self, config: IDMConfig | None = None):
+        self.config = config or IDMConfig()
+        self.step_seconds = STEP_SECONDS
+
+    def reset(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+        """Reads the control period from the reset info (`step_seconds`, 0.1 s)."""
+        self.step_seconds = float(info.get("step_seconds", STEP_SECONDS) or STEP_SECONDS)
+
+    def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
+        ego = np.asarray(observation["ego"], np.float64)
+        speed = max(0.0, float(ego[3])) if np.isfinite(ego[3]) else 0.0
+        length, width = float(ego[6]), float(ego[7])
+        route = np.asarray(observation["route"], np.float64)[np.asarray(observation["route_valid"], bool)]
+        route = route[np.isfinite(route).all(axis=1)]
+        if len(route) > 1:  # repeated points have no heading
+            route = route[np.concatenate([[True], np.linalg.norm(np.diff(route, axis=0), axis=1) > 1e-6])]
+        if len(route) == 0:
+            desired = 0.0
+            corridor = np.array([[0.0, 0.0], [100.0, 0.0]])  # obstacles straight ahead still count
+            yaw_rate = 0.0
+        else:
+            desired = self._curve_speed(route)
+            corridor = route
+            yaw_rate = self._pursuit(route, speed)
+        accel = self._free_accel(speed, desired)
+        obstacles = self._obstacles(observation, corridor, speed, length, width)
+        if len(obstacles):
+            accel += float(self._interaction(speed, obstacles[:, 0], obstacles[:, 1]).min())
+        accel = float(np.clip(accel, max(-self.config.hard_brake, -speed / self.step_seconds), self.config.max_accel))
+        action = np.array([accel, yaw_rate], np.float32)
+        return np.clip(action, [-MAX_ACCEL, -MAX_YAW_RATE], [MAX_ACCEL, MAX_YAW_RATE]).astype(np.float32)
+
+    def _free_accel(self, speed: float, desired: float) -> float:
+        """The IDM's free-road term a (1 - (v / v0)^delta), floored at the comfortable deceleration."""
+        c = self.config
+        if desired <= 0.0:
+            return -c.comfortable_decel if speed > 0.0 else 0.0
+        return max(-c.comfortable_decel, c.max_accel * (1.0 - (speed / desired) ** c.exponent))
+
+    def _interaction(self, speed: float, gaps: np.ndarray, lead_speeds: np.ndarray) -> np.ndarray:
+        """The IDM's interaction term -a (s* / s)^2 per obstacle, s* = s0 + max(0, v T + v dv / (2 sqrt(a b)))."""
+        c = self.config
+        approach = speed - lead_speeds
+        wanted = c.min_gap + np.maximum(
+            0.0, speed * c.time_headway + speed * approach / (2.0 * math.sqrt(c.max_accel * c.comfortable_decel))
+        )
+        return -c.max_accel * (wanted / np.maximum(gaps, _MIN_GAP_M)) ** 2
+
+    def _curve_speed(self, route: np.ndarray) -> float:
+        """The desired speed now: `desired_speed`, lowered where a curve ahead asks for less than can still be
+        reached by braking at the comfortable deceleration."""
+        c = self.config
+        k = c.curvature_window
+        if len(route) < k + 2:
+            return c.desired_speed
+        segments = np.diff(route, axis=0)
+        headings = np.arctan2(segments[:, 1], segments[:, 0])
+        middles = arc_lengths(route)[:-1] + 0.5 * np.linalg.norm(segments, axis=1)  # stations of segment middles
+        turn = np.abs(wrap_angle(headings[k:] - headings[:-k]))
+        curvature = turn / np.maximum(middles[k:] - middles[:-k], 1e-6)
+        station = middles[:-k]  # where the turn starts
+        with np.errstate(divide="ignore"):
+            limit = np.sqrt(c.max_lateral_accel / curvature + 2.0 * c.comfortable_decel * station)
+        return float(min(c.desired_speed, limit.min()))
+
+    def _pursuit(self, route: np.ndarray, speed: float) -> float:
+        """Pure pursuit: yaw rate = speed x 2 y / L^2 toward the route point `lookahead` metres along it
+        (extended straight past its end), clipped to the action bound."""
+        c = self.config
+        lookahead = max(c.lookahead_min, c.lookahead_time * speed)
+        if len(route) == 1:
+            target = route[0]
+        else:
+            arc = arc_lengths(route)
+            if lookahead <= arc[-1]:
+                target = point_at(route, lookahead)
+            else:
+                direction = route[-1] - route[-2]
+                norm = float(np.linalg.norm(direction))
+                target = route[-1] + (lookahead - arc[-1]) * direction / max(norm, 1e-9)
+        distance2 = float(target @ target)
+        if distance2 < 0.25:
+            return 0.0
+        return float(np.clip(speed * 2.0 * target[1] / distance2, -MAX_YAW_RATE, MAX_YAW_RATE))
+
+    def _obstacles(
+        self, observation: dict[str, np.ndarray], route: np.ndarray, speed: float, length: float, width: float
+    ) -> np.ndarray:
+        """(gap, speed along the route) [K, 2] of the agents whose boxes overlap the route's corridor ahead and
+        of the stop lines ahead whose lights say stop; gaps are bumper to bumper (a stop line has no length)."""
+        c = self.config
+        back = route[1] - route[0] if len(route) > 1 else np.array([1.0, 0.0])
+        back = route[0] - _BEHIND_M * back / max(float(np.linalg.norm(back)), 1e-9)
+        line = np.concatenate([back[None], route])
+        headings = np.arctan2(np.diff(line[:, 1]), np.diff(line[:, 0]))
+        found = []
+
+        agents = np.asarray(observation["agents"], np.float64)
+        valid = np.asarray(observation["agents_valid"], bool) & np.isfinite(agents).all(axis=1)
+        if valid.any():
+            agents = agents[valid]
+            on = project_on_polyline(agents[:, :2], line)
+            station = on.station - _BEHIND_M
+            along = headings[on.segment]
+            relative = agents[:, 2] - along
+            cos, sin = np.abs(np.cos(relative)), np.abs(np.sin(relative))
+            half_lateral = 0.5 * (agents[:, 5] * sin + agents[:, 6] * cos)
+            half_along = 0.5 * (agents[:, 5] * cos + agents[:, 6] * sin)
+            overlaps = np.abs(on.offset) <= 0.5 * width + half_lateral + c.corridor_margin
+            ahead = overlaps & (station > 0.0)
+            gaps = station - 0.5 * length - half_along
+            lead_speeds = agents[:, 3] * np.cos(along) + agents[:, 4] * np.sin(along)
+            found.append(np.stack([gaps[ahead], lead_speeds[ahead]], axis=1))
+
+        lights = np.asarray(observation["lights"], np.float64)
+        states = np.asarray(observation["lights_state"]).astype(np.int64)
+        valid = np.asarray(observation["lights_valid"], bool) & np.isfinite(lights).all(axis=1)
+        valid &= np.isin(states, STOP_STATES + CAUTION_STATES)
+        if valid.any():
+            on = project_on_polyline(lights[valid], line)
+            gaps = on.station - _BEHIND_M - 0.5 * length
+            near = (np.abs(on.offset) <= c.light_lateral) & (gaps > 0.0)
+            caution = np.isin(states[valid], CAUTION_STATES)
+            can_stop = speed**2 <= 2.0 * c.comfortable_decel * gaps
+            stop = near & (~caution | can_stop)
+            found.append(np.stack([gaps[stop], np.zeros(int(stop.sum()))], axis=1))
+        return np.concatenate(found) if found else np.zeros((0, 2))
