@@ -24,6 +24,7 @@ from langtraj.cli import (
     simulate,
     submit,
     synth,
+    test,
     train,
 )
 from langtraj.errors import LangTrajError
@@ -45,6 +46,7 @@ VERBS = (
     simulate,
     demo,
     experiment,
+    test,
 )
 """Each verb module has `add_parser(subparsers)` (setting `func`) and a `run(args) -> int`."""
 

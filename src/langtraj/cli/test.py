@@ -1,0 +1,82 @@
+"""`langtraj test SUITE.yaml --planner NAME|module:Class | --planner-cmd "CMD" [--seeds N] [--workers W]
+[--executor process|ray] [--step-timeout S] [--no-video] --out DIR`.
+
+Runs a planner through every case of a scenario suite (docs/testing.md, 'Scenario suites'): one episode per
+(case, seed) in the LangTraj environment, judged by the case's criteria. DIR receives `results.json` (rewritten
+after every finished episode), `report.md`, `junit.xml`, `videos/<case>-seed<k>.mp4` of the episodes that did not
+pass, and `planner-logs/` (the stderr of a --planner-cmd planner). Exit status 0 when every case passes, 1 when
+any fails or errors, 2 for bad input (the suite file, the planner, the flags), found before anything is written.
+
+See README.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from langtraj.executors import EXECUTORS
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser("test", help="run a planner through a scenario suite (results, report, JUnit XML)")
+    p.add_argument("suite", metavar="SUITE", type=Path, help="suite file (YAML; configs/suites/example.yaml)")
+    p.add_argument("--out", required=True, type=Path, help="output folder")
+    driver = p.add_mutually_exclusive_group(required=True)
+    driver.add_argument(
+        "--planner", help="the planner: a registered name (idm, constant_velocity, log_replay) or package.module:Class"
+    )
+    driver.add_argument(
+        "--planner-cmd",
+        metavar="CMD",
+        help='a planner in its own process speaking JSON lines on stdin/stdout, e.g. "python my_planner.py"',
+    )
+    p.add_argument("--seeds", type=int, metavar="N", help="run every case with seeds 0..N-1 (default: the suite's)")
+    p.add_argument("--workers", type=int, default=1, help="episodes at a time (default 1)")
+    p.add_argument(
+        "--executor",
+        default="process",
+        choices=EXECUTORS.names(),
+        help="where episodes run: process (a local pool, default) or ray (a Ray cluster)",
+    )
+    p.add_argument(
+        "--step-timeout",
+        type=float,
+        default=10.0,
+        metavar="S",
+        help="seconds a planner may take per call before its case fails (default 10)",
+    )
+    p.add_argument("--no-video", action="store_true", help="no videos of the episodes that do not pass")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from langtraj.suites import RunOptions, check_run, load_suite, run_suite
+    from langtraj.suites.episode import DEFAULT_ENV, EpisodeResult
+    from langtraj.suites.report import summary_line
+
+    suite = load_suite(args.suite)
+    if args.seeds is not None:
+        suite = suite.with_seeds(args.seeds)
+    options = RunOptions(
+        out=args.out,
+        planner=args.planner,
+        planner_cmd=args.planner_cmd,
+        workers=args.workers,
+        executor=args.executor,
+        step_timeout=args.step_timeout,
+        video=not args.no_video,
+        env=DEFAULT_ENV,
+    )
+    check_run(options)  # every input checked before anything is written
+
+    def show(result: EpisodeResult) -> None:
+        reason = f": {'; '.join(result.reasons)}" if result.reasons else ""
+        print(
+            f"{result.status.upper():5} {result.case} seed {result.seed} ({result.seconds:.1f} s){reason}", flush=True
+        )
+
+    results = run_suite(suite, options, on_result=show)
+    print(f"{summary_line(results)} -> {args.out}")
+    ok = results.complete and all(s == "pass" for s in results.case_statuses().values())
+    return 0 if ok else 1

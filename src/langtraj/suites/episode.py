@@ -1,0 +1,301 @@
+"""One episode of a suite case: the planner drives the ego of the LangTraj environment for one seed, and the
+case's criteria judge what happened (docs/testing.md, 'Scenario suites').
+
+`run_episode` never raises for what a planner or the environment does: a planner that raises, hangs, or answers
+with an action of the wrong shape or non-finite values fails the episode with a one-line reason; an exception in
+the environment (LangTraj's side) makes it an error, its traceback kept in the result. Each call builds its own
+planner and environment from the picklable `EpisodeTask`, so episodes run in any worker process.
+
+Time limits: an in-process planner (`--planner`) gets `step_timeout` seconds per call (construction, reset, each
+act) through SIGALRM (`langtraj.suites.deadline`, which says where that cannot interrupt); a planner command
+(`--planner-cmd`) gets the same limit per reply from `SubprocessPlanner`, its first reply (the hello)
+`START_TIMEOUT_S` at least, for planners that load a model.
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from langtraj.env.spaces import action_space
+from langtraj.suites.config import EPISODE_STEPS, SuiteCase
+from langtraj.suites.deadline import StepTimeout, deadline
+from langtraj.suites.verdict import StepRecord, episode_figures, judge
+
+DEFAULT_ENV = "langtraj.env:LangTrajEnv"
+"""The environment class episodes run in ("module:Class"); tests swap in a fake with the same interface."""
+START_TIMEOUT_S = 30.0
+"""The least time a planner command gets for its first reply (it may load a model then)."""
+VIDEO_FOLDER = "videos"
+LOG_FOLDER = "planner-logs"
+"""Under the output folder: the videos of failed episodes and the stderr of planner commands."""
+CAPTION_CHARS = 120
+
+
+@dataclass(frozen=True)
+class EpisodeTask:
+    """Everything one episode needs, picklable for any executor: the suite's name, the case and seed, the planner
+    as a spec (`load_planner`) or a command (`SubprocessPlanner`; exactly one of the two), the per-call time limit
+    in seconds, the output folder, whether to write a video when the episode does not pass, and the environment
+    class ("module:Class")."""
+
+    suite: str
+    case: SuiteCase
+    seed: int
+    planner: str | None
+    planner_cmd: str | None
+    step_timeout: float
+    out: Path
+    video: bool = True
+    env: str = DEFAULT_ENV
+
+    @property
+    def label(self) -> str:
+        """`<case>-seed<k>`: the stem of the episode's video and planner log."""
+        return f"{self.case.name}-seed{self.seed}"
+
+
+@dataclass
+class EpisodeResult:
+    """What one episode gave (one entry of results.json's `episodes`).
+
+    case, seed: which episode. status: "pass" (every criterion held), "fail" (a criterion failed, or the planner
+    raised, hung or answered a bad action) or "error" (LangTraj's environment raised). reasons: one line per failed
+    criterion or the failure / error (empty when it passed). ego: the ego's track id (None when the env was never
+    reset). criteria: each checked criterion's `CriterionResult.to_json()` (empty when the episode did not run to
+    its end). figures: `verdict.episode_figures` plus `planner_seconds` (all its calls) and
+    `planner_max_step_seconds`. steps: the per-step record (`StepRecord.to_json()`). seconds: the episode's wall
+    time. video: the video's path relative to the output folder, or None. video_error: why the video could not be
+    written, or None. traceback: the traceback of an error, or None.
+    """
+
+    case: str
+    seed: int
+    status: str
+    reasons: list[str] = field(default_factory=list)
+    ego: int | None = None
+    criteria: list[dict[str, Any]] = field(default_factory=list)
+    figures: dict[str, Any] = field(default_factory=dict)
+    steps: dict[str, list] = field(default_factory=dict)
+    seconds: float = 0.0
+    video: str | None = None
+    video_error: str | None = None
+    traceback: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "case": self.case,
+            "seed": self.seed,
+            "status": self.status,
+            "reasons": list(self.reasons),
+            "ego": self.ego,
+            "criteria": list(self.criteria),
+            "figures": dict(self.figures),
+            "steps": dict(self.steps),
+            "seconds": round(self.seconds, 3),
+            "video": self.video,
+            "video_error": self.video_error,
+            "traceback": self.traceback,
+        }
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> EpisodeResult:
+        return cls(**data)
+
+
+class _Failed(Exception):
+    """The planner failed the episode (`reason`: one line)."""
+
+    def __init__(self, reason: str):
+        super().__init__(reason)
+        self.reason = reason
+
+
+def _one_line(error: BaseException) -> str:
+    """`Type: first line of the message`."""
+    lines = str(error).strip().splitlines()
+    return f"{type(error).__name__}: {lines[0]}" if lines else type(error).__name__
+
+
+def load_class(spec: str) -> Any:
+    """The attribute `spec` ("package.module:Name") names."""
+    module, _, name = spec.partition(":")
+    found: Any = importlib.import_module(module)
+    for part in name.split("."):
+        found = getattr(found, part)
+    return found
+
+
+class _Episode:
+    """The state of one running episode, so that its parts (planner calls, the env, the video) stay small."""
+
+    def __init__(self, task: EpisodeTask):
+        self.task = task
+        self.record = StepRecord()
+        self.planner: Any = None
+        self.env: Any = None
+        self.ego: int | None = None
+        self.planner_seconds = 0.0
+        self.planner_max = 0.0
+
+    def call_planner(self, fn: Callable[[], Any], when: str) -> Any:
+        """`fn()` (a planner call) under the step limit; whatever goes wrong fails the episode, naming `when`."""
+        from langtraj.planners.base import PlannerError, PlannerTimeout
+
+        limit = self.task.step_timeout
+        start = time.perf_counter()
+        try:
+            with deadline(limit if self.task.planner_cmd is None else None):
+                return fn()
+        except (StepTimeout, PlannerTimeout):
+            raise _Failed(f"planner timed out after {limit:g} s {when}") from None
+        except PlannerError as error:
+            raise _Failed(f"planner failed {when}: {str(error).splitlines()[0] if str(error) else error}") from None
+        except Exception as error:
+            raise _Failed(f"planner raised {_one_line(error)} {when}") from None
+        finally:
+            spent = time.perf_counter() - start
+            self.planner_seconds += spent
+            self.planner_max = max(self.planner_max, spent)
+
+    def make_planner(self) -> Any:
+        from langtraj.planners import SubprocessPlanner, load_planner
+
+        task = self.task
+        if task.planner_cmd is not None:
+            log = task.out / LOG_FOLDER / f"{task.label}.log"
+            log.parent.mkdir(parents=True, exist_ok=True)
+            start = max(task.step_timeout, START_TIMEOUT_S)
+            return self.call_planner(
+                lambda: SubprocessPlanner(task.planner_cmd, task.step_timeout, start_timeout_s=start, stderr_path=log),
+                "when started",
+            )
+        cls = load_planner(task.planner)  # checked before the run: errors here are the machine's
+        return self.call_planner(cls, "when created")
+
+    def run(self) -> None:
+        """Plan and step until the episode ends; raises `_Failed` for the planner's failures, anything else for
+        the environment's."""
+        from langtraj.planners import planner_action_kind, reset_planner
+
+        task, case = self.task, self.task.case
+        self.planner = self.make_planner()
+        try:
+            kind = planner_action_kind(self.planner)
+        except Exception as error:
+            raise _Failed(f"planner has a bad action_kind ({_one_line(error)})") from None
+        self.env = load_class(task.env)(
+            case.scenario,
+            index=case.index,
+            ego=case.ego,
+            prompts=case.prompts,
+            adversary=case.adversary,
+            target=case.target,
+            checkpoint=case.checkpoint,
+            action=kind,
+            terminate_on_collision=case.criteria.terminate_on_collision,
+        )
+        observation, info = self.env.reset(seed=task.seed)
+        self.ego = int(info["ego_id"])
+        self.call_planner(lambda: reset_planner(self.planner, observation, info), "in reset")
+        expected = action_space(kind).shape
+        for step in range(1, (case.max_steps or EPISODE_STEPS) + 1):
+            action = self.call_planner(lambda obs=observation: self.planner.act(obs), f"at step {step}")
+            action = check_action(action, expected, step)
+            observation, _, terminated, truncated, info = self.env.step(action)
+            self.record.add(info)
+            if terminated or truncated:
+                break
+
+    def close(self) -> None:
+        """Close the planner (its failures to close are ignored) and the env."""
+        if self.planner is not None and callable(getattr(self.planner, "close", None)):
+            try:
+                with deadline(self.task.step_timeout if self.task.planner_cmd is None else None):
+                    self.planner.close()
+            except (Exception, StepTimeout):
+                pass
+        if self.env is not None:
+            self.env.close()
+
+    def video(self, caption: str) -> str:
+        """Write the episode so far to `videos/<case>-seed<k>.mp4`; its path relative to the output folder."""
+        from langtraj.viz import RenderConfig, save_video
+
+        played = self.env.played()
+        relative = f"{VIDEO_FOLDER}/{self.task.label}.mp4"
+        render = RenderConfig(
+            highlight_ids=tuple(int(i) for i in self.env.highlight_ids),
+            follow_track_id=self.ego,
+            show_ids=True,
+            caption=caption[:CAPTION_CHARS],
+        )
+        start = min(int(played.current_index), played.num_steps - 1)  # from the last logged step on
+        save_video(played, self.task.out / relative, render, start=start, progress=False)
+        return relative
+
+
+def check_action(action: Any, expected: tuple[int, ...], step: int) -> np.ndarray:
+    """`action` as a float32 array of shape `expected`; a wrong shape or a non-finite value fails the episode."""
+    try:
+        array = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise _Failed(
+            f"planner returned an action that is not an array of numbers ({type(action).__name__}) at step {step}"
+        ) from None
+    if array.shape != tuple(expected):
+        raise _Failed(f"planner returned an action of shape {array.shape}, expected {tuple(expected)} at step {step}")
+    if not np.isfinite(array).all():
+        raise _Failed(f"planner returned a non-finite action at step {step}")
+    return array.astype(np.float32)
+
+
+def run_episode(task: EpisodeTask) -> EpisodeResult:
+    """Run one (case, seed) episode and judge it; never raises for what the planner or the env does."""
+    start = time.perf_counter()
+    episode = _Episode(task)
+    result = EpisodeResult(case=task.case.name, seed=task.seed, status="pass")
+    try:
+        episode.run()
+    except _Failed as failure:
+        result.status, result.reasons = "fail", [failure.reason]
+    except Exception as error:
+        steps = episode.record.steps
+        where = f"at step {steps + 1}" if episode.ego is not None else "before the episode started"
+        result.status, result.reasons = "error", [f"LangTraj raised {_one_line(error)} {where}"]
+        result.traceback = traceback.format_exc()
+    figures = episode_figures(episode.record)
+    if result.status == "pass":
+        verdicts = judge(task.case.criteria, figures)
+        result.criteria = [v.to_json() for v in verdicts]
+        failed = [v.reason for v in verdicts if not v.passed]
+        if failed:
+            result.status, result.reasons = "fail", [r or "" for r in failed]
+    result.ego = episode.ego
+    result.figures = figures | {
+        "planner_seconds": round(episode.planner_seconds, 4),
+        "planner_max_step_seconds": round(episode.planner_max, 4),
+    }
+    result.steps = episode.record.to_json()
+    if task.video and result.status != "pass" and episode.env is not None and episode.record.steps:
+        caption = f"{task.case.name} seed {task.seed}: {result.reasons[0]}"
+        try:
+            result.video = episode.video(caption)
+        except Exception as error:
+            result.video_error = _one_line(error)
+    try:
+        episode.close()
+    except Exception as error:
+        if result.status != "error":
+            result.status = "error"
+            result.reasons.append(f"LangTraj raised {_one_line(error)} when closing the env")
+            result.traceback = traceback.format_exc()
+    result.seconds = time.perf_counter() - start
+    return result

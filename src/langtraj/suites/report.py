@@ -1,0 +1,111 @@
+"""`report.md`: a suite run for people: a summary line, then one Markdown table per case (seed, status, at-fault
+collision, collision with whom, offroad, min TTC, progress, seconds, reason), failed episodes' videos linked
+(docs/testing.md, 'Scenario suites')."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from langtraj.fileio import atomic_path
+from langtraj.suites.episode import EpisodeResult
+from langtraj.suites.results import SuiteResults
+
+REPORT_FILE = "report.md"
+COLUMNS = (
+    "seed",
+    "status",
+    "at-fault collision",
+    "collision",
+    "offroad",
+    "min TTC (s)",
+    "progress",
+    "seconds",
+    "reason",
+)
+
+
+def _cell(text: object) -> str:
+    """`text` safe inside a table cell: one line, pipes escaped."""
+    return " ".join(str(text).split()).replace("|", "\\|")
+
+
+def _step(step: int | None, ids: list[int]) -> str:
+    if step is None:
+        return "no"
+    return f"step {step}" + (f" ({', '.join(str(i) for i in ids)})" if ids else "")
+
+
+def _number(value: float | None, digits: int = 2) -> str:
+    return "-" if value is None else f"{value:.{digits}f}"
+
+
+def _row(result: EpisodeResult) -> list[str]:
+    f = result.figures
+    offroad = f"step {f['first_offroad_step']}" if f.get("first_offroad_step") else "no"
+    reason = "; ".join(result.reasons)
+    if result.video:
+        reason = f"{reason} ([video]({result.video}))"
+    elif result.video_error:
+        reason = f"{reason} (no video: {result.video_error})"
+    return [
+        str(result.seed),
+        result.status.upper() if result.status != "pass" else "pass",
+        _step(f.get("first_at_fault_step"), f.get("at_fault_with", [])),
+        _step(f.get("first_collision_step"), f.get("collided_with", [])),
+        offroad,
+        _number(f.get("min_ttc")),
+        _number(f.get("final_progress")),
+        f"{result.seconds:.1f}",
+        reason,
+    ]
+
+
+def summary_line(results: SuiteResults) -> str:
+    """`PASS` / `FAIL`: cases and episodes counted, e.g. `FAIL: 1 of 3 cases failed, 0 errors (5 of 6 episodes
+    passed) in 12.3 s`."""
+    s = results.summary()
+    bad = s["cases_failed"] + s["cases_errors"]
+    verdict = "PASS" if bad == 0 and results.complete else "FAIL"
+    line = (
+        f"{verdict}: {s['cases_failed']} of {s['cases']} cases failed, {s['cases_errors']} with errors "
+        f"({s['passed']} of {s['episodes']} episodes passed) in {s['seconds']:.1f} s"
+    )
+    if not results.complete:
+        line += f"; only {s['finished']} of {s['episodes']} episodes finished"
+    return line
+
+
+def render_report(results: SuiteResults) -> str:
+    """The Markdown text of report.md."""
+    header = results.header
+    driver = f"`{header['planner']}`" if header["planner"] else f"command `{header['planner_cmd']}`"
+    lines = [
+        f"# Suite {results.suite.name}",
+        "",
+        f"**{summary_line(results)}**",
+        "",
+        f"Planner {driver}; suite file `{results.suite.path}`; step timeout {header['step_timeout']:g} s; "
+        f"started {header['started']}.",
+    ]
+    statuses = results.case_statuses()
+    for case in results.suite.cases:
+        ego = case.ego if case.ego is not None else "the env's choice"
+        described = f"`{Path(case.scenario).name}` (index {case.index}), ego {ego}"
+        if case.adversary is not None:
+            described += f", adversary {case.adversary} -> {case.target}"
+        lines += ["", f"## {case.name}: {statuses[case.name].upper()}", "", described + "."]
+        lines += [f"Prompt: “{' '.join(p.split())}”  " for p in case.prompts]
+        lines += ["", "| " + " | ".join(COLUMNS) + " |", "|" + " --- |" * len(COLUMNS)]
+        for result in results.of_case(case.name):
+            lines.append("| " + " | ".join(_cell(c) for c in _row(result)) + " |")
+        missing = [s for s in case.seeds if (case.name, s) not in results.episodes]
+        if missing:
+            lines += ["", f"Not finished: seeds {', '.join(map(str, missing))}."]
+    return "\n".join(lines) + "\n"
+
+
+def write_report(results: SuiteResults, out: Path) -> Path:
+    path = Path(out) / REPORT_FILE
+    with atomic_path(path) as tmp:
+        tmp.write_text(render_report(results))
+    return path

@@ -1,0 +1,132 @@
+"""The results of a suite run as they arrive: `results.json`, rewritten atomically after every finished episode,
+so that a run that crashes or is interrupted leaves every finished episode on disk (docs/testing.md, 'Scenario
+suites').
+
+results.json:
+    suite, suite_file: the suite's name and file. planner / planner_cmd: what drove the ego (one is null).
+    step_timeout: the per-call limit (s). started, finished: ISO 8601 times (finished null while running).
+    complete: whether every episode has finished. summary: `summary()`. cases: each case's name, status
+    (`case_status`), seeds, scenario, index, ego, prompts, adversary and target. episodes: each finished
+    episode's `EpisodeResult.to_json()`, in suite order (case, then seed).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from langtraj.fileio import atomic_path
+from langtraj.suites.config import Suite
+from langtraj.suites.episode import EpisodeResult
+
+RESULTS_FILE = "results.json"
+STATUSES = ("pass", "fail", "error")
+
+
+def case_status(results: list[EpisodeResult], expected: int) -> str:
+    """A case's status from its episodes: "fail" when any failed, else "error" when any errored, else "pass"
+    once all `expected` finished ("pending" before)."""
+    statuses = {r.status for r in results}
+    if "fail" in statuses:
+        return "fail"
+    if "error" in statuses:
+        return "error"
+    return "pass" if len(results) >= expected else "pending"
+
+
+def _now() -> str:
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+class SuiteResults:
+    """The finished episodes of a run of `suite`, kept in suite order and written to `out/results.json`."""
+
+    def __init__(self, suite: Suite, out: Path, *, planner: str | None, planner_cmd: str | None, step_timeout: float):
+        self.suite = suite
+        self.path = Path(out) / RESULTS_FILE
+        self.header = {
+            "suite": suite.name,
+            "suite_file": str(suite.path),
+            "planner": planner,
+            "planner_cmd": planner_cmd,
+            "step_timeout": step_timeout,
+            "started": _now(),
+            "finished": None,
+        }
+        self.episodes: dict[tuple[str, int], EpisodeResult] = {}
+        self._clock = time.perf_counter()
+        self.seconds = 0.0
+
+    def add(self, result: EpisodeResult) -> None:
+        self.episodes[(result.case, result.seed)] = result
+
+    def of_case(self, name: str) -> list[EpisodeResult]:
+        """The finished episodes of case `name`, by seed order of the case."""
+        case = next(c for c in self.suite.cases if c.name == name)
+        return [self.episodes[(name, s)] for s in case.seeds if (name, s) in self.episodes]
+
+    def ordered(self) -> list[EpisodeResult]:
+        return [r for case in self.suite.cases for r in self.of_case(case.name)]
+
+    @property
+    def complete(self) -> bool:
+        return len(self.episodes) == self.suite.episodes
+
+    def case_statuses(self) -> dict[str, str]:
+        return {c.name: case_status(self.of_case(c.name), len(c.seeds)) for c in self.suite.cases}
+
+    def summary(self) -> dict[str, Any]:
+        """Counts: `episodes` (in the suite), `finished`, `passed`, `failed`, `errors`; `cases`, `cases_passed`,
+        `cases_failed`, `cases_errors`; and `seconds` of wall time so far."""
+        statuses = [r.status for r in self.episodes.values()]
+        cases = list(self.case_statuses().values())
+        return {
+            "episodes": self.suite.episodes,
+            "finished": len(statuses),
+            "passed": statuses.count("pass"),
+            "failed": statuses.count("fail"),
+            "errors": statuses.count("error"),
+            "cases": len(cases),
+            "cases_passed": cases.count("pass"),
+            "cases_failed": cases.count("fail"),
+            "cases_errors": cases.count("error"),
+            "seconds": round(self.seconds, 2),
+        }
+
+    def to_json(self) -> dict[str, Any]:
+        statuses = self.case_statuses()
+        cases = [
+            {
+                "name": c.name,
+                "status": statuses[c.name],
+                "seeds": list(c.seeds),
+                "scenario": str(c.scenario),
+                "index": c.index,
+                "ego": c.ego,
+                "prompts": list(c.prompts),
+                "adversary": c.adversary,
+                "target": c.target,
+                "max_steps": c.max_steps,
+                "criteria": asdict(c.criteria),
+            }
+            for c in self.suite.cases
+        ]
+        return {
+            **self.header,
+            "complete": self.complete,
+            "summary": self.summary(),
+            "cases": cases,
+            "episodes": [r.to_json() for r in self.ordered()],
+        }
+
+    def write(self, *, finished: bool = False) -> None:
+        """Rewrite results.json atomically (`finished`: stamp the end time)."""
+        self.seconds = time.perf_counter() - self._clock
+        if finished:
+            self.header["finished"] = _now()
+        with atomic_path(self.path) as tmp:
+            tmp.write_text(json.dumps(self.to_json(), indent=1))

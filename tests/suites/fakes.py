@@ -1,0 +1,189 @@
+"""A fake of `langtraj.env.LangTrajEnv` with the same interface, whose scene file (JSON) says what happens, and
+planners that misbehave in the scene called "bad" only (so that a suite's other case passes with them)."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from langtraj.env.spaces import action_space, observation_space
+from langtraj.errors import InputError
+
+TESTS_DIR = Path(__file__).resolve().parents[1]
+FAKE_ENV = "suites.fakes:FakeEnv"
+"""The fake's "module:Class" (tests/ is on sys.path, in spawned workers too)."""
+
+
+def write_scene(folder: Path, name: str, **behaviour: Any) -> Path:
+    """A fake scene file: `scenario_id` = `name`; keys: steps (80), collide_at, collided_with ([7]), at_fault,
+    offroad_at, ttc (5.0), min_ttc_at ([step, value]), progress (final fraction, 1.0), error_at (the env raises),
+    exit_at (the process dies)."""
+    path = folder / f"{name}.json"
+    path.write_text(json.dumps({"scenario_id": name, **behaviour}))
+    return path
+
+
+def _observation() -> dict[str, np.ndarray]:
+    return {key: np.zeros(space.shape, space.dtype) for key, space in observation_space().spaces.items()}
+
+
+class FakeEnv:
+    """Same constructor, reset, step, played, highlight_ids and close as LangTrajEnv."""
+
+    built: list[dict[str, Any]] = []  # noqa: RUF012 -- what each construction was given (in-process runs)
+
+    def __init__(
+        self,
+        scenario: Any,
+        *,
+        index: int = 0,
+        ego: int | None = None,
+        prompts: Any = (),
+        adversary: int | None = None,
+        target: Any = None,
+        checkpoint: Path | None = None,
+        action: str = "control",
+        terminate_on_collision: bool = False,
+        terminate_on_offroad: bool = False,
+        render_mode: str | None = None,
+    ):
+        self.data = json.loads(Path(scenario).read_text())
+        if self.data.get("error_at") == 0:
+            raise InputError("the fake scene cannot be built", where="scenario")
+        self.kind = action
+        self.ego = 17 if ego is None else ego  # a track of the toy scene `played` returns
+        self.prompts = [p.replace("@ego", f"@{self.ego}") for p in prompts]
+        self.adversary = adversary
+        self.target = self.ego if target == "ego" else target
+        self.terminate_on_collision = terminate_on_collision
+        self.highlight_ids = [self.ego] + ([adversary] if adversary is not None else [])
+        FakeEnv.built.append({"index": index, "ego": ego, "prompts": list(prompts), "target": target})
+        self.k = 0
+
+    def reset(self, *, seed: int | None = None, options: Any = None):
+        self.k = 0
+        info = {
+            "scenario_id": self.data["scenario_id"],
+            "ego_id": self.ego,
+            "step_seconds": 0.1,
+            "prompted_ids": [],
+            "prompts": self.prompts,
+            "adversary": self.adversary,
+            "target": self.target,
+            "logged_ego": np.full((80, 4), np.nan),
+        }
+        return _observation(), info
+
+    def step(self, action: Any):
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != action_space(self.kind).shape or not np.isfinite(a).all():
+            raise InputError("bad action", where="action")
+        self.k += 1
+        d, k = self.data, self.k
+        if d.get("error_at") == k:
+            raise RuntimeError("the fake env broke")
+        if d.get("exit_at") == k:
+            os._exit(3)  # the worker process dies
+        collision = d.get("collide_at") is not None and k >= d["collide_at"]
+        steps = d.get("steps", 80)
+        ttc = d.get("ttc", 5.0)
+        if d.get("min_ttc_at") and d["min_ttc_at"][0] == k:
+            ttc = d["min_ttc_at"][1]
+        info = {
+            "step": k,
+            "time": k * 0.1,
+            "collision": collision,
+            "collided_with": d.get("collided_with", [7]) if collision else [],
+            "at_fault": collision and d.get("at_fault", False),
+            "offroad": d.get("offroad_at") is not None and k >= d["offroad_at"],
+            "ttc": ttc,
+            "min_distance": 3.0,
+            "progress_m": k * 1.0,
+            "progress": d.get("progress", 1.0) * k / steps,
+            "speed": 10.0,
+        }
+        terminated = self.terminate_on_collision and collision
+        return _observation(), 0.0, bool(terminated), k >= steps, info
+
+    def played(self):
+        sys.path.insert(0, str(TESTS_DIR))
+        from scenario_builders import make_scenario
+
+        return make_scenario(num_steps=11 + self.k, scenario_id=self.data["scenario_id"])
+
+    def close(self) -> None:
+        pass
+
+
+class GoodPlanner:
+    """Drives straight on (zero control) everywhere; the misbehaving planners below derive from it."""
+
+    action_kind = "control"
+
+    def reset(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+        self.bad = info["scenario_id"] == "bad"
+        self.k = 0
+
+    def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
+        self.k += 1
+        return self.misbehave(self.k) if self.bad else np.zeros(2, np.float32)
+
+    def misbehave(self, k: int) -> Any:
+        return np.zeros(2, np.float32)
+
+
+class RaisingPlanner(GoodPlanner):
+    def misbehave(self, k: int) -> Any:
+        if k == 3:
+            raise ValueError("boom\nsecond line")
+        return np.zeros(2)
+
+
+class NaNPlanner(GoodPlanner):
+    def misbehave(self, k: int) -> Any:
+        return np.array([np.nan, 0.0]) if k == 12 else np.zeros(2)
+
+
+class WrongShapePlanner(GoodPlanner):
+    def misbehave(self, k: int) -> Any:
+        return np.zeros(3)
+
+
+class HangingPlanner(GoodPlanner):
+    def misbehave(self, k: int) -> Any:
+        if k == 2:
+            time.sleep(60)
+        return np.zeros(2)
+
+
+class SwallowingHangPlanner(GoodPlanner):
+    """Hangs in a busy loop and catches every Exception: the step limit must still end it."""
+
+    def misbehave(self, k: int) -> Any:
+        while True:
+            try:  # noqa: SIM105 -- the point: a planner that swallows every Exception
+                time.sleep(0.01)
+            except Exception:
+                pass
+
+
+class OneArgumentPlanner:
+    """A duck-typed planner whose reset takes the observation only, answering trajectories."""
+
+    action_kind = "trajectory"
+
+    def reset(self, observation: dict[str, np.ndarray]) -> None:
+        pass
+
+    def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
+        return np.zeros((10, 3), np.float32)
+
+
+class BadKindPlanner(GoodPlanner):
+    action_kind = "teleport"

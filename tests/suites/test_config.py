@@ -1,0 +1,142 @@
+"""The suite file: what it reads, its defaults, and one-line errors naming the file and the key."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from langtraj.errors import InputError
+from langtraj.suites import Criteria, load_suite
+from langtraj.suites.config import DEFAULT_REAL_DATA
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _suite(tmp_path: Path, body: str) -> Path:
+    (tmp_path / "scene.tfrecord").write_bytes(b"")
+    path = tmp_path / "suite.yaml"
+    path.write_text(textwrap.dedent(body))
+    return path
+
+
+def test_reads_cases_with_defaults_and_placeholders(tmp_path, monkeypatch):
+    monkeypatch.setenv("SCENES", str(tmp_path))
+    path = _suite(
+        tmp_path,
+        """
+        name: smoke
+        defaults:
+          seeds: 2
+          criteria: {min_ttc: 0.5}
+          max_steps: 20
+        cases:
+          - name: plain
+            scenario: scene.tfrecord
+          - name: cut-in
+            scenario: ${SCENES}/scene.tfrecord
+            index: 0
+            prompts: ["@adv changes lanes into @ego's lane and brakes hard"]
+            adversary: 12
+            target: ego
+            seeds: [3, 5]
+            max_steps: null
+            criteria: {no_collision: true, min_progress: 0.2, terminate_on_collision: false}
+        """,
+    )
+    suite = load_suite(path)
+    assert suite.name == "smoke" and suite.episodes == 4
+    plain, cut_in = suite.cases
+    assert plain.scenario == tmp_path / "scene.tfrecord" and plain.seeds == (0, 1) and plain.ego is None
+    assert plain.criteria == Criteria(min_ttc=0.5) and plain.max_steps == 20
+    assert cut_in.prompts == ("@12 changes lanes into @ego's lane and brakes hard",)  # the env fills in @ego
+    assert (cut_in.adversary, cut_in.target, cut_in.seeds, cut_in.max_steps) == (12, "ego", (3, 5), None)
+    assert cut_in.criteria == Criteria(no_collision=True, min_ttc=0.5, min_progress=0.2, terminate_on_collision=False)
+    assert [c.seeds for c in suite.with_seeds(3).cases] == [(0, 1, 2), (0, 1, 2)]
+
+
+def test_real_data_variable_defaults_to_the_shared_folder(tmp_path, monkeypatch):
+    monkeypatch.delenv("LANGTRAJ_REAL_DATA", raising=False)
+    assert REPO.parent / "shared" / "data" / "real" == DEFAULT_REAL_DATA
+    path = _suite(tmp_path, "name: s\ncases:\n  - {name: a, scenario: '${LANGTRAJ_REAL_DATA}/x.tfrecord'}\n")
+    with pytest.raises(InputError, match=r"cases\[0\]\.scenario: no such file: .*shared/data/real/x.tfrecord"):
+        load_suite(path)
+    monkeypatch.setenv("LANGTRAJ_REAL_DATA", str(tmp_path))
+    assert (
+        load_suite(
+            _suite(tmp_path, "name: s\ncases:\n  - {name: a, scenario: '${LANGTRAJ_REAL_DATA}/scene.tfrecord'}\n")
+        )
+        .cases[0]
+        .scenario
+        == tmp_path / "scene.tfrecord"
+    )
+
+
+@pytest.mark.parametrize(
+    ("cases", "message"),
+    [
+        ("  - {name: a, scenario: scene.tfrecord, criteria: {min_ttc: -1}}", "cases[0].criteria.min_ttc: must be >= 0"),
+        ("  - {name: a, scenario: scene.tfrecord, criteria: {min_ttc: fast}}", "cases[0].criteria.min_ttc: expected"),
+        (
+            "  - {name: a, scenario: scene.tfrecord, criteria: {no_crash: true}}",
+            "cases[0].criteria: unknown keys no_crash",
+        ),
+        ("  - {name: a, scenario: scene.tfrecord}\n  - {name: a, scenario: scene.tfrecord}", "cases[1].name: 'a' is"),
+        ("  - {name: a, scenario: missing.pkl}", "cases[0].scenario: no such file"),
+        ("  - {name: a}", "cases[0]: missing scenario"),
+        ("  - {name: 'a b', scenario: scene.tfrecord}", "cases[0].name: expected a name"),
+        ("  - {name: a, scenario: scene.tfrecord, seeds: 0}", "cases[0].seeds: a count of seeds must be >= 1"),
+        ("  - {name: a, scenario: scene.tfrecord, seeds: [1, 1]}", "cases[0].seeds: repeated seeds"),
+        ("  - {name: a, scenario: scene.tfrecord, seeds: [x]}", "cases[0].seeds[0]: expected a whole number"),
+        ("  - {name: a, scenario: scene.tfrecord, index: -1}", "cases[0].index: must be >= 0"),
+        ("  - {name: a, scenario: scene.tfrecord, ego: car}", "cases[0].ego: expected a track id"),
+        ("  - {name: a, scenario: scene.tfrecord, adversary: 3}", "cases[0].target: an adversary needs a target"),
+        ("  - {name: a, scenario: scene.tfrecord, target: bus, adversary: 3}", "cases[0].target: expected a track id"),
+        ("  - {name: a, scenario: scene.tfrecord, ego: 3, adversary: 3, target: 4}", "cases[0].adversary: 3 is also"),
+        ("  - {name: a, scenario: scene.tfrecord, prompts: ['@adv brakes']}", "cases[0].prompts[0]: '@adv' needs"),
+        ("  - {name: a, scenario: scene.tfrecord, prompts: '@1 brakes'}", "cases[0].prompts: expected a list"),
+        ("  - {name: a, scenario: scene.tfrecord, max_steps: 81}", "cases[0].max_steps: must be at most 80"),
+        ("  - {name: a, scenario: scene.tfrecord, colour: red}", "cases[0]: unknown keys colour"),
+        ("  - {name: a, scenario: '${NO_SUCH_VARIABLE_X}/a'}", "the environment variable NO_SUCH_VARIABLE_X"),
+        ("  - 3", "cases[0]: expected a mapping"),
+        ("  []", "cases: expected a non-empty list"),
+    ],
+)
+def test_errors_name_the_file_and_key(tmp_path, cases, message):
+    path = _suite(
+        tmp_path, f"name: s\ncases:\n{cases}\n" if not cases.strip().startswith("[") else "name: s\ncases: []\n"
+    )
+    with pytest.raises(InputError) as raised:
+        load_suite(path)
+    text = str(raised.value)
+    assert text.startswith(f"{path}: "), text
+    assert message in text and "\n" not in text, text
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        ("cases: [{name: a, scenario: scene.tfrecord}]", "name: expected a name"),
+        (
+            "name: s\ndefaults: {criteria: {min_progress: -0.5}}\ncases: [{name: a, scenario: s}]",
+            "defaults.criteria.min_progress: must be >= 0",
+        ),
+        ("name: s\ndefaults: {seed: 3}\ncases: [{name: a, scenario: scene.tfrecord}]", "defaults: unknown keys seed"),
+        ("name: s\ncolour: red\ncases: [{name: a, scenario: scene.tfrecord}]", "unknown keys colour"),
+        ("name: s\ncases: [{name: a, scenario: scene.tfrecord]", "not valid YAML"),
+    ],
+)
+def test_suite_level_errors(tmp_path, body, message):
+    path = _suite(tmp_path, body)
+    with pytest.raises(InputError, match="^" + str(path).replace(".", r"\.") + ": .*" + message.replace(".", r"\.")):
+        load_suite(path)
+
+
+def test_the_example_suite_loads(monkeypatch):
+    monkeypatch.delenv("LANGTRAJ_REAL_DATA", raising=False)
+    if not (DEFAULT_REAL_DATA / "motion_data_one_scenario.tfrecord").is_file():
+        pytest.skip(f"real scenario files not found in {DEFAULT_REAL_DATA}")
+    suite = load_suite(REPO / "configs" / "suites" / "example.yaml")
+    assert len(suite.cases) >= 4 and suite.episodes >= len(suite.cases)
+    assert all(c.scenario.is_file() for c in suite.cases)
