@@ -22,8 +22,9 @@ LAYERS = (
     ("metrics", "model"),
     ("guidance",),
     ("sim",),
-    ("training", "labeling"),
-    ("experiments",),
+    ("training", "labeling", "env"),
+    ("planners",),
+    ("suites", "experiments"),
     ("cli",),
 )
 """Each package may import only packages of earlier layers (and itself)."""

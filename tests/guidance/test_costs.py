@@ -24,9 +24,9 @@ ROAD = [[[-50.0, -2.0], [50.0, -2.0]], [[50.0, 6.0], [-50.0, 6.0]]]
 LANE = [[[-50.0, 0.0], [0.0, 0.0]], [[0.0, 0.0], [50.0, 0.0]]]
 
 
-def test_the_registry_lists_the_eight_costs_and_returns_their_classes():
+def test_the_registry_lists_the_nine_costs_and_returns_their_classes():
     assert GUIDANCE.names() == (
-        "collision", "no_collision", "goal", "target_speed", "on_road", "keep_lane", "route", "station"
+        "collision", "no_collision", "goal", "target_speed", "on_road", "keep_lane", "headway", "route", "station"
     )  # fmt: skip
     assert GUIDANCE.get("goal") is GoalCost
     with pytest.raises(InputError, match="unknown guidance cost 'nope'"):
@@ -231,3 +231,18 @@ def test_slots_beyond_the_scene_and_badly_shaped_states_are_refused():
         OnRoadCost()(states, make_scene(3))
     with pytest.raises(InputError, match="window start 20 is past the horizon"):
         TargetSpeedCost(0, 1.0, start=20)(states, scene)
+
+
+def test_headway_pulls_a_follower_back_and_ignores_agents_beside_or_ahead():
+    from langtraj.guidance.costs import HeadwayCost
+
+    scene = make_scene(4)  # agent 0 leads (heading +x); 1 follows too close, 2 in the next lane, 3 ahead of it
+    states = standing([[0.0, 0.0], [-4.0, 0.0], [-4.0, 3.5], [8.0, 0.0]])
+    cost = HeadwayCost([1, 2, 3], leader=0, gap=2.0)
+    value, grad = cost_gradient(cost, states, scene)
+    assert value.item() > 0
+    assert (grad[0, 1, :, 0] > 0).all()  # a descent step moves the follower back (-x), never forward
+    assert grad[0, 1, :, 1].abs().max() == 0  # and not sideways
+    assert grad[0, 2:].abs().max() == 0 and grad[0, 0].abs().max() == 0  # beside, ahead, the leader: nothing
+    far = standing([[0.0, 0.0], [-20.0, 0.0], [-4.0, 3.5], [8.0, 0.0]])
+    assert HeadwayCost([1, 2, 3], leader=0)(far, scene).item() == 0.0  # far enough behind: no cost

@@ -3,7 +3,15 @@ reconstruction-guidance step, and the fixed CTG++-style library of costs per Int
 See docs/simulation.md."""
 
 from langtraj.guidance.base import GUIDANCE, GuidanceCost, GuidanceTerm, Schedule
-from langtraj.guidance.costs import CollisionCost, GoalCost, KeepLaneCost, NoCollisionCost, OnRoadCost, TargetSpeedCost
+from langtraj.guidance.costs import (
+    CollisionCost,
+    GoalCost,
+    HeadwayCost,
+    KeepLaneCost,
+    NoCollisionCost,
+    OnRoadCost,
+    TargetSpeedCost,
+)
 from langtraj.guidance.library import (
     INTERACTION_GUIDANCE,
     LABEL_GUIDANCE,
@@ -24,6 +32,7 @@ __all__ = [
     "GuidanceCost",
     "GuidanceScene",
     "GuidanceTerm",
+    "HeadwayCost",
     "KeepLaneCost",
     "NoCollisionCost",
     "OnRoadCost",

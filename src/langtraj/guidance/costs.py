@@ -314,3 +314,41 @@ class KeepLaneCost(GuidanceCost):
         xy = in_window(self.name, states, self.start, self.end)[:, steered, :, :2]
         offset, _ = offset_to_segments(xy, start.to(states), end.to(states))
         return (offset**2).sum(-1).mean(-1).sum(-1)
+
+
+@GUIDANCE.register
+class HeadwayCost(GuidanceCost):
+    """Keep the agents in `slots` that follow `leader` behind it: for each that starts behind the leader and
+    within its lane corridor (centres `corridor` m apart across the leader's heading, at the first planned step),
+    the mean over the horizon of relu(1 - d(t) / need), d(t) the distance from its centre to the leader's along the
+    leader's heading and need = `gap` + their half lengths. Unlike the disk costs, its gradient only ever pulls a
+    follower back, so it slows down rather than overtaking through the leader. The leader's states are detached.
+    Used to keep the simulated agents behind an ego under test (docs/testing.md, 'How the other agents react')."""
+
+    name = "headway"
+
+    def __init__(self, slots: int | Iterable[int], leader: int, *, gap: float = 2.0, corridor: float = 2.5):
+        self.slots = as_slots(self.name, slots)
+        self.leader = as_slot(self.name, leader, "leader")
+        self.gap = _finite(self.name, gap, "gap")
+        self.corridor = _finite(self.name, corridor, "corridor")
+
+    def __call__(self, states: Tensor, scene: GuidanceScene) -> Tensor:
+        check_states(self.name, states, scene)
+        slots = [s for s in (self.slots or range(states.shape[1])) if s != self.leader]
+        check_slots(self.name, (*slots, self.leader), states.shape[1])
+        valid = scene.agent_valid
+        slots = [s for s in slots if bool(valid[s])]
+        if not slots or not bool(valid[self.leader]):
+            return _zero(states)
+        lead = states[:, self.leader].detach()  # [S, T, 4]
+        mine = states[:, slots]  # [S, F, T, 4]
+        ahead = torch.stack([torch.cos(lead[..., 2]), torch.sin(lead[..., 2])], -1)[:, None]  # [S, 1, T, 2]
+        offset = lead[:, None, :, :2] - mine[..., :2]
+        d = (offset * ahead).sum(-1)  # [S, F, T]: how far the leader is ahead
+        across = (offset[..., 0] * ahead[..., 1] - offset[..., 1] * ahead[..., 0]).abs()
+        follows = ((d[..., 0] > 0) & (across[..., 0] < self.corridor)).detach().to(states.dtype)  # [S, F]
+        lengths = scene.agent_size[:, 0].to(states)
+        need = self.gap + (lengths[slots] + lengths[self.leader]) / 2  # [F]
+        short = torch.relu(1.0 - d / need[None, :, None])  # [S, F, T]
+        return (short.mean(-1) * follows).sum(-1)

@@ -83,6 +83,7 @@ class SimRequest:
     temperature: float = 1.0  # the sampler's noise is drawn this many times N(0, I)'s standard deviation
     refresh_map: bool = False  # each replan chooses the map around the agents' positions then (else: the start's)
     levers: PromptLevers = ALL_LEVERS  # how prompts steer (text, guidance toward targets, adherence-first selection)
+    external_clearance: float | None = None  # weight keeping the driven agents clear of external ones; None: default
     compile: bool = False  # compile the denoiser (torch.compile; pays on a GPU, docs/model.md 'Fewer, bigger kernels')
 
     def __post_init__(self) -> None:
@@ -111,5 +112,6 @@ class SimRequest:
             or self.temperature != 1.0
             or self.refresh_map
             or self.levers != ALL_LEVERS
+            or self.external_clearance is not None
             or self.compile
         )

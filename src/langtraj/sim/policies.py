@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
@@ -26,7 +26,14 @@ from torch import Tensor
 
 from langtraj.errors import InputError
 from langtraj.frames import Origin, poses_to_frame, poses_to_world
-from langtraj.guidance import GuidanceScene, GuidanceTerm, NoCollisionCost, OnRoadCost, reconstruction_guidance
+from langtraj.guidance import (
+    GuidanceScene,
+    GuidanceTerm,
+    HeadwayCost,
+    NoCollisionCost,
+    OnRoadCost,
+    reconstruction_guidance,
+)
 from langtraj.guidance.base import FinalSteps
 from langtraj.guidance.library import terms_for_prompt
 from langtraj.interdrive.behaviour import BEHAVIOURS
@@ -44,7 +51,8 @@ from langtraj.scenario.selection import prioritized_agents
 from langtraj.sim.adherence import CandidateJudge
 from langtraj.sim.checkpoints import shipped_checkpoint
 from langtraj.sim.config import ALL_LEVERS, PromptLevers, SimRequest
-from langtraj.sim.prompt_replan import PromptReplans, with_prompt_guidance
+from langtraj.sim.external import accelerations_only, external_acceleration, pin_external, with_clearance
+from langtraj.sim.prompt_replan import Guidance, GuidanceOf, PromptReplans, with_prompt_guidance
 from langtraj.sim.prompts import PromptSteering, check_prompt_driven, merged_prompt, prompt_steering, read_prompts
 from langtraj.sim.selection import SELECTORS, CandidateSelector, chosen_states
 from langtraj.sim.terms import collision_terms, scene_wide_terms
@@ -64,6 +72,13 @@ at less cost than guiding all five (docs/experiments.md, 'Guidance on fewer step
 DEFAULT_SELECTOR = "per_agent"
 """Candidate selection without steering guidance (prompts' costs, collision or `--guidance` terms, which
 use `min_guidance`): chosen by measurement like `DEFAULT_ON_ROAD`; the paper's is `min_collision`."""
+
+DEFAULT_EXTERNAL_CLEARANCE = 10.0
+"""Weight of the guidance that keeps the driven agents behind the world's external agents they follow (an ego
+under test; `sim.external`), chosen on a constructed follower scene (docs/testing.md, 'How the other agents
+react'); no term without external agents, so `simulate` is unchanged."""
+EXTERNAL_BUFFER_M = 2.0
+"""The gap guidance keeps behind an external agent's forecast, bumper to bumper (m)."""
 
 GUIDANCE_ONLY = PromptLevers(text=False, guidance=True, selection=False)
 """The levers of the CTG++-style baseline (`GuidanceBaselinePolicy`)."""
@@ -177,6 +192,8 @@ class LangTrajRun:
     selector: CandidateSelector
     generators: list[torch.Generator]
     prompt: PromptReplans = field(default_factory=PromptReplans)
+    external: tuple[int, ...] = ()  # slots of the world's external agents: seen, forecast, never moved
+    clearance: tuple[GuidanceTerm, ...] = ()  # the others kept clear of the external agents, in a step of its own
     executed: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
     """Per rollout: the step and the actions [A, N, 2] (physical) of the plan executed from it, which the next
     replan warm-starts from (`LangTrajPolicy.warm_steps`)."""
@@ -240,6 +257,7 @@ class LangTrajPolicy(Policy):
         warm_steps: int | None = None,
         temperature: float = 1.0,
         refresh_map: bool = False,
+        external_clearance: float = DEFAULT_EXTERNAL_CLEARANCE,
     ):
         if candidates < 1 or steps < 1 or rollout_batch < 0:
             raise InputError(
@@ -286,6 +304,9 @@ class LangTrajPolicy(Policy):
             raise InputError(f"must be in (0, 2], got {temperature}", where="--temperature")
         self.temperature = float(temperature)
         self.refresh_map = bool(refresh_map)
+        if not (math.isfinite(external_clearance) and external_clearance >= 0):
+            raise InputError(f"must be finite and >= 0, got {external_clearance}", where="external_clearance")
+        self.external_clearance = float(external_clearance)
 
     @classmethod
     def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> LangTrajPolicy:
@@ -321,6 +342,9 @@ class LangTrajPolicy(Policy):
             "warm_steps": request.warm_steps,
             "temperature": request.temperature,
             "refresh_map": request.refresh_map,
+            "external_clearance": (
+                DEFAULT_EXTERNAL_CLEARANCE if request.external_clearance is None else request.external_clearance
+            ),
         }
 
     # ------------------------------------------------------------------ which agents
@@ -366,6 +390,7 @@ class LangTrajPolicy(Policy):
         )
         terms = self.terms + self.prompt_terms(world, slots, origin, data.max_agents, steering)
         terms += self.realism_terms(len(world.driven))
+        external = tuple(int(slot) for slot, row in enumerate(world.driven) if row in set(world.external.tolist()))
         judge = CandidateJudge(world, list(steering.asks), index) if index is not None and steering.asks else None
         selector = SELECTORS.create(self.selector_name or self.default_selector(), where="selector")
         if selector.uses_road or any(isinstance(term.cost, OnRoadCost) for term in terms):
@@ -385,6 +410,8 @@ class LangTrajPolicy(Policy):
             selector=selector,
             generators=[torch.Generator().manual_seed(seed * 1_000_003 + r) for r in range(world.num_rollouts)],
             prompt=PromptReplans(steering, judge),
+            external=external,
+            clearance=self.external_terms(len(world.driven), external),
         )
 
     def default_selector(self) -> str:
@@ -413,6 +440,19 @@ class LangTrajPolicy(Policy):
             cost = NoCollisionCost(kept, others=kept, reduction="sum")
             terms.append(GuidanceTerm(cost, self.no_collision, when))
         return tuple(terms)
+
+    def external_terms(self, num_driven: int, external: tuple[int, ...]) -> tuple[GuidanceTerm, ...]:
+        """Keep every other driven agent that follows an external agent (an ego under test, which guidance cannot
+        steer) `EXTERNAL_BUFFER_M` behind its forecast (`HeadwayCost`), at every denoising step, weighted
+        `external_clearance`; applied by acceleration alone in a step of its own (`sim.external.with_clearance`).
+        Without it the model's agents drive into a braking ego (docs/testing.md, 'How the other agents react')."""
+        others = [slot for slot in range(num_driven) if slot not in external and slot not in self.free]
+        if not external or not others or self.external_clearance <= 0:
+            return ()
+        return tuple(
+            GuidanceTerm(HeadwayCost(others, leader, gap=EXTERNAL_BUFFER_M), self.external_clearance, "all")
+            for leader in external
+        )
 
     def report(self, world: SimWorld, state: LangTrajRun) -> dict[str, Any]:
         """Map coverage: the share of driven agents with a lane point of the model's map within 5 m
@@ -473,27 +513,38 @@ class LangTrajPolicy(Policy):
 
         elapsed, horizon = step - world.start, self.model.horizon_steps  # what the model plans
         steered = state.prompt.terms(elapsed, horizon)
+        accel = external_acceleration(world, state.external, step, rollouts).to(device)
         prompt_terms = tuple(t for group in steered for t in group)
-        terms = state.terms + prompt_terms
+        terms = state.terms + prompt_terms + state.clearance
         hook = None
         if terms:
             initial = batch.current_state.repeat(m, 1, 1)
             types = batch.agent_type.repeat(m, 1)
             model = self.model
 
-            def guidance(chosen: tuple[GuidanceTerm, ...], norm: float | None, iterations: int = 1):
-                return reconstruction_guidance(
-                    chosen,
-                    state.scene,
-                    lambda x: model.integrate(initial, types, x),
-                    scale=self.guidance_scale,
-                    num_steps=self.model.schedule.num_steps,
-                    max_grad_norm=norm,
-                    iterations=iterations,
-                )
+            external_accel = accel.repeat(m, 1)
 
+            def integrate(x: Tensor) -> Tensor:  # external agents at their forecast, not the model's guess
+                return pin_external(model.integrate(initial, types, x), initial, state.external, external_accel)
+
+            def by(rollout: Callable[[Tensor], Tensor]) -> GuidanceOf:
+                def guidance(chosen: tuple[GuidanceTerm, ...], norm: float | None, iterations: int = 1) -> Guidance:
+                    return reconstruction_guidance(
+                        chosen,
+                        state.scene,
+                        rollout,
+                        scale=self.guidance_scale,
+                        num_steps=self.model.schedule.num_steps,
+                        max_grad_norm=norm,
+                        iterations=iterations,
+                    )
+
+                return guidance
+
+            guidance = by(integrate)
             hook = guidance(state.terms, self.max_grad_norm) if state.terms else None
             hook = with_prompt_guidance(hook, prompt_terms, guidance)  # its own, larger step after the scene's
+            hook = with_clearance(hook, state.clearance, by(lambda x: integrate(accelerations_only(x))))
         start = self._warm_start(state, step, rollouts)
         states, actions = self.model.sample(
             batch,
@@ -507,6 +558,7 @@ class LangTrajPolicy(Policy):
             start=start,
             start_steps=None if start is None else self.warm_steps,
         )
+        states = pin_external(states, batch.current_state, state.external, accel)
         states, actions = state.prompt.offer_kept_plans(step, rollouts, states, actions, start)
         first = state.prompt.adherence(world, state.origin, state.scene, step, rollouts, states, steered)
         choice = state.selector.select(states, state.scene, terms, first)  # states [M, R, A, T, 4], scene frame

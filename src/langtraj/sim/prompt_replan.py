@@ -45,10 +45,10 @@ def with_prompt_guidance(
     made by `guidance`."""
     if not terms:
         return hook
-    return _then(hook, guidance(terms, PROMPT_MAX_GRAD_NORM, PROMPT_ITERATIONS))
+    return then(hook, guidance(terms, PROMPT_MAX_GRAD_NORM, PROMPT_ITERATIONS))
 
 
-def _then(first: Guidance | None, second: Guidance) -> Guidance:
+def then(first: Guidance | None, second: Guidance) -> Guidance:
     """The sampler hook applying `first` (if any), then `second`, to the clean prediction."""
     if first is None:
         return second

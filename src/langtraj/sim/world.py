@@ -72,10 +72,19 @@ def without_future(scenario: Scenario) -> Scenario:
 
 class SimWorld:
     """R rollouts of one scene. `driven` (scenario rows, a subset of the sim agents) are written by a
-    policy with `execute`; every other sim agent moves as `undriven` says (`UNDRIVEN`). Unless it is
-    "log", the world holds no logged future at all: no policy can read it."""
+    policy with `execute`; `external` rows (an ego under test, docs/testing.md) are written from outside with
+    `place`, step by step, and a policy that drives them too sees them but never moves them; every other sim
+    agent moves as `undriven` says (`UNDRIVEN`). Unless it is "log", the world holds no logged future at all:
+    no policy can read it."""
 
-    def __init__(self, scenario: Scenario, driven: np.ndarray, num_rollouts: int, undriven: str = "constant_velocity"):
+    def __init__(
+        self,
+        scenario: Scenario,
+        driven: np.ndarray,
+        num_rollouts: int,
+        undriven: str = "constant_velocity",
+        external: np.ndarray | None = None,
+    ):
         if num_rollouts < 1:
             raise ValueError(f"num_rollouts must be at least 1, got {num_rollouts}")
         if undriven not in UNDRIVEN:
@@ -91,7 +100,11 @@ class SimWorld:
         self.driven = np.asarray(driven, np.int64)
         if not set(self.driven.tolist()) <= sim:
             raise ValueError("every driven agent must be a sim agent (valid at the current step)")
-        self.others = np.setdiff1d(self.sim_agents, self.driven)  # sim agents no policy drives
+        self.external = np.zeros(0, np.int64) if external is None else np.asarray(external, np.int64)
+        if not set(self.external.tolist()) <= sim:
+            raise ValueError("every external agent must be a sim agent (valid at the current step)")
+        self.others = np.setdiff1d(self.sim_agents, np.union1d(self.driven, self.external))  # nobody moves them
+        self._moved = ~np.isin(self.driven, self.external)  # driven columns `execute` writes
         # Undriven agents: the log where `undriven` is "log", and constant velocity wherever no logged
         # state is held (all their future otherwise): the rollout baseline's rule, from the history.
         states = self.scenario.agents.states.copy()
@@ -123,9 +136,10 @@ class SimWorld:
 
     def scenario_at(self, rollout: int, step: int) -> Scenario:
         """What rollout `rollout` looks like at `step`: its simulated past, `step` as the current index.
-        Driven agents' steps after `step` are not yet simulated and are marked invalid."""
+        Driven and external agents' steps after `step` are not yet simulated and are marked invalid."""
         states, valid = self.states[rollout], self.valid[rollout].copy()
         valid[self.driven, step + 1 :] = False
+        valid[self.external, step + 1 :] = False
         agents = replace(self.scenario.agents, states=states, valid=valid)
         return replace(self.scenario, agents=agents, current_index=step)
 
@@ -138,30 +152,46 @@ class SimWorld:
         agents = replace(self.scenario.agents, states=self.states[rollout], valid=valid)
         return replace(self.scenario, agents=agents)
 
-    def current(self, step: int) -> np.ndarray:
-        """Driven agents' world (x, y, heading, speed) at `step` in every rollout: float64 [R, A_d, 4]."""
-        s = self.states[:, self.driven, step].astype(np.float64)
+    def current(self, step: int, rows: np.ndarray | None = None) -> np.ndarray:
+        """World (x, y, heading, speed) at `step` in every rollout of the driven agents (or `rows`): float64
+        [R, A, 4]."""
+        s = self.states[:, self.driven if rows is None else rows, step].astype(np.float64)
         speed = np.hypot(s[..., StateField.VX], s[..., StateField.VY])
         return np.stack([s[..., StateField.X], s[..., StateField.Y], s[..., StateField.HEADING], speed], -1)
 
     def execute(self, step: int, plan: np.ndarray) -> None:
         """Write the driven agents' states for steps step+1 .. step+n: `plan` [R, A_d, n, 4] (x, y, heading,
-        speed in the world frame). Height and box size stay at the current step's."""
+        speed in the world frame). Height and box size stay at the current step's. External agents' columns of
+        the plan are ignored: `place` writes them."""
         r, a, n, _ = plan.shape
         if (r, a) != (self.num_rollouts, len(self.driven)) or step + n > self.end:
             raise ValueError(
                 f"plan of shape {plan.shape} does not fit {self.num_rollouts} rollouts, "
                 f"{len(self.driven)} driven agents and steps up to {self.end}"
             )
+        self._write(step, self.driven[self._moved], plan[:, self._moved], "the policy")
+
+    def place(self, step: int, poses: np.ndarray) -> None:
+        """Write the external agents' states at step+1: `poses` [R, A_e, 4] (x, y, heading, speed, world frame)."""
+        poses = np.asarray(poses, np.float64)
+        if poses.shape != (self.num_rollouts, len(self.external), 4) or step + 1 > self.end:
+            raise ValueError(
+                f"poses of shape {poses.shape} do not fit {self.num_rollouts} rollouts, {len(self.external)} external "
+                f"agents and steps up to {self.end}"
+            )
+        self._write(step, self.external, poses[:, :, None], "an external agent")
+
+    def _write(self, step: int, rows: np.ndarray, plan: np.ndarray, who: str) -> None:
+        """States of `rows` for steps step+1 .. step+n from `plan` [R, len(rows), n, 4]."""
         if not np.isfinite(plan).all():
-            raise ValueError(f"the policy produced non-finite states at step {step}")
-        cols = np.arange(step + 1, step + 1 + n)
-        block = self.states[:, self.driven][:, :, cols]  # copy [R, A_d, n, 9]
+            raise ValueError(f"{who} produced non-finite states at step {step}")
+        cols = np.arange(step + 1, step + 1 + plan.shape[2])
+        block = self.states[:, rows][:, :, cols]  # copy [R, A, n, 9]
         Agents.write_poses(block, plan)
         keep = [StateField.Z, StateField.LENGTH, StateField.WIDTH, StateField.HEIGHT]
-        block[..., keep] = self.states[:, self.driven, step][:, :, None, keep]
-        self.states[:, self.driven[:, None], cols[None, :]] = block
-        self.valid[:, self.driven[:, None], cols[None, :]] = True
+        block[..., keep] = self.states[:, rows, step][:, :, None, keep]
+        self.states[:, rows[:, None], cols[None, :]] = block
+        self.valid[:, rows[:, None], cols[None, :]] = True
 
     def rollouts(self) -> Rollouts:
         """The simulated future of every sim agent (track order) as the metrics' rollout container."""

@@ -1,0 +1,379 @@
+"""`LangTrajEnv`: one ego agent driven by a planner under test, every other agent of a real or synthesized scene
+driven closed-loop by LangTraj (prompts, guidance, replanning every second from what the ego actually did), as a
+Gymnasium environment (docs/testing.md).
+
+The ego is one of the scene's agents: the model sees it as it sees every other agent, but the ego's motion comes
+from the action (`env.dynamics`), and the model's guidance and candidate selection judge the others against a
+forecast of the ego (`sim.external`). No simulated agent reads its logged future; only the ego's route is chosen
+with the log (`env.route`), and `reset`'s info carries the ego's logged future for log-replay baselines.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+
+from langtraj.env import spaces
+from langtraj.env.dynamics import step_unicycle, track
+from langtraj.env.events import EventJudge, StepEvents
+from langtraj.env.observe import Observer
+from langtraj.env.reward import RewardConfig
+from langtraj.env.route import ego_route, match_ego
+from langtraj.errors import InputError
+from langtraj.interdrive.mapindex import MapIndex
+from langtraj.model.config import ModelConfig
+from langtraj.rollouts.agents import sim_agent_indices
+from langtraj.scenario.io import read_scenario
+from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario, TrafficLights
+from langtraj.scenario.selection import prioritized_agents
+from langtraj.scenario.types import AgentType, StateField
+from langtraj.sim.config import SimConfig, SimRequest
+from langtraj.sim.policies import POLICIES, LoadedModel
+from langtraj.sim.prompts import user_prompt_entry
+from langtraj.sim.setup import build_policy
+from langtraj.sim.stepping import SteppedSimulation
+
+EGO_PLACEHOLDER = "@ego"
+"""Written in a prompt, stands for the ego's track id (chosen at reset)."""
+VEHICLE_MAX_CURVATURE = ModelConfig.vehicle_max_curvature
+"""A vehicle ego turns no tighter than the model's vehicles (1/m)."""
+
+
+@dataclass(frozen=True)
+class Episode:
+    """What one episode simulates: a scene (a file and its index, or a `Scenario`), the ego (a track id; None: the
+    scene's self-driving car, else its most important vehicle), prompts for the other agents (`@ego` names the
+    ego), and an optional adversary driven into a target (track ids, "ego" allowed) by collision guidance."""
+
+    scenario: str | Path | Scenario | None = None
+    index: int = 0
+    ego: int | None = None
+    prompts: tuple[str, ...] = ()
+    adversary: int | None = None
+    target: int | str | None = None
+
+    def updated(self, options: dict[str, Any] | None) -> Episode:
+        """This episode with `reset`'s options (the same keys) replacing its fields."""
+        if not options:
+            return self
+        unknown = set(options) - set(self.__dataclass_fields__)
+        if unknown:
+            raise InputError(f"unknown reset option(s) {', '.join(sorted(unknown))}", where="options")
+        changed = dict(options)
+        if "prompts" in changed:
+            changed["prompts"] = _prompts(changed["prompts"])
+        return replace(self, **changed)
+
+
+def _prompts(value: Any) -> tuple[str, ...]:
+    if isinstance(value, str):
+        return (value,)
+    return tuple(str(p) for p in (value or ()))
+
+
+@dataclass(frozen=True)
+class _Scene:
+    """A loaded scene and what is built once per scene: its map index."""
+
+    scenario: Scenario
+    index: MapIndex = field(repr=False)
+
+
+class LangTrajEnv(gym.Env):
+    """One ego under a planner's control in a scene every other agent of which LangTraj simulates
+    (docs/testing.md). Keywords: see `Episode` (scene, ego, prompts, adversary, target; `reset(options=...)` may
+    change any of them), `checkpoint` (default: the shipped one), `policy` of the other agents (a registered
+    `sim.policies.POLICIES` name; "log_replay" reads their logged future: a labelled baseline), `action`
+    ("control" or "trajectory", `env.spaces`), `replan_s` (the others' replanning interval), `candidates` per
+    replan, `terminate_on_collision` / `terminate_on_offroad`, `reward` (`RewardConfig`), `render_mode`
+    ("rgb_array"), and `simulation`: further `sim.config.SimRequest` settings of the others' policy (guidance
+    weights, `selector`, ...)."""
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(
+        self,
+        scenario: str | Path | Scenario | None = None,
+        *,
+        index: int = 0,
+        ego: int | None = None,
+        prompts: str | tuple[str, ...] | list[str] = (),
+        adversary: int | None = None,
+        target: int | str | None = None,
+        checkpoint: str | Path | None = None,
+        policy: str = "langtraj",
+        action: str = "control",
+        replan_s: float = 1.0,
+        candidates: int = 4,
+        terminate_on_collision: bool = False,
+        terminate_on_offroad: bool = False,
+        reward: RewardConfig | None = None,
+        render_mode: str | None = None,
+        simulation: dict[str, Any] | None = None,
+    ):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise InputError(
+                f"must be one of {self.metadata['render_modes']} or None, got {render_mode!r}", where="render_mode"
+            )
+        POLICIES.get(policy, where="policy")
+        self.episode = Episode(scenario, index, ego, _prompts(prompts), adversary, target)
+        self.checkpoint = None if checkpoint is None else Path(checkpoint)
+        self.policy_name = policy
+        self.action_kind = action
+        self.action_space = spaces.action_space(action)
+        self.observation_space = spaces.observation_space()
+        self.sim_config = SimConfig(rollouts=1, replan_s=replan_s)
+        self.candidates = int(candidates)
+        self.simulation = dict(simulation or {})
+        unknown = set(self.simulation) - set(SimRequest.__dataclass_fields__) | (
+            set(self.simulation) & {"policy", "checkpoint", "prompts", "adversary", "target", "candidates"}
+        )
+        if unknown:
+            raise InputError(f"not a simulation setting here: {', '.join(sorted(unknown))}", where="simulation")
+        self.terminate_on_collision = bool(terminate_on_collision)
+        self.terminate_on_offroad = bool(terminate_on_offroad)
+        self.reward_config = reward or RewardConfig()
+        self.render_mode = render_mode
+        self._loaded: LoadedModel | None = None
+        self._scenes: dict[tuple[str, int], _Scene] = {}
+        self._sim: SteppedSimulation | None = None
+
+    # ------------------------------------------------------------------ episode
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        episode = self.episode.updated(options)
+        scene = self._scene(episode)
+        scenario = scene.scenario
+        ego = self._ego_row(scenario, episode.ego)
+        ego_id = int(scenario.agents.ids[ego])
+        prompts = tuple(p.replace(EGO_PLACEHOLDER, f"@{ego_id}") for p in episode.prompts)
+        for text in prompts:
+            if user_prompt_entry(scenario, text).mentions[0] == ego_id:
+                raise InputError(f"{text!r} asks something of the ego, which the planner drives", where="prompts")
+        target = ego_id if episode.target == "ego" else episode.target
+        adversary = ego_id if episode.adversary == "ego" else episode.adversary
+        if adversary == ego_id:
+            raise InputError("the adversary cannot be the ego, which the planner drives", where="adversary")
+        request = SimRequest(
+            policy=self.policy_name,
+            checkpoint=self.checkpoint,
+            prompts=prompts,
+            adversary=adversary,
+            target=None if target is None else int(target),
+            candidates=self.candidates,
+            **self.simulation,
+        )
+        if self._loaded is None and POLICIES.get(self.policy_name).uses_model:
+            from langtraj.model.checkpoint import load_model
+            from langtraj.sim.checkpoints import shipped_checkpoint
+
+            self._loaded = load_model(self.checkpoint or shipped_checkpoint())
+        policy, described = build_policy(scenario, request, self._loaded)
+        sim_seed = int(self.np_random.integers(2**31 - 1))
+        config = replace(self.sim_config, seed=sim_seed)
+        self._sim = SteppedSimulation(scenario, policy, np.array([ego]), config)
+        self._ego, self._ego_id, self._scenario = ego, ego_id, scenario
+        c = scenario.current_index
+        pose = self._pose()
+        logged = _logged_future(scenario, ego)
+        start = match_ego(scene.index, pose[:2], float(pose[2]), float(pose[3]))
+        seen = logged[np.isfinite(logged[:, 0]), :2]
+        self._route = ego_route(scene.index, start, pose[:2], float(pose[2]), seen)
+        self._observer = Observer(scenario, ego, self._route)
+        self._judge = EventJudge(scenario, ego)
+        self._curvature = VEHICLE_MAX_CURVATURE if scenario.agents.types[ego] == AgentType.VEHICLE else math.inf
+        self._control = np.zeros(2)
+        obs, station = self._observe()
+        self._start_station = self._last_station = station
+        self._reference_m = (
+            max(self._route.station(seen[-1]) - station, 1.0) if len(seen) and self._route.source == "log" else math.nan
+        )
+        prompted = [int(i) for i in (described.get("prompts") and _mentions(scenario, prompts)) or []]
+        self.highlight_ids = [ego_id] + [i for i in prompted if i != ego_id]
+        if adversary is not None and adversary not in self.highlight_ids:
+            self.highlight_ids.append(int(adversary))
+        info = {
+            "scenario_id": scenario.scenario_id,
+            "ego_id": ego_id,
+            "step_seconds": STEP_SECONDS,
+            "start_step": c,
+            "prompts": list(prompts),
+            "prompted_ids": [i for i in prompted if i != ego_id],
+            "adversary": adversary,
+            "target": target,
+            "policy": self.policy_name,
+            "sim_seed": sim_seed,
+            "driven_ids": described["driven_ids"],
+            "route_source": self._route.source,
+            "route_length_m": self._route.length,
+            "logged_ego": logged,
+        }
+        return obs, info
+
+    def step(self, action: Any):
+        if self._sim is None:
+            raise RuntimeError("call reset() before step()")
+        if self._sim.done:
+            raise RuntimeError("the episode is over (8 s simulated); call reset()")
+        control = self._control_of(action)
+        pose = self._pose()
+        nxt = step_unicycle(pose, control, self._curvature)
+        self._control = np.clip(control, self.action_space.low[:2] if self.action_kind == "control" else
+                                [-spaces.MAX_ACCEL, -spaces.MAX_YAW_RATE],
+                                [spaces.MAX_ACCEL, spaces.MAX_YAW_RATE])  # fmt: skip
+        self._sim.advance(nxt[None, None])
+        obs, station = self._observe()
+        events = self._events()
+        gained = station - self._last_station
+        self._last_station = station
+        reward = self.reward_config.reward(gained, events.collision, events.at_fault, events.offroad)
+        terminated = (self.terminate_on_collision and events.collision) or (
+            self.terminate_on_offroad and events.offroad
+        )
+        progress_m = station - self._start_station
+        info = {
+            "step": self._sim.step - self._sim.world.start,
+            "time": (self._sim.step - self._sim.world.start) * STEP_SECONDS,
+            "collision": events.collision,
+            "collided_with": list(events.collided_with),
+            "at_fault": events.at_fault,
+            "offroad": events.offroad,
+            "ttc": events.ttc,
+            "min_distance": events.min_distance,
+            "progress_m": progress_m,
+            "progress": progress_m / self._reference_m if math.isfinite(self._reference_m) else math.nan,
+            "speed": float(nxt[3]),
+        }
+        return obs, float(reward), bool(terminated), bool(self._sim.done), info
+
+    # ------------------------------------------------------------------ views
+    def played(self) -> Scenario:
+        """The episode so far as a scenario: the logged history, then the simulated steps up to now."""
+        if self._sim is None:
+            raise RuntimeError("call reset() first")
+        return _until(self._sim.world.played(0), self._sim.step)
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None or self._sim is None:
+            return None
+        from langtraj.viz.config import RenderConfig
+        from langtraj.viz.topdown import TopDownRenderer
+
+        scenario = self.played()
+        config = RenderConfig(size_px=512, follow_track_id=self._ego_id, highlight_ids=tuple(self.highlight_ids))
+        with TopDownRenderer(scenario, config, steps=[scenario.num_steps - 1]) as renderer:
+            return renderer.frame(scenario.num_steps - 1)
+
+    def close(self) -> None:
+        self._sim = None
+
+    # ------------------------------------------------------------------ helpers
+    def _scene(self, episode: Episode) -> _Scene:
+        source = episode.scenario
+        if source is None:
+            raise InputError("no scenario given (a file or a Scenario)", where="scenario")
+        if isinstance(source, Scenario):
+            return _Scene(source, MapIndex.build(source.road_map))
+        key = (str(source), int(episode.index))
+        if key not in self._scenes:
+            scenario = read_scenario(Path(source), int(episode.index))
+            self._scenes = {key: _Scene(scenario, MapIndex.build(scenario.road_map))}  # the last scene only
+        return self._scenes[key]
+
+    @staticmethod
+    def _ego_row(scenario: Scenario, ego: int | None) -> int:
+        sim = sim_agent_indices(scenario)
+        if ego is not None:
+            rows = np.flatnonzero(scenario.agents.ids == int(ego))
+            if not len(rows):
+                raise InputError(f"no agent @{ego} in scenario {scenario.scenario_id}", where="ego")
+            if rows[0] not in set(sim.tolist()):
+                raise InputError(f"agent @{ego} is not valid at the scene's current step", where="ego")
+            return int(rows[0])
+        if scenario.sdc_index >= 0 and scenario.sdc_index in set(sim.tolist()):
+            return int(scenario.sdc_index)
+        ranked = prioritized_agents(scenario, None)
+        vehicles = [r for r in ranked if scenario.agents.types[r] == AgentType.VEHICLE]
+        if not vehicles:
+            raise InputError(f"scenario {scenario.scenario_id} has no vehicle to be the ego", where="ego")
+        return int(vehicles[0])
+
+    def _pose(self) -> np.ndarray:
+        assert self._sim is not None
+        return self._sim.world.current(self._sim.step, np.array([self._ego]))[0, 0]
+
+    def _frame(self) -> tuple[np.ndarray, np.ndarray]:
+        assert self._sim is not None
+        world, step = self._sim.world, self._sim.step
+        valid = np.zeros(world.valid.shape[1], bool)
+        valid[world.sim_agents] = world.valid[0, world.sim_agents, step]
+        return world.states[0, :, step], valid
+
+    def _observe(self) -> tuple[dict[str, np.ndarray], float]:
+        assert self._sim is not None
+        states, valid = self._frame()
+        elapsed = (self._sim.step - self._sim.world.start) * STEP_SECONDS
+        return self._observer.observe(states, valid, elapsed, self._control)
+
+    def _events(self) -> StepEvents:
+        return self._judge.judge(*self._frame())
+
+    def _control_of(self, action: Any) -> np.ndarray:
+        try:
+            values = np.asarray(action, np.float64)
+        except (TypeError, ValueError):
+            raise InputError(f"not a numeric array: {action!r}"[:200], where="action") from None
+        if values.shape != self.action_space.shape:
+            raise InputError(
+                f"shape {values.shape} does not fit the {self.action_kind} action space {self.action_space.shape}",
+                where="action",
+            )
+        if not np.isfinite(values).all():
+            raise InputError("non-finite values", where="action")
+        return track(self._pose(), values) if self.action_kind == "trajectory" else values
+
+
+def _logged_future(scenario: Scenario, row: int) -> np.ndarray:
+    """The agent's logged future (x, y, heading, speed) [FUTURE_STEPS, 4], NaN where the log has no state."""
+    c = scenario.current_index
+    out = np.full((FUTURE_STEPS, 4), np.nan)
+    steps = np.arange(c + 1, min(c + 1 + FUTURE_STEPS, scenario.num_steps))
+    ok = scenario.agents.valid[row, steps]
+    s = scenario.agents.states[row, steps[ok]].astype(np.float64)
+    out[steps[ok] - c - 1] = np.stack(
+        [
+            s[:, StateField.X],
+            s[:, StateField.Y],
+            s[:, StateField.HEADING],
+            np.hypot(s[:, StateField.VX], s[:, StateField.VY]),
+        ],
+        -1,
+    )
+    return out
+
+
+def _mentions(scenario: Scenario, prompts: tuple[str, ...]) -> list[int]:
+    seen: list[int] = []
+    for text in prompts:
+        seen += [m for m in user_prompt_entry(scenario, text).mentions if m not in seen]
+    return seen
+
+
+def _until(scenario: Scenario, step: int) -> Scenario:
+    """`scenario` cut after `step`."""
+    n = step + 1
+    agents = scenario.agents
+    lights = scenario.traffic_lights
+    if lights is not None:
+        lights = TrafficLights(lights.lane_ids, lights.states[:n], lights.valid[:n], lights.stop_points)
+    return replace(
+        scenario,
+        timestamps=scenario.timestamps[:n],
+        agents=replace(agents, states=agents.states[:, :n], valid=agents.valid[:, :n]),
+        traffic_lights=lights,
+    )

@@ -1,0 +1,163 @@
+"""Ego-centred observations of a simulated scene (docs/testing.md, 'Observations'): the ego, its route, the
+nearest agents, the map and the traffic lights around it, in the fixed shapes of `env.spaces`.
+
+The map is cut once per episode into pieces of `POLYLINE_POINTS` points every `MAP_SPACING_M`, so each step only
+picks the nearest pieces. Traffic lights keep their state at the start of the episode (the log's later states are
+its future, which nothing simulated reads, docs/simulation.md)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from langtraj.env import spaces
+from langtraj.env.route import Route
+from langtraj.polylines import resample
+from langtraj.scenario.model import Scenario
+from langtraj.scenario.types import StateField
+
+MAP_SPACING_M = 2.0
+"""Spacing of the points of the map polylines in an observation."""
+
+
+def to_ego_frame(xy: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """World points [..., 2] in the frame of `pose` (x, y, heading): x forward, y left."""
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    d = np.asarray(xy, np.float64) - pose[:2]
+    return np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], -1)
+
+
+@dataclass(frozen=True)
+class MapPieces:
+    """Every map polyline resampled and cut into pieces of at most `POLYLINE_POINTS` points."""
+
+    points: np.ndarray  # float64 [N, P, 2] (padded by repeating the last point)
+    valid: np.ndarray  # bool [N, P]
+    types: np.ndarray  # int64 [N]
+
+    @classmethod
+    def of(cls, scenario: Scenario) -> MapPieces:
+        size, pieces, valid, types = spaces.POLYLINE_POINTS, [], [], []
+        for feature in scenario.road_map.features:
+            line = np.asarray(feature.points[:, :2], np.float64)
+            if not len(line):
+                continue
+            if feature.type.name == "CROSSWALK" and len(line) > 2:
+                line = np.concatenate([line, line[:1]])  # closed outline
+            line = resample(line, MAP_SPACING_M) if len(line) > 1 else line
+            for lo in range(0, max(len(line) - 1, 1), size - 1):
+                part = line[lo : lo + size]
+                pad = np.repeat(part[-1:], size - len(part), axis=0)
+                pieces.append(np.concatenate([part, pad]))
+                valid.append(np.arange(size) < len(part))
+                types.append(int(feature.type))
+        if not pieces:
+            return cls(np.zeros((0, size, 2)), np.zeros((0, size), bool), np.zeros(0, np.int64))
+        return cls(np.stack(pieces), np.stack(valid), np.asarray(types, np.int64))
+
+
+class Observer:
+    """Builds the observation of the ego (scenario row `ego`) from the world's states at a step."""
+
+    def __init__(self, scenario: Scenario, ego: int, route: Route):
+        self.ego = ego
+        self.route = route
+        self.pieces = MapPieces.of(scenario)
+        self.ids = scenario.agents.ids.astype(np.int64)
+        self.types = scenario.agents.types.astype(np.int64)
+        lights = scenario.traffic_lights
+        if lights is None or not len(lights.lane_ids):
+            self.light_points, self.light_states = np.zeros((0, 2)), np.zeros(0, np.int64)
+        else:
+            known = lights.valid[: scenario.current_index + 1]  # held at their last state up to the start
+            last = np.where(known.any(0), known.shape[0] - 1 - np.argmax(known[::-1], axis=0), -1)
+            states = np.where(last >= 0, lights.states[np.maximum(last, 0), np.arange(len(last))], 0)
+            keep = last >= 0
+            self.light_points = np.asarray(lights.stop_points[keep, :2], np.float64)
+            self.light_states = states[keep].astype(np.int64)
+
+    def observe(
+        self, states: np.ndarray, valid: np.ndarray, time: float, control: np.ndarray
+    ) -> tuple[dict[str, np.ndarray], float]:
+        """The observation from every agent's state [A, 9] and validity [A] at one step, the time since the start
+        and the control the ego executed last; and the ego's station along its route."""
+        me = states[self.ego].astype(np.float64)
+        speed = float(np.hypot(me[StateField.VX], me[StateField.VY]))
+        pose = me[[StateField.X, StateField.Y, StateField.HEADING]]
+        ego = np.array(
+            [pose[0], pose[1], pose[2], speed, control[0], control[1], me[StateField.LENGTH], me[StateField.WIDTH]]
+        )
+        station = self.route.station(pose[:2])
+        route_xy, route_valid = self.route.ahead(station, spaces.NUM_ROUTE_POINTS, spaces.ROUTE_SPACING_M)
+        obs = {
+            "ego": ego.astype(np.float32),
+            "time": np.array([time], np.float32),
+            "route": np.where(route_valid[:, None], to_ego_frame(route_xy, pose), 0.0).astype(np.float32),
+            "route_valid": route_valid.astype(np.int8),
+        }
+        obs |= self._agents(states, valid, pose)
+        obs |= self._map(pose)
+        obs |= self._lights(pose)
+        return obs, station
+
+    def _agents(self, states: np.ndarray, valid: np.ndarray, pose: np.ndarray) -> dict[str, np.ndarray]:
+        k = spaces.NUM_AGENTS
+        rows = np.flatnonzero(valid)
+        rows = rows[rows != self.ego]
+        dist = np.hypot(states[rows, StateField.X] - pose[0], states[rows, StateField.Y] - pose[1])
+        near = dist <= spaces.AGENT_RADIUS_M
+        rows, dist = rows[near], dist[near]
+        rows = rows[np.argsort(dist, kind="stable")[:k]]
+        s = states[rows].astype(np.float64)
+        c, si = np.cos(pose[2]), np.sin(pose[2])
+        vx, vy = s[:, StateField.VX], s[:, StateField.VY]
+        heading = np.angle(np.exp(1j * (s[:, StateField.HEADING] - pose[2])))
+        table = np.zeros((k, len(spaces.AGENT_FIELDS)), np.float32)
+        table[: len(rows)] = np.stack(
+            [
+                *to_ego_frame(s[:, [StateField.X, StateField.Y]], pose).T,
+                heading,
+                c * vx + si * vy,
+                -si * vx + c * vy,
+                s[:, StateField.LENGTH],
+                s[:, StateField.WIDTH],
+            ],
+            -1,
+        )
+        ids, types, mask = np.full(k, -1, np.int64), np.zeros(k, np.int64), np.zeros(k, np.int8)
+        ids[: len(rows)], types[: len(rows)], mask[: len(rows)] = self.ids[rows], self.types[rows], 1
+        return {"agents": table, "agents_id": ids, "agents_type": types, "agents_valid": mask}
+
+    def _map(self, pose: np.ndarray) -> dict[str, np.ndarray]:
+        n, p = spaces.NUM_POLYLINES, spaces.POLYLINE_POINTS
+        out = {"map": np.zeros((n, p, 2), np.float32), "map_type": np.zeros(n, np.int64)}
+        out["map_valid"] = np.zeros((n, p), np.int8)
+        pieces = self.pieces
+        if not len(pieces.types):
+            return out
+        dist = np.hypot(pieces.points[..., 0] - pose[0], pieces.points[..., 1] - pose[1])
+        inside = pieces.valid & (dist <= spaces.MAP_RADIUS_M)
+        nearest = np.where(inside, dist, np.inf).min(-1)
+        chosen = np.flatnonzero(np.isfinite(nearest))
+        chosen = chosen[np.argsort(nearest[chosen], kind="stable")[:n]]
+        m = len(chosen)
+        mask = inside[chosen]
+        out["map"][:m] = np.where(mask[..., None], to_ego_frame(pieces.points[chosen], pose), 0.0)
+        out["map_type"][:m] = pieces.types[chosen]
+        out["map_valid"][:m] = mask
+        return out
+
+    def _lights(self, pose: np.ndarray) -> dict[str, np.ndarray]:
+        k = spaces.NUM_LIGHTS
+        out = {"lights": np.zeros((k, 2), np.float32), "lights_state": np.zeros(k, np.int64)}
+        out["lights_valid"] = np.zeros(k, np.int8)
+        if not len(self.light_states):
+            return out
+        dist = np.hypot(*(self.light_points - pose[:2]).T)
+        order = np.argsort(dist, kind="stable")[:k]
+        order = order[dist[order] <= spaces.MAP_RADIUS_M]
+        out["lights"][: len(order)] = to_ego_frame(self.light_points[order], pose)
+        out["lights_state"][: len(order)] = self.light_states[order]
+        out["lights_valid"][: len(order)] = 1
+        return out

@@ -1,0 +1,100 @@
+"""The ego's route: the lanes it is to drive, from the map (docs/testing.md, 'The route').
+
+Where the log holds the ego's future, the route is the chain of lanes from the ego's lane that passes nearest to
+where the logged ego went (its mission, as nuPlan and Waymax give a planner its route); otherwise the ego's lane
+continued by the straightest exits; off the lane graph, the line along its heading. Only the route is taken from
+the log, never the ego's motion along it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from langtraj.interdrive.heuristics import HeuristicConfig
+from langtraj.interdrive.mapindex import MapIndex
+from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
+from langtraj.interdrive.targets.routes import join, lane_piece, route, straight_line
+from langtraj.polylines import arc_lengths, project_on_polyline, resample
+
+ROUTE_LENGTH_M = 250.0
+"""How far the route reaches beyond the logged end point (or from the ego, without a log)."""
+MAX_CHAINS = 256
+"""Lane chains compared with the logged path at most (a breadth-first search over exits)."""
+
+
+@dataclass(frozen=True)
+class Route:
+    """A route polyline (world frame, a point every metre) and its arc lengths."""
+
+    points: np.ndarray  # float64 [P, 2]
+    stations: np.ndarray  # float64 [P]
+    source: str  # "log" (lanes nearest the logged path), "lanes" (straightest exits) or "heading" (no lane)
+
+    @classmethod
+    def of(cls, points: np.ndarray, source: str) -> Route:
+        points = resample(np.asarray(points, np.float64), 1.0) if len(points) > 1 else np.asarray(points, np.float64)
+        return cls(points, arc_lengths(points), source)
+
+    @property
+    def length(self) -> float:
+        return float(self.stations[-1]) if len(self.stations) else 0.0
+
+    def station(self, xy: np.ndarray) -> float:
+        """Arc length of the point of the route nearest `xy`."""
+        return float(project_on_polyline(np.asarray(xy, np.float64)[None], self.points).station[0])
+
+    def ahead(self, station: float, count: int, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+        """`count` points every `spacing` m from `station` (world frame) and which of them lie on the route."""
+        wanted = station + spacing * np.arange(count)
+        valid = wanted <= self.length + 1e-9
+        x = np.interp(wanted, self.stations, self.points[:, 0])
+        y = np.interp(wanted, self.stations, self.points[:, 1])
+        return np.stack([x, y], -1), valid
+
+
+def ego_route(index: MapIndex, start: AgentOnLane, xy: np.ndarray, heading: float, logged: np.ndarray) -> Route:
+    """The route of an ego at `xy` with `heading` on `start`; `logged` [T, 2] its logged future positions (may be
+    empty), which choose among the lane chains ahead."""
+    if start.lane < 0:
+        return Route.of(straight_line(xy, heading, ROUTE_LENGTH_M), "heading")
+    if len(logged) < 2 or float(np.linalg.norm(logged[-1] - xy)) < 2.0:
+        return Route.of(route(index, [start.lane], start.station, ROUTE_LENGTH_M), "lanes")
+    reach = float(arc_lengths(np.concatenate([xy[None], logged]))[-1]) + 20.0
+    best, best_error = None, math.inf
+    for chain in _chains(index, start.lane, start.station, reach):
+        path = join([lane_piece(index, chain[0], start.station)] + [lane_piece(index, lane) for lane in chain[1:]])
+        if len(path) < 2:
+            continue
+        error = float(np.mean(project_on_polyline(logged, path).distance))
+        if error < best_error:
+            best, best_error = chain, error
+    if best is None:
+        return Route.of(route(index, [start.lane], start.station, ROUTE_LENGTH_M), "lanes")
+    return Route.of(route(index, best, start.station, reach + ROUTE_LENGTH_M), "log")
+
+
+def _chains(index: MapIndex, lane: int, station: float, reach: float) -> list[list[int]]:
+    """Lane chains from `lane` (at `station`) through exits until each covers `reach` m or ends."""
+    done, frontier = [], [([lane], float(index.lane_lengths[lane]) - station)]
+    while frontier and len(done) + len(frontier) < MAX_CHAINS:
+        chain, length = frontier.pop(0)
+        exits = [e for e in index.exits[chain[-1]] if e not in chain] if index.has_connectivity else []
+        if length >= reach or not exits:
+            done.append(chain)
+            continue
+        frontier.extend((chain + [e], length + float(index.lane_lengths[e])) for e in exits)
+    return done + [chain for chain, _ in frontier]
+
+
+def match_ego(index: MapIndex, xy: np.ndarray, heading: float, speed: float) -> AgentOnLane:
+    """The ego's lane and station as the labelers match vehicles (-1 off the lane graph)."""
+    if not index.has_lanes:
+        return AgentOnLane(-1, math.nan, speed)
+    cfg = HeuristicConfig()
+    match = index.match_lanes(
+        xy[None], np.array([heading]), radius=cfg.lane_match_radius, max_heading_diff=cfg.lane_match_max_heading
+    )
+    return AgentOnLane(int(match.lane[0]), float(match.station[0]), speed)

@@ -1,0 +1,94 @@
+"""The Gymnasium environment: its spaces pass Gymnasium's checker, episodes replay from their seed, actions move
+the ego through the model's unicycle, bad actions fail with one line, and the simulated agents react to what the
+ego does (docs/testing.md)."""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from scenes import EGO_ID, FOLLOWER_ID, follower_scene
+
+from langtraj.env import ENV_ID, LangTrajEnv
+from langtraj.env.spaces import action_space, observation_space
+from langtraj.errors import InputError
+
+BRAKE = np.array([-4.0, 0.0], np.float32)
+
+
+def run(env: LangTrajEnv, seed: int, action=BRAKE, steps: int = 80) -> list[dict]:
+    env.reset(seed=seed)
+    infos = []
+    for _ in range(steps):
+        obs, _, terminated, truncated, info = env.step(action)
+        assert observation_space().contains(obs)
+        infos.append(info)
+        if terminated or truncated:
+            break
+    return infos
+
+
+@pytest.mark.parametrize("action", ["control", "trajectory"])
+def test_gymnasium_checker_passes(action):
+    with pytest.warns(UserWarning):  # the checker's note that a direct instance has no spec to re-make
+        check_env(LangTrajEnv(follower_scene(), action=action, render_mode="rgb_array"), skip_render_check=False)
+
+
+def test_registered_make_and_observation_contents():
+    env = gymnasium.make(f"langtraj.env:{ENV_ID}", scenario=follower_scene())
+    obs, info = env.reset(seed=0)
+    assert info["ego_id"] == EGO_ID and info["route_source"] == "log" and info["logged_ego"].shape == (80, 4)
+    assert obs["ego"][3] == pytest.approx(10.0, abs=0.05)  # its speed
+    follower = list(obs["agents_id"]).index(FOLLOWER_ID)
+    assert obs["agents"][follower, 0] == pytest.approx(-16.5, abs=0.1)  # 12 m gap + a car length, behind
+    assert obs["route_valid"].all() and np.allclose(obs["route"][:, 1], 0.0, atol=1e-3)  # straight ahead
+    assert obs["map_valid"].any() and action_space("control").contains(BRAKE)
+
+
+def test_an_episode_replays_from_its_seed_and_differs_across_seeds():
+    env = LangTrajEnv(follower_scene())
+    first, again = run(env, 3, steps=25), run(env, 3, steps=25)
+    assert first == again
+    world_a = env.unwrapped._sim.world.states.copy()
+    run(env, 4, steps=25)
+    assert not np.array_equal(world_a, env.unwrapped._sim.world.states)
+
+
+def test_the_follower_brakes_for_a_braking_ego_where_log_replay_runs_into_it():
+    react = LangTrajEnv(follower_scene())
+    clear = [not any(FOLLOWER_ID in i["collided_with"] for i in run(react, seed)) for seed in range(3)]
+    assert sum(clear) >= 2, clear
+    replay = LangTrajEnv(follower_scene(), policy="log_replay")
+    infos = run(replay, 0)
+    hit = next(i for i in infos if i["collision"])
+    assert hit["collided_with"] == [FOLLOWER_ID] and not hit["at_fault"]  # rear-ended: not the ego's fault
+
+
+def test_a_trajectory_action_is_tracked_and_a_bad_action_fails_in_one_line():
+    env = LangTrajEnv(follower_scene(), action="trajectory")
+    env.reset(seed=0)
+    path = np.zeros((10, 3), np.float32)
+    path[:, 0] = 0.95 * np.arange(1, 11)  # 9.5 m/s straight ahead (a reachable -5 m/s^2)
+    _, _, _, _, info = env.step(path)
+    assert info["speed"] == pytest.approx(9.5, abs=1e-4) and info["progress_m"] == pytest.approx(0.95, abs=1e-3)
+    for bad, what in ((np.zeros(2), "shape"), (np.full((10, 3), np.nan), "non-finite")):
+        with pytest.raises(InputError, match=f"action: .*{what}") as err:
+            env.step(bad)
+        assert "\n" not in str(err.value)
+
+
+def test_bad_episodes_are_refused():
+    with pytest.raises(InputError, match="no agent @99"):
+        LangTrajEnv(follower_scene(), ego=99).reset(seed=0)
+    with pytest.raises(InputError, match="asks something of the ego"):
+        LangTrajEnv(follower_scene(), prompts=["@ego slows down"]).reset(seed=0)
+    with pytest.raises(InputError, match="unknown reset option"):
+        LangTrajEnv(follower_scene()).reset(seed=0, options={"nope": 1})
+
+
+def test_a_collision_the_ego_causes_is_at_fault_and_terminates_on_request():
+    env = LangTrajEnv(follower_scene(), ego=FOLLOWER_ID, policy="log_replay", terminate_on_collision=True)
+    infos = run(env, 0, action=np.array([3.0, 0.0]))  # the new ego speeds into the car ahead
+    assert infos[-1]["collision"] and infos[-1]["at_fault"] and infos[-1]["collided_with"] == [EGO_ID]
+    assert len(infos) < 80
