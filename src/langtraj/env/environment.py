@@ -20,12 +20,13 @@ import numpy as np
 
 from langtraj.env import spaces
 from langtraj.env.dynamics import step_unicycle, track
-from langtraj.env.events import EventJudge, StepEvents
-from langtraj.env.observe import Observer
+from langtraj.env.events import EventJudge, StepEvents, road_edge_index
+from langtraj.env.observe import MapPieces, Observer
 from langtraj.env.reward import RewardConfig
 from langtraj.env.route import ego_route, match_ego
 from langtraj.errors import InputError
 from langtraj.interdrive.mapindex import MapIndex
+from langtraj.metrics.road import RoadEdgeIndex
 from langtraj.model.config import ModelConfig
 from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.scenario.io import read_scenario
@@ -78,10 +79,17 @@ def _prompts(value: Any) -> tuple[str, ...]:
 
 @dataclass(frozen=True)
 class _Scene:
-    """A loaded scene and what is built once per scene: its map index."""
+    """A loaded scene and what is built once per scene, not per episode: its map index, its map cut into
+    observation pieces, its road edges."""
 
     scenario: Scenario
     index: MapIndex = field(repr=False)
+    pieces: MapPieces = field(repr=False)
+    edges: RoadEdgeIndex | None = field(repr=False)
+
+    @classmethod
+    def of(cls, scenario: Scenario) -> _Scene:
+        return cls(scenario, MapIndex.build(scenario.road_map), MapPieces.of(scenario), road_edge_index(scenario))
 
 
 class LangTrajEnv(gym.Env):
@@ -184,8 +192,8 @@ class LangTrajEnv(gym.Env):
         start = match_ego(scene.index, pose[:2], float(pose[2]), float(pose[3]))
         seen = logged[np.isfinite(logged[:, 0]), :2]
         self._route = ego_route(scene.index, start, pose[:2], float(pose[2]), seen)
-        self._observer = Observer(scenario, ego, self._route)
-        self._judge = EventJudge(scenario, ego)
+        self._observer = Observer(scenario, ego, self._route, scene.pieces)
+        self._judge = EventJudge(scenario, ego, scene.edges)
         self._curvature = VEHICLE_MAX_CURVATURE if scenario.agents.types[ego] == AgentType.VEHICLE else math.inf
         self._control = np.zeros(2)
         obs, station = self._observe()
@@ -277,12 +285,10 @@ class LangTrajEnv(gym.Env):
         source = episode.scenario
         if source is None:
             raise InputError("no scenario given (a file or a Scenario)", where="scenario")
-        if isinstance(source, Scenario):
-            return _Scene(source, MapIndex.build(source.road_map))
-        key = (str(source), int(episode.index))
+        key = (f"object {id(source)}", 0) if isinstance(source, Scenario) else (str(source), int(episode.index))
         if key not in self._scenes:
-            scenario = read_scenario(Path(source), int(episode.index))
-            self._scenes = {key: _Scene(scenario, MapIndex.build(scenario.road_map))}  # the last scene only
+            scenario = source if isinstance(source, Scenario) else read_scenario(Path(source), int(episode.index))
+            self._scenes = {key: _Scene.of(scenario)}  # the last scene only
         return self._scenes[key]
 
     @staticmethod

@@ -35,14 +35,20 @@ class StepEvents:
         return bool(self.collided_with)
 
 
-class EventJudge:
-    """Judges the ego (scenario row `ego`) against every other valid agent and the road edges of `scenario`."""
+def road_edge_index(scenario: Scenario) -> RoadEdgeIndex | None:
+    """The WOSAC metrics' road-edge index of `scenario` (None without road edges: nothing is off-road)."""
+    edges = RoadEdges.from_polylines([f.points for f in scenario.road_map.road_edges])
+    return RoadEdgeIndex(edges) if edges.num_segments else None
 
-    def __init__(self, scenario: Scenario, ego: int):
+
+class EventJudge:
+    """Judges the ego (scenario row `ego`) against every other valid agent and the road edges of `scenario`
+    (`edges`: its `road_edge_index`)."""
+
+    def __init__(self, scenario: Scenario, ego: int, edges: RoadEdgeIndex | None):
         self.ego = ego
         self.ids = scenario.agents.ids.astype(np.int64)
-        edges = RoadEdges.from_polylines([f.points for f in scenario.road_map.road_edges])
-        self.edges = RoadEdgeIndex(edges) if edges.num_segments else None
+        self.edges = edges
 
     def judge(self, states: np.ndarray, valid: np.ndarray) -> StepEvents:
         """The figures from every agent's state [A, 9] and validity [A] at one step."""

@@ -60,10 +60,10 @@ class MapPieces:
 class Observer:
     """Builds the observation of the ego (scenario row `ego`) from the world's states at a step."""
 
-    def __init__(self, scenario: Scenario, ego: int, route: Route):
+    def __init__(self, scenario: Scenario, ego: int, route: Route, pieces: MapPieces | None = None):
         self.ego = ego
         self.route = route
-        self.pieces = MapPieces.of(scenario)
+        self.pieces = MapPieces.of(scenario) if pieces is None else pieces
         self.ids = scenario.agents.ids.astype(np.int64)
         self.types = scenario.agents.types.astype(np.int64)
         lights = scenario.traffic_lights
