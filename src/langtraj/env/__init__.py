@@ -8,9 +8,11 @@ from typing import Any
 
 import gymnasium
 
+from langtraj.scenario.model import FUTURE_STEPS
+
 ENV_ID = "LangTraj-v0"
-EPISODE_STEPS = 80
-"""Steps of an episode: the 8 s every simulation runs (`langtraj.scenario.FUTURE_STEPS`)."""
+EPISODE_STEPS = FUTURE_STEPS
+"""Steps of an episode: the 8 s every simulation runs."""
 
 if ENV_ID not in gymnasium.registry:
     gymnasium.register(

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from langtraj.angles import wrap_angle
 from langtraj.metrics.interaction import MAX_TTC, pair_signed_distance, time_to_collision
 from langtraj.metrics.road import RoadEdgeIndex, RoadEdges, distance_to_road_edge
 from langtraj.scenario.model import Scenario
@@ -72,7 +73,7 @@ class EventJudge:
         at_fault = False
         if len(hit) and speed[e] > AT_FAULT_MIN_SPEED:
             bearing = np.arctan2(y[hit] - y[e], x[hit] - x[e]) - heading[e]
-            at_fault = bool((np.abs(np.angle(np.exp(1j * bearing))) < AT_FAULT_CONE).any())
+            at_fault = bool((np.abs(wrap_angle(bearing)) < AT_FAULT_CONE).any())
         offroad = False
         if self.edges is not None:
             one = s[e : e + 1]

@@ -11,8 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from langtraj.angles import wrap_angle
 from langtraj.env import spaces
 from langtraj.env.route import Route
+from langtraj.frames import points_to_frame
 from langtraj.polylines import resample
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import StateField
@@ -23,9 +25,7 @@ MAP_SPACING_M = 2.0
 
 def to_ego_frame(xy: np.ndarray, pose: np.ndarray) -> np.ndarray:
     """World points [..., 2] in the frame of `pose` (x, y, heading): x forward, y left."""
-    c, s = np.cos(pose[2]), np.sin(pose[2])
-    d = np.asarray(xy, np.float64) - pose[:2]
-    return np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], -1)
+    return points_to_frame(xy, (float(pose[0]), float(pose[1]), float(pose[2])))
 
 
 @dataclass(frozen=True)
@@ -112,7 +112,7 @@ class Observer:
         s = states[rows].astype(np.float64)
         c, si = np.cos(pose[2]), np.sin(pose[2])
         vx, vy = s[:, StateField.VX], s[:, StateField.VY]
-        heading = np.angle(np.exp(1j * (s[:, StateField.HEADING] - pose[2])))
+        heading = wrap_angle(s[:, StateField.HEADING] - pose[2])
         table = np.zeros((k, len(spaces.AGENT_FIELDS)), np.float32)
         table[: len(rows)] = np.stack(
             [

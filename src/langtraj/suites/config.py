@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from langtraj.env import EPISODE_STEPS  # a full episode (8 s at 10 Hz); `max_steps` may cut it shorter
 from langtraj.errors import InputError
 from langtraj.settings import build_dataclass, read_yaml
 
@@ -43,8 +44,6 @@ REAL_DATA_VARIABLE = "LANGTRAJ_REAL_DATA"
 """The environment variable naming the folder of real scenes (as in the tests)."""
 DEFAULT_REAL_DATA = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "real"
 """`${LANGTRAJ_REAL_DATA}` when the variable is unset: `../shared/data/real` beside the source checkout."""
-EPISODE_STEPS = 80
-"""Steps of a full episode (8 s at 10 Hz); `max_steps` may cut it shorter."""
 
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 _VARIABLE = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
