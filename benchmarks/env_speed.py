@@ -5,9 +5,10 @@ same scene (every agent driven, the ego included), and their ratio: the issue's 
 Scenes: the real WOMD scenes in ../shared/data/real (the TFRecord and the two Waymo ScenarioNet pickles); the ego
 is each scene's self-driving car. Both runs load the checkpoint once beforehand (not timed), then time reset or
 policy building plus the whole episode; the episode's time includes observations, the planner and the per-step
-safety figures. Medians over --repeats runs (seeds 0, 1, ...).
+safety figures. One untimed run of each first (lazy initialisation, GPU kernels); medians over --repeats runs
+(seeds 0, 1, ...).
 
-    python benchmarks/env_speed.py [--checkpoint CKPT] [--repeats 3] [--planner idm]
+    python benchmarks/env_speed.py [--checkpoint CKPT] [--repeats 3] [--planner idm] [--device cuda] [--scenes ...]
 """
 
 from __future__ import annotations
@@ -61,17 +62,24 @@ def main() -> None:
     parser.add_argument("--checkpoint", type=Path)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--planner", default="idm")
+    parser.add_argument("--device", default="cpu", help="where the model runs (cpu, cuda)")
+    parser.add_argument("--scenes", nargs="+", default=list(SCENES), help="files in --real")
+    parser.add_argument("--real", type=Path, default=REAL, help="the folder of real scenes (../shared/data/real)")
     args = parser.parse_args()
     checkpoint = args.checkpoint or shipped_checkpoint()
-    loaded = load_model(checkpoint)
-    print(f"machine: {platform.processor() or platform.machine()}, torch {torch.__version__}, threads "
+    model, data = load_model(checkpoint)
+    loaded = (model.to(args.device), data)
+    gpu = torch.cuda.get_device_name() if args.device.startswith("cuda") else "none"
+    print(f"machine: {platform.processor() or platform.machine()}, GPU {gpu}, torch {torch.__version__}, threads "
           f"{torch.get_num_threads()}; checkpoint {checkpoint.name}; planner {args.planner}")  # fmt: skip
     print("| scene | sim agents | simulate, 1 rollout (s) | env episode (s) | ratio |")
     print("| --- | --- | --- | --- | --- |")
-    for name in SCENES:
-        scenario = read_scenario(REAL / name)
-        env = LangTrajEnv(scenario, checkpoint=checkpoint)
+    for name in args.scenes:
+        scenario = read_scenario(args.real / name)
+        env = LangTrajEnv(scenario, checkpoint=checkpoint, device=args.device)
         env._loaded = loaded  # the same model in memory for both
+        time_simulate(scenario, loaded, checkpoint, 99)  # warm-up (lazy initialisation, GPU kernels), not timed
+        time_episode(env, args.planner, 99)
         sim = [time_simulate(scenario, loaded, checkpoint, seed) for seed in range(args.repeats)]
         episode = [time_episode(env, args.planner, seed) for seed in range(args.repeats)]
         a, b = statistics.median(sim), statistics.median(episode)

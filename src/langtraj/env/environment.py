@@ -100,7 +100,7 @@ class LangTrajEnv(gym.Env):
     ("control" or "trajectory", `env.spaces`), `replan_s` (the others' replanning interval), `candidates` per
     replan, `terminate_on_collision` / `terminate_on_offroad`, `reward` (`RewardConfig`), `render_mode`
     ("rgb_array"), and `simulation`: further `sim.config.SimRequest` settings of the others' policy (guidance
-    weights, `selector`, ...)."""
+    weights, `selector`, ...), `device` the model runs on (e.g. "cuda"; default: where it loads, the CPU)."""
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 10}
 
@@ -123,6 +123,7 @@ class LangTrajEnv(gym.Env):
         reward: RewardConfig | None = None,
         render_mode: str | None = None,
         simulation: dict[str, Any] | None = None,
+        device: str | None = None,
     ):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise InputError(
@@ -147,6 +148,7 @@ class LangTrajEnv(gym.Env):
         self.terminate_on_offroad = bool(terminate_on_offroad)
         self.reward_config = reward or RewardConfig()
         self.render_mode = render_mode
+        self.device = device
         self._loaded: LoadedModel | None = None
         self._scenes: dict[tuple[str, int], _Scene] = {}
         self._sim: SteppedSimulation | None = None
@@ -180,7 +182,8 @@ class LangTrajEnv(gym.Env):
             from langtraj.model.checkpoint import load_model
             from langtraj.sim.checkpoints import shipped_checkpoint
 
-            self._loaded = load_model(self.checkpoint or shipped_checkpoint())
+            model, data = load_model(self.checkpoint or shipped_checkpoint())
+            self._loaded = (model.to(self.device) if self.device else model, data)
         policy, described = build_policy(scenario, request, self._loaded)
         sim_seed = int(self.np_random.integers(2**31 - 1))
         config = replace(self.sim_config, seed=sim_seed)

@@ -443,14 +443,16 @@ class LangTrajPolicy(Policy):
 
     def external_terms(self, num_driven: int, external: tuple[int, ...]) -> tuple[GuidanceTerm, ...]:
         """Keep every other driven agent that follows an external agent (an ego under test, which guidance cannot
-        steer) `EXTERNAL_BUFFER_M` behind its forecast (`HeadwayCost`), at every denoising step, weighted
-        `external_clearance`; applied by acceleration alone in a step of its own (`sim.external.with_clearance`).
-        Without it the model's agents drive into a braking ego (docs/testing.md, 'How the other agents react')."""
+        steer) `EXTERNAL_BUFFER_M` behind its forecast (`HeadwayCost`), at the denoising steps the realism guidance
+        applies at, weighted `external_clearance`; applied by acceleration alone in a step of its own
+        (`sim.external.with_clearance`). Without it the model's agents drive into a braking ego (docs/testing.md,
+        'How the other agents react')."""
         others = [slot for slot in range(num_driven) if slot not in external and slot not in self.free]
         if not external or not others or self.external_clearance <= 0:
             return ()
+        when = "all" if self.guided_steps == self.steps else FinalSteps(self.guided_steps, self.steps)
         return tuple(
-            GuidanceTerm(HeadwayCost(others, leader, gap=EXTERNAL_BUFFER_M), self.external_clearance, "all")
+            GuidanceTerm(HeadwayCost(others, leader, gap=EXTERNAL_BUFFER_M), self.external_clearance, when)
             for leader in external
         )
 
