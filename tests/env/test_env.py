@@ -92,3 +92,14 @@ def test_a_collision_the_ego_causes_is_at_fault_and_terminates_on_request():
     infos = run(env, 0, action=np.array([3.0, 0.0]))  # the new ego speeds into the car ahead
     assert infos[-1]["collision"] and infos[-1]["at_fault"] and infos[-1]["collided_with"] == [EGO_ID]
     assert len(infos) < 80
+
+
+def test_many_scenes_at_once_through_gymnasiums_vector_environment():
+    envs = gymnasium.make_vec(
+        f"langtraj.env:{ENV_ID}", num_envs=2, vectorization_mode="sync", scenario=follower_scene()
+    )
+    obs, info = envs.reset(seed=[0, 1])
+    assert obs["agents"].shape == (2, 16, 7) and list(info["ego_id"]) == [EGO_ID, EGO_ID]
+    obs = envs.step(np.stack([BRAKE, np.zeros(2, np.float32)]))[0]
+    assert obs["ego"][0, 3] < obs["ego"][1, 3]  # the first ego brakes, the second keeps its speed
+    envs.close()

@@ -18,6 +18,7 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
+from langtraj.angles import wrap_angle
 from langtraj.env import spaces
 from langtraj.env.dynamics import step_unicycle, track
 from langtraj.env.events import EventJudge, StepEvents, road_edge_index
@@ -188,8 +189,7 @@ class LangTrajEnv(gym.Env):
         sim_seed = int(self.np_random.integers(2**31 - 1))
         config = replace(self.sim_config, seed=sim_seed)
         self._sim = SteppedSimulation(scenario, policy, np.array([ego]), config)
-        self._ego, self._ego_id, self._scenario = ego, ego_id, scenario
-        c = scenario.current_index
+        self._ego, self._ego_id = ego, ego_id
         pose = self._pose()
         logged = _logged_future(scenario, ego)
         start = match_ego(scene.index, pose[:2], float(pose[2]), float(pose[3]))
@@ -204,17 +204,17 @@ class LangTrajEnv(gym.Env):
         self._reference_m = (
             max(self._route.station(seen[-1]) - station, 1.0) if len(seen) and self._route.source == "log" else math.nan
         )
-        prompted = [int(i) for i in (described.get("prompts") and _mentions(scenario, prompts)) or []]
-        self.highlight_ids = [ego_id] + [i for i in prompted if i != ego_id]
+        prompted = [i for i in _mentions(scenario, prompts) if i != ego_id]
+        self.highlight_ids = [ego_id, *prompted]
         if adversary is not None and adversary not in self.highlight_ids:
             self.highlight_ids.append(int(adversary))
         info = {
             "scenario_id": scenario.scenario_id,
             "ego_id": ego_id,
             "step_seconds": STEP_SECONDS,
-            "start_step": c,
+            "start_step": scenario.current_index,
             "prompts": list(prompts),
-            "prompted_ids": [i for i in prompted if i != ego_id],
+            "prompted_ids": prompted,
             "adversary": adversary,
             "target": target,
             "policy": self.policy_name,
@@ -234,9 +234,7 @@ class LangTrajEnv(gym.Env):
         control = self._control_of(action)
         pose = self._pose()
         nxt = step_unicycle(pose, control, self._curvature)
-        self._control = np.clip(control, self.action_space.low[:2] if self.action_kind == "control" else
-                                [-spaces.MAX_ACCEL, -spaces.MAX_YAW_RATE],
-                                [spaces.MAX_ACCEL, spaces.MAX_YAW_RATE])  # fmt: skip
+        self._control = np.array([nxt[3] - pose[3], wrap_angle(nxt[2] - pose[2])]) / STEP_SECONDS  # as executed
         self._sim.advance(nxt[None, None])
         obs, station = self._observe()
         events = self._events()
