@@ -10,11 +10,10 @@ from langtraj.scenario import Agents, AgentType, LaneNeighbor, MapFeature, MapFe
 EGO_ID, FOLLOWER_ID = 1, 2
 
 
-def follower_scene(gap_m: float = 12.0, speed: float = 10.0, others: int = 2) -> Scenario:
+def follower_scene(gap_m: float = 12.0, speed: float = 10.0, others: int = 2, steps: int = 91) -> Scenario:
     """A 500 m straight road, two lanes eastbound; the ego (id 1, the self-driving car) at x = 0 in the right lane
     and a follower (id 2) `gap_m` behind it (bumper to bumper), both at `speed`, with `others` cars in the left lane.
-    The log has everyone keep their speed for 9.1 s."""
-    steps = 91
+    The log has everyone keep their speed for `steps` steps (9.1 s: one window)."""
     t = np.arange(steps) * 0.1
     length, width = 4.5, 2.0
     starts = [(0.0, 0.0), (-(gap_m + length), 0.0)] + [(-30.0 + 25.0 * k, 3.5) for k in range(others)]

@@ -103,3 +103,15 @@ def test_many_scenes_at_once_through_gymnasiums_vector_environment():
     obs = envs.step(np.stack([BRAKE, np.zeros(2, np.float32)]))[0]
     assert obs["ego"][0, 3] < obs["ego"][1, 3]  # the first ego brakes, the second keeps its speed
     envs.close()
+
+
+def test_a_window_of_a_longer_scene():
+    from langtraj.scenario.windowing import cut_window, window_starts
+
+    long = follower_scene(steps=200)
+    env = LangTrajEnv(long, window=1)
+    _, info = env.reset(seed=0)
+    start = window_starts(long.num_steps)[1]
+    assert info["logged_ego"][0, 0] == pytest.approx(float(cut_window(long, start).agents.states[0, 11, 0]))
+    with pytest.raises(InputError, match="window 9 does not exist"):
+        LangTrajEnv(long, window=9).reset(seed=0)

@@ -43,6 +43,7 @@ class FakeEnv:
         scenario: Any,
         *,
         index: int = 0,
+        window: int | None = None,
         ego: int | None = None,
         prompts: Any = (),
         adversary: int | None = None,

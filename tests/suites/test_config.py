@@ -90,6 +90,7 @@ def test_real_data_variable_defaults_to_the_shared_folder(tmp_path, monkeypatch)
         ("  - {name: a, scenario: scene.tfrecord, seeds: [1, 1]}", "cases[0].seeds: repeated seeds"),
         ("  - {name: a, scenario: scene.tfrecord, seeds: [x]}", "cases[0].seeds[0]: expected a whole number"),
         ("  - {name: a, scenario: scene.tfrecord, index: -1}", "cases[0].index: must be >= 0"),
+        ("  - {name: a, scenario: scene.tfrecord, window: -2}", "cases[0].window: must be >= 0"),
         ("  - {name: a, scenario: scene.tfrecord, ego: car}", "cases[0].ego: expected a track id"),
         ("  - {name: a, scenario: scene.tfrecord, adversary: 3}", "cases[0].target: an adversary needs a target"),
         ("  - {name: a, scenario: scene.tfrecord, target: bus, adversary: 3}", "cases[0].target: expected a track id"),
@@ -140,3 +141,12 @@ def test_the_example_suite_loads(monkeypatch):
     suite = load_suite(REPO / "configs" / "suites" / "example.yaml")
     assert len(suite.cases) >= 4 and suite.episodes >= len(suite.cases)
     assert all(c.scenario.is_file() for c in suite.cases)
+
+
+def test_a_case_names_a_window_of_a_longer_scene(tmp_path):
+    suite = load_suite(_suite(tmp_path, "name: s\ncases:\n  - {name: a, scenario: scene.tfrecord, window: 2}\n"))
+    assert suite.cases[0].window == 2
+    assert (
+        load_suite(_suite(tmp_path, "name: s\ncases:\n  - {name: a, scenario: scene.tfrecord}\n")).cases[0].window
+        is None
+    )

@@ -34,6 +34,7 @@ from langtraj.scenario.io import read_scenario
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario, TrafficLights
 from langtraj.scenario.selection import prioritized_agents
 from langtraj.scenario.types import AgentType, StateField
+from langtraj.scenario.windowing import cut_window, window_starts
 from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.policies import POLICIES, LoadedModel
 from langtraj.sim.prompts import user_prompt_entry
@@ -48,12 +49,14 @@ VEHICLE_MAX_CURVATURE = ModelConfig.vehicle_max_curvature
 
 @dataclass(frozen=True)
 class Episode:
-    """What one episode simulates: a scene (a file and its index, or a `Scenario`), the ego (a track id; None: the
+    """What one episode simulates: a scene (a file and its index, or a `Scenario`; `window` W: the W-th 9.1-s window
+    of a longer one, as `langtraj render --window`), the ego (a track id; None: the
     scene's self-driving car, else its most important vehicle), prompts for the other agents (`@ego` names the
     ego), and an optional adversary driven into a target (track ids, "ego" allowed) by collision guidance."""
 
     scenario: str | Path | Scenario | None = None
     index: int = 0
+    window: int | None = None
     ego: int | None = None
     prompts: tuple[str, ...] = ()
     adversary: int | None = None
@@ -110,6 +113,7 @@ class LangTrajEnv(gym.Env):
         scenario: str | Path | Scenario | None = None,
         *,
         index: int = 0,
+        window: int | None = None,
         ego: int | None = None,
         prompts: str | tuple[str, ...] | list[str] = (),
         adversary: int | None = None,
@@ -131,7 +135,7 @@ class LangTrajEnv(gym.Env):
                 f"must be one of {self.metadata['render_modes']} or None, got {render_mode!r}", where="render_mode"
             )
         POLICIES.get(policy, where="policy")
-        self.episode = Episode(scenario, index, ego, _prompts(prompts), adversary, target)
+        self.episode = Episode(scenario, index, window, ego, _prompts(prompts), adversary, target)
         self.checkpoint = None if checkpoint is None else Path(checkpoint)
         self.policy_name = policy
         self.action_kind = action
@@ -151,7 +155,7 @@ class LangTrajEnv(gym.Env):
         self.render_mode = render_mode
         self.device = device
         self._loaded: LoadedModel | None = None
-        self._scenes: dict[tuple[str, int], _Scene] = {}
+        self._scenes: dict[tuple[str, int, int | None], _Scene] = {}
         self._sim: SteppedSimulation | None = None
 
     # ------------------------------------------------------------------ episode
@@ -286,9 +290,12 @@ class LangTrajEnv(gym.Env):
         source = episode.scenario
         if source is None:
             raise InputError("no scenario given (a file or a Scenario)", where="scenario")
-        key = (f"object {id(source)}", 0) if isinstance(source, Scenario) else (str(source), int(episode.index))
+        name = f"object {id(source)}" if isinstance(source, Scenario) else str(source)
+        key = (name, int(episode.index), episode.window)
         if key not in self._scenes:
             scenario = source if isinstance(source, Scenario) else read_scenario(Path(source), int(episode.index))
+            if episode.window is not None:
+                scenario = _window(scenario, int(episode.window), name)
             self._scenes = {key: _Scene.of(scenario)}  # the last scene only
         return self._scenes[key]
 
@@ -362,6 +369,17 @@ def _logged_future(scenario: Scenario, row: int) -> np.ndarray:
         -1,
     )
     return out
+
+
+def _window(scenario: Scenario, window: int, source: str) -> Scenario:
+    """The `window`-th standard window (`scenario.windowing`) of a scene."""
+    starts = window_starts(scenario.num_steps)
+    if not 0 <= window < len(starts):
+        raise InputError(
+            f"window {window} does not exist: the scene has {scenario.num_steps} steps, so {len(starts)} window(s)",
+            where=f"{source}: window",
+        )
+    return cut_window(scenario, starts[window])
 
 
 def _mentions(scenario: Scenario, prompts: tuple[str, ...]) -> list[int]:

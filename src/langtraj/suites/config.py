@@ -12,7 +12,8 @@ defaults:                        # optional; every case starts from these
 cases:
   - name: womd-drive             # unique; letters, digits, '.', '_' and '-' (it names the case's videos)
     scenario: ${LANGTRAJ_REAL_DATA}/motion_data_one_scenario.tfrecord
-    index: 0
+    index: 0                     # which scene of the file
+    window: null                 # which 9.1-s window of a longer scene (null: the scene as it is)
     ego: null                    # track id; null: the env's choice
     prompts: ["@adv changes lanes into @ego's lane and brakes hard"]
     adversary: 12
@@ -80,6 +81,7 @@ class SuiteCase:
     name: unique in the suite; it names the case's videos (`<name>-seed<k>.mp4`) and its JUnit test case.
     scenario: the scene file (WOMD TFRecord or ScenarioNet pickle), resolved to an absolute path.
     index: which scene of the file.
+    window: which 9.1-s window of a longer scene (None: the scene as it is; `langtraj.env.Episode`).
     ego: the ego's track id; None: the env's choice.
     prompts: prompts for the other agents, `@adv` already replaced by the adversary's id; the env replaces `@ego`
         by the ego's id at reset (`langtraj.env.EGO_PLACEHOLDER`).
@@ -94,6 +96,7 @@ class SuiteCase:
     name: str
     scenario: Path
     index: int = 0
+    window: int | None = None
     ego: int | None = None
     prompts: tuple[str, ...] = ()
     adversary: int | None = None
@@ -128,6 +131,7 @@ _CASE_KEYS = (
     "name",
     "scenario",
     "index",
+    "window",
     "ego",
     "prompts",
     "adversary",
@@ -196,6 +200,7 @@ def _case(
     _require("scenario" in raw, where, "missing scenario")
     scenario = _path(raw["scenario"], base, f"{where}.scenario")
     index = _int(raw.get("index", 0), f"{where}.index", minimum=0)
+    window = _int(raw["window"], f"{where}.window", minimum=0) if raw.get("window") is not None else None
     ego = _optional_id(raw.get("ego"), f"{where}.ego")
     adversary = _optional_id(raw.get("adversary"), f"{where}.adversary")
     target = raw.get("target")
@@ -236,6 +241,7 @@ def _case(
         name=name,
         scenario=scenario,
         index=index,
+        window=window,
         ego=ego,
         prompts=tuple(texts),
         adversary=adversary,

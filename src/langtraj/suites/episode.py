@@ -194,6 +194,7 @@ class _Episode:
         self.env = load_class(task.env)(
             case.scenario,
             index=case.index,
+            window=case.window,
             ego=case.ego,
             prompts=case.prompts,
             adversary=case.adversary,
