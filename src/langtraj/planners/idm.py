@@ -18,13 +18,12 @@ from langtraj.angles import wrap_angle
 from langtraj.env.spaces import MAX_ACCEL, MAX_YAW_RATE
 from langtraj.planners.base import PLANNERS, Planner
 from langtraj.polylines import arc_lengths, point_at, project_on_polyline
+from langtraj.scenario.model import STEP_SECONDS
 
 STOP_STATES = (1, 4, 7)
 """WOMD light states that mean stop: arrow stop, stop, flashing stop."""
 CAUTION_STATES = (2, 5)
 """WOMD light states that mean caution (arrow, plain): stop only where a comfortable stop is still possible."""
-STEP_SECONDS = 0.1
-"""The control period unless the reset info says otherwise (`step_seconds`)."""
 _BEHIND_M = 50.0  # the route is extended this far behind its first point, so agents alongside get signed stations
 _MIN_GAP_M = 0.1  # the IDM gap never divides by less
 

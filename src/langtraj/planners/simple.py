@@ -11,9 +11,7 @@ from langtraj.angles import wrap_angle
 from langtraj.env.spaces import TRAJECTORY_POSES
 from langtraj.frames import poses_to_frame
 from langtraj.planners.base import PLANNERS, Planner
-
-STEP_SECONDS = 0.1
-"""The step of the observation's `time` unless the reset info says otherwise (`step_seconds`)."""
+from langtraj.scenario.model import STEP_SECONDS
 
 
 @PLANNERS.register
