@@ -25,6 +25,7 @@ LAYERS = (
     ("training", "labeling", "env"),
     ("planners",),
     ("suites", "experiments"),
+    ("studio",),
     ("cli",),
 )
 """Each package may import only packages of earlier layers (and itself)."""
