@@ -22,6 +22,7 @@ from langtraj.cli import (
     render,
     sample,
     simulate,
+    studio,
     submit,
     synth,
     test,
@@ -47,6 +48,7 @@ VERBS = (
     demo,
     experiment,
     test,
+    studio,
 )
 """Each verb module has `add_parser(subparsers)` (setting `func`) and a `run(args) -> int`."""
 
