@@ -4,6 +4,8 @@ JSON `{"error": "one line"}`. See docs/studio.md ('The HTTP API')."""
 
 from __future__ import annotations
 
+import json
+import threading
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,10 +15,15 @@ from fastapi import FastAPI, Request, Response
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
+from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from langtraj.errors import InputError
+from langtraj.studio.cases import SUITE_NAME, DuplicateCase, case_of, save_case
 from langtraj.studio.catalog import Catalog
+from langtraj.studio.checks import check_prompts
+from langtraj.studio.jobs import Job, JobBoard, JobSpec, JobStore, Runner
+from langtraj.studio.simulation import RESULT_FILE, ROLLOUTS_FILE, JobRunner
 from langtraj.studio.views import scene_view
 
 STATIC = Path(__file__).with_name("static")
@@ -40,20 +47,68 @@ class StudioConfig:
     data: Path = Path("studio-data")
 
 
+VIDEO_FILE = "video.mp4"
+VIDEO_PX = 640
+MAX_PROMPTS = 16
+MAX_ROLLOUTS = 16
+_NAME = SUITE_NAME.pattern
+
+
 class NotFound(Exception):
-    """A key or job id the studio does not know (404)."""
+    """A key or job id the studio does not know, or a file a job does not have yet (404)."""
 
 
-def create_app(config: StudioConfig, catalog: Catalog | None = None) -> FastAPI:
-    """The studio over `config` (`catalog`: an already built scene list)."""
+class Conflict(Exception):
+    """A request that clashes with what is there (409)."""
+
+
+# ---------------------------------------------------------------- request bodies
+
+
+class PromptsBody(BaseModel):
+    model_config = {"extra": "forbid"}
+
+    prompts: list[str] = Field(default_factory=list, max_length=MAX_PROMPTS)
+    adversary: int | None = None
+    target: int | None = None
+
+
+class JobBody(PromptsBody):
+    scene: str = Field(max_length=64)
+    rollouts: int = Field(default=4, ge=1, le=MAX_ROLLOUTS)
+    seed: int = Field(default=0, ge=0, le=2**31 - 1)
+    compare: bool = True
+
+
+class CaseBody(BaseModel):
+    model_config = {"extra": "forbid"}
+
+    suite: str = Field(max_length=100, pattern=f"^{_NAME}$")
+    name: str = Field(max_length=100, pattern=f"^{_NAME}$")
+    criteria: dict[str, Any] | None = None
+
+
+# ---------------------------------------------------------------- the app
+
+
+def create_app(
+    config: StudioConfig, catalog: Catalog | None = None, runner: Runner | None = None, *, start_worker: bool = True
+) -> FastAPI:
+    """The studio over `config` (`catalog`: an already built scene list; `runner`: what runs a job, by default the
+    closed-loop simulation). Jobs on disk are reloaded; the worker starts unless `start_worker` is False."""
     catalog = catalog or Catalog.build(config.paths)
+    board = JobBoard(JobStore(Path(config.data) / "jobs"), runner or JobRunner(catalog, config.checkpoint))
+    if start_worker:
+        board.start()
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI):  # type: ignore[no-untyped-def]
         yield
+        board.close()
 
     app = FastAPI(title="LangTraj Studio", version="1", docs_url=None, redoc_url=None, lifespan=lifespan)
     app.state.catalog = catalog
+    app.state.board = board
 
     @app.middleware("http")
     async def _guard(request: Request, call_next):  # type: ignore[no-untyped-def]
@@ -66,9 +121,11 @@ def create_app(config: StudioConfig, catalog: Catalog | None = None) -> FastAPI:
 
     app.add_exception_handler(InputError, _handler(400))
     app.add_exception_handler(NotFound, _handler(404))
+    app.add_exception_handler(Conflict, _handler(409))
     app.add_exception_handler(RequestValidationError, _validation)
     app.add_exception_handler(StarletteHTTPException, _http)
     _scene_routes(app, catalog)
+    _job_routes(app, catalog, board, Path(config.data) / "suites")
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
     return app
 
@@ -127,3 +184,111 @@ def _scene_routes(app: FastAPI, catalog: Catalog) -> None:
         if loaded is None:
             raise NotFound(f"no scene {key!r}")
         return scene_view(key, loaded.scenario)
+
+    @app.post("/api/scenes/{key}/prompts")
+    def prompts(key: str, body: PromptsBody) -> dict[str, Any]:
+        loaded = catalog.load(key)
+        if loaded is None:
+            raise NotFound(f"no scene {key!r}")
+        checks = check_prompts(loaded.scenario, body.prompts, body.adversary, body.target, loaded.map_index)
+        return checks.to_json()
+
+
+def _job_routes(app: FastAPI, catalog: Catalog, board: JobBoard, suites: Path) -> None:
+    video_lock = threading.Lock()
+
+    def job_of(job_id: str) -> Job:
+        job = board.get(job_id)
+        if job is None:
+            raise NotFound(f"no job {job_id!r}")
+        return job
+
+    def done_file(job_id: str, name: str) -> Path:
+        job = job_of(job_id)
+        path = board.folder(job.id) / name
+        if job.status != "done" or not path.is_file():
+            raise NotFound(f"job {job.id} is {job.status}: no {name} yet")
+        return path
+
+    @app.post("/api/jobs", status_code=201)
+    def submit(body: JobBody) -> dict[str, Any]:
+        loaded = catalog.load(body.scene)
+        if loaded is None:
+            raise NotFound(f"no scene {body.scene!r}")
+        checks = check_prompts(loaded.scenario, body.prompts, body.adversary, body.target, loaded.map_index)
+        if not checks.ok:
+            raise InputError(checks.first_error() or "the prompts cannot be run")
+        spec = JobSpec(
+            scene=body.scene,
+            scenario_id=loaded.scenario.scenario_id,
+            prompts=tuple(body.prompts),
+            rollouts=body.rollouts,
+            seed=body.seed,
+            adversary=body.adversary,
+            target=body.target,
+            compare=body.compare,
+        )
+        return {"job": board.submit(spec).to_json()}
+
+    @app.get("/api/jobs")
+    def jobs() -> dict[str, Any]:
+        return {"jobs": [j.to_json() for j in board.jobs()]}
+
+    @app.get("/api/jobs/{job_id}")
+    def job(job_id: str) -> dict[str, Any]:
+        found = job_of(job_id)
+        out = found.to_json()
+        result = board.folder(found.id) / RESULT_FILE
+        if found.status == "done" and result.is_file():
+            out["result"] = json.loads(result.read_text())
+        return out
+
+    @app.get("/api/jobs/{job_id}/rollouts.npz")
+    def rollouts(job_id: str) -> FileResponse:
+        path = done_file(job_id, ROLLOUTS_FILE)
+        return FileResponse(path, media_type="application/octet-stream", filename=f"{job_id}-rollouts.npz")
+
+    @app.get("/api/jobs/{job_id}/video.mp4")
+    def video(job_id: str) -> FileResponse:
+        path = done_file(job_id, ROLLOUTS_FILE).with_name(VIDEO_FILE)
+        with video_lock:  # one render at a time; a second request for the same video waits for the first
+            if not path.is_file():
+                _render(catalog, job_of(job_id), path)
+        return FileResponse(path, media_type="video/mp4")
+
+    @app.post("/api/jobs/{job_id}/case")
+    def case(job_id: str, body: CaseBody) -> dict[str, Any]:
+        found = job_of(job_id)
+        entry = catalog.entry(found.spec.scene)
+        if entry is None:
+            raise NotFound(f"no scene {found.spec.scene!r} in this studio's catalog")
+        try:
+            path = save_case(suites, body.suite, case_of(found, entry, body.name, body.criteria))
+        except DuplicateCase as exc:
+            raise Conflict(str(exc)) from None
+        return {"suite": str(path), "case": body.name}
+
+
+def _render(catalog: Catalog, job: Job, path: Path) -> None:
+    """Rollout 0 of the job's prompted run as a video: the prompted agents and the collision pair highlighted,
+    each prompt's target marked, from the current step on (written atomically by `save_video`)."""
+    from langtraj.metrics.instruction_following import rollout_scenario
+    from langtraj.rollouts.container import Rollouts
+    from langtraj.sim.prompts import user_prompt_entry
+    from langtraj.viz import RenderConfig, marks_from_prompt, save_video
+
+    loaded = catalog.load(job.spec.scene)
+    if loaded is None:
+        raise NotFound(f"no scene {job.spec.scene!r} in this studio's catalog")
+    scenario = loaded.scenario
+    folder = path.parent
+    played = rollout_scenario(scenario, Rollouts.load(folder / ROLLOUTS_FILE), 0)
+    result = json.loads((folder / RESULT_FILE).read_text())
+    named: list[int] = []
+    for text in job.spec.prompts:
+        named += [m for m in user_prompt_entry(scenario, text).mentions if m not in named]
+    named += [t for t in (job.spec.adversary, job.spec.target) if t is not None and t not in named]
+    caption = "; ".join(job.spec.prompts)[:120] or "no prompt"
+    marks = marks_from_prompt({"targets": result["runs"]["prompted"]["targets"]})
+    render = RenderConfig(size_px=VIDEO_PX, highlight_ids=tuple(named), show_ids=True, caption=caption, marks=marks)
+    save_video(played, path, render, start=scenario.current_index, progress=False)

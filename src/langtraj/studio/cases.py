@@ -1,0 +1,76 @@
+"""Keeping a job as a test-suite case: the job's scene (file, index, window), prompts, collision pair and seed,
+with optional criteria, appended to a suite YAML under the studio's suites folder (created with its `name:` when
+missing). The new file is checked by `suites.config.load_suite` before it replaces the old one, so a bad case
+leaves the suite as it was (docs/studio.md, 'POST /api/jobs/{id}/case'; docs/testing.md, 'Scenario suites')."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from langtraj.errors import InputError
+from langtraj.fileio import atomic_path
+from langtraj.studio.catalog import SceneEntry
+from langtraj.studio.jobs import Job
+from langtraj.suites.config import load_suite
+
+SUITE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+"""A suite's file name under the suites folder (".yaml" is added); no folders, no hidden files."""
+
+
+class DuplicateCase(InputError):
+    """The suite already holds a case of that name (409)."""
+
+
+def suite_path(suites: Path, suite: str) -> Path:
+    if not SUITE_NAME.fullmatch(suite) or len(suite) > 100:
+        raise InputError(f"expected a name of letters, digits, '.', '_' and '-', got {suite!r}", where="suite")
+    name = suite if suite.endswith(".yaml") else f"{suite}.yaml"
+    return Path(suites) / name
+
+
+def case_of(job: Job, entry: SceneEntry, name: str, criteria: dict[str, Any] | None) -> dict[str, Any]:
+    """The suite case of a job (keys of `suites.config`; the env chooses the ego)."""
+    spec = job.spec
+    case: dict[str, Any] = {"name": name, "scenario": str(entry.file.resolve()), "index": entry.index}
+    if entry.window is not None:
+        case["window"] = entry.window
+    if spec.prompts:
+        case["prompts"] = list(spec.prompts)
+    if spec.adversary is not None:
+        case |= {"adversary": spec.adversary, "target": spec.target}
+    case["seeds"] = [spec.seed]
+    if criteria:
+        case["criteria"] = dict(criteria)
+    return case
+
+
+def save_case(suites: Path, suite: str, case: dict[str, Any]) -> Path:
+    """Append `case` to the suite file `suite` under `suites`; returns the file. A duplicate case name raises
+    DuplicateCase, a case the suite format refuses InputError; either way the file is left as it was."""
+    path = suite_path(suites, suite)
+    if path.is_file():
+        try:
+            data = yaml.safe_load(path.read_text()) or {}
+        except yaml.YAMLError as exc:
+            raise InputError(f"not YAML: {str(exc).splitlines()[0]}", path=path) from None
+        if not isinstance(data, dict):
+            raise InputError("not a suite (expected a mapping)", path=path)
+    else:
+        data = {"name": path.name.removesuffix(".yaml")}
+    cases = data.get("cases") or []
+    if not isinstance(cases, list):
+        raise InputError("cases: expected a list", path=path)
+    if any(isinstance(c, dict) and c.get("name") == case["name"] for c in cases):
+        raise DuplicateCase(f"the suite already has a case named {case['name']!r}", path=path)
+    data["cases"] = [*cases, case]
+    with atomic_path(path) as tmp:
+        tmp.write_text(yaml.safe_dump(data, sort_keys=False, allow_unicode=True))
+        try:
+            load_suite(tmp)  # checked before it replaces the file
+        except InputError as exc:
+            raise InputError(exc.detail, path=path, where=exc.where) from None
+    return path

@@ -1,0 +1,164 @@
+"""Prompt checks before a job: for each typed prompt, whether it can be run (and why not), how the reader reads
+it, whether the map gives its behaviour a target (and the warning `langtraj simulate` would print when it does
+not), and the target itself; plus the adversary and target. The answers are the simulation's own
+(`sim.prompts`: `user_prompt_entry`, `read_prompts`, `prompt_steering`), asked one prompt at a time
+(docs/simulation.md, 'From words to rollouts'; docs/studio.md, 'POST /api/scenes/{key}/prompts')."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from langtraj.errors import InputError
+from langtraj.interdrive.mapindex import MapIndex
+from langtraj.interdrive.reader import PromptReading
+from langtraj.interdrive.targets import BehaviourTarget
+from langtraj.rollouts.agents import sim_agent_indices
+from langtraj.scenario.model import Scenario
+from langtraj.sim.config import ALL_LEVERS
+from langtraj.sim.prompts import prompt_steering, read_prompts, user_prompt_entry
+
+MAX_PROMPT_CHARS = 500
+"""Longer prompts are refused before anything reads them (the prompt parser's own limit is lower: 300)."""
+_WORLD: tuple[float, float, float] = (0.0, 0.0, 0.0)
+"""The frame the steering terms are built in; the checks use only the world-frame targets."""
+
+
+@dataclass(frozen=True)
+class PromptCheck:
+    """One prompt: `error` says why it cannot be run (None: it can); `reading` what the reader made of it (None
+    when it was refused before reading); `feasible` whether the map gives the read behaviour a target (None: not
+    read); `warning` the line `langtraj simulate` would warn with; `target` where the behaviour steers."""
+
+    text: str
+    error: str | None = None
+    reading: PromptReading | None = None
+    feasible: bool | None = None
+    warning: str | None = None
+    target: BehaviourTarget | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+    def to_json(self) -> dict[str, Any]:
+        reading = None
+        if self.reading is not None:
+            reading = self.reading.to_json() | {"describe": self.reading.describe()}
+        return {
+            "text": self.text,
+            "ok": self.ok,
+            "error": self.error,
+            "reading": reading,
+            "feasible": self.feasible,
+            "warning": self.warning,
+            "target": None if self.target is None else target_json(self.target),
+        }
+
+
+@dataclass(frozen=True)
+class PromptChecks:
+    """Every prompt's check and the adversary/target problem (`error`)."""
+
+    prompts: tuple[PromptCheck, ...]
+    error: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None and all(p.ok for p in self.prompts)
+
+    def first_error(self) -> str | None:
+        """One line for a refused job: the first problem found, naming its prompt."""
+        if self.error is not None:
+            return self.error
+        for i, check in enumerate(self.prompts):
+            if check.error is not None:
+                return f"prompts[{i}]: {check.error}"
+        return None
+
+    def to_json(self) -> dict[str, Any]:
+        return {"ok": self.ok, "prompts": [p.to_json() for p in self.prompts], "error": self.error}
+
+
+def target_json(target: BehaviourTarget) -> dict[str, Any]:
+    """The page's form of a target: its agent and behaviour, the path (every 2 m), the stop point where the agent
+    must stand still, the conflict point of a pair behaviour and the other agent (world frame, centimetres)."""
+    full = target.to_json()
+    return {
+        "agent": target.track_id,
+        "behaviour": target.behaviour.value,
+        "path": full["path"] or None,
+        "stop": full["goal"] if target.stop else None,
+        "conflict": full["conflict"],
+        "other": target.other_id,
+    }
+
+
+def check_prompts(
+    scenario: Scenario,
+    texts: Sequence[str],
+    adversary: int | None = None,
+    target: int | None = None,
+    index: MapIndex | None = None,
+) -> PromptChecks:
+    """Check `texts` against `scenario` (`index`: its map index, built here when not given)."""
+    rows = sim_agent_indices(scenario)
+    sim_ids = [int(i) for i in scenario.agents.ids[rows]]
+    index = index if index is not None else MapIndex.build(scenario.road_map)
+    named: dict[int, int] = {}
+    checks = []
+    for number, text in enumerate(texts):
+        check = _check(scenario, text, number, sim_ids, rows, named, index)
+        checks.append(check)
+    return PromptChecks(tuple(checks), _pair_error(adversary, target, sim_ids))
+
+
+def _check(
+    scenario: Scenario,
+    text: str,
+    number: int,
+    sim_ids: list[int],
+    rows: np.ndarray,
+    named: dict[int, int],
+    index: MapIndex,
+) -> PromptCheck:
+    if len(text) > MAX_PROMPT_CHARS:  # never passed on: a paste gone wrong must not reach the reader
+        return PromptCheck(text, f"prompt is {len(text)} characters long; the limit is {MAX_PROMPT_CHARS}")
+    try:
+        entry = user_prompt_entry(scenario, text)
+    except InputError as exc:
+        return PromptCheck(text, str(exc))
+    outside = [m for m in entry.mentions if m not in sim_ids]
+    if outside:
+        which = ", ".join(f"@{m}" for m in outside)
+        return PromptCheck(text, f"{which} not valid at the current step: the simulation moves only the sim agents")
+    again = [m for m in entry.mentions if m in named]
+    if again:
+        m = again[0]
+        return PromptCheck(text, f"@{m} is named by prompt {named[m] + 1} too; describe each agent in one prompt")
+    for m in entry.mentions:
+        named[m] = number
+    (reading,) = read_prompts([text])
+    steering = prompt_steering(scenario, (reading,), rows, _WORLD, ALL_LEVERS, index)
+    if not reading.read:
+        return PromptCheck(text, None, reading)
+    own = [t for t in steering.targets if t.track_id == reading.agent]
+    warning = steering.warnings[0] if steering.warnings else None
+    return PromptCheck(text, warning, reading, bool(own), warning, own[0] if own else None)
+
+
+def _pair_error(adversary: int | None, target: int | None, sim_ids: list[int]) -> str | None:
+    """What is wrong with a collision pair (as `langtraj simulate` refuses it), or None."""
+    if adversary is None and target is None:
+        return None
+    if adversary is None or target is None:
+        return "an adversary needs a target and a target an adversary"
+    if adversary == target:
+        return f"the adversary and the target are both @{adversary}"
+    for role, track in (("adversary", adversary), ("target", target)):
+        if track not in sim_ids:
+            return f"{role} @{track} is not a sim agent (valid at the current step) of this scene"
+    return None

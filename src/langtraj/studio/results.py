@@ -1,0 +1,154 @@
+"""Judging a run of a job: per prompt and rollout whether the labelers find it followed, per sim agent and
+rollout whether it collides or leaves the road, the WOSAC realism of the rollouts where the scene logs its
+future, and the rollouts themselves as the page replays them (docs/studio.md, 'GET /api/jobs/{id}').
+
+A prompt is judged as instruction following judges it (`metrics.instruction_following`): the facts of its read
+behaviour (`interdrive.behaviour.behaviour_facts`) among the facts the labelers find in the rollout
+(`AdherenceChecker.facts` of `rollout_scenario`). A typed prompt names no interaction subtype, so a pair
+behaviour is followed when the detector finds the interaction of its type between the two agents, whatever the
+subtype, as the simulation's own candidate judge counts it (docs/simulation.md, 'Prompts that steer')."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from langtraj.errors import InputError
+from langtraj.interdrive.adherence import AdherenceChecker, Fact
+from langtraj.interdrive.behaviour import BEHAVIOURS, behaviour_facts
+from langtraj.interdrive.reader import PromptReading
+from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID
+from langtraj.metrics.controllability import collision_flags, offroad_flags
+from langtraj.metrics.instruction_following import rollout_scenario
+from langtraj.metrics.wosac import evaluate_scenario
+from langtraj.rollouts.container import Rollouts
+from langtraj.scenario.model import Scenario
+from langtraj.scenario.types import AgentType
+
+REALISM_FIELDS = {
+    "meta_metric": "metametric",
+    "kinematic": "kinematic_metrics",
+    "interactive": "interactive_metrics",
+    "map_based": "map_based_metrics",
+    "collision_rate": "simulated_collision_rate",
+    "offroad_rate": "simulated_offroad_rate",
+}
+"""The WOSAC figures a run reports (name in the result: `ScenarioMetrics` field)."""
+
+
+def followed(reading: PromptReading, found: frozenset[Fact]) -> bool | None:
+    """Whether the facts `found` in a rollout follow a read prompt (None: a prompt not read cannot be judged)."""
+    if reading.behaviour is None or reading.agent is None:
+        return None
+    spec = BEHAVIOURS[reading.behaviour]
+    if not spec.is_pair:
+        return behaviour_facts(reading.behaviour, reading.agent) <= found
+    if reading.other is None:
+        return None
+    return any(
+        fact[0] == "interaction"
+        and fact[1:3] == (reading.agent, reading.other)
+        and SUBTYPES_BY_ID[str(fact[3])].type is spec.interaction
+        for fact in found
+    )
+
+
+def judge_prompts(
+    scenario: Scenario,
+    rollouts: Rollouts,
+    texts: Sequence[str],
+    readings: Sequence[PromptReading],
+    checker: AdherenceChecker,
+) -> list[dict[str, Any]]:
+    """Per prompt: its text, agents and behaviour, and whether each rollout follows it (the labelers run once
+    per rollout)."""
+    present = {int(i) for i in rollouts.object_id}
+    judged = [r.read and r.agent in present and (r.other is None or r.other in present) for r in readings]
+    found = []
+    if any(judged):
+        found = [checker.facts(rollout_scenario(scenario, rollouts, r)) for r in range(rollouts.num_rollouts)]
+    out = []
+    for text, reading, judge in zip(texts, readings, judged, strict=True):
+        out.append(
+            {
+                "text": text,
+                "agent": reading.agent,
+                "other": reading.other,
+                "behaviour": None if reading.behaviour is None else reading.behaviour.value,
+                "followed": [followed(reading, f) if judge else None for f in found]
+                if judge
+                else [None] * rollouts.num_rollouts,
+            }
+        )
+    return out
+
+
+def agent_outcomes(scenario: Scenario, rollouts: Rollouts) -> list[dict[str, Any]]:
+    """Per rollout agent: whether it collides with another rollout agent in each rollout, and whether it leaves
+    the road (vehicles only; null for pedestrians, cyclists and others, and where the map has no road edges)."""
+    ids = [int(i) for i in rollouts.object_id]
+    collided = collision_flags(scenario, rollouts)  # [R, A]
+    offroad: dict[int, list[bool]] = {}
+    types = scenario.agents.types[[scenario.agents.index_of(i) for i in ids]]
+    if (types == AgentType.VEHICLE).any():
+        try:
+            found, flags = offroad_flags(scenario, rollouts)
+            offroad = {int(i): flags[:, k].tolist() for k, i in enumerate(found)}
+        except InputError:  # no road edges: offroad cannot be measured
+            offroad = {}
+    nothing = [None] * rollouts.num_rollouts
+    return [
+        {"id": i, "collision": collided[:, k].tolist(), "offroad": offroad.get(i, nothing)} for k, i in enumerate(ids)
+    ]
+
+
+def realism(scenario: Scenario, rollouts: Rollouts) -> dict[str, Any]:
+    """WOSAC figures of the rollouts (2025 configuration); all null, with the reason, where the scene does not
+    log the 80 future steps or has no agent to score."""
+    try:
+        metrics = evaluate_scenario(scenario, rollouts).to_dict()
+    except InputError as exc:
+        return {name: None for name in REALISM_FIELDS} | {"note": str(exc)}
+    return {name: _finite(metrics[key]) for name, key in REALISM_FIELDS.items()} | {"note": None}
+
+
+def rollouts_json(rollouts: Rollouts) -> list[dict[str, dict[str, list[float]]]]:
+    """Per rollout, per agent (track id as text), its 80 simulated x, y (centimetres) and headings (milliradians)."""
+    ids = [str(int(i)) for i in rollouts.object_id]
+    out = []
+    for r in range(rollouts.num_rollouts):
+        one = {}
+        for name, digits in (("x", 2), ("y", 2), ("heading", 3)):
+            values = np.round(getattr(rollouts, name)[r].astype(np.float64), digits)
+            one[name] = dict(zip(ids, values.tolist(), strict=True))
+        out.append(one)
+    return out
+
+
+def run_json(
+    scenario: Scenario,
+    rollouts: Rollouts,
+    texts: Sequence[str],
+    readings: Sequence[PromptReading],
+    checker: AdherenceChecker,
+    report: dict[str, Any],
+    seconds: float,
+) -> dict[str, Any]:
+    """The RUN object of a job's result."""
+    prompt = report.get("prompt") or {}
+    return {
+        "rollouts": rollouts_json(rollouts),
+        "prompts": judge_prompts(scenario, rollouts, texts, readings, checker),
+        "agents": agent_outcomes(scenario, rollouts),
+        "realism": realism(scenario, rollouts),
+        "targets": list(prompt.get("targets") or []),
+        "warnings": list(report.get("prompt_warnings") or []),
+        "seconds": round(seconds, 2),
+    }
+
+
+def _finite(value: Any) -> float | None:
+    return None if not isinstance(value, int | float) or not math.isfinite(value) else round(float(value), 4)
