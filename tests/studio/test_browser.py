@@ -1,0 +1,447 @@
+"""LangTraj Studio in a real browser: Playwright drives Debian's Chromium against the real app (uvicorn on a free
+port, the real simulation) over the shipped real scenes. Pick the Waymo scene, click an agent on the canvas to
+insert its @id, write a prompt and see it read and its target drawn, run two rollouts, watch the replay (play,
+scrub, its frame times), judge (followed per rollout), save the case and read the suite file; bad prompts show
+a message and start no job; two tabs each start a job, both finish, a reload lists them. Every canvas is checked
+for being drawn (not one colour). Set LANGTRAJ_SCREENSHOTS to a folder to keep a screenshot of every step.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import itertools
+import json
+import math
+import os
+import re
+import socket
+import statistics
+import threading
+import time
+import urllib.request
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from langtraj.studio.app import StudioConfig, create_app
+from langtraj.studio.catalog import Catalog
+
+try:
+    import numpy as np
+    import uvicorn
+    from PIL import Image
+    from playwright.sync_api import Browser, Page, expect, sync_playwright
+except ImportError as exc:
+    pytest.skip(
+        f"the browser tests need playwright, uvicorn and pillow (pip install -e '.[dev,label]'): {exc}",
+        allow_module_level=True,
+    )
+
+CHROMIUM = Path("/usr/bin/chromium")
+if not CHROMIUM.is_file():
+    pytest.skip(
+        f"the browser tests need Debian's Chromium at {CHROMIUM} (apt-get install chromium)", allow_module_level=True
+    )
+
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--disable-quic",
+]
+SCENE_ID = "2a1e44d405a6833f"  # the real WOMD scene: 66 sim agents
+SMALL_SCENE_ID = "scene-0757_w0"  # nuScenes, few agents: the two tabs' quick jobs
+SCREENSHOTS = os.environ.get("LANGTRAJ_SCREENSHOTS")
+JOB_TIMEOUT_MS = 100_000
+MEDIAN_FRAME_MS = 50.0
+INFEASIBLE_ASKS = ("turns left", "turns right", "pulls over", "changes lane to the left", "changes lane to the right")
+
+
+# ---------------------------------------------------------------- the server and the browser
+
+
+@dataclass(frozen=True)
+class Site:
+    url: str
+    data: Path
+
+    def get(self, path: str) -> Any:
+        with urllib.request.urlopen(f"{self.url}{path}", timeout=30) as response:
+            return json.loads(response.read())
+
+    def post(self, path: str, body: Any) -> Any:
+        request = urllib.request.Request(
+            f"{self.url}{path}", json.dumps(body).encode(), {"Content-Type": "application/json"}, method="POST"
+        )
+        with urllib.request.urlopen(request, timeout=60) as response:
+            return json.loads(response.read())
+
+    def scene_key(self, scenario_id: str) -> str:
+        return next(s["key"] for s in self.get("/api/scenes")["scenes"] if s["scenario_id"] == scenario_id)
+
+    def job_ids(self) -> list[str]:
+        return [j["id"] for j in self.get("/api/jobs")["jobs"]]
+
+
+def _wait_ready(url: str, thread: threading.Thread, timeout: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with urllib.request.urlopen(f"{url}/api/jobs", timeout=2) as response:
+                if response.status == 200:
+                    return
+        except OSError:
+            pass
+        if not thread.is_alive() or time.monotonic() > deadline:
+            raise RuntimeError(f"the studio at {url} did not answer /api/jobs")
+        time.sleep(0.05)
+
+
+@pytest.fixture(scope="module")
+def site(catalog: Catalog, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
+    """The real app (the real simulation) over the real scenes and a corrupt file, served by uvicorn in a thread."""
+    data = tmp_path_factory.mktemp("studio-browser") / "data"
+    app = create_app(StudioConfig((), data=data), catalog)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    sock.bind(("127.0.0.1", 0))
+    url = f"http://127.0.0.1:{sock.getsockname()[1]}"
+    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
+    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
+    thread.start()
+    try:
+        _wait_ready(url, thread)
+        yield Site(url, data)
+    finally:
+        server.should_exit = True
+        thread.join(timeout=30)
+        sock.close()
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Browser]:
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), headless=True, args=CHROMIUM_ARGS)
+        try:
+            yield browser
+        finally:
+            browser.close()
+
+
+def drawn(png: bytes) -> float:
+    """The share of pixels that differ from the image's most common colour (0: blank, one colour)."""
+    rgb = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).reshape(-1, 3)
+    colours, counts = np.unique(rgb, axis=0, return_counts=True)
+    return 1.0 - counts.max() / len(rgb) if len(colours) > 1 else 0.0
+
+
+@dataclass
+class Visit:
+    """One page in a fresh browser context, with what it reported: dialogs and script errors (CSP included)."""
+
+    page: Page
+    name: str
+    dialogs: list[str] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)
+
+    def shot(self, step: str, *canvases: str) -> None:
+        """Screenshot the page (kept under LANGTRAJ_SCREENSHOTS) and check each canvas in it is drawn."""
+        png = self.page.screenshot(full_page=True)
+        if SCREENSHOTS:
+            Path(SCREENSHOTS).mkdir(parents=True, exist_ok=True)
+            (Path(SCREENSHOTS) / f"{self.name}-{step}.png").write_bytes(png)
+        assert drawn(png) > 0.05, f"{step}: the page is blank"
+        for selector in canvases:
+            for k in range(self.page.locator(selector).count()):
+                share = drawn(canvas_png(self.page, selector, k))
+                assert share > 0.02, f"{step}: {selector} [{k}] is blank ({share:.3f} drawn)"
+
+    def check_clean(self) -> None:
+        assert self.dialogs == [], f"dialogs fired: {self.dialogs}"
+        assert self.errors == [], f"script errors or CSP violations: {self.errors}"
+
+
+def canvas_png(page: Page, selector: str, k: int = 0) -> bytes:
+    """The canvas's own pixels (`toDataURL`), as PNG bytes."""
+    url = page.locator(selector).nth(k).evaluate("c => c.toDataURL('image/png')")
+    return base64.b64decode(url.split(",", 1)[1])
+
+
+def new_context(browser: Browser) -> Any:
+    return browser.new_context(viewport={"width": 1400, "height": 950})
+
+
+def visit(browser: Browser, site: Site, name: str, fragment: str = "", context: Any = None) -> Visit:
+    """A new page (a tab of `context`, by default of a fresh browser context) on the studio at `fragment`."""
+    page = (context or new_context(browser)).new_page()
+    page.set_default_timeout(15_000)
+    v = Visit(page, name)
+
+    def on_dialog(dialog: Any) -> None:
+        v.dialogs.append(dialog.message)
+        dialog.dismiss()
+
+    def on_console(message: Any) -> None:
+        # "Failed to load resource" reports an HTTP error status: the 400s of the refused prompts
+        if message.type == "error" and not message.text.startswith("Failed to load resource"):
+            v.errors.append(message.text)
+
+    page.on("dialog", on_dialog)
+    page.on("console", on_console)
+    page.on("pageerror", lambda error: v.errors.append(str(error)))
+    page.goto(f"{site.url}/{fragment}")
+    expect(page.locator("#scene-list button.scene").first).to_be_visible()
+    return v
+
+
+def open_scene(v: Visit, scenario_id: str) -> None:
+    v.page.fill("#scene-search", scenario_id)
+    expect(v.page.locator("#scene-list button.scene")).to_have_count(1)
+    v.page.locator("#scene-list button.scene", has_text=scenario_id).click()
+    expect(v.page.locator("#scene-title")).to_contain_text(scenario_id)
+
+
+def set_prompt(v: Visit, text: str, k: int = 0) -> None:
+    box = v.page.locator(f"#prompt-{k}")
+    box.fill(text)
+    if text.strip():
+        expect(v.page.locator(f"#reading-{k}")).not_to_contain_text("Reading…", timeout=30_000)
+
+
+def moving_vehicles(scene: dict[str, Any]) -> list[dict[str, Any]]:
+    """The scene's sim vehicles moving at the current step, fastest first (each with its position)."""
+    cur = scene["current_step"]
+    out = []
+    for a in scene["agents"]:
+        p, q = a["track"][cur], a["track"][cur - 1]
+        if a["sim"] and not a["sdc"] and a["type"] == "vehicle" and p and q:
+            speed = math.hypot(p[0] - q[0], p[1] - q[1]) / scene["step_seconds"]
+            if speed > 3.0:
+                out.append({**a, "speed": speed, "at": p})
+    return sorted(out, key=lambda a: -a["speed"])
+
+
+def target_pixels(png: bytes) -> int:
+    """How many pixels have the prompt target's colour (#e01b8f)."""
+    rgb = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+    return int((np.abs(rgb - np.array([224, 27, 143])).sum(axis=2) < 40).sum())
+
+
+def wait_done(page: Page, count: int) -> None:
+    """Until the first `count` jobs of the list are done (each failing job fails the test with its error)."""
+    badges = page.locator("#jobs .job .status-badge")
+    deadline = time.monotonic() + JOB_TIMEOUT_MS / 1000
+    while True:
+        states = badges.all_text_contents()[:count]
+        failed = [s for s in states if s in ("failed", "interrupted")]
+        assert not failed, page.locator("#jobs").inner_text()
+        if len(states) == count and all(s == "done" for s in states):
+            return
+        assert time.monotonic() < deadline, f"jobs not done in time: {states}"
+        time.sleep(0.25)
+
+
+# ---------------------------------------------------------------- the tests
+
+
+def test_pick_prompt_run_watch_judge_keep(site: Site, browser: Browser) -> None:
+    v = visit(browser, site, "main")
+    page = v.page
+    errors = page.locator("#scene-errors")
+    expect(errors).to_be_visible()
+    expect(errors).to_contain_text("corrupt.tfrecord")
+    open_scene(v, SCENE_ID)
+    v.shot("1-scene", "#scene-canvas")
+
+    # click an agent on the canvas: its @id goes where the caret is
+    key = site.scene_key(SCENE_ID)
+    scene = site.get(f"/api/scenes/{key}")
+    agent = moving_vehicles(scene)[0]
+    page.locator("#prompt-0").click()
+    point = page.evaluate(f"() => window.studio.agentPoint({agent['id']})")
+    page.mouse.move(point["x"], point["y"])
+    expect(page.locator("#hover-info")).to_contain_text(f"@{agent['id']}: vehicle")
+    page.mouse.click(point["x"], point["y"])
+    expect(page.locator("#prompt-0")).to_have_value(f"@{agent['id']} ")
+    expect(page.locator("#prompt-0")).to_be_focused()
+    blank_targets = target_pixels(canvas_png(page, "#scene-canvas"))
+
+    # type the rest of the prompt: its reading and its target appear
+    page.keyboard.type("slows down")
+    reading = page.locator("#reading-0")
+    expect(reading).to_contain_text(f"read as: @{agent['id']} slow_down", timeout=30_000)
+    expect(reading.locator(".pill")).to_have_text("feasible")
+    deadline = time.monotonic() + 5  # the canvas is redrawn on the next animation frame
+    while target_pixels(canvas_png(page, "#scene-canvas")) <= blank_targets + 50:
+        assert time.monotonic() < deadline, "the prompt's target is not drawn"
+        page.wait_for_timeout(100)
+    v.shot("2-prompt-read", "#scene-canvas")
+
+    # run 2 rollouts: the job appears queued or running with its progress, then finishes
+    page.fill("#rollouts", "2")
+    page.fill("#seed", "3")
+    jobs_before = site.job_ids()
+    page.click("#run")
+    job = page.locator("#jobs .job").first
+    expect(job.locator(".status-badge")).to_have_text(re.compile("queued|running|done"))
+    assert len(site.job_ids()) == len(jobs_before) + 1
+    v.shot("3-job-started", "#scene-canvas")
+    page.locator("#prompt-0").fill(f"@{agent['id']} slows down gently")  # the page stays usable meanwhile
+    wait_done(page, 1)
+    v.shot("4-job-done", "#scene-canvas")
+
+    # watch: the replay, rollouts side by side with the unprompted run
+    job.locator("button.open").click()
+    expect(page.locator("#replay")).to_be_visible()
+    canvases = page.locator("#replay-grid canvas")
+    expect(canvases).to_have_count(4)  # 2 rollouts x (prompted, unprompted)
+    expect(page.locator("#step-info")).to_contain_text("logged history")
+    start_frame = canvas_png(page, "#replay-grid canvas", 0)
+    page.evaluate("() => { window.studioStats.frames = []; }")
+    page.click("#play")
+    page.wait_for_timeout(2000)
+    page.click("#play")
+    frames = page.evaluate("() => window.studioStats.frames")
+    intervals = [b - a for a, b in itertools.pairwise(frames)]
+    assert len(intervals) >= 10, f"too few frames drawn in 2 s: {len(frames)}"
+    median = statistics.median(intervals)
+    result = site.get(f"/api/jobs/{site.job_ids()[0]}")["result"]
+    agents = len(result["runs"]["prompted"]["rollouts"][0]["x"])
+    assert agents >= 32, agents
+    print(f"replay of {agents} agents x 4 panels: {len(frames)} frames in 2 s, median interval {median:.1f} ms")
+    assert median < MEDIAN_FRAME_MS, f"median frame interval {median:.1f} ms"
+    expect(page.locator("#step-info")).to_contain_text("simulated step")
+    assert canvas_png(page, "#replay-grid canvas", 0) != start_frame  # the agents moved
+    v.shot("5-replay-playing", "#replay-grid canvas")
+
+    # scrub by keyboard: the first and the last step
+    page.focus("#scrub")
+    page.keyboard.press("Home")
+    expect(page.locator("#step-info")).to_contain_text("logged history, step 1 of")
+    page.keyboard.press("End")
+    expect(page.locator("#step-info")).to_contain_text("simulated step 80 of 80")
+    v.shot("6-replay-end", "#replay-grid canvas")
+    page.select_option("#layout", "one")
+    page.select_option("#which-rollout", "1")
+    expect(canvases).to_have_count(2)
+    expect(page.locator("#replay-grid figcaption").first).to_contain_text("rollout 2")
+
+    # judge: followed or not per rollout, the base rate, the realism figures
+    table = page.locator("#followed-table")
+    row = table.locator("tbody tr").first
+    expect(row.locator("th")).to_have_text(f"@{agent['id']} slows down")
+    verdicts = row.locator("td").all_text_contents()[1:3]
+    assert all(t in ("followed", "not followed") for t in verdicts), verdicts
+    expect(row.locator("td").last).to_contain_text(re.compile(r"\d+ of \d+|not judged"))
+    expect(page.locator("#realism-table")).to_contain_text("meta metric")
+    expect(page.locator(".events-table").first.locator("tbody")).to_contain_text(f"@{agent['id']}")
+    v.shot("7-results", "#replay-grid canvas")
+
+    # keep: save the case, the suite file holds it; the downloads are there
+    page.fill("#case-suite", "studio-e2e")
+    page.fill("#case-name", "slows-down")
+    page.fill("#case-ttc", "0.5")
+    page.check("#case-nocollision")
+    page.locator("#case-form button[type=submit]").click()
+    expect(page.locator("#case-result")).to_contain_text("slows-down")
+    saved = page.locator("#case-result").inner_text()
+    suite_files = [p for p in site.data.rglob("*") if p.is_file() and "studio-e2e" in str(p)]
+    assert suite_files, f"no suite file under {site.data} ({saved})"
+    text = "\n".join(p.read_text(errors="replace") for p in suite_files if p.suffix in (".yaml", ".yml", ".json"))
+    assert "slows-down" in text and f"@{agent['id']} slows down" in text, text[:2000]
+    assert "min_ttc" in text and "no_collision" in text, text[:2000]
+    page.locator("#case-form button[type=submit]").click()  # the same name again: the server's error, in the page
+    expect(page.locator("#case-error")).to_contain_text("slows-down")
+    npz = page.request.get(site.url + (page.locator("#dl-npz").get_attribute("href") or ""))
+    assert npz.ok and npz.body()[:2] == b"PK", npz.status
+    assert (page.locator("#dl-video").get_attribute("href") or "").endswith("/video.mp4")
+    v.shot("8-saved", "#replay-grid canvas")
+    v.check_clean()
+    page.context.close()
+
+
+def find_infeasible(site: Site, key: str, scene: dict[str, Any]) -> tuple[str, str]:
+    """A prompt the map rules out in this scene (read, with a warning), and its warning."""
+    for agent in moving_vehicles(scene):
+        asks = [f"@{agent['id']} {ask}" for ask in INFEASIBLE_ASKS]
+        checks = [site.post(f"/api/scenes/{key}/prompts", {"prompts": [t]})["prompts"][0] for t in asks]
+        for text, check in zip(asks, checks, strict=True):
+            if not check["ok"] and check["reading"] and check["reading"]["behaviour"] and check["warning"]:
+                return text, check["warning"]
+    raise AssertionError("no prompt the map rules out found in the scene")
+
+
+def test_bad_prompts_show_a_message_and_start_no_job(site: Site, browser: Browser) -> None:
+    key = site.scene_key(SCENE_ID)
+    scene = site.get(f"/api/scenes/{key}")
+    infeasible, warning = find_infeasible(site, key, scene)
+    known = moving_vehicles(scene)[0]["id"]
+    v = visit(browser, site, "bad", f"#scene={key}")
+    page = v.page
+    expect(page.locator("#scene-title")).to_contain_text(SCENE_ID)  # the scene of the address
+    jobs = site.job_ids()
+    cases = [
+        ("unknown", "@987654 slows down", "987654"),
+        ("infeasible", infeasible, "infeasible"),
+        ("empty", "   ", "Prompt 1 is empty"),
+        ("long", f"@{known} slows down " + "x" * (10_000 - len(f"@{known} slows down ")), "10000 characters"),
+    ]
+    for name, text, message in cases:
+        set_prompt(v, text)
+        assert len(page.locator("#prompt-0").input_value()) == len(text)
+        page.click("#run")
+        error = page.locator("#run-error")
+        expect(error).to_be_visible()
+        expect(error).to_contain_text(message)
+        if name == "infeasible":
+            expect(error).to_contain_text(warning)
+            expect(page.locator("#reading-0 .pill")).to_have_text("infeasible")
+        if name in ("unknown", "long"):
+            expect(page.locator("#reading-0 .pill")).to_have_text("cannot run")
+        v.shot(f"{name}", "#scene-canvas")
+        assert site.job_ids() == jobs, f"{name}: a job was created"
+    expect(page.locator("#jobs .job")).to_have_count(len(jobs))
+    v.check_clean()
+    page.context.close()
+
+
+def test_two_tabs_each_start_a_job_and_reload_shows_them(site: Site, browser: Browser) -> None:
+    key = site.scene_key(SMALL_SCENE_ID)
+    scene = site.get(f"/api/scenes/{key}")
+    movers = moving_vehicles(scene)
+    assert len(movers) >= 2, f"{SMALL_SCENE_ID}: fewer than two moving sim vehicles"
+    ids = [a["id"] for a in movers[:2]]
+    context = new_context(browser)  # two tabs of one browser window
+    tabs = []
+    before = len(site.job_ids())
+    for k, agent in enumerate(ids):
+        v = visit(browser, site, f"tab{k + 1}", f"#scene={key}", context)
+        expect(v.page.locator("#scene-title")).to_contain_text(SMALL_SCENE_ID)
+        tabs.append(v)
+        set_prompt(v, f"@{agent} slows down")
+        v.page.fill("#rollouts", "1")
+        v.page.uncheck("#compare")
+        v.page.click("#run")
+        expect(v.page.locator("#jobs .job", has_text=f"@{agent} slows down")).to_have_count(1)
+        expect(v.page.locator("#run-error")).to_be_hidden()
+    assert len(site.job_ids()) == before + 2
+    for v in tabs:  # each tab lists both jobs (the other tab's by polling) and sees both finish
+        expect(v.page.locator("#jobs .job")).to_have_count(before + 2, timeout=10_000)
+        wait_done(v.page, 2)
+        v.shot("done", "#scene-canvas")
+    page = tabs[0].page
+    page.reload()
+    expect(page.locator("#jobs .job")).to_have_count(before + 2)
+    expect(page.locator("#jobs .job .status-badge")).to_have_text(["done"] * (before + 2))
+    expect(page.locator("#jobs .job").first).to_contain_text(f"@{ids[1]} slows down")
+    expect(page.locator("#prompt-0")).to_have_value(f"@{ids[0]} slows down")  # the tab's prompts are kept
+    tabs[0].shot("reloaded", "#scene-canvas")
+    for v in tabs:
+        v.check_clean()
+    context.close()
