@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from conftest import CORRUPT_NAME
 from fastapi.testclient import TestClient
 
 from langtraj.studio.app import StudioConfig, create_app
 from langtraj.studio.catalog import Catalog
+
+from .conftest import CORRUPT_NAME
 
 WOMD_ID = "637f20cafde22ff8"
 
