@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from fastapi.testclient import TestClient
@@ -21,7 +22,9 @@ def _client(catalog: Catalog, tmp_path: Path) -> TestClient:
 def test_scene_list_with_windows_kinds_and_the_corrupt_file(catalog: Catalog, tmp_path: Path) -> None:
     body = _client(catalog, tmp_path).get("/api/scenes").json()
     scenes = body["scenes"]
-    assert [s["key"] for s in scenes] == [f"s{i}" for i in range(len(scenes))]
+    assert len({s["key"] for s in scenes}) == len(scenes) and all(
+        re.fullmatch(r"s[0-9a-f]{12}", s["key"]) for s in scenes
+    )
     womd = next(s for s in scenes if s["scenario_id"] == WOMD_ID)
     assert (womd["kind"], womd["window"], womd["steps"], womd["index"]) == ("womd", None, 91, 0)
     assert womd["sim_agents"] <= womd["agents"]
@@ -72,3 +75,12 @@ def test_scene_view(catalog: Catalog, tmp_path: Path) -> None:
     assert all(light["state"] in {"stop", "caution", "go", "unknown"} for light in view["lights"])
     missing = client.get("/api/scenes/nope")
     assert missing.status_code == 404 and "nope" in missing.json()["error"]
+
+
+def test_scene_keys_are_stable_whatever_else_is_listed(catalog: Catalog, real_data_dir: Path) -> None:
+    womd = real_data_dir / "motion_data_one_scenario.tfrecord"
+    alone = Catalog.build([womd, womd])  # named twice, listed once
+    assert len(alone.entries) == 1
+    same = [e for e in catalog.entries if e.file.resolve() == womd.resolve()]
+    assert [e.key for e in same] == [alone.entries[0].key]
+    assert len({e.key for e in catalog.entries}) == len(catalog.entries)

@@ -4,6 +4,7 @@ load are listed with their one-line error (docs/studio.md, 'Scenes')."""
 
 from __future__ import annotations
 
+import hashlib
 import threading
 from collections import OrderedDict
 from collections.abc import Iterable, Sequence
@@ -106,7 +107,8 @@ def _windows(scenario: Scenario) -> list[tuple[int | None, Scenario]]:
 
 
 class Catalog:
-    """The scene list (`entries`, catalog order; keys "s0", "s1", ...) and the files that failed (`errors`)."""
+    """The scene list (`entries`, in the order of the files; each keyed by `scene_key`) and the files that failed
+    (`errors`)."""
 
     def __init__(self, entries: Sequence[SceneEntry], errors: Sequence[FileError]):
         self.entries = tuple(entries)
@@ -121,6 +123,7 @@ class Catalog:
         entries: list[SceneEntry] = []
         errors: list[FileError] = []
         files: list[Path] = []
+        seen: set[str] = set()
         for path in paths:
             try:
                 files += expand_scenario_paths([path])
@@ -130,7 +133,10 @@ class Catalog:
             try:
                 for index, scenario in enumerate(read_scenarios(file)):
                     for window, scene in _windows(scenario):
-                        entries.append(_entry(f"s{len(entries)}", file, index, window, scene))
+                        key = scene_key(file, index, window)
+                        if key not in seen:  # a file named twice is listed once
+                            seen.add(key)
+                            entries.append(_entry(key, file, index, window, scene))
             except InputError as exc:
                 errors.append(FileError(str(file), str(exc)))
             except (OSError, ValueError) as exc:  # a file the readers refuse in another way: listed, not fatal
@@ -165,6 +171,13 @@ class Catalog:
             while len(self._cache) > CACHED_SCENES:
                 self._cache.popitem(last=False)
         return loaded
+
+
+def scene_key(file: Path, index: int, window: int | None) -> str:
+    """A scene's key: short, url-safe and the same for the same scene whatever else the studio lists, so the jobs a
+    studio kept name their scenes again after a restart with other files."""
+    digest = hashlib.sha1(f"{Path(file).resolve()}#{index}#{window}".encode()).hexdigest()
+    return f"s{digest[:12]}"
 
 
 def read_entry(entry: SceneEntry) -> Scenario:
