@@ -15,7 +15,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "langtraj"
 
 LAYERS = (
     ("errors",),
-    ("angles", "frames", "polylines", "fileio", "registry", "settings"),
+    ("angles", "frames", "polylines", "fileio", "registry", "settings", "web"),
     ("executors", "runs"),
     ("scenario",),
     ("rollouts", "viz", "synth", "interdrive"),

@@ -9,10 +9,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import socket
-import threading
-import time
-import urllib.request
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,29 +30,9 @@ try:
 except ImportError:  # tests/labeling without __init__.py is itself on sys.path
     from builders import PASSWORD, SUGGESTED, add_user, make_label_dataset  # type: ignore[no-redef]
 
-try:
-    import uvicorn
-    from playwright.sync_api import Browser, Page, expect, sync_playwright
-except ImportError as exc:
-    pytest.skip(
-        f"the browser tests need playwright and uvicorn (pip install -e '.[dev,label]'): {exc}", allow_module_level=True
-    )
+from browser_harness import chromium, serve
+from playwright.sync_api import Browser, Page, expect
 
-CHROMIUM = Path("/usr/bin/chromium")
-if not CHROMIUM.is_file():
-    pytest.skip(
-        f"the browser tests need Debian's Chromium at {CHROMIUM} (apt-get install chromium)", allow_module_level=True
-    )
-
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-    "--disable-quic",
-]
 USERS = {"ann1": Role.ANNOTATOR, "ann2": Role.ANNOTATOR, "rev": Role.REVIEWER, "admin": Role.ADMIN}
 XSS = "<img src=x onerror=alert(1)><script>window.pwned=1</script>"
 KINDS = [k.value for k in InteractionType]  # the page's type keys: 1..7 in taxonomy order, 0 for No interaction
@@ -86,20 +62,6 @@ class Site:
     dataset: Path
 
 
-def _wait_healthy(url: str, thread: threading.Thread, timeout: float = 20.0) -> None:
-    deadline = time.monotonic() + timeout
-    while True:
-        try:
-            with urllib.request.urlopen(f"{url}/healthz", timeout=2) as response:
-                if response.status == 200:
-                    return
-        except OSError:
-            pass
-        if not thread.is_alive() or time.monotonic() > deadline:
-            raise RuntimeError(f"the labeling server at {url} did not answer /healthz")
-        time.sleep(0.05)
-
-
 @pytest.fixture(scope="module")
 def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
     """The real app over a one-window dataset (two slots), served by uvicorn in a thread on a free port."""
@@ -109,29 +71,14 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
     add_tasks(db, dataset, overlap=2)
     for name, role in USERS.items():
         add_user(db, name, role)
-    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    sock.bind(("127.0.0.1", 0))
-    url = f"http://127.0.0.1:{sock.getsockname()[1]}"
-    server = uvicorn.Server(uvicorn.Config(create_app(config, db), log_level="warning", lifespan="off"))
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    try:
-        _wait_healthy(url, thread)
+    with serve(create_app(config, db), "/healthz", lifespan="off") as url:
         yield Site(url, dataset)
-    finally:
-        server.should_exit = True
-        thread.join(timeout=10)
-        sock.close()
 
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Browser]:
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), headless=True, args=CHROMIUM_ARGS)
-        try:
-            yield browser
-        finally:
-            browser.close()
+    with chromium() as browser:
+        yield browser
 
 
 @dataclass

@@ -15,9 +15,7 @@ import json
 import math
 import os
 import re
-import socket
 import statistics
-import threading
 import time
 import urllib.request
 from collections.abc import Iterator
@@ -26,36 +24,18 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from browser_harness import chromium, serve
 
 from langtraj.studio.app import StudioConfig, create_app
 from langtraj.studio.catalog import Catalog
 
 try:
     import numpy as np
-    import uvicorn
     from PIL import Image
-    from playwright.sync_api import Browser, Page, expect, sync_playwright
+    from playwright.sync_api import Browser, Page, expect
 except ImportError as exc:
-    pytest.skip(
-        f"the browser tests need playwright, uvicorn and pillow (pip install -e '.[dev,label]'): {exc}",
-        allow_module_level=True,
-    )
+    pytest.skip(f"the browser tests need pillow: {exc}", allow_module_level=True)
 
-CHROMIUM = Path("/usr/bin/chromium")
-if not CHROMIUM.is_file():
-    pytest.skip(
-        f"the browser tests need Debian's Chromium at {CHROMIUM} (apt-get install chromium)", allow_module_level=True
-    )
-
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-    "--disable-quic",
-]
 SCENE_ID = "2a1e44d405a6833f"  # the real WOMD scene: 66 sim agents
 SMALL_SCENE_ID = "scene-0757_w0"  # nuScenes, few agents: the two tabs' quick jobs
 SCREENSHOTS = os.environ.get("LANGTRAJ_SCREENSHOTS")
@@ -90,48 +70,18 @@ class Site:
         return [j["id"] for j in self.get("/api/jobs")["jobs"]]
 
 
-def _wait_ready(url: str, thread: threading.Thread, timeout: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout
-    while True:
-        try:
-            with urllib.request.urlopen(f"{url}/api/jobs", timeout=2) as response:
-                if response.status == 200:
-                    return
-        except OSError:
-            pass
-        if not thread.is_alive() or time.monotonic() > deadline:
-            raise RuntimeError(f"the studio at {url} did not answer /api/jobs")
-        time.sleep(0.05)
-
-
 @pytest.fixture(scope="module")
 def site(catalog: Catalog, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
     """The real app (the real simulation) over the real scenes and a corrupt file, served by uvicorn in a thread."""
     data = tmp_path_factory.mktemp("studio-browser") / "data"
-    app = create_app(StudioConfig((), data=data), catalog)
-    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    sock.bind(("127.0.0.1", 0))
-    url = f"http://127.0.0.1:{sock.getsockname()[1]}"
-    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    try:
-        _wait_ready(url, thread)
+    with serve(create_app(StudioConfig((), data=data), catalog), "/api/jobs") as url:
         yield Site(url, data)
-    finally:
-        server.should_exit = True
-        thread.join(timeout=30)
-        sock.close()
 
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Browser]:
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), headless=True, args=CHROMIUM_ARGS)
-        try:
-            yield browser
-        finally:
-            browser.close()
+    with chromium() as browser:
+        yield browser
 
 
 def drawn(png: bytes) -> float:

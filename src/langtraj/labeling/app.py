@@ -30,18 +30,13 @@ from langtraj.labeling.media import MediaConfig, agent_positions, window_video
 from langtraj.labeling.models import Role
 from langtraj.labeling.protocol import parse_labels
 from langtraj.scenario.model import Scenario
+from langtraj.web import SECURITY_HEADERS
 
 COOKIE = "langtraj_session"
 CSRF_HEADER = "X-CSRF-Token"
 STATIC = Path(__file__).with_name("static")
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 OPEN_PATHS = frozenset({"/api/login"})
-SECURITY_HEADERS = {
-    "Content-Security-Policy": "default-src 'self'; img-src 'self' data:; media-src 'self'; object-src 'none'; "
-    "base-uri 'none'; frame-ancestors 'none'",
-    "X-Content-Type-Options": "nosniff",
-    "Referrer-Policy": "no-referrer",
-}
 
 
 @dataclass(frozen=True)

@@ -25,16 +25,11 @@ from langtraj.studio.checks import check_prompts
 from langtraj.studio.jobs import Job, JobBoard, JobSpec, JobStore, Runner
 from langtraj.studio.simulation import RESULT_FILE, ROLLOUTS_FILE, JobRunner
 from langtraj.studio.views import scene_view
+from langtraj.web import SECURITY_HEADERS
 
 STATIC = Path(__file__).with_name("static")
 MAX_BODY_BYTES = 256 * 1024
 """Request bodies above this are refused (413): prompts are short, and nothing else is uploaded."""
-SECURITY_HEADERS = {
-    "Content-Security-Policy": "default-src 'self'; img-src 'self' data:; media-src 'self'; object-src 'none'; "
-    "base-uri 'none'; frame-ancestors 'none'",
-    "X-Content-Type-Options": "nosniff",
-    "Referrer-Policy": "no-referrer",
-}
 
 
 @dataclass(frozen=True)
