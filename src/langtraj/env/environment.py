@@ -21,12 +21,14 @@ import numpy as np
 from langtraj.angles import wrap_angle
 from langtraj.env import spaces
 from langtraj.env.dynamics import step_unicycle, track
-from langtraj.env.events import EventJudge, StepEvents, road_edge_index
+from langtraj.env.events import EventJudge, road_edge_index
 from langtraj.env.observe import MapPieces, Observer
 from langtraj.env.reward import RewardConfig
-from langtraj.env.route import ego_route, match_ego
+from langtraj.env.route import ego_route
 from langtraj.errors import InputError
+from langtraj.interdrive.heuristics import HeuristicConfig
 from langtraj.interdrive.mapindex import MapIndex
+from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
 from langtraj.metrics.road import RoadEdgeIndex
 from langtraj.model.config import ModelConfig
 from langtraj.rollouts.agents import sim_agent_indices
@@ -196,7 +198,7 @@ class LangTrajEnv(gym.Env):
         self._ego, self._ego_id = ego, ego_id
         pose = self._pose()
         logged = _logged_future(scenario, ego)
-        start = match_ego(scene.index, pose[:2], float(pose[2]), float(pose[3]))
+        start = AgentOnLane.of(scenario, ego, scene.index, HeuristicConfig())
         seen = logged[np.isfinite(logged[:, 0]), :2]
         self._route = ego_route(scene.index, start, pose[:2], float(pose[2]), seen)
         self._observer = Observer(scenario, ego, self._route, scene.pieces)
@@ -235,13 +237,14 @@ class LangTrajEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         if self._sim.done:
             raise RuntimeError("the episode is over (8 s simulated); call reset()")
-        control = self._control_of(action)
         pose = self._pose()
+        control = self._control_of(action, pose)
         nxt = step_unicycle(pose, control, self._curvature)
         self._control = np.array([nxt[3] - pose[3], wrap_angle(nxt[2] - pose[2])]) / STEP_SECONDS  # as executed
         self._sim.advance(nxt[None, None])
-        obs, station = self._observe()
-        events = self._events()
+        frame = self._frame()
+        obs, station = self._observe(frame)
+        events = self._judge.judge(*frame)
         gained = station - self._last_station
         self._last_station = station
         reward = self.reward_config.reward(gained, events.collision, events.at_fault, events.offroad)
@@ -328,16 +331,13 @@ class LangTrajEnv(gym.Env):
         valid[world.sim_agents] = world.valid[0, world.sim_agents, step]
         return world.states[0, :, step], valid
 
-    def _observe(self) -> tuple[dict[str, np.ndarray], float]:
+    def _observe(self, frame: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[dict[str, np.ndarray], float]:
         assert self._sim is not None
-        states, valid = self._frame()
+        states, valid = self._frame() if frame is None else frame
         elapsed = (self._sim.step - self._sim.world.start) * STEP_SECONDS
         return self._observer.observe(states, valid, elapsed, self._control)
 
-    def _events(self) -> StepEvents:
-        return self._judge.judge(*self._frame())
-
-    def _control_of(self, action: Any) -> np.ndarray:
+    def _control_of(self, action: Any, pose: np.ndarray) -> np.ndarray:
         try:
             values = np.asarray(action, np.float64)
         except (TypeError, ValueError):
@@ -349,7 +349,7 @@ class LangTrajEnv(gym.Env):
             )
         if not np.isfinite(values).all():
             raise InputError("non-finite values", where="action")
-        return track(self._pose(), values) if self.action_kind == "trajectory" else values
+        return track(pose, values) if self.action_kind == "trajectory" else values
 
 
 def _logged_future(scenario: Scenario, row: int) -> np.ndarray:

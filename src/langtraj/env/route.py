@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from langtraj.interdrive.heuristics import HeuristicConfig
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
 from langtraj.interdrive.targets.routes import join, lane_piece, route, straight_line
@@ -87,14 +86,3 @@ def _chains(index: MapIndex, lane: int, station: float, reach: float) -> list[li
             continue
         frontier.extend((chain + [e], length + float(index.lane_lengths[e])) for e in exits)
     return done + [chain for chain, _ in frontier]
-
-
-def match_ego(index: MapIndex, xy: np.ndarray, heading: float, speed: float) -> AgentOnLane:
-    """The ego's lane and station as the labelers match vehicles (-1 off the lane graph)."""
-    if not index.has_lanes:
-        return AgentOnLane(-1, math.nan, speed)
-    cfg = HeuristicConfig()
-    match = index.match_lanes(
-        xy[None], np.array([heading]), radius=cfg.lane_match_radius, max_heading_diff=cfg.lane_match_max_heading
-    )
-    return AgentOnLane(int(match.lane[0]), float(match.station[0]), speed)

@@ -390,7 +390,7 @@ class LangTrajPolicy(Policy):
         )
         terms = self.terms + self.prompt_terms(world, slots, origin, data.max_agents, steering)
         terms += self.realism_terms(len(world.driven))
-        external = tuple(int(slot) for slot, row in enumerate(world.driven) if row in set(world.external.tolist()))
+        external = tuple(int(slot) for slot in np.flatnonzero(np.isin(world.driven, world.external)))
         judge = CandidateJudge(world, list(steering.asks), index) if index is not None and steering.asks else None
         selector = SELECTORS.create(self.selector_name or self.default_selector(), where="selector")
         if selector.uses_road or any(isinstance(term.cost, OnRoadCost) for term in terms):

@@ -14,6 +14,7 @@ import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.interdrive.mapindex import MapIndex
+from langtraj.interdrive.prompts import MAX_PROMPT_CHARS  # the prompt parser's limit, checked before reading
 from langtraj.interdrive.reader import PromptReading
 from langtraj.interdrive.targets import BehaviourTarget
 from langtraj.rollouts.agents import sim_agent_indices
@@ -21,8 +22,6 @@ from langtraj.scenario.model import Scenario
 from langtraj.sim.config import ALL_LEVERS
 from langtraj.sim.prompts import prompt_steering, read_prompts, user_prompt_entry
 
-MAX_PROMPT_CHARS = 500
-"""Longer prompts are refused before anything reads them (the prompt parser's own limit is lower: 300)."""
 _WORLD: tuple[float, float, float] = (0.0, 0.0, 0.0)
 """The frame the steering terms are built in; the checks use only the world-frame targets."""
 

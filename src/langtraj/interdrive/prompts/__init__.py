@@ -16,10 +16,11 @@ from langtraj.interdrive.prompts.phrases import (
     phrase_tables,
 )
 from langtraj.interdrive.prompts.pool import build_prompt_pool
-from langtraj.interdrive.prompts.user import parse_user_prompt
+from langtraj.interdrive.prompts.user import MAX_PROMPT_CHARS, parse_user_prompt
 
 __all__ = [
     "CANONICAL",
+    "MAX_PROMPT_CHARS",
     "TEMPLATES_ONLY",
     "LLMConfig",
     "LLMError",

@@ -45,7 +45,11 @@ def _check_mentions(text: str) -> None:
             )
 
 
-def parse_user_prompt(text: str, track_ids: Iterable[int], max_chars: int = 300) -> Prompt:
+MAX_PROMPT_CHARS = 300
+"""The longest typed prompt accepted (characters): longer ones are refused before anything reads them."""
+
+
+def parse_user_prompt(text: str, track_ids: Iterable[int], max_chars: int = MAX_PROMPT_CHARS) -> Prompt:
     """Validate a typed prompt against the scene's `track_ids` and return it as a Prompt (source "user");
     empty, overlong, mention-less, junk or malformed prompts and unknown ids raise InputError."""
     if not isinstance(text, str):
