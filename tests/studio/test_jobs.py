@@ -159,3 +159,12 @@ def test_jobs_survive_a_restart(catalog: Catalog, tmp_path: Path) -> None:
     assert client.get("/api/jobs/b-running/video.mp4").status_code == 404
     assert client.get("/api/jobs/nope").status_code == 404
     assert not (store.folder("c-queued") / RESULT_FILE).exists()
+
+
+def test_jobs_submitted_within_one_second_list_newest_first(tmp_path: Path) -> None:
+    board = JobBoard(JobStore(tmp_path / "jobs"), lambda job, folder, report, stop: None)
+    spec = JobSpec("s0", WOMD_ID, ("@1 stops",))
+    submitted = [board.submit(spec).id for _ in range(5)]  # well within a second: the ids' random tails decide nothing
+    assert [j.id for j in board.jobs()] == submitted[::-1]
+    reloaded = JobBoard(JobStore(tmp_path / "jobs"), lambda job, folder, report, stop: None)
+    assert [j.id for j in reloaded.jobs()] == submitted[::-1]

@@ -79,11 +79,12 @@ class Job:
 
 
 def now() -> str:
-    return datetime.now(UTC).isoformat(timespec="seconds")
+    """ISO time to the microsecond, so jobs submitted within one second still list in the order they came."""
+    return datetime.now(UTC).isoformat(timespec="microseconds")
 
 
 def new_job_id() -> str:
-    """Sortable by creation time, unique: 20270101-120000-a1b2c3."""
+    """Unique, and sortable by creation second: 20270101-120000-a1b2c3 (the order within a second is `created`'s)."""
     return f"{datetime.now(UTC):%Y%m%d-%H%M%S}-{secrets.token_hex(3)}"
 
 
