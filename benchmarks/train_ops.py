@@ -5,14 +5,13 @@ Counting, not timing: the figure does not depend on the machine's speed.
 
 One step is what training runs on a batch: `LangTrajModule.objective` (the denoising loss, or Algorithm 1's
 closed-loop loss) under the preset's precision (bf16-mixed: autocast to bfloat16), backward, gradient clipping by
-norm and the optimizer training configures (`make_optimizer`: AdamW, fused at full precision, multi-tensor under
-mixed precision). The batch is synthetic, of the
-preset's full size, and carries its target actions as a feature store's batches do (`synthetic.py`). With the
-preset's `compile: true` (or `--compile`) the network part is compiled (`LangTraj.compile_steps`) during two
-warm-up steps. The count is printed per part: the network (forward and backward), clipping and the optimizer. On
-CUDA the last two are multi-tensor or fused (a few operations); on a CPU torch runs them tensor by tensor underneath
-(for gpu-short's 377 parameter tensors: 2,282 for clipping, 2,641 fused or 11,700 multi-tensor for AdamW), so
-compare GPU counts with GPU counts. The last line is
+norm and the optimizer training configures (`make_optimizer`: AdamW, fused unless a gradient scaler is in play).
+The batch is synthetic, of the preset's full size, and carries its target actions as a feature store's batches do
+(`synthetic.py`). With the preset's `compile: true` (or `--compile`) the network part is compiled
+(`LangTraj.compile_steps`) during two warm-up steps. The count is printed per part: the network (forward and
+backward), clipping and the optimizer. A CPU runs the last two tensor by tensor underneath (for gpu-short's 377
+parameter tensors: 2,282 for clipping, 2,641 for the fused AdamW, 11,700 multi-tensor); on an H100 clipping
+counted 1,147 and the multi-tensor AdamW 2,275. So compare GPU counts with GPU counts. The last line is
 `aten ops per step: X`.
 
     python benchmarks/train_ops.py --config configs/gpu-short.yaml [--batch B] [--device cpu|cuda] [--top 15]

@@ -50,6 +50,7 @@ def test_bf16_training_with_checkpointing_steps_the_schedule_after_the_optimizer
     checkpoint = read_checkpoint(last)
     assert checkpoint["global_step"] == 4
     assert checkpoint["lr_schedulers"][0]["last_epoch"] == 4  # one schedule step per optimizer step
+    assert checkpoint["optimizer_states"][0]["param_groups"][0]["fused"]  # no scaler under bf16: one fused kernel
     rows = list(csv.DictReader((tmp_path / "run" / "logs" / "csv" / "version_0" / "metrics.csv").open()))
     losses = [float(r["train/loss"]) for r in rows if r.get("train/loss")]
     minade = [float(r["val/minade"]) for r in rows if r.get("val/minade")]

@@ -31,21 +31,28 @@ from langtraj.training.penalties import scene_penalties
 from langtraj.training.perturbation import perturb_pasts
 
 FUSED_DEVICES = frozenset({"cpu", "cuda"})
-"""Devices for which torch has a fused AdamW kernel (`make_optimizer`); CUDA's is not run here (no GPU)."""
+"""Devices for which torch has a fused AdamW kernel (`make_optimizer`)."""
 
-FULL_PRECISIONS = frozenset({"32-true", "32", "64-true", "64"})
-"""Lightning precisions without mixed-precision plugins (`make_optimizer`'s `fused`)."""
+SCALED_PRECISIONS = frozenset({"16-mixed", "16"})
+"""Lightning precisions that scale the loss (a `GradScaler`): gradients are unscaled before clipping, which a
+fused optimizer would do only inside its step, so these train with the multi-tensor AdamW (`make_optimizer`)."""
 
 
 def make_optimizer(
     params: list[torch.nn.Parameter], *, lr: float, weight_decay: float, fused: bool = True
 ) -> torch.optim.AdamW:
-    """AdamW for `params`: fused (one kernel updates every parameter) when asked and the parameters' device has
-    it, else multi-tensor; either way a handful of operations per step on a GPU instead of some 30 per parameter
-    tensor (docs/model.md, 'Fewer, bigger kernels'). Lightning refuses a fused optimizer with gradient clipping
-    under mixed precision (it unscales internally), so training asks for it at full precision only."""
+    """AdamW for `params`: fused (one kernel updates every parameter, its step counts kept on the device) when
+    asked and the parameters' device has it, else multi-tensor (docs/model.md, 'Fewer, bigger kernels'). On an
+    H100 the multi-tensor AdamW of `gpu-short` issued 2,275 operations a step, most of them reading and counting
+    per-parameter step counts on the host; the capturable multi-tensor AdamW, tried as a cure, was slower
+    (docs/benchmarks.md, 'GPU check')."""
     fused = fused and bool(params) and all(p.device.type in FUSED_DEVICES for p in params)
     return torch.optim.AdamW(params, lr=lr, weight_decay=weight_decay, fused=fused, foreach=None if fused else True)
+
+
+def is_fused(optimizer: torch.optim.Optimizer) -> bool:
+    """Whether `optimizer` runs a fused kernel (as built, or as a loaded checkpoint's state left it)."""
+    return any(group.get("fused") for group in optimizer.param_groups)
 
 
 class LangTrajModule(pl.LightningModule):
@@ -156,7 +163,7 @@ class LangTrajModule(pl.LightningModule):
     def configure_optimizers(self):
         optim = self.train_config.optim
         params = [p for p in self.model.parameters() if p.requires_grad]
-        fused = self.train_config.precision in FULL_PRECISIONS
+        fused = self.train_config.precision not in SCALED_PRECISIONS
         optimizer = make_optimizer(params, lr=optim.lr, weight_decay=optim.weight_decay, fused=fused)
         total = max(self.train_config.max_steps, 1)
 
@@ -168,6 +175,20 @@ class LangTrajModule(pl.LightningModule):
 
         scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, factor)
         return {"optimizer": optimizer, "lr_scheduler": {"scheduler": scheduler, "interval": "step"}}
+
+    def configure_gradient_clipping(self, optimizer, gradient_clip_val=None, gradient_clip_algorithm=None) -> None:
+        """Clip a fused optimizer's gradients by norm here: Lightning's own clipping refuses any fused optimizer
+        under mixed precision, bf16's too, where no scaler leaves anything to unscale (`SCALED_PRECISIONS` never
+        get a fused one). Other optimizers clip through Lightning as before."""
+        if not gradient_clip_val:
+            return
+        if is_fused(optimizer):
+            if gradient_clip_algorithm not in (None, "norm"):
+                raise InputError(f"gradient clipping {gradient_clip_algorithm!r}: a fused optimizer clips by norm")
+            params = [p for group in optimizer.param_groups for p in group["params"]]
+            torch.nn.utils.clip_grad_norm_(params, gradient_clip_val)
+            return
+        super().configure_gradient_clipping(optimizer, gradient_clip_val, gradient_clip_algorithm)
 
     # ------------------------------------------------------------------ checkpoints
     def on_save_checkpoint(self, checkpoint: dict[str, Any]) -> None:
