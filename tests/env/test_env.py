@@ -43,6 +43,7 @@ def test_registered_make_and_observation_contents():
     follower = list(obs["agents_id"]).index(FOLLOWER_ID)
     assert obs["agents"][follower, 0] == pytest.approx(-16.5, abs=0.1)  # 12 m gap + a car length, behind
     assert obs["route_valid"].all() and np.allclose(obs["route"][:, 1], 0.0, atol=1e-3)  # straight ahead
+    assert not obs["route_speed_limit"].any()  # the constructed lanes give no speed limit
     assert obs["map_valid"].any() and action_space("control").contains(BRAKE)
 
 

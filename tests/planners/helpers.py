@@ -32,10 +32,11 @@ def make_observation(
     agents: Sequence[Sequence[float]] = (),
     agent_types: Sequence[int] | None = None,
     lights: Sequence[tuple[float, float, int]] = (),
+    speed_limits: float | Sequence[float] = 0.0,
 ) -> dict[str, np.ndarray]:
     """An observation of an ego at world `pose` driving at `speed`: `route` [N <= 50, 2] (default straight along
-    +x; an empty one leaves it invalid), `agents` rows (x, y, heading, vx, vy, length, width) in the ego frame and
-    `lights` (x, y, state)."""
+    +x; an empty one leaves it invalid) with its `speed_limits` (m/s, one or per point; 0: none), `agents` rows
+    (x, y, heading, vx, vy, length, width) in the ego frame and `lights` (x, y, state)."""
     space = observation_space()
     obs = {key: np.zeros(sub.shape, sub.dtype) for key, sub in space.spaces.items()}
     obs["ego"][:] = [*pose, speed, 0.0, 0.0, *EGO_SIZE]
@@ -43,6 +44,7 @@ def make_observation(
     route = straight_route() if route is None else np.asarray(route)
     obs["route"][: len(route)] = route
     obs["route_valid"][: len(route)] = 1
+    obs["route_speed_limit"][: len(route)] = speed_limits
     for i, row in enumerate(agents):
         obs["agents"][i] = row
         obs["agents_id"][i] = 100 + i

@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from langtraj.env.spaces import MAX_ACCEL, MAX_YAW_RATE, action_space, observation_space
+from langtraj.env.spaces import MAX_ACCEL, MAX_YAW_RATE, NUM_ROUTE_POINTS, action_space, observation_space
 from langtraj.planners import IDMConfig, IDMPlanner
 
 from .helpers import left_curve, make_observation, vehicle
@@ -94,6 +94,34 @@ def test_slows_before_a_tight_curve():
     desired = IDMConfig().desired_speed
     assert accel(speed=desired, route=left_curve(radius=15.0)) < 0.0
     assert accel(speed=5.0, route=left_curve(radius=100.0)) > 0.0
+
+
+def test_drives_at_the_routes_speed_limit_where_the_map_gives_one():
+    assert accel(speed=20.0, speed_limits=20.0) == pytest.approx(0.0, abs=1e-6)
+    assert accel(speed=IDMConfig().desired_speed, speed_limits=20.0) > 0.5  # not held to the fallback
+    assert accel(speed=12.0, speed_limits=8.0) < 0.0
+    half = IDMPlanner(IDMConfig(speed_limit_factor=0.5)).act(make_observation(speed=10.0, speed_limits=20.0))[0]
+    assert half == pytest.approx(0.0, abs=1e-6)
+
+
+def test_slows_in_time_for_a_lower_limit_ahead():
+    near = np.where(np.arange(NUM_ROUTE_POINTS) < 20, 20.0, 8.0)  # 8 m/s from 40 m on: sqrt(8^2 + 2 b 40) < 20
+    far = np.where(np.arange(NUM_ROUTE_POINTS) < 49, 20.0, 8.0)  # from 98 m on: still reachable from 20 m/s
+    assert accel(speed=20.0, speed_limits=near) < 0.0
+    assert accel(speed=20.0, speed_limits=far) == pytest.approx(0.0, abs=1e-6)
+    unknown_ahead = np.where(np.arange(NUM_ROUTE_POINTS) < 20, 20.0, 0.0)  # no limit known further on
+    assert accel(speed=20.0, speed_limits=unknown_ahead) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_brakes_for_a_cut_in_seen_coming():
+    heading = float(np.arctan2(-2.5, 15.0))
+    merging = [20.0, 3.5, heading, 15.0, -2.5, 4.5, 2.0]  # the next lane, 20 m ahead, 1 s from the ego's
+    road = {"speed": 20.0, "speed_limits": 20.0}  # at the limit: no reason to brake but the agent
+    assert accel(agents=[merging], **road) < -2.0
+    blind = IDMPlanner(IDMConfig(cut_in_horizon=0.0)).act(make_observation(agents=[merging], **road))[0]
+    assert blind == pytest.approx(0.0, abs=1e-6)  # where it is now, it is not in the way
+    oncoming = [20.0, 3.5, float(np.arctan2(-2.5, -15.0)), -15.0, -2.5, 4.5, 2.0]  # drifting, but the other way
+    assert accel(agents=[oncoming], **road) == pytest.approx(0.0, abs=1e-6)
 
 
 def test_without_a_route_keeps_heading_and_stops_gently():

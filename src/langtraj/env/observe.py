@@ -89,12 +89,13 @@ class Observer:
             [pose[0], pose[1], pose[2], speed, control[0], control[1], me[StateField.LENGTH], me[StateField.WIDTH]]
         )
         station = self.route.station(pose[:2])
-        route_xy, route_valid = self.route.ahead(station, spaces.NUM_ROUTE_POINTS, spaces.ROUTE_SPACING_M)
+        route_xy, route_valid, limits = self.route.ahead(station, spaces.NUM_ROUTE_POINTS, spaces.ROUTE_SPACING_M)
         obs = {
             "ego": ego.astype(np.float32),
             "time": np.array([time], np.float32),
             "route": np.where(route_valid[:, None], to_ego_frame(route_xy, pose), 0.0).astype(np.float32),
             "route_valid": route_valid.astype(np.int8),
+            "route_speed_limit": np.nan_to_num(limits, nan=0.0).astype(np.float32),
         }
         obs |= self._agents(states, valid, pose)
         obs |= self._map(pose)

@@ -3,7 +3,8 @@
 Where the log holds the ego's future, the route is the chain of lanes from the ego's lane that passes nearest to
 where the logged ego went (its mission, as nuPlan and Waymax give a planner its route); otherwise the ego's lane
 continued by the straightest exits; off the lane graph, the line along its heading. Only the route is taken from
-the log, never the ego's motion along it.
+the log, never the ego's motion along it. Each point carries the speed limit of the lane it lies on (NaN where
+the map gives none).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
-from langtraj.interdrive.targets.routes import join, lane_piece, route, straight_line
+from langtraj.interdrive.targets.routes import continued, join, lane_piece, route, straight_line
 from langtraj.polylines import arc_lengths, project_on_polyline, resample
 
 ROUTE_LENGTH_M = 250.0
@@ -26,16 +27,25 @@ MAX_CHAINS = 256
 
 @dataclass(frozen=True)
 class Route:
-    """A route polyline (world frame, a point every metre) and its arc lengths."""
+    """A route polyline (world frame, a point every metre), its arc lengths and each point's speed limit."""
 
     points: np.ndarray  # float64 [P, 2]
     stations: np.ndarray  # float64 [P]
     source: str  # "log" (lanes nearest the logged path), "lanes" (straightest exits) or "heading" (no lane)
+    speed_limits: np.ndarray  # float64 [P], m/s; NaN where the map gives none
 
     @classmethod
-    def of(cls, points: np.ndarray, source: str) -> Route:
+    def of(cls, points: np.ndarray, source: str, limits: np.ndarray | None = None, ends: np.ndarray | None = None):
+        """The route through `points`, resampled every metre; `limits` [L] the speed limits (m/s) of its successive
+        lanes, the l-th up to arc length `ends[l]` (None: no lanes, no limits)."""
         points = resample(np.asarray(points, np.float64), 1.0) if len(points) > 1 else np.asarray(points, np.float64)
-        return cls(points, arc_lengths(points), source)
+        stations = arc_lengths(points)
+        if limits is None or ends is None or not len(limits):
+            speed_limits = np.full(len(points), np.nan)
+        else:
+            which = np.searchsorted(np.asarray(ends, np.float64), stations, side="right")
+            speed_limits = np.asarray(limits, np.float64)[np.minimum(which, len(limits) - 1)]
+        return cls(points, stations, source, speed_limits)
 
     @property
     def length(self) -> float:
@@ -45,13 +55,16 @@ class Route:
         """Arc length of the point of the route nearest `xy`."""
         return float(project_on_polyline(np.asarray(xy, np.float64)[None], self.points).station[0])
 
-    def ahead(self, station: float, count: int, spacing: float) -> tuple[np.ndarray, np.ndarray]:
-        """`count` points every `spacing` m from `station` (world frame) and which of them lie on the route."""
+    def ahead(self, station: float, count: int, spacing: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`count` points every `spacing` m from `station` (world frame), which of them lie on the route, and the
+        speed limit at each (m/s, NaN: none known or off the route)."""
         wanted = station + spacing * np.arange(count)
         valid = wanted <= self.length + 1e-9
         x = np.interp(wanted, self.stations, self.points[:, 0])
         y = np.interp(wanted, self.stations, self.points[:, 1])
-        return np.stack([x, y], -1), valid
+        at = np.clip(np.searchsorted(self.stations, wanted, side="right") - 1, 0, max(len(self.stations) - 1, 0))
+        limits = np.where(valid, self.speed_limits[at], np.nan) if len(self.stations) else np.full(count, np.nan)
+        return np.stack([x, y], -1), valid, limits
 
 
 def ego_route(index: MapIndex, start: AgentOnLane, xy: np.ndarray, heading: float, logged: np.ndarray) -> Route:
@@ -60,7 +73,7 @@ def ego_route(index: MapIndex, start: AgentOnLane, xy: np.ndarray, heading: floa
     if start.lane < 0:
         return Route.of(straight_line(xy, heading, ROUTE_LENGTH_M), "heading")
     if len(logged) < 2 or float(np.linalg.norm(logged[-1] - xy)) < 2.0:
-        return Route.of(route(index, [start.lane], start.station, ROUTE_LENGTH_M), "lanes")
+        return _along(index, [start.lane], start.station, ROUTE_LENGTH_M, "lanes")
     reach = float(arc_lengths(np.concatenate([xy[None], logged]))[-1]) + 20.0
     best, best_error = None, math.inf
     for chain in _chains(index, start.lane, start.station, reach):
@@ -71,8 +84,19 @@ def ego_route(index: MapIndex, start: AgentOnLane, xy: np.ndarray, heading: floa
         if error < best_error:
             best, best_error = chain, error
     if best is None:
-        return Route.of(route(index, [start.lane], start.station, ROUTE_LENGTH_M), "lanes")
-    return Route.of(route(index, best, start.station, reach + ROUTE_LENGTH_M), "log")
+        return _along(index, [start.lane], start.station, ROUTE_LENGTH_M, "lanes")
+    return _along(index, best, start.station, reach + ROUTE_LENGTH_M, source="log")
+
+
+def _along(index: MapIndex, lanes: list[int], station: float, length: float, source: str) -> Route:
+    """The route along `lanes` from `station` on the first, continued as `route` continues it, with each lane's
+    speed limit."""
+    chain = continued(index, lanes, station, length)
+    spans = np.array([float(index.lane_lengths[lane]) for lane in chain])
+    spans[0] -= station
+    limits = np.array([index.lane_features[lane].speed_limit_mps for lane in chain], np.float64)
+    limits[~(limits > 0)] = np.nan  # unknown (NaN) or nonsense (0 or below)
+    return Route.of(route(index, chain, station, length), source, limits, np.cumsum(spans))
 
 
 def _chains(index: MapIndex, lane: int, station: float, reach: float) -> list[list[int]]:

@@ -18,7 +18,8 @@ AGENT_RADIUS_M = 80.0
 """Agents farther than this from the ego are left out."""
 NUM_ROUTE_POINTS = 50
 ROUTE_SPACING_M = 2.0
-"""The route ahead: `NUM_ROUTE_POINTS` points every `ROUTE_SPACING_M` m from the ego's projection onto it."""
+"""The route ahead: `NUM_ROUTE_POINTS` points every `ROUTE_SPACING_M` m from the ego's projection onto it, each
+with the speed limit of its lane (`route_speed_limit`, m/s; 0 where the map gives none or off the route)."""
 NUM_POLYLINES = 64
 POLYLINE_POINTS = 20
 MAP_RADIUS_M = 60.0
@@ -61,6 +62,7 @@ def observation_space() -> spaces.Dict:
             "time": spaces.Box(0.0, LOCAL_BOUND, shape=(1,), dtype=np.float32),
             "route": _box(NUM_ROUTE_POINTS, 2),
             "route_valid": spaces.MultiBinary(NUM_ROUTE_POINTS),
+            "route_speed_limit": spaces.Box(0.0, LOCAL_BOUND, shape=(NUM_ROUTE_POINTS,), dtype=np.float32),
             "agents": _box(NUM_AGENTS, len(AGENT_FIELDS)),
             "agents_id": spaces.Box(-1, _MAX_ID, shape=(NUM_AGENTS,), dtype=np.int64),
             "agents_type": spaces.Box(0, 4, shape=(NUM_AGENTS,), dtype=np.int64),

@@ -26,6 +26,8 @@ CAUTION_STATES = (2, 5)
 """WOMD light states that mean caution (arrow, plain): stop only where a comfortable stop is still possible."""
 _BEHIND_M = 50.0  # the route is extended this far behind its first point, so agents alongside get signed stations
 _MIN_GAP_M = 0.1  # the IDM gap never divides by less
+CUT_IN_SAMPLES = 5
+"""Times along `IDMConfig.cut_in_horizon` at which the agents' forecasts are checked against the corridor."""
 
 
 @dataclass(frozen=True)
@@ -34,7 +36,11 @@ class IDMConfig:
     pure-pursuit look-ahead."""
 
     desired_speed: float = 13.9
-    """Speed on a free straight road, m/s (50 km/h, urban); curves ahead lower it (`max_lateral_accel`)."""
+    """Speed on a free straight road where the map gives no speed limit, m/s (50 km/h, urban). Where it does,
+    the route's limit (`route_speed_limit`) times `speed_limit_factor` instead; lower limits and curves ahead lower
+    it in time to reach them (`comfortable_decel`, `max_lateral_accel`)."""
+    speed_limit_factor: float = 1.0
+    """The share of the speed limit the planner drives at."""
     time_headway: float = 1.5
     """Desired time gap to the leader, s."""
     min_gap: float = 2.0
@@ -50,6 +56,9 @@ class IDMConfig:
     """Hardest braking, m/s^2 (the action bound): the IDM's deceleration is floored at -hard_brake."""
     corridor_margin: float = 0.3
     """An agent is on the route when its box comes within (ego width + its lateral extent) / 2 + this of it, m."""
+    cut_in_horizon: float = 1.0
+    """An agent heading the ego's way also counts as on the route when its constant-velocity forecast puts it there
+    within this many seconds (a cut-in seen coming), s; 0: only where it is now."""
     light_lateral: float = 1.5
     """A light's stop point is on the route when at most this far from it laterally, m."""
     max_lateral_accel: float = 2.0
@@ -81,16 +90,20 @@ class IDMPlanner(Planner):
         ego = np.asarray(observation["ego"], np.float64)
         speed = max(0.0, float(ego[3])) if np.isfinite(ego[3]) else 0.0
         length, width = float(ego[6]), float(ego[7])
-        route = np.asarray(observation["route"], np.float64)[np.asarray(observation["route_valid"], bool)]
-        route = route[np.isfinite(route).all(axis=1)]
+        on_route = np.asarray(observation["route_valid"], bool)
+        route = np.asarray(observation["route"], np.float64)[on_route]
+        limits = np.asarray(observation.get("route_speed_limit", np.zeros(len(on_route))), np.float64)[on_route]
+        finite = np.isfinite(route).all(axis=1)
+        route, limits = route[finite], limits[finite]
         if len(route) > 1:  # repeated points have no heading
-            route = route[np.concatenate([[True], np.linalg.norm(np.diff(route, axis=0), axis=1) > 1e-6])]
+            moved = np.concatenate([[True], np.linalg.norm(np.diff(route, axis=0), axis=1) > 1e-6])
+            route, limits = route[moved], limits[moved]
         if len(route) == 0:
             desired = 0.0
             corridor = np.array([[0.0, 0.0], [100.0, 0.0]])  # obstacles straight ahead still count
             yaw_rate = 0.0
         else:
-            desired = self._curve_speed(route)
+            desired = min(self._limit_speed(route, limits), self._curve_speed(route))
             corridor = route
             yaw_rate = self._pursuit(route, speed)
         accel = self._free_accel(speed, desired)
@@ -117,13 +130,26 @@ class IDMPlanner(Planner):
         )
         return -c.max_accel * (wanted / np.maximum(gaps, _MIN_GAP_M)) ** 2
 
+    def _limit_speed(self, route: np.ndarray, limits: np.ndarray) -> float:
+        """The desired speed the speed limits give: the limit where the ego is (`desired_speed` where none is
+        known), lowered where a lower limit ahead can still just be reached by braking at the comfortable
+        deceleration."""
+        c = self.config
+        known = np.isfinite(limits) & (limits > 0)
+        here = c.desired_speed if not known[0] else c.speed_limit_factor * float(limits[0])
+        if not known.any():
+            return here
+        stations = arc_lengths(route)[known]
+        reachable = np.sqrt((c.speed_limit_factor * limits[known]) ** 2 + 2.0 * c.comfortable_decel * stations)
+        return float(min(here, reachable.min()))
+
     def _curve_speed(self, route: np.ndarray) -> float:
-        """The desired speed now: `desired_speed`, lowered where a curve ahead asks for less than can still be
-        reached by braking at the comfortable deceleration."""
+        """The speed curves allow now: infinite on a straight road, lowered where a curve ahead asks for less than
+        can still be reached by braking at the comfortable deceleration."""
         c = self.config
         k = c.curvature_window
         if len(route) < k + 2:
-            return c.desired_speed
+            return math.inf
         segments = np.diff(route, axis=0)
         headings = np.arctan2(segments[:, 1], segments[:, 0])
         middles = arc_lengths(route)[:-1] + 0.5 * np.linalg.norm(segments, axis=1)  # stations of segment middles
@@ -132,7 +158,7 @@ class IDMPlanner(Planner):
         station = middles[:-k]  # where the turn starts
         with np.errstate(divide="ignore"):
             limit = np.sqrt(c.max_lateral_accel / curvature + 2.0 * c.comfortable_decel * station)
-        return float(min(c.desired_speed, limit.min()))
+        return float(limit.min())
 
     def _pursuit(self, route: np.ndarray, speed: float) -> float:
         """Pure pursuit: yaw rate = speed x 2 y / L^2 toward the route point `lookahead` metres along it
@@ -177,7 +203,12 @@ class IDMPlanner(Planner):
             cos, sin = np.abs(np.cos(relative)), np.abs(np.sin(relative))
             half_lateral = 0.5 * (agents[:, 5] * sin + agents[:, 6] * cos)
             half_along = 0.5 * (agents[:, 5] * cos + agents[:, 6] * sin)
-            overlaps = np.abs(on.offset) <= 0.5 * width + half_lateral + c.corridor_margin
+            reach = 0.5 * width + half_lateral + c.corridor_margin
+            overlaps = np.abs(on.offset) <= reach
+            if c.cut_in_horizon > 0:  # same-direction agents whose forecast enters the corridor
+                for t in np.linspace(0.0, c.cut_in_horizon, CUT_IN_SAMPLES + 1)[1:]:
+                    there = project_on_polyline(agents[:, :2] + t * agents[:, 3:5], line)
+                    overlaps |= (np.cos(relative) > 0.0) & (np.abs(there.offset) <= reach)
             ahead = overlaps & (station > 0.0)
             gaps = station - 0.5 * length - half_along
             lead_speeds = agents[:, 3] * np.cos(along) + agents[:, 4] * np.sin(along)

@@ -39,23 +39,26 @@ def straightest_exit(index: MapIndex, lane: int) -> int | None:
     return min(exits, key=lambda e: abs(float(wrap_angle(index.heading_at(e, 0.0) - end))))
 
 
-def route(index: MapIndex, lanes: list[int] | tuple[int, ...], start: float, length: float) -> np.ndarray:
-    """The centreline along `lanes` from `start` on the first, continued by the straightest exits until `length` m."""
-    pieces = [lane_piece(index, lanes[0], start)]
-    done = float(index.lane_lengths[lanes[0]]) - start
-    for lane in lanes[1:]:
-        pieces.append(lane_piece(index, lane))
-        done += float(index.lane_lengths[lane])
-    last, seen = lanes[-1], set(lanes)
+def continued(index: MapIndex, lanes: list[int] | tuple[int, ...], start: float, length: float) -> list[int]:
+    """`lanes` followed by the straightest exits until they cover `length` m from `start` on the first (or the lane
+    graph ends or loops): the lanes `route` draws."""
+    chain = list(lanes)
+    done = float(index.lane_lengths[chain[0]]) - start + sum(float(index.lane_lengths[lane]) for lane in chain[1:])
+    seen = set(chain)
     while done < length:
-        nxt = straightest_exit(index, last) if index.has_connectivity else None
+        nxt = straightest_exit(index, chain[-1]) if index.has_connectivity else None
         if nxt is None or nxt in seen:
             break
-        pieces.append(lane_piece(index, nxt))
+        chain.append(nxt)
         done += float(index.lane_lengths[nxt])
-        last = nxt
         seen.add(nxt)
-    path = join(pieces)
+    return chain
+
+
+def route(index: MapIndex, lanes: list[int] | tuple[int, ...], start: float, length: float) -> np.ndarray:
+    """The centreline along `lanes` from `start` on the first, continued by the straightest exits until `length` m."""
+    chain = continued(index, lanes, start, length)
+    path = join([lane_piece(index, chain[0], start)] + [lane_piece(index, lane) for lane in chain[1:]])
     return path[: int(length / ROUTE_SPACING) + 2]
 
 
