@@ -95,9 +95,13 @@ def test_a_collision_the_ego_causes_is_at_fault_and_terminates_on_request():
     assert len(infos) < 80
 
 
-def test_many_scenes_at_once_through_gymnasiums_vector_environment():
+@pytest.mark.parametrize(
+    ("mode", "options"),
+    [("sync", {}), ("async", {"context": "spawn"})],  # async: each environment in a process of its own
+)
+def test_many_scenes_at_once_through_gymnasiums_vector_environment(mode, options):
     envs = gymnasium.make_vec(
-        f"langtraj.env:{ENV_ID}", num_envs=2, vectorization_mode="sync", scenario=follower_scene()
+        f"langtraj.env:{ENV_ID}", num_envs=2, vectorization_mode=mode, vector_kwargs=options, scenario=follower_scene()
     )
     obs, info = envs.reset(seed=[0, 1])
     assert obs["agents"].shape == (2, 16, 7) and list(info["ego_id"]) == [EGO_ID, EGO_ID]
