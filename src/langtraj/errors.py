@@ -5,6 +5,12 @@ from __future__ import annotations
 from pathlib import Path
 
 
+def one_line(error: BaseException) -> str:
+    """`Type: first line of the message` (the type alone for an empty message): how a report names an error."""
+    lines = str(error).strip().splitlines()
+    return f"{type(error).__name__}: {lines[0]}" if lines else type(error).__name__
+
+
 class LangTrajError(Exception):
     """Base class of every error the CLI reports as one clear line instead of a traceback."""
 

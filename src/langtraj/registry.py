@@ -1,14 +1,34 @@
 """A name -> class registry, the one mechanism behind every extension point (scenario formats,
-network kinds, and later dynamics, policies, guidance costs, metrics)."""
+network kinds, and later dynamics, policies, guidance costs, metrics), and `import_object` for classes named
+by `package.module:Name` from outside the project."""
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
-from langtraj.errors import InputError
+from langtraj.errors import InputError, one_line
 
 T = TypeVar("T")
+
+
+def import_object(spec: str, where: str) -> Any:
+    """The object `spec` ("package.module:Name", dots allowed in Name) names; a bad spec, a module that does not
+    import (importing runs user code: any error) or a missing name raises one InputError at `where`."""
+    module_name, _, name = spec.partition(":")
+    if not module_name or not name:
+        raise InputError(f"{spec!r} is not package.module:Name", where=where)
+    try:
+        found: Any = importlib.import_module(module_name)
+    except Exception as error:
+        reason = one_line(error)
+        raise InputError(f"cannot import module {module_name!r} of {spec!r} ({reason})", where=where) from error
+    for part in name.split("."):
+        if not hasattr(found, part):
+            raise InputError(f"module {module_name!r} has no {name!r} (from {spec!r})", where=where)
+        found = getattr(found, part)
+    return found
 
 
 class Registry(Generic[T]):

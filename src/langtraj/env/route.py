@@ -17,7 +17,7 @@ import numpy as np
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
 from langtraj.interdrive.targets.routes import continued, join, lane_piece, route, straight_line
-from langtraj.polylines import arc_lengths, project_on_polyline, resample
+from langtraj.polylines import arc_lengths, project_on_polyline
 
 ROUTE_LENGTH_M = 250.0
 """How far the route reaches beyond the logged end point (or from the ego, without a log)."""
@@ -27,7 +27,8 @@ MAX_CHAINS = 256
 
 @dataclass(frozen=True)
 class Route:
-    """A route polyline (world frame, a point every metre), its arc lengths and each point's speed limit."""
+    """A route polyline (world frame, a point every `ROUTE_SPACING` m), its arc lengths and each point's speed
+    limit."""
 
     points: np.ndarray  # float64 [P, 2]
     stations: np.ndarray  # float64 [P]
@@ -36,11 +37,12 @@ class Route:
 
     @classmethod
     def of(cls, points: np.ndarray, source: str, limits: np.ndarray | None = None, ends: np.ndarray | None = None):
-        """The route through `points`, resampled every metre; `limits` [L] the speed limits (m/s) of its successive
-        lanes, the l-th up to arc length `ends[l]` (None: no lanes, no limits)."""
-        points = resample(np.asarray(points, np.float64), 1.0) if len(points) > 1 else np.asarray(points, np.float64)
+        """The route through `points` (a point every `ROUTE_SPACING` m, as `interdrive.targets.routes` draws them);
+        `limits` [L] the speed limits (m/s) of its successive lanes, the l-th up to arc length `ends[l]` (None: no
+        lanes, no limits)."""
+        points = np.asarray(points, np.float64)
         stations = arc_lengths(points)
-        if limits is None or ends is None or not len(limits):
+        if limits is None or ends is None:
             speed_limits = np.full(len(points), np.nan)
         else:
             which = np.searchsorted(np.asarray(ends, np.float64), stations, side="right")
@@ -62,8 +64,8 @@ class Route:
         valid = wanted <= self.length + 1e-9
         x = np.interp(wanted, self.stations, self.points[:, 0])
         y = np.interp(wanted, self.stations, self.points[:, 1])
-        at = np.clip(np.searchsorted(self.stations, wanted, side="right") - 1, 0, max(len(self.stations) - 1, 0))
-        limits = np.where(valid, self.speed_limits[at], np.nan) if len(self.stations) else np.full(count, np.nan)
+        at = np.clip(np.searchsorted(self.stations, wanted, side="right") - 1, 0, len(self.stations) - 1)
+        limits = np.where(valid, self.speed_limits[at], np.nan)
         return np.stack([x, y], -1), valid, limits
 
 

@@ -8,7 +8,6 @@ need not import LangTraj at all: any class with callable `reset` and `act` metho
 
 from __future__ import annotations
 
-import importlib
 import inspect
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar, cast
@@ -17,7 +16,7 @@ import numpy as np
 
 from langtraj.env.spaces import ACTION_KINDS
 from langtraj.errors import InputError, LangTrajError
-from langtraj.registry import Registry
+from langtraj.registry import Registry, import_object
 
 WHERE = "--planner"
 """How errors name the option a planner spec comes from."""
@@ -53,10 +52,8 @@ class Planner(ABC):
 
 PLANNERS: Registry[Planner] = Registry("planner")
 
-
-def _first_line(error: BaseException) -> str:
-    text = str(error).strip().splitlines()
-    return f"{type(error).__name__}: {text[0]}" if text else type(error).__name__
+DEFAULT_STEP_TIMEOUT_S = 10.0
+"""Seconds a planner may take per call (a step, a reply) unless told otherwise."""
 
 
 def load_planner(spec: str) -> type[Planner]:
@@ -69,16 +66,7 @@ def load_planner(spec: str) -> type[Planner]:
     module_name, _, class_name = spec.partition(":")
     if not module_name or not class_name:
         raise InputError(f"{spec!r} is neither a planner name nor package.module:Class", where=WHERE)
-    try:
-        module = importlib.import_module(module_name)
-    except Exception as error:  # an import runs user code: any error is a bad spec
-        reason = _first_line(error)
-        raise InputError(f"cannot import module {module_name!r} of {spec!r} ({reason})", where=WHERE) from error
-    found: Any = module
-    for part in class_name.split("."):
-        if not hasattr(found, part):
-            raise InputError(f"module {module_name!r} has no {class_name!r} (from {spec!r})", where=WHERE)
-        found = getattr(found, part)
+    found = import_object(spec, WHERE)
     if not inspect.isclass(found):
         raise InputError(f"{spec!r} is not a class", where=WHERE)
     if not issubclass(found, Planner):

@@ -92,7 +92,7 @@ class IDMPlanner(Planner):
         length, width = float(ego[6]), float(ego[7])
         on_route = np.asarray(observation["route_valid"], bool)
         route = np.asarray(observation["route"], np.float64)[on_route]
-        limits = np.asarray(observation.get("route_speed_limit", np.zeros(len(on_route))), np.float64)[on_route]
+        limits = np.asarray(observation["route_speed_limit"], np.float64)[on_route]
         finite = np.isfinite(route).all(axis=1)
         route, limits = route[finite], limits[finite]
         if len(route) > 1:  # repeated points have no heading

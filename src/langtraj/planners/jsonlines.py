@@ -40,12 +40,17 @@ from typing import IO, Any
 import numpy as np
 
 from langtraj.env.spaces import ACTION_KINDS, action_space, observation_space
-from langtraj.planners.base import Planner, PlannerError, PlannerTimeout, planner_action_kind, reset_planner
+from langtraj.planners.base import (
+    DEFAULT_STEP_TIMEOUT_S,
+    Planner,
+    PlannerError,
+    PlannerTimeout,
+    planner_action_kind,
+    reset_planner,
+)
 
 PROTOCOL = 1
 """The protocol version the hello carries."""
-DEFAULT_TIMEOUT_S = 10.0
-"""How long a reply may take unless told otherwise."""
 CLOSE_WAIT_S = 2.0
 """How long `SubprocessPlanner.close` waits for the planner to exit before killing it."""
 _READ_BYTES = 1 << 16
@@ -155,7 +160,7 @@ class SubprocessPlanner(Planner):
     def __init__(
         self,
         command: str,
-        timeout_s: float = DEFAULT_TIMEOUT_S,
+        timeout_s: float = DEFAULT_STEP_TIMEOUT_S,
         *,
         start_timeout_s: float | None = None,
         stderr_path: str | Path | None = None,

@@ -39,7 +39,7 @@ from typing import Any
 
 from langtraj.env import EPISODE_STEPS  # a full episode (8 s at 10 Hz); `max_steps` may cut it shorter
 from langtraj.errors import InputError
-from langtraj.settings import build_dataclass, read_yaml
+from langtraj.settings import build_dataclass, read_yaml, require
 
 REAL_DATA_VARIABLE = "LANGTRAJ_REAL_DATA"
 """The environment variable naming the folder of real scenes (as in the tests)."""
@@ -127,20 +127,7 @@ class Suite:
         return sum(len(c.seeds) for c in self.cases)
 
 
-_CASE_KEYS = (
-    "name",
-    "scenario",
-    "index",
-    "window",
-    "ego",
-    "prompts",
-    "adversary",
-    "target",
-    "seeds",
-    "criteria",
-    "checkpoint",
-    "max_steps",
-)
+_CASE_KEYS = tuple(f.name for f in dataclasses.fields(SuiteCase))
 _DEFAULT_KEYS = ("seeds", "criteria", "checkpoint", "max_steps")
 
 
@@ -156,27 +143,27 @@ def load_suite(path: str | Path) -> Suite:
 def _parse_suite(data: dict[str, Any], path: Path) -> Suite:
     _known(data, ("name", "defaults", "cases"), "")
     name = data.get("name")
-    _require(isinstance(name, str) and bool(_NAME.fullmatch(name)), "name", _name_rule(name))
+    require(isinstance(name, str) and bool(_NAME.fullmatch(name)), "name", _name_rule(name))
     defaults = data.get("defaults") or {}
-    _require(isinstance(defaults, dict), "defaults", f"expected a mapping, got {type(defaults).__name__}")
+    require(isinstance(defaults, dict), "defaults", f"expected a mapping, got {type(defaults).__name__}")
     _known(defaults, _DEFAULT_KEYS, "defaults")
     base = path.resolve().parent
     criteria = defaults.get("criteria") or {}
-    _require(isinstance(criteria, dict), "defaults.criteria", f"expected a mapping, got {type(criteria).__name__}")
+    require(isinstance(criteria, dict), "defaults.criteria", f"expected a mapping, got {type(criteria).__name__}")
     _criteria(criteria, "defaults.criteria")  # checked here, so that a mistake is named where it is made
     seeds = _seeds(defaults["seeds"], "defaults.seeds") if defaults.get("seeds") is not None else (0,)
     checkpoint = _path(defaults.get("checkpoint"), base, "defaults.checkpoint", optional=True)
     max_steps = _max_steps(defaults.get("max_steps"), "defaults.max_steps")
     raw_cases = data.get("cases")
-    _require(isinstance(raw_cases, list) and bool(raw_cases), "cases", "expected a non-empty list of cases")
+    require(isinstance(raw_cases, list) and bool(raw_cases), "cases", "expected a non-empty list of cases")
     cases = []
     for i, raw in enumerate(raw_cases):
         where = f"cases[{i}]"
-        _require(isinstance(raw, dict), where, f"expected a mapping, got {type(raw).__name__}")
+        require(isinstance(raw, dict), where, f"expected a mapping, got {type(raw).__name__}")
         cases.append(_case(raw, where, base, criteria, seeds, checkpoint, max_steps))
     seen: dict[str, int] = {}
     for i, case in enumerate(cases):
-        _require(
+        require(
             case.name not in seen,
             f"cases[{i}].name",
             f"{case.name!r} is already the name of cases[{seen.get(case.name)}]",
@@ -196,8 +183,8 @@ def _case(
 ) -> SuiteCase:
     _known(raw, _CASE_KEYS, where)
     name = raw.get("name")
-    _require(isinstance(name, str) and bool(_NAME.fullmatch(name)), f"{where}.name", _name_rule(name))
-    _require("scenario" in raw, where, "missing scenario")
+    require(isinstance(name, str) and bool(_NAME.fullmatch(name)), f"{where}.name", _name_rule(name))
+    require("scenario" in raw, where, "missing scenario")
     scenario = _path(raw["scenario"], base, f"{where}.scenario")
     index = _int(raw.get("index", 0), f"{where}.index", minimum=0)
     window = _int(raw["window"], f"{where}.window", minimum=0) if raw.get("window") is not None else None
@@ -206,29 +193,29 @@ def _case(
     target = raw.get("target")
     if target != "ego":
         target = _optional_id(target, f"{where}.target", also="or 'ego'")
-    _require(
+    require(
         (adversary is None) == (target is None),
         f"{where}.{'target' if adversary is not None else 'adversary'}",
         "an adversary needs a target and a target an adversary",
     )
-    _require(
+    require(
         adversary is None or adversary not in (ego, target),
         f"{where}.adversary",
         f"{adversary} is also the case's {'ego' if adversary == ego else 'target'}",
     )
     prompts = raw.get("prompts") or []
-    _require(isinstance(prompts, list), f"{where}.prompts", f"expected a list of text, got {type(prompts).__name__}")
+    require(isinstance(prompts, list), f"{where}.prompts", f"expected a list of text, got {type(prompts).__name__}")
     texts = []
     for j, prompt in enumerate(prompts):
         at = f"{where}.prompts[{j}]"
-        _require(isinstance(prompt, str) and bool(prompt.strip()), at, f"expected non-empty text, got {prompt!r}")
+        require(isinstance(prompt, str) and bool(prompt.strip()), at, f"expected non-empty text, got {prompt!r}")
         if ADVERSARY_PLACEHOLDER.search(prompt):
-            _require(adversary is not None, at, "'@adv' needs the case's adversary")
+            require(adversary is not None, at, "'@adv' needs the case's adversary")
             prompt = ADVERSARY_PLACEHOLDER.sub(f"@{adversary}", prompt)
         texts.append(prompt)
     overrides = raw.get("criteria") or {}
     at = f"{where}.criteria"
-    _require(isinstance(overrides, dict), at, f"expected a mapping, got {type(overrides).__name__}")
+    require(isinstance(overrides, dict), at, f"expected a mapping, got {type(overrides).__name__}")
     criteria = _criteria({**default_criteria, **overrides}, at)
     seeds = _seeds(raw["seeds"], f"{where}.seeds") if raw.get("seeds") is not None else default_seeds
     checkpoint = (
@@ -257,17 +244,17 @@ def _criteria(data: dict[str, Any], where: str) -> Criteria:
     criteria = build_dataclass(Criteria, data, where)
     for key in ("min_ttc", "min_progress"):
         value = getattr(criteria, key)
-        _require(value is None or value >= 0, f"{where}.{key}", f"must be >= 0, got {value}")
+        require(value is None or value >= 0, f"{where}.{key}", f"must be >= 0, got {value}")
     return criteria
 
 
 def _seeds(value: Any, where: str) -> tuple[int, ...]:
     if isinstance(value, int) and not isinstance(value, bool):
-        _require(value >= 1, where, f"a count of seeds must be >= 1, got {value}")
+        require(value >= 1, where, f"a count of seeds must be >= 1, got {value}")
         return tuple(range(value))
-    _require(isinstance(value, list) and bool(value), where, f"expected a count or a list of seeds, got {value!r}")
+    require(isinstance(value, list) and bool(value), where, f"expected a count or a list of seeds, got {value!r}")
     seeds = tuple(_int(s, f"{where}[{i}]", minimum=0) for i, s in enumerate(value))
-    _require(len(set(seeds)) == len(seeds), where, f"repeated seeds in {list(seeds)}")
+    require(len(set(seeds)) == len(seeds), where, f"repeated seeds in {list(seeds)}")
     return seeds
 
 
@@ -275,31 +262,31 @@ def _max_steps(value: Any, where: str) -> int | None:
     if value is None:
         return None
     steps = _int(value, where, minimum=1)
-    _require(steps <= EPISODE_STEPS, where, f"must be at most {EPISODE_STEPS}, got {steps}")
+    require(steps <= EPISODE_STEPS, where, f"must be at most {EPISODE_STEPS}, got {steps}")
     return steps
 
 
 def _path(value: Any, base: Path, where: str, *, optional: bool = False) -> Path | None:
     if value is None and optional:
         return None
-    _require(isinstance(value, str) and bool(value), where, f"expected a path, got {value!r}")
+    require(isinstance(value, str) and bool(value), where, f"expected a path, got {value!r}")
 
     def variable(match: re.Match) -> str:
         name = match.group(1)
         if name in os.environ:
             return os.environ[name]
-        _require(name == REAL_DATA_VARIABLE, where, f"the environment variable {name} is not set")
+        require(name == REAL_DATA_VARIABLE, where, f"the environment variable {name} is not set")
         return str(DEFAULT_REAL_DATA)
 
     path = Path(_VARIABLE.sub(variable, value)).expanduser()
     path = path if path.is_absolute() else base / path
-    _require(path.is_file(), where, f"no such file: {path}")
+    require(path.is_file(), where, f"no such file: {path}")
     return path
 
 
 def _int(value: Any, where: str, *, minimum: int) -> int:
-    _require(isinstance(value, int) and not isinstance(value, bool), where, f"expected a whole number, got {value!r}")
-    _require(value >= minimum, where, f"must be >= {minimum}, got {value}")
+    require(isinstance(value, int) and not isinstance(value, bool), where, f"expected a whole number, got {value!r}")
+    require(value >= minimum, where, f"must be >= {minimum}, got {value}")
     return value
 
 
@@ -307,19 +294,14 @@ def _optional_id(value: Any, where: str, also: str = "") -> int | None:
     if value is None:
         return None
     ok = isinstance(value, int) and not isinstance(value, bool)
-    _require(ok, where, f"expected a track id{' ' + also if also else ''}, got {value!r}")
+    require(ok, where, f"expected a track id{' ' + also if also else ''}, got {value!r}")
     return value
 
 
 def _known(data: dict[str, Any], keys: tuple[str, ...], where: str) -> None:
     unknown = sorted(set(data) - set(keys))
-    _require(not unknown, where or None, f"unknown keys {', '.join(map(str, unknown))}; known: {', '.join(keys)}")
+    require(not unknown, where, f"unknown keys {', '.join(map(str, unknown))}; known: {', '.join(keys)}")
 
 
 def _name_rule(value: Any) -> str:
     return f"expected a name of letters, digits, '.', '_' and '-', got {value!r}"
-
-
-def _require(condition: bool, where: str | None, message: str) -> None:
-    if not condition:
-        raise InputError(message, where=where or None)

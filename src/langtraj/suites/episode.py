@@ -14,7 +14,6 @@ act) through SIGALRM (`langtraj.suites.deadline`, which says where that cannot i
 
 from __future__ import annotations
 
-import importlib
 import time
 import traceback
 from collections.abc import Callable
@@ -25,6 +24,8 @@ from typing import Any
 import numpy as np
 
 from langtraj.env.spaces import action_space
+from langtraj.errors import one_line
+from langtraj.registry import import_object
 from langtraj.suites.config import EPISODE_STEPS, SuiteCase
 from langtraj.suites.deadline import StepTimeout, deadline
 from langtraj.suites.verdict import StepRecord, episode_figures, judge
@@ -105,10 +106,6 @@ class EpisodeResult:
             "traceback": self.traceback,
         }
 
-    @classmethod
-    def from_json(cls, data: dict[str, Any]) -> EpisodeResult:
-        return cls(**data)
-
 
 class _Failed(Exception):
     """The planner failed the episode (`reason`: one line)."""
@@ -116,21 +113,6 @@ class _Failed(Exception):
     def __init__(self, reason: str):
         super().__init__(reason)
         self.reason = reason
-
-
-def _one_line(error: BaseException) -> str:
-    """`Type: first line of the message`."""
-    lines = str(error).strip().splitlines()
-    return f"{type(error).__name__}: {lines[0]}" if lines else type(error).__name__
-
-
-def load_class(spec: str) -> Any:
-    """The attribute `spec` ("package.module:Name") names."""
-    module, _, name = spec.partition(":")
-    found: Any = importlib.import_module(module)
-    for part in name.split("."):
-        found = getattr(found, part)
-    return found
 
 
 class _Episode:
@@ -159,7 +141,7 @@ class _Episode:
         except PlannerError as error:
             raise _Failed(f"planner failed {when}: {str(error).splitlines()[0] if str(error) else error}") from None
         except Exception as error:
-            raise _Failed(f"planner raised {_one_line(error)} {when}") from None
+            raise _Failed(f"planner raised {one_line(error)} {when}") from None
         finally:
             spent = time.perf_counter() - start
             self.planner_seconds += spent
@@ -190,8 +172,8 @@ class _Episode:
         try:
             kind = planner_action_kind(self.planner)
         except Exception as error:
-            raise _Failed(f"planner has a bad action_kind ({_one_line(error)})") from None
-        self.env = load_class(task.env)(
+            raise _Failed(f"planner has a bad action_kind ({one_line(error)})") from None
+        self.env = import_object(task.env, "env")(
             case.scenario,
             index=case.index,
             window=case.window,
@@ -270,7 +252,7 @@ def run_episode(task: EpisodeTask) -> EpisodeResult:
     except Exception as error:
         steps = episode.record.steps
         where = f"at step {steps + 1}" if episode.ego is not None else "before the episode started"
-        result.status, result.reasons = "error", [f"LangTraj raised {_one_line(error)} {where}"]
+        result.status, result.reasons = "error", [f"LangTraj raised {one_line(error)} {where}"]
         result.traceback = traceback.format_exc()
     figures = episode_figures(episode.record)
     if result.status == "pass":
@@ -290,13 +272,13 @@ def run_episode(task: EpisodeTask) -> EpisodeResult:
         try:
             result.video = episode.video(caption)
         except Exception as error:
-            result.video_error = _one_line(error)
+            result.video_error = one_line(error)
     try:
         episode.close()
     except Exception as error:
         if result.status != "error":
             result.status = "error"
-            result.reasons.append(f"LangTraj raised {_one_line(error)} when closing the env")
+            result.reasons.append(f"LangTraj raised {one_line(error)} when closing the env")
             result.traceback = traceback.format_exc()
     result.seconds = time.perf_counter() - start
     return result

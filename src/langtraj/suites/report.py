@@ -64,8 +64,7 @@ def summary_line(results: SuiteResults) -> str:
     """`PASS` / `FAIL`: cases and episodes counted, e.g. `FAIL: 1 of 3 cases failed, 0 errors (5 of 6 episodes
     passed) in 12.3 s`."""
     s = results.summary()
-    bad = s["cases_failed"] + s["cases_errors"]
-    verdict = "PASS" if bad == 0 and results.complete else "FAIL"
+    verdict = "PASS" if results.passed else "FAIL"
     line = (
         f"{verdict}: {s['cases_failed']} of {s['cases']} cases failed, {s['cases_errors']} with errors "
         f"({s['passed']} of {s['episodes']} episodes passed) in {s['seconds']:.1f} s"

@@ -24,7 +24,6 @@ from langtraj.suites.config import Suite
 from langtraj.suites.episode import EpisodeResult
 
 RESULTS_FILE = "results.json"
-STATUSES = ("pass", "fail", "error")
 
 
 def case_status(results: list[EpisodeResult], expected: int) -> str:
@@ -75,6 +74,11 @@ class SuiteResults:
     @property
     def complete(self) -> bool:
         return len(self.episodes) == self.suite.episodes
+
+    @property
+    def passed(self) -> bool:
+        """Every episode finished and every case passed."""
+        return self.complete and all(s == "pass" for s in self.case_statuses().values())
 
     def case_statuses(self) -> dict[str, str]:
         return {c.name: case_status(self.of_case(c.name), len(c.seeds)) for c in self.suite.cases}

@@ -17,15 +17,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from langtraj.errors import InputError
+from langtraj.errors import InputError, one_line
 from langtraj.executors import EXECUTORS
+from langtraj.planners.base import DEFAULT_STEP_TIMEOUT_S
 from langtraj.suites.config import Suite
 from langtraj.suites.episode import DEFAULT_ENV, EpisodeResult, EpisodeTask, run_episode
 from langtraj.suites.junit import write_junit
 from langtraj.suites.report import write_report
 from langtraj.suites.results import SuiteResults
-
-DEFAULT_STEP_TIMEOUT_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -90,9 +89,8 @@ def episode_tasks(suite: Suite, options: RunOptions) -> list[EpisodeTask]:
 
 def _lost(task: EpisodeTask, error: BaseException) -> EpisodeResult:
     """The result of an episode the executor lost (its worker died before returning it)."""
-    text = str(error).strip().splitlines()
-    what = f"{type(error).__name__}: {text[0]}" if text else type(error).__name__
-    return EpisodeResult(case=task.case.name, seed=task.seed, status="error", reasons=[f"the worker was lost ({what})"])
+    reason = f"the worker was lost ({one_line(error)})"
+    return EpisodeResult(case=task.case.name, seed=task.seed, status="error", reasons=[reason])
 
 
 def run_suite(

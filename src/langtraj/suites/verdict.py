@@ -28,9 +28,10 @@ class StepRecord:
     collided_with: list[list[int]] = field(default_factory=list)
 
     def add(self, info: dict[str, Any]) -> None:
-        """Record one step's info (a missing figure is recorded as None, a missing flag as False)."""
+        """Record one step's info: its flags must be there (a missing one would pass every safety criterion); a
+        missing or non-finite figure is recorded as None."""
         for key in ("collision", "at_fault", "offroad"):
-            getattr(self, key).append(bool(info.get(key, False)))
+            getattr(self, key).append(bool(info[key]))
         for key in ("ttc", "min_distance", "progress", "progress_m", "speed"):
             getattr(self, key).append(_number(info.get(key)))
         self.collided_with.append([int(i) for i in info.get("collided_with", ()) or ()])
