@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from langtraj.env.spaces import TRAJECTORY_POSES, action_space
+from langtraj.errors import InputError
 from langtraj.planners import ConstantVelocityPlanner, LogReplayPlanner
 
 from .helpers import make_observation
@@ -57,8 +58,12 @@ def test_log_replay_holds_the_last_valid_pose_through_gaps_and_past_the_end():
     np.testing.assert_allclose(past, np.zeros((10, 3)), atol=1e-4)  # hold the log's last pose, where the ego is
 
 
-@pytest.mark.parametrize("info", [{}, {"logged_ego": np.full((80, 4), np.nan)}])
-def test_log_replay_without_a_log_holds_the_current_pose(info):
+def test_log_replay_without_a_logged_state_holds_the_current_pose():
     planner = LogReplayPlanner()
-    planner.reset(make_observation(), info)
+    planner.reset(make_observation(), {"logged_ego": np.full((80, 4), np.nan)})
     np.testing.assert_array_equal(planner.act(make_observation(pose=(3.0, 4.0, 1.0), time=1.0)), np.zeros((10, 3)))
+
+
+def test_log_replay_refuses_a_reset_info_without_the_log():
+    with pytest.raises(InputError, match="logged_ego"):
+        LogReplayPlanner().reset(make_observation(), {})

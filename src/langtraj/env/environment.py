@@ -21,7 +21,7 @@ import numpy as np
 from langtraj.angles import wrap_angle
 from langtraj.env import spaces
 from langtraj.env.dynamics import step_unicycle, track
-from langtraj.env.events import EventJudge, road_edge_index
+from langtraj.env.events import EventJudge
 from langtraj.env.observe import MapPieces, Observer
 from langtraj.env.reward import RewardConfig
 from langtraj.env.route import ego_route
@@ -29,17 +29,17 @@ from langtraj.errors import InputError
 from langtraj.interdrive.heuristics import HeuristicConfig
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
-from langtraj.metrics.road import RoadEdgeIndex
+from langtraj.metrics.road import RoadEdgeIndex, road_edge_index
 from langtraj.model.config import ModelConfig
 from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.scenario.io import read_scenario
-from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario, TrafficLights
+from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
 from langtraj.scenario.selection import prioritized_agents
 from langtraj.scenario.types import AgentType, StateField
 from langtraj.scenario.windowing import cut_window, window_starts
 from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.policies import POLICIES, LoadedModel
-from langtraj.sim.prompts import user_prompt_entry
+from langtraj.sim.prompts import prompt_mentions, user_prompt_entry
 from langtraj.sim.setup import build_policy
 from langtraj.sim.stepping import SteppedSimulation
 
@@ -95,7 +95,12 @@ class _Scene:
 
     @classmethod
     def of(cls, scenario: Scenario) -> _Scene:
-        return cls(scenario, MapIndex.build(scenario.road_map), MapPieces.of(scenario), road_edge_index(scenario))
+        return cls(
+            scenario,
+            MapIndex.build(scenario.road_map),
+            MapPieces.of(scenario),
+            road_edge_index([f.points for f in scenario.road_map.road_edges]),
+        )
 
 
 class LangTrajEnv(gym.Env):
@@ -210,7 +215,7 @@ class LangTrajEnv(gym.Env):
         self._reference_m = (
             max(self._route.station(seen[-1]) - station, 1.0) if len(seen) and self._route.source == "log" else math.nan
         )
-        prompted = [i for i in _mentions(scenario, prompts) if i != ego_id]
+        prompted = [i for i in prompt_mentions(scenario, prompts) if i != ego_id]
         self.highlight_ids = [ego_id, *prompted]
         if adversary is not None and adversary not in self.highlight_ids:
             self.highlight_ids.append(int(adversary))
@@ -272,7 +277,8 @@ class LangTrajEnv(gym.Env):
         """The episode so far as a scenario: the logged history, then the simulated steps up to now."""
         if self._sim is None:
             raise RuntimeError("call reset() first")
-        return _until(self._sim.world.played(0), self._sim.step)
+        played = self._sim.world.played(0)
+        return played.slice_steps(0, self._sim.step + 1, played.current_index)
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None or self._sim is None:
@@ -380,25 +386,3 @@ def _window(scenario: Scenario, window: int, source: str) -> Scenario:
             where=f"{source}: window",
         )
     return cut_window(scenario, starts[window])
-
-
-def _mentions(scenario: Scenario, prompts: tuple[str, ...]) -> list[int]:
-    seen: list[int] = []
-    for text in prompts:
-        seen += [m for m in user_prompt_entry(scenario, text).mentions if m not in seen]
-    return seen
-
-
-def _until(scenario: Scenario, step: int) -> Scenario:
-    """`scenario` cut after `step`."""
-    n = step + 1
-    agents = scenario.agents
-    lights = scenario.traffic_lights
-    if lights is not None:
-        lights = TrafficLights(lights.lane_ids, lights.states[:n], lights.valid[:n], lights.stop_points)
-    return replace(
-        scenario,
-        timestamps=scenario.timestamps[:n],
-        agents=replace(agents, states=agents.states[:, :n], valid=agents.valid[:, :n]),
-        traffic_lights=lights,
-    )

@@ -10,8 +10,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from langtraj.angles import wrap_angle
+from langtraj.metrics.features import COLLISION_THRESHOLD, OFFROAD_THRESHOLD
 from langtraj.metrics.interaction import MAX_TTC, pair_signed_distance, time_to_collision
-from langtraj.metrics.road import RoadEdgeIndex, RoadEdges, distance_to_road_edge
+from langtraj.metrics.road import RoadEdgeIndex, distance_to_road_edge
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import StateField
 
@@ -36,15 +37,9 @@ class StepEvents:
         return bool(self.collided_with)
 
 
-def road_edge_index(scenario: Scenario) -> RoadEdgeIndex | None:
-    """The WOSAC metrics' road-edge index of `scenario` (None without road edges: nothing is off-road)."""
-    edges = RoadEdges.from_polylines([f.points for f in scenario.road_map.road_edges])
-    return RoadEdgeIndex(edges) if edges.num_segments else None
-
-
 class EventJudge:
     """Judges the ego (scenario row `ego`) against every other valid agent and the road edges of `scenario`
-    (`edges`: its `road_edge_index`)."""
+    (`edges`: `metrics.road.road_edge_index` of them, None without any)."""
 
     def __init__(self, scenario: Scenario, ego: int, edges: RoadEdgeIndex | None):
         self.ego = ego
@@ -69,7 +64,7 @@ class EventJudge:
         others = others[others != e]
         gap = pair_signed_distance(x[e], y[e], heading[e], length[e], width[e],
                                    x[others], y[others], heading[others], length[others], width[others])  # fmt: skip
-        hit = others[gap < 0]
+        hit = others[gap < COLLISION_THRESHOLD]
         at_fault = False
         if len(hit) and speed[e] > AT_FAULT_MIN_SPEED:
             bearing = np.arctan2(y[hit] - y[e], x[hit] - x[e]) - heading[e]
@@ -81,7 +76,7 @@ class EventJudge:
                 self.edges, x[e : e + 1], y[e : e + 1], one[:, StateField.Z], heading[e : e + 1], length[e : e + 1],
                 width[e : e + 1], one[:, StateField.HEIGHT], np.ones(1, bool),
             )  # fmt: skip
-            offroad = bool(dist[0] > 0)
+            offroad = bool(dist[0] > OFFROAD_THRESHOLD)
         return StepEvents(
             collided_with=tuple(int(i) for i in self.ids[hit]),
             at_fault=at_fault,

@@ -16,7 +16,7 @@ import numpy as np
 
 from langtraj.metrics.interaction import distance_to_nearest_object, time_to_collision
 from langtraj.metrics.kinematics import kinematic_features
-from langtraj.metrics.road import RoadEdgeIndex, RoadEdges, distance_to_road_edge
+from langtraj.metrics.road import RoadEdgeIndex, distance_to_road_edge, road_edge_index
 from langtraj.metrics.traffic_lights import SignalLanes, red_light_violations
 from langtraj.rollouts.agents import evaluated_agent_indices, sim_agent_indices
 from langtraj.rollouts.container import Rollouts
@@ -39,9 +39,8 @@ class SceneMap:
 
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> SceneMap:
-        edges = RoadEdges.from_polylines([f.points for f in scenario.road_map.road_edges])
-        index = RoadEdgeIndex(edges) if edges.num_segments else None
-        return cls(index, SignalLanes.from_scenario(scenario))
+        edges = road_edge_index([f.points for f in scenario.road_map.road_edges])
+        return cls(edges, SignalLanes.from_scenario(scenario))
 
 
 @dataclass(frozen=True)

@@ -163,6 +163,12 @@ class RoadEdgeIndex:
         return sign * planar
 
 
+def road_edge_index(polylines: Sequence[np.ndarray]) -> RoadEdgeIndex | None:
+    """The index of a scene's road-edge polylines, or None when they have no segment (nothing is off road)."""
+    edges = RoadEdges.from_polylines(polylines)
+    return RoadEdgeIndex(edges) if edges.num_segments else None
+
+
 def _argmin_lowest_index(values: np.ndarray, index: np.ndarray) -> np.ndarray:
     """Column of the minimum of each row, ties going to the lowest `index`."""
     low = values.min(axis=1, keepdims=True)

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -80,11 +79,6 @@ class IDMPlanner(Planner):
 
     def __init__(self, config: IDMConfig | None = None):
         self.config = config or IDMConfig()
-        self.step_seconds = STEP_SECONDS
-
-    def reset(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> None:
-        """Reads the control period from the reset info (`step_seconds`, 0.1 s)."""
-        self.step_seconds = float(info.get("step_seconds", STEP_SECONDS) or STEP_SECONDS)
 
     def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
         ego = np.asarray(observation["ego"], np.float64)
@@ -110,9 +104,8 @@ class IDMPlanner(Planner):
         obstacles = self._obstacles(observation, corridor, speed, length, width)
         if len(obstacles):
             accel += float(self._interaction(speed, obstacles[:, 0], obstacles[:, 1]).min())
-        accel = float(np.clip(accel, max(-self.config.hard_brake, -speed / self.step_seconds), self.config.max_accel))
-        action = np.array([accel, yaw_rate], np.float32)
-        return np.clip(action, [-MAX_ACCEL, -MAX_YAW_RATE], [MAX_ACCEL, MAX_YAW_RATE]).astype(np.float32)
+        accel = np.clip(accel, max(-self.config.hard_brake, -speed / STEP_SECONDS), self.config.max_accel)
+        return np.clip([accel, yaw_rate], [-MAX_ACCEL, -MAX_YAW_RATE], [MAX_ACCEL, MAX_YAW_RATE]).astype(np.float32)
 
     def _free_accel(self, speed: float, desired: float) -> float:
         """The IDM's free-road term a (1 - (v / v0)^delta), floored at the comfortable deceleration."""
@@ -205,10 +198,11 @@ class IDMPlanner(Planner):
             half_along = 0.5 * (agents[:, 5] * cos + agents[:, 6] * sin)
             reach = 0.5 * width + half_lateral + c.corridor_margin
             overlaps = np.abs(on.offset) <= reach
-            if c.cut_in_horizon > 0:  # same-direction agents whose forecast enters the corridor
-                for t in np.linspace(0.0, c.cut_in_horizon, CUT_IN_SAMPLES + 1)[1:]:
-                    there = project_on_polyline(agents[:, :2] + t * agents[:, 3:5], line)
-                    overlaps |= (np.cos(relative) > 0.0) & (np.abs(there.offset) <= reach)
+            if c.cut_in_horizon > 0:  # same-direction agents whose forecast enters the corridor, in one projection
+                times = np.linspace(0.0, c.cut_in_horizon, CUT_IN_SAMPLES + 1)[1:]
+                ahead_xy = agents[None, :, :2] + times[:, None, None] * agents[None, :, 3:5]  # [S, K, 2]
+                there = project_on_polyline(ahead_xy.reshape(-1, 2), line).offset.reshape(len(times), -1)
+                overlaps |= (np.cos(relative) > 0.0) & (np.abs(there) <= reach).any(axis=0)
             ahead = overlaps & (station > 0.0)
             gaps = station - 0.5 * length - half_along
             lead_speeds = agents[:, 3] * np.cos(along) + agents[:, 4] * np.sin(along)

@@ -9,6 +9,7 @@ import numpy as np
 
 from langtraj.angles import wrap_angle
 from langtraj.env.spaces import TRAJECTORY_POSES
+from langtraj.errors import InputError
 from langtraj.frames import poses_to_frame
 from langtraj.planners.base import PLANNERS, Planner
 from langtraj.scenario.model import STEP_SECONDS
@@ -40,18 +41,19 @@ class LogReplayPlanner(Planner):
 
     def __init__(self) -> None:
         self.logged = np.full((0, 4), np.nan)
-        self.step_seconds = STEP_SECONDS
 
     def reset(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> None:
-        """Keeps the ego's logged future (`logged_ego` [80, 4]: world x, y, heading, speed; NaN where unlogged)."""
-        logged = np.asarray(info.get("logged_ego", np.zeros((0, 4))), np.float64)
+        """Keeps the ego's logged future (`logged_ego` [80, 4]: world x, y, heading, speed; NaN where unlogged),
+        which the reset info must carry."""
+        if "logged_ego" not in info:
+            raise InputError("log replay needs the reset info's logged_ego (the ego's logged future)", where="info")
+        logged = np.asarray(info["logged_ego"], np.float64)
         self.logged = logged.reshape(-1, logged.shape[-1]) if logged.size else np.full((0, 4), np.nan)
-        self.step_seconds = float(info.get("step_seconds", STEP_SECONDS) or STEP_SECONDS)
 
     def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
         ego = np.asarray(observation["ego"], np.float64)
         origin = (float(ego[0]), float(ego[1]), float(ego[2]))
-        step = round(float(np.asarray(observation["time"]).reshape(-1)[0]) / self.step_seconds)
+        step = round(float(np.asarray(observation["time"]).reshape(-1)[0]) / STEP_SECONDS)
         poses = self.logged[:, :3]
         usable = np.isfinite(poses).all(axis=1)
         before = np.flatnonzero(usable[: max(0, step)])

@@ -12,9 +12,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from langtraj.guidance import GuidanceTerm
 from langtraj.scenario.model import STEP_SECONDS
-from langtraj.sim.prompt_replan import PROMPT_MAX_GRAD_NORM, Guidance, GuidanceOf, then
 from langtraj.sim.world import SimWorld
 
 
@@ -68,16 +66,6 @@ def external_acceleration(world: SimWorld, slots: Sequence[int], step: int, roll
 CLEARANCE_ITERATIONS = 1
 """Gradient steps of the clearance guidance per denoising step (two, a prompt's, cleared no more seeds of the
 constructed follower scene: 8 of 8 either way, docs/simulation.md, 'External agents')."""
-
-
-def with_clearance(hook: Guidance | None, terms: tuple[GuidanceTerm, ...], guidance: GuidanceOf) -> Guidance | None:
-    """The sampler hook applying `hook`, then the terms that keep agents clear of the external ones (`terms`, if
-    any) in a step of their own, of a prompt's size (`PROMPT_MAX_GRAD_NORM`), made by `guidance` over
-    `accelerations_only`: the others
-    make room by slowing down or speeding up along their path, not by swerving off the road."""
-    if not terms:
-        return hook
-    return then(hook, guidance(terms, PROMPT_MAX_GRAD_NORM, CLEARANCE_ITERATIONS))
 
 
 def accelerations_only(x: Tensor) -> Tensor:

@@ -51,7 +51,12 @@ from langtraj.scenario.selection import prioritized_agents
 from langtraj.sim.adherence import CandidateJudge
 from langtraj.sim.checkpoints import shipped_checkpoint
 from langtraj.sim.config import ALL_LEVERS, PromptLevers, SimRequest
-from langtraj.sim.external import accelerations_only, external_acceleration, pin_external, with_clearance
+from langtraj.sim.external import (
+    CLEARANCE_ITERATIONS,
+    accelerations_only,
+    external_acceleration,
+    pin_external,
+)
 from langtraj.sim.prompt_replan import Guidance, GuidanceOf, PromptReplans, with_prompt_guidance
 from langtraj.sim.prompts import PromptSteering, check_prompt_driven, merged_prompt, prompt_steering, read_prompts
 from langtraj.sim.selection import SELECTORS, CandidateSelector, chosen_states
@@ -445,7 +450,7 @@ class LangTrajPolicy(Policy):
         """Keep every other driven agent that follows an external agent (an ego under test, which guidance cannot
         steer) `EXTERNAL_BUFFER_M` behind its forecast (`HeadwayCost`), at the denoising steps the realism guidance
         applies at, weighted `external_clearance`; applied by acceleration alone in a step of its own
-        (`sim.external.with_clearance`). Without it the model's agents drive into a braking ego (docs/testing.md,
+        (`sim.external.CLEARANCE_ITERATIONS`). Without it the model's agents drive into a braking ego (docs/testing.md,
         'How the other agents react')."""
         others = [slot for slot in range(num_driven) if slot not in external and slot not in self.free]
         if not external or not others or self.external_clearance <= 0:
@@ -546,7 +551,8 @@ class LangTrajPolicy(Policy):
             guidance = by(integrate)
             hook = guidance(state.terms, self.max_grad_norm) if state.terms else None
             hook = with_prompt_guidance(hook, prompt_terms, guidance)  # its own, larger step after the scene's
-            hook = with_clearance(hook, state.clearance, by(lambda x: integrate(accelerations_only(x))))
+            clear = by(lambda x: integrate(accelerations_only(x)))  # the others make room by braking, not swerving
+            hook = with_prompt_guidance(hook, state.clearance, clear, iterations=CLEARANCE_ITERATIONS)
         start = self._warm_start(state, step, rollouts)
         states, actions = self.model.sample(
             batch,

@@ -38,14 +38,14 @@ GuidanceOf = Callable[[tuple[GuidanceTerm, ...], float | None, int], Guidance]
 
 
 def with_prompt_guidance(
-    hook: Guidance | None, terms: tuple[GuidanceTerm, ...], guidance: GuidanceOf
+    hook: Guidance | None, terms: tuple[GuidanceTerm, ...], guidance: GuidanceOf, iterations: int = PROMPT_ITERATIONS
 ) -> Guidance | None:
-    """The sampler hook applying `hook` (the scene's guidance, if any), then the terms toward the prompts' targets
-    (`terms`, if any) in a step of their own, larger than the scene's (`PROMPT_MAX_GRAD_NORM`, `PROMPT_ITERATIONS`),
-    made by `guidance`."""
+    """The sampler hook applying `hook` (the scene's guidance, if any), then `terms` (if any: the prompts' targets,
+    or the clearance from external agents, `sim.external`) in a step of their own, larger than the scene's
+    (`PROMPT_MAX_GRAD_NORM`, `iterations` gradient steps), made by `guidance`."""
     if not terms:
         return hook
-    return then(hook, guidance(terms, PROMPT_MAX_GRAD_NORM, PROMPT_ITERATIONS))
+    return then(hook, guidance(terms, PROMPT_MAX_GRAD_NORM, iterations))
 
 
 def then(first: Guidance | None, second: Guidance) -> Guidance:

@@ -33,6 +33,14 @@ def user_prompt_entry(scenario: Scenario, text: str) -> PromptEntry:
     return PromptEntry.of(prompt)
 
 
+def prompt_mentions(scenario: Scenario, prompts: Sequence[str]) -> list[int]:
+    """The track ids the prompts name, in order of first mention, each once (whom a video or view highlights)."""
+    named: list[int] = []
+    for text in prompts:
+        named += [m for m in user_prompt_entry(scenario, text).mentions if m not in named]
+    return named
+
+
 def merged_prompt(scenario: Scenario, prompts: Sequence[str]) -> PromptEntry | None:
     """One prompt entry from several typed prompts; an agent named by two prompts is an error."""
     entries = [user_prompt_entry(scenario, text) for text in prompts]

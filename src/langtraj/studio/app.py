@@ -269,7 +269,7 @@ def _render(catalog: Catalog, job: Job, path: Path) -> None:
     each prompt's target marked, from the current step on (written atomically by `save_video`)."""
     from langtraj.metrics.instruction_following import rollout_scenario
     from langtraj.rollouts.container import Rollouts
-    from langtraj.sim.prompts import user_prompt_entry
+    from langtraj.sim.prompts import prompt_mentions
     from langtraj.viz import RenderConfig, marks_from_prompt, save_video
 
     loaded = catalog.load(job.spec.scene)
@@ -279,9 +279,7 @@ def _render(catalog: Catalog, job: Job, path: Path) -> None:
     folder = path.parent
     played = rollout_scenario(scenario, Rollouts.load(folder / ROLLOUTS_FILE), 0)
     result = json.loads((folder / RESULT_FILE).read_text())
-    named: list[int] = []
-    for text in job.spec.prompts:
-        named += [m for m in user_prompt_entry(scenario, text).mentions if m not in named]
+    named = prompt_mentions(scenario, job.spec.prompts)
     named += [t for t in (job.spec.adversary, job.spec.target) if t is not None and t not in named]
     caption = "; ".join(job.spec.prompts)[:120] or "no prompt"
     marks = marks_from_prompt({"targets": result["runs"]["prompted"]["targets"]})
