@@ -301,9 +301,9 @@ def test_pick_prompt_run_watch_judge_keep(site: Site, browser: Browser) -> None:
     page.locator("#case-form button[type=submit]").click()
     expect(page.locator("#case-result")).to_contain_text("slows-down")
     saved = page.locator("#case-result").inner_text()
-    suite_files = [p for p in site.data.rglob("*") if p.is_file() and "studio-e2e" in str(p)]
-    assert suite_files, f"no suite file under {site.data} ({saved})"
-    text = "\n".join(p.read_text(errors="replace") for p in suite_files if p.suffix in (".yaml", ".yml", ".json"))
+    suite_file = site.data / "suites" / "studio-e2e.yaml"
+    assert suite_file.is_file(), f"no {suite_file} ({saved})"
+    text = suite_file.read_text()
     assert "slows-down" in text and f"@{agent['id']} slows down" in text, text[:2000]
     assert "min_ttc" in text and "no_collision" in text, text[:2000]
     page.locator("#case-form button[type=submit]").click()  # the same name again: the server's error, in the page

@@ -30,7 +30,7 @@ from langtraj.labeling.media import MediaConfig, agent_positions, window_video
 from langtraj.labeling.models import Role
 from langtraj.labeling.protocol import parse_labels
 from langtraj.scenario.model import Scenario
-from langtraj.web import SECURITY_HEADERS
+from langtraj.web import with_security_headers
 
 COOKIE = "langtraj_session"
 CSRF_HEADER = "X-CSRF-Token"
@@ -135,11 +135,12 @@ def create_app(config: ServerConfig, db: Database | None = None) -> FastAPI:
         if path.startswith("/api/") and path not in OPEN_PATHS:
             identity = await run_in_threadpool(_identify, db, request.cookies.get(COOKIE))
             if identity is None:
-                return _headers(JSONResponse({"detail": "log in first"}, status_code=401))
+                return with_security_headers(JSONResponse({"detail": "log in first"}, status_code=401))
             if request.method not in SAFE_METHODS and not auth.csrf_matches(identity, request.headers.get(CSRF_HEADER)):
-                return _headers(JSONResponse({"detail": f"missing or wrong {CSRF_HEADER} header"}, status_code=403))
+                refused = JSONResponse({"detail": f"missing or wrong {CSRF_HEADER} header"}, status_code=403)
+                return with_security_headers(refused)
             request.state.identity = identity
-        return _headers(await call_next(request))
+        return with_security_headers(await call_next(request))
 
     for error, status in ((InputError, 422), (NotFound, 404), (Forbidden, 403), (Conflict, 409)):
         app.add_exception_handler(error, _handler(status))
@@ -152,12 +153,6 @@ def create_app(config: ServerConfig, db: Database | None = None) -> FastAPI:
 def _identify(db: Database, token: str | None) -> Identity | None:
     with db.session() as session:
         return auth.identify(session, token)
-
-
-def _headers(response: Response) -> Response:
-    response.headers.update(SECURITY_HEADERS)
-    response.headers.setdefault("Cache-Control", "no-cache")  # a new release's page, not a stale one
-    return response
 
 
 def _handler(status: int):  # type: ignore[no-untyped-def]

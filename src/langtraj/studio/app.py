@@ -4,7 +4,6 @@ JSON `{"error": "one line"}`. See docs/studio.md ('The HTTP API')."""
 
 from __future__ import annotations
 
-import json
 import threading
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
@@ -19,13 +18,15 @@ from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from langtraj.errors import InputError
-from langtraj.studio.cases import SUITE_NAME, DuplicateCase, case_of, save_case
+from langtraj.fileio import read_json
+from langtraj.studio.cases import DuplicateCase, case_of, save_case
 from langtraj.studio.catalog import Catalog
 from langtraj.studio.checks import check_prompts
 from langtraj.studio.jobs import Job, JobBoard, JobSpec, JobStore, Runner
 from langtraj.studio.simulation import RESULT_FILE, ROLLOUTS_FILE, JobRunner
 from langtraj.studio.views import scene_view
-from langtraj.web import SECURITY_HEADERS
+from langtraj.suites.config import NAME
+from langtraj.web import with_security_headers
 
 STATIC = Path(__file__).with_name("static")
 MAX_BODY_BYTES = 256 * 1024
@@ -46,7 +47,7 @@ VIDEO_FILE = "video.mp4"
 VIDEO_PX = 640
 MAX_PROMPTS = 16
 MAX_ROLLOUTS = 16
-_NAME = SUITE_NAME.pattern
+_NAME = NAME.pattern  # suite and case names, as `langtraj test` reads them
 
 
 class NotFound(Exception):
@@ -109,10 +110,10 @@ def create_app(
     async def _guard(request: Request, call_next):  # type: ignore[no-untyped-def]
         length = request.headers.get("content-length")
         if length is not None and (not length.isdigit() or int(length) > MAX_BODY_BYTES):
-            return _headers(_error(f"request body over {MAX_BODY_BYTES} bytes", 413))
+            return with_security_headers(_error(f"request body over {MAX_BODY_BYTES} bytes", 413))
         if request.method == "POST" and length is None and "chunked" in request.headers.get("transfer-encoding", ""):
-            return _headers(_error("send a Content-Length with the request body", 411))
-        return _headers(await call_next(request))
+            return with_security_headers(_error("send a Content-Length with the request body", 411))
+        return with_security_headers(await call_next(request))
 
     app.add_exception_handler(InputError, _handler(400))
     app.add_exception_handler(NotFound, _handler(404))
@@ -123,12 +124,6 @@ def create_app(
     _job_routes(app, catalog, board, Path(config.data) / "suites")
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
     return app
-
-
-def _headers(response: Response) -> Response:
-    response.headers.update(SECURITY_HEADERS)
-    response.headers.setdefault("Cache-Control", "no-cache")
-    return response
 
 
 def _error(message: str, status: int) -> JSONResponse:
@@ -235,7 +230,7 @@ def _job_routes(app: FastAPI, catalog: Catalog, board: JobBoard, suites: Path) -
         out = found.to_json()
         result = board.folder(found.id) / RESULT_FILE
         if found.status == "done" and result.is_file():
-            out["result"] = json.loads(result.read_text())
+            out["result"] = read_json(result, "no result file")
         return out
 
     @app.get("/api/jobs/{job_id}/rollouts.npz")
@@ -278,7 +273,7 @@ def _render(catalog: Catalog, job: Job, path: Path) -> None:
     scenario = loaded.scenario
     folder = path.parent
     played = rollout_scenario(scenario, Rollouts.load(folder / ROLLOUTS_FILE), 0)
-    result = json.loads((folder / RESULT_FILE).read_text())
+    result = read_json(folder / RESULT_FILE, "no result file")
     named = prompt_mentions(scenario, job.spec.prompts)
     named += [t for t in (job.spec.adversary, job.spec.target) if t is not None and t not in named]
     caption = "; ".join(job.spec.prompts)[:120] or "no prompt"

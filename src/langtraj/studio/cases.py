@@ -5,7 +5,6 @@ leaves the suite as it was (docs/studio.md, 'POST /api/jobs/{id}/case'; docs/tes
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 from typing import Any
 
@@ -15,10 +14,7 @@ from langtraj.errors import InputError
 from langtraj.fileio import atomic_path
 from langtraj.studio.catalog import SceneEntry
 from langtraj.studio.jobs import Job
-from langtraj.suites.config import load_suite
-
-SUITE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
-"""A suite's file name under the suites folder (".yaml" is added); no folders, no hidden files."""
+from langtraj.suites.config import NAME, load_suite
 
 
 class DuplicateCase(InputError):
@@ -26,7 +22,7 @@ class DuplicateCase(InputError):
 
 
 def suite_path(suites: Path, suite: str) -> Path:
-    if not SUITE_NAME.fullmatch(suite) or len(suite) > 100:
+    if not NAME.fullmatch(suite) or len(suite) > 100:  # a file under the suites folder: no folders, no hidden files
         raise InputError(f"expected a name of letters, digits, '.', '_' and '-', got {suite!r}", where="suite")
     name = suite if suite.endswith(".yaml") else f"{suite}.yaml"
     return Path(suites) / name

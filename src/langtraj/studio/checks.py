@@ -141,9 +141,9 @@ def _check(
     for m in entry.mentions:
         named[m] = number
     (reading,) = read_prompts([text])
-    steering = prompt_steering(scenario, (reading,), rows, _WORLD, ALL_LEVERS, index)
     if not reading.read:
         return PromptCheck(text, None, reading)
+    steering = prompt_steering(scenario, (reading,), rows, _WORLD, ALL_LEVERS, index)
     own = [t for t in steering.targets if t.track_id == reading.agent]
     warning = steering.warnings[0] if steering.warnings else None
     return PromptCheck(text, warning, reading, bool(own), warning, own[0] if own else None)

@@ -13,13 +13,13 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 from langtraj.errors import InputError
-from langtraj.fileio import atomic_path
+from langtraj.fileio import atomic_path, read_json
 
 Status = Literal["queued", "running", "done", "failed", "interrupted"]
-STATUSES: tuple[str, ...] = ("queued", "running", "done", "failed", "interrupted")
+STATUSES: tuple[str, ...] = get_args(Status)
 JOB_FILE = "job.json"
 INTERRUPTED = "the studio stopped while this job ran; submit it again"
 
@@ -112,7 +112,7 @@ class JobStore:
                 stray.unlink(missing_ok=True)
             path = folder / JOB_FILE
             try:
-                jobs.append(Job.from_json(json.loads(path.read_text()), str(path)))
+                jobs.append(Job.from_json(read_json(path, "no job record"), str(path)))
             except (OSError, ValueError, InputError) as exc:
                 problems.append(f"{path}: {exc}")
         return sorted(jobs, key=lambda j: (j.created, j.id)), problems

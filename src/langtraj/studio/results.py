@@ -61,7 +61,7 @@ def judge_prompts(
     rollouts: Rollouts,
     texts: Sequence[str],
     readings: Sequence[PromptReading],
-    checker: AdherenceChecker,
+    checker: AdherenceChecker | None,
 ) -> list[dict[str, Any]]:
     """Per prompt: its text, agents and behaviour, and whether each rollout follows it (the labelers run once
     per rollout)."""
@@ -69,6 +69,8 @@ def judge_prompts(
     judged = [r.read and r.agent in present and (r.other is None or r.other in present) for r in readings]
     found = []
     if any(judged):
+        if checker is None:
+            raise ValueError("prompts to judge need an adherence checker")
         found = [checker.facts(rollout_scenario(scenario, rollouts, r)) for r in range(rollouts.num_rollouts)]
     out = []
     for text, reading, judge in zip(texts, readings, judged, strict=True):
@@ -133,7 +135,7 @@ def run_json(
     rollouts: Rollouts,
     texts: Sequence[str],
     readings: Sequence[PromptReading],
-    checker: AdherenceChecker,
+    checker: AdherenceChecker | None,
     report: dict[str, Any],
     seconds: float,
 ) -> dict[str, Any]:

@@ -93,7 +93,7 @@ class JobRunner:
         per_run = len(replan_schedule(scenario.current_index, config.replan_steps))
         total = per_run * len(runs)
         readings = read_prompts(spec.prompts)
-        checker: AdherenceChecker | None = None
+        checker = AdherenceChecker.build(scenario, map_index=scene.map_index) if spec.prompts else None
         out: dict[str, Any] = {}
         done = 0
         for number, (name, prompts) in enumerate(runs):
@@ -115,14 +115,12 @@ class JobRunner:
             policy, _ = build_policy(scenario, request, loaded)
             result = simulate(scenario, CountedPolicy(policy, before, after), config)
             report(done / total, f"judging the {name} run")
-            if checker is None and readings:
-                checker = AdherenceChecker.build(scenario)
             out[name] = run_json(
                 scenario,
                 result.rollouts,
                 spec.prompts,
                 readings,
-                checker,  # type: ignore[arg-type]
+                checker,
                 result.report,
                 result.seconds,
             )

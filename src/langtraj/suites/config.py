@@ -46,7 +46,8 @@ REAL_DATA_VARIABLE = "LANGTRAJ_REAL_DATA"
 DEFAULT_REAL_DATA = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "real"
 """`${LANGTRAJ_REAL_DATA}` when the variable is unset: `../shared/data/real` beside the source checkout."""
 
-_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
+"""A suite's or case's name: letters, digits, '.', '_' and '-', not starting with a punctuation mark."""
 _VARIABLE = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
 ADVERSARY_PLACEHOLDER = re.compile(r"@adv\b")
 
@@ -143,7 +144,7 @@ def load_suite(path: str | Path) -> Suite:
 def _parse_suite(data: dict[str, Any], path: Path) -> Suite:
     _known(data, ("name", "defaults", "cases"), "")
     name = data.get("name")
-    require(isinstance(name, str) and bool(_NAME.fullmatch(name)), "name", _name_rule(name))
+    require(isinstance(name, str) and bool(NAME.fullmatch(name)), "name", _name_rule(name))
     defaults = data.get("defaults") or {}
     require(isinstance(defaults, dict), "defaults", f"expected a mapping, got {type(defaults).__name__}")
     _known(defaults, _DEFAULT_KEYS, "defaults")
@@ -183,7 +184,7 @@ def _case(
 ) -> SuiteCase:
     _known(raw, _CASE_KEYS, where)
     name = raw.get("name")
-    require(isinstance(name, str) and bool(_NAME.fullmatch(name)), f"{where}.name", _name_rule(name))
+    require(isinstance(name, str) and bool(NAME.fullmatch(name)), f"{where}.name", _name_rule(name))
     require("scenario" in raw, where, "missing scenario")
     scenario = _path(raw["scenario"], base, f"{where}.scenario")
     index = _int(raw.get("index", 0), f"{where}.index", minimum=0)

@@ -25,12 +25,12 @@ const MAP_BG = '#eef0f3';
 
 const S = {
   scenes: [], kinds: new Set(), sceneKey: null, scene: null, sceneCache: new Map(), mapCache: new Map(),
-  view: null, prompts: [{ text: '', result: null }], active: 0, readSeq: 0, readTimer: null, reading: null,
+  view: null, prompts: [{ text: '', result: null }], active: 0, readSeq: 0, reading: null,
   jobs: [], jobItems: new Map(), pollTimer: null, openJob: null, replay: null,
 };
 
 /** Frame times of the replay (requestAnimationFrame timestamps, ms) for measuring smoothness. */
-window.studioStats = { frames: [], drawn: 0 };
+window.studioStats = { frames: [] };
 
 const $ = (id) => document.getElementById(id);
 
@@ -62,7 +62,7 @@ const fmt = (x, digits = 3) => {
 
 // ------------------------------------------------------------------ API
 
-/** JSON request; an HTTP error throws an Error whose message is the server's `error` (or `detail`). */
+/** JSON request; an HTTP error throws an Error whose message is the server's `error`. */
 async function api(method, path, body) {
   const init = { method, headers: {} };
   if (body !== undefined) { init.headers['Content-Type'] = 'application/json'; init.body = JSON.stringify(body); }
@@ -70,9 +70,7 @@ async function api(method, path, body) {
   try { res = await fetch(path, init); } catch (err) { throw new Error(`cannot reach the studio server (${err.message})`); }
   const data = await res.json().catch(() => null);
   if (res.ok) return data;
-  let msg = data && (data.error || data.detail);
-  if (Array.isArray(msg)) msg = msg.map((d) => `${(d.loc || []).slice(1).join('.')}: ${d.msg}`).join('; ');
-  else if (msg && typeof msg !== 'string') msg = JSON.stringify(msg);
+  const msg = data && data.error;  // every studio error answers {"error": "..."}
   throw Object.assign(new Error(msg || `${res.status} ${res.statusText}`), { status: res.status });
 }
 
@@ -646,7 +644,7 @@ function renderScenes() {
   $('scene-count').textContent = `${S.scenes.length} scene${S.scenes.length === 1 ? '' : 's'}`;
   $('scene-list').replaceChildren(...S.scenes.map((s) => {
     const file = String(s.file || '').split('/').pop();
-    const window_ = s.window ? ` · window ${Array.isArray(s.window) ? s.window.join('–') : s.window}` : '';
+    const window_ = s.window === null || s.window === undefined ? '' : ` · window ${s.window}`;
     return h('li', {}, h('button', {
       type: 'button', class: 'scene', 'data-key': s.key, 'aria-pressed': s.key === S.sceneKey ? 'true' : 'false',
       onclick: () => pickScene(s.key),
@@ -942,8 +940,8 @@ function renderJobs() {
   if (!same) list.replaceChildren(...lis);
 }
 
-function time(t) {
-  const d = typeof t === 'number' ? new Date(t * (t < 1e12 ? 1000 : 1)) : new Date(t);
+function time(t) {  // an ISO time from the server
+  const d = new Date(t);
   return Number.isNaN(d.getTime()) ? String(t) : d.toLocaleTimeString();
 }
 
@@ -1131,7 +1129,6 @@ function paintReplay() {
   $('step-info').textContent = sim <= 0
     ? `logged history, step ${k + 1} of ${R.hist} (t = ${fmt(sim * dt, 1)} s)`
     : `simulated step ${sim} of ${R.steps} (t = ${fmt(sim * dt, 1)} s)`;
-  window.studioStats.drawn += 1;
 }
 
 function promptedIdsOf(R) {
@@ -1203,7 +1200,7 @@ function renderResults(job) {
   const out = [];
   // prompts followed
   const rows = (prompted.prompts || []).map((p, i) => {
-    const base = unprompted && (unprompted.prompts || []).find((q, j) => q.text === p.text || j === i);
+    const base = unprompted && (unprompted.prompts || [])[i];  // both runs judge the same prompts, in order
     return h('tr', {}, h('th', { scope: 'row' }, p.text), h('td', {}, p.behaviour ? String(p.behaviour).replace(/_/g, ' ') : '—'),
       ...Array.from({ length: n }, (_, k) => cell((p.followed || [])[k], 'followed', 'not followed')),
       unprompted ? h('td', {}, base ? rate(base.followed) : '—') : null);
