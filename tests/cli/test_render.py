@@ -36,7 +36,9 @@ def test_every_real_file_renders_to_mp4(real_files: list[Path], tmp_path: Path, 
 def test_unknown_index_window_and_follow_are_clear_errors(toy_file: Path, tmp_path: Path, capsys) -> None:
     out = tmp_path / "x.png"
     assert_one_line_error(*run_cli(["render", toy_file, "--out", out, "--index", "5"], capsys)[::2], "index 5")
-    assert_one_line_error(*run_cli(["render", toy_file, "--out", out, "--window", "3"], capsys)[::2], "--window 3")
+    assert_one_line_error(
+        *run_cli(["render", toy_file, "--out", out, "--window", "3"], capsys)[::2], "--window: window 3 does not exist"
+    )
     assert_one_line_error(*run_cli(["render", toy_file, "--out", out, "--follow", "999"], capsys)[::2], "999")
     assert_one_line_error(*run_cli(["render", toy_file, "--out", tmp_path / "x.avi"], capsys)[::2], "x.avi")
     assert_one_line_error(*run_cli(["render", toy_file, "--out", out, "--step", "91"], capsys)[::2], "step 91")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from langtraj.errors import InputError
 from langtraj.scenario.io import read_scenario
-from langtraj.scenario.windowing import WindowSpec, cut_window, window_starts
+from langtraj.scenario.windowing import WindowSpec, nth_window
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -40,15 +40,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--index must be >= 0, got {args.index}")
     scenario = read_scenario(args.file, args.index)
     if args.window is not None:
-        spec = WindowSpec(stride=args.stride)
-        starts = window_starts(scenario.num_steps, spec)
-        if not 0 <= args.window < len(starts):
-            raise InputError(
-                f"--window {args.window} does not exist: the scene has {scenario.num_steps} steps, "
-                f"so {len(starts)} window(s) of {spec.length}",
-                path=args.file,
-            )
-        scenario = cut_window(scenario, starts[args.window], spec)
+        try:
+            scenario = nth_window(scenario, args.window, WindowSpec(stride=args.stride))
+        except InputError as exc:
+            raise exc.located(path=args.file, where="--window") from None
     config = RenderConfig(
         size_px=args.size,
         follow_track_id=args.follow,

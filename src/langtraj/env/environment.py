@@ -36,7 +36,7 @@ from langtraj.scenario.io import read_scenario
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
 from langtraj.scenario.selection import prioritized_agents
 from langtraj.scenario.types import AgentType, StateField
-from langtraj.scenario.windowing import cut_window, window_starts
+from langtraj.scenario.windowing import nth_window
 from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.policies import POLICIES, LoadedModel
 from langtraj.sim.prompts import prompt_mentions, user_prompt_entry
@@ -304,7 +304,10 @@ class LangTrajEnv(gym.Env):
         if key not in self._scenes:
             scenario = source if isinstance(source, Scenario) else read_scenario(Path(source), int(episode.index))
             if episode.window is not None:
-                scenario = _window(scenario, int(episode.window), name)
+                try:
+                    scenario = nth_window(scenario, int(episode.window))
+                except InputError as exc:
+                    raise exc.located(where=f"{name}: window") from None
             self._scenes = {key: _Scene.of(scenario)}  # the last scene only
         return self._scenes[key]
 
@@ -312,12 +315,13 @@ class LangTrajEnv(gym.Env):
     def _ego_row(scenario: Scenario, ego: int | None) -> int:
         sim = sim_agent_indices(scenario)
         if ego is not None:
-            rows = np.flatnonzero(scenario.agents.ids == int(ego))
-            if not len(rows):
-                raise InputError(f"no agent @{ego} in scenario {scenario.scenario_id}", where="ego")
-            if rows[0] not in set(sim.tolist()):
+            try:
+                row = scenario.agents.index_of(ego)
+            except KeyError:
+                raise InputError(f"no agent @{ego} in scenario {scenario.scenario_id}", where="ego") from None
+            if row not in set(sim.tolist()):
                 raise InputError(f"agent @{ego} is not valid at the scene's current step", where="ego")
-            return int(rows[0])
+            return row
         if scenario.sdc_index >= 0 and scenario.sdc_index in set(sim.tolist()):
             return int(scenario.sdc_index)
         ranked = prioritized_agents(scenario, None)
@@ -375,14 +379,3 @@ def _logged_future(scenario: Scenario, row: int) -> np.ndarray:
         -1,
     )
     return out
-
-
-def _window(scenario: Scenario, window: int, source: str) -> Scenario:
-    """The `window`-th standard window (`scenario.windowing`) of a scene."""
-    starts = window_starts(scenario.num_steps)
-    if not 0 <= window < len(starts):
-        raise InputError(
-            f"window {window} does not exist: the scene has {scenario.num_steps} steps, so {len(starts)} window(s)",
-            where=f"{source}: window",
-        )
-    return cut_window(scenario, starts[window])

@@ -1,9 +1,10 @@
 """Ego-centred observations of a simulated scene (docs/testing.md, 'Observations'): the ego, its route, the
 nearest agents, the map and the traffic lights around it, in the fixed shapes of `env.spaces`.
 
-The map is cut once per episode into pieces of `POLYLINE_POINTS` points every `MAP_SPACING_M`, so each step only
-picks the nearest pieces. Traffic lights keep their state at the start of the episode (the log's later states are
-its future, which nothing simulated reads, docs/simulation.md)."""
+The map is cut once per episode into pieces of `POLYLINE_POINTS` points as the model's map is cut
+(`model.features.feature_pieces`), so each step only picks the nearest pieces. Traffic lights keep their state at
+the start of the episode (the log's later states are its future, which nothing simulated reads,
+docs/simulation.md)."""
 
 from __future__ import annotations
 
@@ -15,12 +16,9 @@ from langtraj.angles import wrap_angle
 from langtraj.env import spaces
 from langtraj.env.route import Route
 from langtraj.frames import points_to_frame
-from langtraj.polylines import resample
+from langtraj.model.features import feature_pieces
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import StateField
-
-MAP_SPACING_M = 2.0
-"""Spacing of the points of the map polylines in an observation."""
 
 
 def to_ego_frame(xy: np.ndarray, pose: np.ndarray) -> np.ndarray:
@@ -30,9 +28,9 @@ def to_ego_frame(xy: np.ndarray, pose: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class MapPieces:
-    """Every map polyline resampled and cut into pieces of at most `POLYLINE_POINTS` points."""
+    """Every map feature cut into pieces of `POLYLINE_POINTS` points (`model.features.feature_pieces`)."""
 
-    points: np.ndarray  # float64 [N, P, 2] (padded by repeating the last point)
+    points: np.ndarray  # float64 [N, P, 2] (a feature of no length: its one point repeated)
     valid: np.ndarray  # bool [N, P]
     types: np.ndarray  # int64 [N]
 
@@ -43,13 +41,8 @@ class MapPieces:
             line = np.asarray(feature.points[:, :2], np.float64)
             if not len(line):
                 continue
-            if feature.type.name == "CROSSWALK" and len(line) > 2:
-                line = np.concatenate([line, line[:1]])  # closed outline
-            line = resample(line, MAP_SPACING_M) if len(line) > 1 else line
-            for lo in range(0, max(len(line) - 1, 1), size - 1):
-                part = line[lo : lo + size]
-                pad = np.repeat(part[-1:], size - len(part), axis=0)
-                pieces.append(np.concatenate([part, pad]))
+            for part in feature_pieces(line, feature.type, size):
+                pieces.append(np.repeat(part, size, axis=0) if len(part) == 1 else part)
                 valid.append(np.arange(size) < len(part))
                 types.append(int(feature.type))
         if not pieces:

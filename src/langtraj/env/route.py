@@ -16,7 +16,7 @@ import numpy as np
 
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
-from langtraj.interdrive.targets.routes import continued, join, lane_piece, route, straight_line
+from langtraj.interdrive.targets.routes import chain_path, continued, route, straight_line
 from langtraj.polylines import arc_lengths, project_on_polyline
 
 ROUTE_LENGTH_M = 250.0
@@ -79,7 +79,7 @@ def ego_route(index: MapIndex, start: AgentOnLane, xy: np.ndarray, heading: floa
     reach = float(arc_lengths(np.concatenate([xy[None], logged]))[-1]) + 20.0
     best, best_error = None, math.inf
     for chain in _chains(index, start.lane, start.station, reach):
-        path = join([lane_piece(index, chain[0], start.station)] + [lane_piece(index, lane) for lane in chain[1:]])
+        path = chain_path(index, chain, start.station)
         if len(path) < 2:
             continue
         error = float(np.mean(project_on_polyline(logged, path).distance))

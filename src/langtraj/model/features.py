@@ -107,6 +107,14 @@ MapArrays = tuple[np.ndarray, np.ndarray, np.ndarray]
 # ---------------------------------------------------------------- the map
 
 
+def feature_pieces(xy: np.ndarray, kind: MapFeatureType, points: int) -> np.ndarray:
+    """A map feature's points [N, 2] (area polygons closed first) cut as `_pieces` cuts them: [K, points, 2], or
+    [1, 1, 2] for a feature of no length. The model's map and the environment's observation cut features alike."""
+    if kind.is_area and len(xy) > 2:
+        xy = np.concatenate([xy, xy[:1]])
+    return _pieces(xy, points)
+
+
 def _pieces(xy: np.ndarray, points: int) -> np.ndarray:
     """A polyline [N, 2] cut into equal pieces of at most (points - 1) * MAP_POINT_SPACING m, each
     resampled uniformly by arc length to `points` points: [K, points, 2]. A polyline of no length gives
@@ -200,9 +208,7 @@ def map_polylines(
         reach = _bbox_distances(xy, near) <= config.map_radius
         if not reach.any():
             continue
-        if feature.type.is_area and len(xy) > 2:
-            xy = np.concatenate([xy, xy[:1]])
-        pieces = _pieces(xy, p)
+        pieces = feature_pieces(xy, feature.type, p)
         dist = np.linalg.norm(pieces[:, :, None, :] - near[reach], axis=-1).min(axis=1)  # [K_pieces, anchors]
         cost = (dist + LEAD_WEIGHT * anchors.lead[reach]).min(axis=-1)
         for k in np.flatnonzero(dist.min(axis=-1) <= config.map_radius):

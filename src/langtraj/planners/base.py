@@ -73,9 +73,10 @@ def load_planner(spec: str) -> type[Planner]:
         missing = [method for method in ("reset", "act") if not callable(getattr(found, method, None))]
         if missing:
             raise InputError(f"class {spec!r} has no {' or '.join(missing)} method", where=WHERE)
-    kind = getattr(found, "action_kind", "control")
-    if kind not in ACTION_KINDS:
-        raise InputError(f"{spec!r} has action_kind {kind!r}; expected one of {', '.join(ACTION_KINDS)}", where=WHERE)
+    try:
+        planner_action_kind(found)
+    except InputError as exc:
+        raise InputError(f"{spec!r} has {exc.detail}", where=WHERE) from None
     return cast(type[Planner], found)
 
 

@@ -7,6 +7,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from langtraj.errors import InputError
 from langtraj.scenario.ids import cut_window_id
 from langtraj.scenario.model import FUTURE_STEPS, HISTORY_STEPS, Scenario
 
@@ -73,6 +74,18 @@ def cut_window(scenario: Scenario, start: int, spec: WindowSpec = WindowSpec()) 
         agents=agents,
         metadata={**window.metadata, "window": {"parent_id": scenario.scenario_id, "start": start}},
     )
+
+
+def nth_window(scenario: Scenario, n: int, spec: WindowSpec = WindowSpec()) -> Scenario:
+    """Window `n` of `scenario`, counted as `window_starts` lays them out; one that does not exist raises InputError
+    (callers locate it: a file, a flag)."""
+    starts = window_starts(scenario.num_steps, spec)
+    if not 0 <= n < len(starts):
+        raise InputError(
+            f"window {n} does not exist: the scene has {scenario.num_steps} steps, "
+            f"so {len(starts)} window(s) of {spec.length}"
+        )
+    return cut_window(scenario, starts[n], spec)
 
 
 def iter_windows(scenario: Scenario, spec: WindowSpec = WindowSpec()) -> Iterator[Scenario]:

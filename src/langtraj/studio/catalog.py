@@ -17,7 +17,7 @@ from langtraj.interdrive.mapindex import MapIndex
 from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.scenario.io import expand_scenario_paths, read_scenario, read_scenarios
 from langtraj.scenario.model import WINDOW_STEPS, Scenario
-from langtraj.scenario.windowing import cut_window, window_starts
+from langtraj.scenario.windowing import cut_window, nth_window, window_starts
 
 CACHED_SCENES = 8
 """Scenes (with their map index) kept in memory; the others are read again from their file when asked for."""
@@ -185,7 +185,7 @@ def read_entry(entry: SceneEntry) -> Scenario:
     scenario = read_scenario(entry.file, entry.index)
     if entry.window is None:
         return scenario
-    return cut_window(scenario, window_starts(scenario.num_steps)[entry.window])
+    return nth_window(scenario, entry.window)
 
 
 def _entry(key: str, file: Path, index: int, window: int | None, scene: Scenario) -> SceneEntry:

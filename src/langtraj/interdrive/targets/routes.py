@@ -55,11 +55,14 @@ def continued(index: MapIndex, lanes: list[int] | tuple[int, ...], start: float,
     return chain
 
 
+def chain_path(index: MapIndex, lanes: list[int] | tuple[int, ...], start: float) -> np.ndarray:
+    """The centreline along `lanes` from `start` on the first to the end of the last."""
+    return join([lane_piece(index, lanes[0], start)] + [lane_piece(index, lane) for lane in lanes[1:]])
+
+
 def route(index: MapIndex, lanes: list[int] | tuple[int, ...], start: float, length: float) -> np.ndarray:
     """The centreline along `lanes` from `start` on the first, continued by the straightest exits until `length` m."""
-    chain = continued(index, lanes, start, length)
-    path = join([lane_piece(index, chain[0], start)] + [lane_piece(index, lane) for lane in chain[1:]])
-    return path[: int(length / ROUTE_SPACING) + 2]
+    return chain_path(index, continued(index, lanes, start, length), start)[: int(length / ROUTE_SPACING) + 2]
 
 
 def straight_line(xy: np.ndarray, heading: float, length: float) -> np.ndarray:
