@@ -3,10 +3,10 @@
 `deadline(seconds)` arms SIGALRM (`signal.setitimer(ITIMER_REAL)`) around one planner call; when the call runs
 past its limit the handler raises `StepTimeout` inside it. `StepTimeout` derives from BaseException, so a planner's
 own `except Exception:` cannot swallow it. Limits: signals are delivered only to the main thread of the process,
-between Python bytecodes; elsewhere (a worker thread, a platform without SIGALRM) the call runs unguarded, and a
-planner stuck inside C code that does not return to the interpreter (a native library's busy loop) cannot be
-interrupted in-process. `langtraj test --planner-cmd CMD` runs the planner in a process of its own, which its
-time limit ends whatever it is doing.
+between Python bytecodes; elsewhere (a worker thread, a platform without SIGALRM) the call runs unguarded, with a
+RuntimeWarning, and a planner stuck inside C code that does not return to the interpreter (a native library's busy
+loop) cannot be interrupted in-process. `langtraj test --planner-cmd CMD` runs the planner in a process of its
+own, which its time limit ends whatever it is doing.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
+import warnings
 from collections.abc import Iterator
 
 
@@ -30,7 +31,16 @@ def can_interrupt() -> bool:
 def deadline(seconds: float | None) -> Iterator[None]:
     """Raise `StepTimeout` in the block when it runs longer than `seconds` (None or <= 0: no limit; see the
     module's docstring for where it cannot interrupt). The previous SIGALRM handler and timer are restored."""
-    if not seconds or seconds <= 0 or not can_interrupt():
+    if not seconds or seconds <= 0:
+        yield
+        return
+    if not can_interrupt():
+        warnings.warn(
+            f"the planner's {seconds:g}-s step limit cannot be enforced here (not the main thread, or no SIGALRM); "
+            "run the planner with --planner-cmd to enforce it",
+            RuntimeWarning,
+            stacklevel=3,
+        )
         yield
         return
 
