@@ -27,8 +27,8 @@ from langtraj.guidance.base import (
     in_window,
     window,
 )
-from langtraj.guidance.disks import DiskLayout, box_gap, near_pairs, window_boxes, window_steps
-from langtraj.guidance.geometry import CHUNK_ELEMENTS, offset_to_segments
+from langtraj.guidance.disks import DiskLayout, close_steps
+from langtraj.guidance.geometry import offset_to_segments
 from langtraj.guidance.scene import GuidanceScene
 
 _EPS = 1e-6  # inside square roots: keeps distances differentiable at 0
@@ -123,7 +123,7 @@ class NoCollisionCost(GuidanceCost):
 
     def __call__(self, states: Tensor, scene: GuidanceScene) -> Tensor:
         steered = self.steered(states, scene)
-        num_samples, num_agents, num_steps, _ = states.shape
+        num_samples, num_agents = states.shape[:2]
         others = scene.agent_valid.to(states.device)
         if self.others is not None:
             check_slots(self.name, self.others, num_agents)
@@ -137,41 +137,13 @@ class NoCollisionCost(GuidanceCost):
         # J_pair is symmetric: each unordered pair is computed once and counted as often as it is asked for.
         unordered = (pairs | pairs.T).triu(diagonal=1)
         first, second = unordered.nonzero(as_tuple=True)
-        xy = states[..., :2].detach()
-        low, high = window_boxes(xy)  # [S, A, W, 2]
-        near = near_pairs(low, high, first, second, layout.limit(first, second, self.buffer))
-        first, second = first[near], second[near]  # Q pairs that may overlap somewhere
-        if first.numel() == 0:
+        close = close_steps(states, layout, first, second, self.buffer)
+        if close is None:
             return _zero(states)
-        multiplicity = (pairs[first, second].to(states) + pairs[second, first].to(states))[None, :]
-        num_pairs = first.shape[0]
-        limit = layout.limit(first, second, self.buffer)
-
-        # Candidates (sample, pair, step) whose disks can overlap: among the pairs whose boxes over all
-        # samples and steps come close enough (most pairs of a large scene never do), the steps of the
-        # windows in which the two paths' boxes do (found without autograd, in chunks of pairs), then of
-        # those the steps at which the disks can overlap (`DiskLayout.may_overlap`). Only the candidates
-        # get disk distances; the others cost nothing.
-        found = []
-        chunk = max(1, CHUNK_ELEMENTS // (num_samples * low.shape[2] * 2))
-        with torch.no_grad():
-            for lo in range(0, num_pairs, chunk):
-                i, j = first[lo : lo + chunk], second[lo : lo + chunk]
-                gap = box_gap(low[:, i], high[:, i], low[:, j], high[:, j])
-                s, q, w = (gap <= limit[lo : lo + chunk, None]).nonzero(as_tuple=True)
-                found.append(window_steps(w, num_steps, s, q + lo))
-        t, s, q = (torch.cat(parts) for parts in zip(*found, strict=True))
-        i, j = first[q], second[q]
-        flat = states.reshape(-1, states.shape[-1])
-        state_i = flat.index_select(0, (s * num_agents + i) * num_steps + t)
-        state_j = flat.index_select(0, (s * num_agents + j) * num_steps + t)
-        with torch.no_grad():
-            close = layout.may_overlap(state_i, state_j, i, j, self.buffer).nonzero()[:, 0]
-        if close.numel() == 0:
-            return _zero(states)
-        s, q, i, j = s[close], q[close], i[close], j[close]
-        penalty = layout.penalty(state_i[close], state_j[close], i, j, self.buffer)
-        row = s * num_pairs + q
+        multiplicity = (pairs[close.first, close.second].to(states) + pairs[close.second, close.first].to(states))[None]
+        num_pairs = close.first.shape[0]
+        penalty = layout.penalty(close.state_i, close.state_j, close.i, close.j, self.buffer)
+        row = close.sample * num_pairs + close.pair
         total = states.new_zeros(num_samples * num_pairs).index_add(0, row, penalty)
         overlapping = states.new_zeros(num_samples * num_pairs).index_add(0, row, (penalty.detach() > 0).to(states))
         per_pair = (total / overlapping.clamp(min=1.0)).view(num_samples, num_pairs)
@@ -271,16 +243,22 @@ class OnRoadCost(GuidanceCost):
         if scene.road_edges.shape[0] == 0 or not steered.any():
             return out + _zero(states)[:, None]
         xy = states[..., :2] if steered.all() else states[:, steered, :, :2]
-        edges = scene.road_edges.to(states)
-        if scene.road_field is None:
-            signed = signed_edge_distance(xy, edges)
-        else:
-            signed, inside = scene.road_field.sample(xy)
-            if not inside.all():
-                signed = signed.masked_scatter(~inside, signed_edge_distance(xy[~inside], edges))
+        signed = signed_road_distance(xy, scene)
         past = torch.relu(signed + self.margin)
         cost = (past * past).mean(-1)  # [S, steered]
         return cost if steered.all() else out.index_add(1, steered.nonzero()[:, 0], cost)
+
+
+def signed_road_distance(xy: Tensor, scene: GuidanceScene) -> Tensor:
+    """Signed distance (m, positive off the road) of points xy [..., 2] to the road edges of `scene` (which has
+    some): sampled from its road field where it has one, searched exactly elsewhere. Differentiable in `xy`."""
+    edges = scene.road_edges.to(xy)
+    if scene.road_field is None:
+        return signed_edge_distance(xy, edges)
+    signed, inside = scene.road_field.sample(xy)
+    if not inside.all():
+        signed = signed.masked_scatter(~inside, signed_edge_distance(xy[~inside], edges))
+    return signed
 
 
 def signed_edge_distance(xy: Tensor, edges: Tensor) -> Tensor:

@@ -121,6 +121,68 @@ def window_steps(window: Tensor, num_steps: int, *others: Tensor) -> tuple[Tenso
 
 
 @dataclass(frozen=True)
+class CloseSteps:
+    """The (sample, step, pair) triples at which two agents' disks can overlap (`close_steps`): the pairs
+    `first[q]`, `second[q]` (long [Q]) whose paths come close anywhere, and per triple its `sample`, `step`,
+    `pair` q, agents `i`, `j` and their states `state_i`, `state_j` [K, 4] (differentiable in the states)."""
+
+    first: Tensor
+    second: Tensor
+    sample: Tensor
+    step: Tensor
+    pair: Tensor
+    i: Tensor
+    j: Tensor
+    state_i: Tensor
+    state_j: Tensor
+
+
+def close_steps(states: Tensor, layout: DiskLayout, first: Tensor, second: Tensor, buffer: float) -> CloseSteps | None:
+    """Where the pairs (first, second) of states [S, A, T, 4] can overlap, or None where they never do.
+
+    Among the pairs whose boxes over all samples and steps come close enough (most pairs of a large scene never
+    do), the steps of the windows in which the two paths' boxes do (found without autograd, in chunks of pairs),
+    then of those the steps at which the disks can overlap (`DiskLayout.may_overlap`): only these get disk
+    distances (`NoCollisionCost`, `guidance.projection`)."""
+    num_samples, num_agents, num_steps, _ = states.shape
+    xy = states[..., :2].detach()
+    low, high = window_boxes(xy)  # [S, A, W, 2]
+    near = near_pairs(low, high, first, second, layout.limit(first, second, buffer))
+    first, second = first[near], second[near]
+    if first.numel() == 0:
+        return None
+    limit = layout.limit(first, second, buffer)
+    found = []
+    chunk = max(1, CHUNK_ELEMENTS // (num_samples * low.shape[2] * 2))
+    with torch.no_grad():
+        for lo in range(0, len(first), chunk):
+            i, j = first[lo : lo + chunk], second[lo : lo + chunk]
+            gap = box_gap(low[:, i], high[:, i], low[:, j], high[:, j])
+            s, q, w = (gap <= limit[lo : lo + chunk, None]).nonzero(as_tuple=True)
+            found.append(window_steps(w, num_steps, s, q + lo))
+    t, s, q = (torch.cat(parts) for parts in zip(*found, strict=True))
+    i, j = first[q], second[q]
+    flat = states.reshape(-1, states.shape[-1])
+    state_i = flat.index_select(0, (s * num_agents + i) * num_steps + t)
+    state_j = flat.index_select(0, (s * num_agents + j) * num_steps + t)
+    with torch.no_grad():
+        close = layout.may_overlap(state_i, state_j, i, j, buffer).nonzero()[:, 0]
+    if close.numel() == 0:
+        return None
+    return CloseSteps(
+        first=first,
+        second=second,
+        sample=s[close],
+        step=t[close],
+        pair=q[close],
+        i=i[close],
+        j=j[close],
+        state_i=state_i[close],
+        state_j=state_j[close],
+    )
+
+
+@dataclass(frozen=True)
 class CandidateOverlaps:
     """J_pair for every combination of two agents' candidates: the unordered agent pairs `first[q] <
     second[q]` (long [Q]) whose paths come close in some combination, and `table[r, q, m_first,
