@@ -32,6 +32,7 @@ from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
 from langtraj.metrics.road import RoadEdgeIndex, road_edge_index
 from langtraj.model.config import ModelConfig
 from langtraj.rollouts.agents import sim_agent_indices
+from langtraj.scenario.drivable import measured_road_edges
 from langtraj.scenario.io import read_scenario
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
 from langtraj.scenario.selection import prioritized_agents
@@ -86,7 +87,7 @@ def _prompts(value: Any) -> tuple[str, ...]:
 @dataclass(frozen=True)
 class _Scene:
     """A loaded scene and what is built once per scene, not per episode: its map index, its map cut into
-    observation pieces, its road edges."""
+    observation pieces, its road edges (those the metrics and guidance use: `scenario.drivable.measured_road_edges`)."""
 
     scenario: Scenario
     index: MapIndex = field(repr=False)
@@ -99,7 +100,7 @@ class _Scene:
             scenario,
             MapIndex.build(scenario.road_map),
             MapPieces.of(scenario),
-            road_edge_index([f.points for f in scenario.road_map.road_edges]),
+            road_edge_index([f.points for f in measured_road_edges(scenario)]),
         )
 
 

@@ -21,6 +21,7 @@ from langtraj.errors import InputError
 from langtraj.frames import points_to_frame
 from langtraj.guidance.road_field import RoadField
 from langtraj.model.batch import SceneBatch
+from langtraj.scenario.drivable import measured_road_edges
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import MapFeatureType, StateField
 
@@ -108,8 +109,12 @@ class GuidanceScene:
         if len(rows) and (rows.min() < 0 or rows.max() >= scenario.num_agents):
             raise InputError(f"agent indices must be in [0, {scenario.num_agents}), got {rows.tolist()}")
 
+        edges = [
+            points_to_frame(f.points[:, :2], frame)
+            for f in measured_road_edges(scenario)
+            if len(f.points) >= 2 and _near(f.points, frame, radius)
+        ]
         near = [f for f in scenario.road_map if len(f.points) >= 2 and _near(f.points, frame, radius)]
-        edges = [points_to_frame(f.points[:, :2], frame) for f in near if f.type.is_road_edge]
         segments = [np.stack([p[:-1], p[1:]], axis=1) for p in edges]
         road_edges = np.concatenate(segments) if segments else np.zeros((0, 2, 2))
         step = max_lane_points - 1

@@ -20,6 +20,7 @@ from langtraj.metrics.road import RoadEdgeIndex, distance_to_road_edge, road_edg
 from langtraj.metrics.traffic_lights import SignalLanes, red_light_violations
 from langtraj.rollouts.agents import evaluated_agent_indices, sim_agent_indices
 from langtraj.rollouts.container import Rollouts
+from langtraj.scenario.drivable import measured_road_edges
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
 from langtraj.scenario.types import AgentType, StateField
 
@@ -32,14 +33,15 @@ OFFROAD_THRESHOLD = 0.0
 
 @dataclass(frozen=True)
 class SceneMap:
-    """The map pieces the features need, built once per scenario."""
+    """The map pieces the features need, built once per scenario. The road edges are those off-road is measured
+    against everywhere (`scenario.drivable.measured_road_edges`: derived from the lanes on a map without any)."""
 
     road_edges: RoadEdgeIndex | None
     signals: SignalLanes | None
 
     @classmethod
     def from_scenario(cls, scenario: Scenario) -> SceneMap:
-        edges = road_edge_index([f.points for f in scenario.road_map.road_edges])
+        edges = road_edge_index([f.points for f in measured_road_edges(scenario)])
         return cls(edges, SignalLanes.from_scenario(scenario))
 
 

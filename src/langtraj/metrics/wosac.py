@@ -6,10 +6,11 @@ rollouts and steps, averaged over the log's valid steps and exponentiated; colli
 red-light indicators are aggregated over time per agent and scored with a Bernoulli estimate. Buckets
 are weight-normalised averages; the meta-metric is the weighted sum.
 
-A map without road edges (nuScenes through ScenarioNet) has no road-edge distance or offroad
-indication: those likelihoods and the offroad rate are NaN, and the buckets and the meta-metric are
-taken over the remaining features with their weights rescaled to the same total. Such figures are
-not comparable with the challenge's (the official code refuses these scenes).
+A map without road edges (nuScenes through ScenarioNet) is measured against edges derived from its lanes
+(`scenario.drivable`); one with neither has no road-edge distance or offroad indication: those likelihoods and
+the offroad rate are NaN, and the buckets and the meta-metric are taken over the remaining features with their
+weights rescaled to the same total. Such figures are not comparable with the challenge's (the official code
+refuses these scenes).
 
 See docs/metrics.md.
 """
@@ -117,7 +118,7 @@ def score_features(
         likelihood[name] = float(np.exp(log_prob.mean()))
 
     offroad_rate = float(sim_any["offroad_indication"].mean())
-    if np.isnan(sim.distance_to_road_edge).all():  # a map without road edges (e.g. nuScenes)
+    if np.isnan(sim.distance_to_road_edge).all():  # no road edges measured (neither edges nor lanes)
         likelihood["distance_to_road_edge"] = likelihood["offroad_indication"] = float("nan")
         offroad_rate = float("nan")
     buckets = {bucket: _weighted(config, names, likelihood) for bucket, names in BUCKETS.items()}

@@ -236,7 +236,9 @@ class MapFeature:
     `points` is float64 [N, 3]: the centerline of a lane, the polyline of a road line or edge, the
     polygon of a crosswalk, speed bump or driveway, and the single position of a stop sign. Lane
     connectivity and neighbours are present where the source has them; `controlled_lanes` is the list
-    of lanes a stop sign governs. `polygon` is an optional lane outline (nuScenes).
+    of lanes a stop sign governs. `polygon` is an optional lane outline (nuScenes). `derived_from` is empty for a
+    feature the source holds and names what LangTraj derived it from otherwise (road edges of a map that has none:
+    `scenario.drivable`), so that a page or report can say so.
     """
 
     id: int
@@ -252,6 +254,7 @@ class MapFeature:
     interpolating: bool = False
     controlled_lanes: tuple[int, ...] = ()
     polygon: np.ndarray | None = None
+    derived_from: str = ""
 
     def __post_init__(self) -> None:
         where = f"map feature {self.id}"
