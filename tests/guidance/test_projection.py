@@ -1,0 +1,165 @@
+"""The hard-constraint projection keeps constructed paths on a constructed road and apart from a neighbour."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from langtraj.errors import InputError
+from langtraj.guidance.costs import signed_road_distance
+from langtraj.guidance.disks import DiskLayout
+from langtraj.guidance.projection import (
+    HardConstraints,
+    ProjectionAgents,
+    braking_delay,
+    current_overlaps,
+    project_on_road,
+    project_states,
+    projection_hook,
+)
+from langtraj.model.diffusion import timestep_sequence
+from langtraj.model.dynamics import Unicycle
+
+from .helpers import make_scene
+
+# A straight road along x from y = -2 to y = 6 (edges keep the road on their left).
+ROAD = [[[-200.0, -2.0], [200.0, -2.0]], [[200.0, 6.0], [-200.0, 6.0]]]
+CONFIG = HardConstraints(iterations=4)
+
+
+def agents(num: int, *, road=None, movable=None, exempt=None) -> ProjectionAgents:
+    return ProjectionAgents(
+        road=torch.ones(num, dtype=torch.bool) if road is None else torch.tensor(road),
+        movable=torch.ones(num, dtype=torch.bool) if movable is None else torch.tensor(movable),
+        exempt=torch.zeros(num, num, dtype=torch.bool) if exempt is None else exempt,
+    )
+
+
+def drifting(steps: int = 40, speed: float = 10.0, drift: float = -0.15) -> torch.Tensor:
+    """One car at y = 0 heading east, its path drifting `drift` m per step towards the lower edge."""
+    t = torch.arange(1, steps + 1, dtype=torch.float32)
+    x, y = speed * 0.1 * t, drift * t
+    heading = torch.full_like(t, math.atan2(drift, speed * 0.1))
+    return torch.stack([x, y, heading, torch.full_like(t, speed)], -1)[None, None]
+
+
+def start(states: torch.Tensor) -> torch.Tensor:
+    """The state one step before each path's first (constant velocity backwards), as a planner's current state."""
+    return 2 * states[:, :, 0] - states[:, :, 1]
+
+
+def min_disk_distance(states: torch.Tensor, scene, i: int, j: int) -> float:
+    layout = DiskLayout.of(scene, 5, states)
+    a, b = states[0, i], states[0, j]
+    index_i = torch.full((a.shape[0],), i)
+    index_j = torch.full((a.shape[0],), j)
+    return float(layout.penalty(a, b, index_i, index_j, 0.0).max().detach())
+
+
+def test_a_drifting_car_is_put_back_inside_the_edge_by_its_box_and_the_margin():
+    scene = make_scene(1, road_edges=ROAD)
+    states = drifting()
+    assert float(signed_road_distance(states[..., :2], scene).max()) > 3  # leaves the road by 4 m
+    projected, moved = project_states(start(states), states, scene, agents(1), CONFIG)
+    assert moved.tolist() == [[True]]
+    signed = signed_road_distance(projected[..., :2], scene)
+    heading = states[..., 2]  # the box's reach towards the edge (normal -y) at its heading
+    reach = 2.25 * torch.sin(heading).abs() + 1.0 * torch.cos(heading).abs()
+    assert float((signed + reach).max()) <= -CONFIG.road_margin + 1e-4
+    assert float(reach.min()) > 1.3  # more than half the width: the corners, not the sides, come nearest
+    # Points already well inside stay where they were; x is untouched (the edge runs along x).
+    inside = signed_road_distance(states[..., :2], scene) < -1.6
+    assert torch.allclose(projected[..., :2][inside], states[..., :2][inside])
+    assert torch.allclose(projected[..., 0], states[..., 0])
+
+
+def test_agents_not_kept_on_the_road_and_maps_without_edges_are_left_alone():
+    scene = make_scene(2, road_edges=ROAD)
+    second = drifting(drift=-0.15)
+    second[..., 0] += 60.0  # far from the first
+    states = torch.cat([drifting(drift=-0.5), second], dim=1)
+    projected, moved = project_states(start(states), states, scene, agents(2, road=[True, False]), CONFIG)
+    assert moved.tolist() == [[True, False]]
+    assert torch.allclose(projected[:, 1, :, :2], states[:, 1, :, :2])  # not a road agent
+    no_edges = make_scene(2)
+    assert project_states(start(states), states, no_edges, agents(2), CONFIG)[1].sum() == 0  # nothing to keep to
+
+
+def test_two_cars_driving_into_each_other_end_apart_and_a_fixed_one_is_not_moved():
+    scene = make_scene(2, road_edges=ROAD)
+    t = torch.arange(1, 31, dtype=torch.float32)
+    ahead = torch.stack([10 + 0.5 * t, torch.full_like(t, 2.0), torch.zeros_like(t), torch.full_like(t, 5.0)], -1)
+    behind = torch.stack([0.0 + 1.0 * t, torch.full_like(t, 2.0), torch.zeros_like(t), torch.full_like(t, 10.0)], -1)
+    states = torch.stack([ahead, behind])[None]  # the follower reaches the leader at step 11 and drives through it
+    assert min_disk_distance(states, scene, 0, 1) > 0.5
+    for movable in ([True, True], [False, True]):
+        projected, moved = project_states(start(states), states, scene, agents(2, movable=movable), CONFIG)
+        full = torch.cat([projected, states[..., 3:]], dim=-1)
+        assert min_disk_distance(full, scene, 0, 1) < 0.05  # at most 5 % of the reach left overlapping
+        assert moved[0, 1]
+        if not movable[0]:
+            assert not moved[0, 0] and torch.equal(projected[0, 0, :, :2], states[0, 0, :, :2])
+        # The follower is held back along the lane, not swerved across it.
+        assert float((projected[0, 1, :, 1] - 2.0).abs().max()) < 0.2
+
+
+def test_pairs_overlapping_at_the_start_and_exempt_pairs_are_not_pushed():
+    scene = make_scene(2, road_edges=ROAD)
+    side_by_side = torch.tensor([[0.0, 1.5, 0.0, 0.0], [0.0, 3.0, 0.0, 0.0]])  # overlapping across the lane
+    states = side_by_side[None, :, None].expand(1, 2, 10, 4).clone()
+    exempt = current_overlaps(states[:, :, 0], scene, CONFIG)
+    assert exempt.shape == (1, 2, 2) and exempt[0, 0, 1] and exempt[0, 1, 0]
+    _, moved = project_states(start(states), states, scene, agents(2, exempt=exempt), CONFIG)
+    assert not moved.any()
+    _, moved = project_states(start(states), states, scene, agents(2), CONFIG)
+    assert moved.any()  # not exempt: pushed apart
+
+
+def test_the_hook_refits_only_the_paths_it_moved_through_the_unicycle_and_keeps_them_on_the_road():
+    dynamics = Unicycle()
+    scene = make_scene(2, road_edges=ROAD)
+    initial = torch.tensor([[[0.0, 0.0, 0.0, 10.0], [0.0, 4.0, 0.0, 10.0]]])  # [1, 2, 4]
+    actions = torch.zeros(1, 2, 8, 2)
+    actions[0, 0, :, 1] = -0.08  # the first car turns right, off the road; the second drives straight on
+    rollout = lambda x: dynamics(initial, x)  # noqa: E731
+    invert = lambda s: dynamics.inverse(initial, s, torch.ones(s.shape[:-1], dtype=torch.bool))[0]  # noqa: E731
+    before = rollout(actions)
+    assert float(signed_road_distance(before[0, 0, :, :2], scene).max()) > 0.5
+    hook = projection_hook(CONFIG, scene, agents(2), initial, rollout, invert, num_steps=100, sampler_steps=5)
+    last = timestep_sequence(100, num_inference_steps=5)[-1]
+    out = hook(actions, torch.tensor([last]), actions)  # the last denoising step
+    assert torch.equal(out[0, 1], actions[0, 1])  # unmoved: its actions kept exactly
+    after = rollout(out)
+    assert float(signed_road_distance(after[0, 0, :, :2], scene).max()) < -0.8  # within the refit's error
+    assert torch.equal(hook(actions, torch.tensor([99]), actions), actions)  # not at an early step
+
+
+def test_bad_settings_are_refused():
+    with pytest.raises(InputError, match="steps"):
+        HardConstraints(steps=0)
+    with pytest.raises(InputError, match="road_margin"):
+        HardConstraints(road_margin=float("nan"))
+
+
+def test_a_delay_is_braked_into_from_the_start_not_taken_at_once():
+    delay = torch.zeros(1, 1, 40)
+    delay[0, 0, 19] = 4.0  # 4 m behind by step 20 (2 s)
+    profile = braking_delay(delay)[0, 0]
+    assert profile[19] == pytest.approx(4.0) and torch.all(profile[19:] == 4.0)  # met, and kept
+    assert profile[9] == pytest.approx(1.0)  # (10 / 20)^2 of it after 1 s: a constant 2 m/s^2 of extra braking
+    assert torch.all(profile[1:] >= profile[:-1])
+
+
+def test_a_path_far_off_the_road_keeps_the_correction_of_its_last_point_near_it():
+    scene = make_scene(1, road_edges=ROAD)
+    states = drifting(drift=-0.3)  # leaves the road, then runs on to 12 m beyond it
+    xy = project_on_road(states, scene, torch.ones(1, dtype=torch.bool), CONFIG)
+    signed = signed_road_distance(states[..., :2], scene)[0, 0]
+    first_far = int(torch.nonzero(signed > CONFIG.max_offroad)[0])
+    shift = xy - states[..., :2]
+    assert torch.allclose(shift[0, 0, first_far:], shift[0, 0, first_far - 1].expand_as(shift[0, 0, first_far:]))
+    assert float(shift[0, 0, first_far - 1].norm()) > 1.0  # that point was pulled in, and the rest moves with it
+    step = torch.linalg.vector_norm(xy[0, 0, 1:] - xy[0, 0, :-1], dim=-1)
+    assert float(step.max()) < 1.5  # no jump in the projected path (1.04 m per step before)
