@@ -71,6 +71,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     _datasets(e, "NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]] (split default val), repeatable")
     _closed_loop(e, rollouts=8)
 
+    f = _table(sub, "failures", "each method's off-road and collision events by cause, beside the log's, per dataset")
+    f.add_argument("--method", dest="methods", metavar="NAME=SPEC", action="append", default=S, help="as realism's")
+    _datasets(f, "NAME=LABELS_DIR[:SPLIT[:ROLLOUTS]] (split default val), repeatable")
+    _closed_loop(f, rollouts=8)
+    f.add_argument("--no-floor", dest="floor", action="store_false", default=S, help="leave out the log's own row")
+
     i = _table(
         sub,
         "instruction-following",

@@ -4,7 +4,7 @@ demo. Each composes the library packages below it (sim, training, interdrive, me
 none of them imports it. See docs/experiments.md and docs/design.md, 'Package layout'.
 """
 
-from langtraj.experiments import closed_loop, instruction, open_loop, realism  # noqa: F401  (register the built-ins)
+from langtraj.experiments import closed_loop, failures, instruction, open_loop, realism  # noqa: F401  (register them)
 from langtraj.experiments.base import EXPERIMENTS, Experiment, experiment_settings
 
 __all__ = ["EXPERIMENTS", "Experiment", "experiment_settings"]

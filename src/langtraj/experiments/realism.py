@@ -13,6 +13,8 @@ a checkpoint (`shipped`: the one inside the package), optionally followed by `|s
 `|guidance=COST:WEIGHT[+COST:WEIGHT]`, `|guided_steps=N` (the defaults' guidance at the last N denoising steps
 only), `|warm_steps=N` (replans warm-started from the executed plan, `sim.policies.LangTrajPolicy`),
 `|temperature=T` (the sampler's noise scaled by T), `|refresh_map` (each replan's map around the agents then),
+`|hold_parked` (agents parked in the log stand still unless prompted), `|project=N` (hard constraints at the
+last N denoising steps: on the road and apart, `guidance.projection`; 0: off),
 `|defaults` and `|dense`.
 A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says otherwise;
 `|defaults` adds `langtraj simulate`'s default guidance and selection (on-road guidance, no-collision
@@ -44,6 +46,7 @@ from langtraj.experiments.common import (
     safety_figures,
     wosac_figures,
 )
+from langtraj.guidance.projection import HardConstraints
 from langtraj.metrics.features import SceneMap
 from langtraj.model.checkpoint import load_model
 from langtraj.rollouts.baselines import generate_baseline
@@ -52,6 +55,7 @@ from langtraj.scenario.model import Scenario
 from langtraj.sim.checkpoints import checkpoint_path
 from langtraj.sim.config import SimConfig
 from langtraj.sim.engine import simulate
+from langtraj.sim.failures import BREAKDOWN_KEYS, OFFROAD_CAUSES, FailureScene, cause_breakdown
 from langtraj.sim.policies import POLICIES, LangTrajPolicy, LoadedModel
 from langtraj.sim.terms import scene_wide_terms
 
@@ -76,6 +80,8 @@ class Method:
     warm_steps: int | None = None  # replans start from the executed plan noised to the last N steps (None: fresh)
     temperature: float = 1.0  # the sampler's noise scaled by this
     refresh_map: bool = False  # each replan's map around the agents' positions then (else the start's)
+    hold_parked: bool = False  # agents parked in the log stand still unless prompted (else the row's setting)
+    project: int | None = None  # hard constraints at the last N denoising steps (0: off); None: the row's setting
 
     def __post_init__(self) -> None:
         if (self.baseline is None) == (self.checkpoint is None):
@@ -85,7 +91,7 @@ class Method:
                 known = ", ".join(BASELINE_POLICIES + ROLLOUT_BASELINES)
                 raise InputError(f"unknown baseline {self.baseline!r}; known: {known}", where="--method")
             options = (self.selector, self.guidance, self.defaults, self.dense, self.guided_steps, self.warm_steps,
-                       self.refresh_map)  # fmt: skip
+                       self.refresh_map, self.project, self.hold_parked)  # fmt: skip
             if any(o not in (None, (), False) for o in options) or self.temperature != 1.0:
                 raise InputError(f"baseline {self.baseline} takes no options", where="--method")
         scene_wide_terms(self.guidance)  # checked now, before anything runs
@@ -100,13 +106,13 @@ class Method:
                 raise InputError(f"baseline {head} takes no options, got {options}", where="--method")
             return cls(name, baseline=head)
         settings: dict[str, str] = {}
-        flags = {"defaults", "dense", "refresh_map"}
+        flags = {"defaults", "dense", "refresh_map", "hold_parked"}
         for option in (o for o in options if o not in flags):
             key, eq, value = option.partition("=")
-            if not eq or key not in ("selector", "guidance", "guided_steps", "warm_steps", "temperature"):
+            if not eq or key not in ("selector", "guidance", "guided_steps", "warm_steps", "temperature", "project"):
                 raise InputError(
                     "expected selector=NAME, guidance=COST:WEIGHT, guided_steps=N, warm_steps=N, temperature=T, "
-                    f"defaults, dense or refresh_map, got {option!r}",
+                    f"project=N, defaults, dense, refresh_map or hold_parked, got {option!r}",
                     where="--method",
                 )
             settings[key] = value
@@ -118,9 +124,11 @@ class Method:
             defaults="defaults" in options,
             dense="dense" in options,
             refresh_map="refresh_map" in options,
+            hold_parked="hold_parked" in options,
             guided_steps=_int_option(settings, "guided_steps"),
             warm_steps=_int_option(settings, "warm_steps"),
             temperature=_float_option(settings, "temperature", 1.0),
+            project=_int_option(settings, "project"),
         )
 
     def load(self) -> LoadedModel | None:
@@ -138,7 +146,17 @@ class Method:
         else:
             assert loaded is not None
             model, data = loaded
-            paper = {} if self.defaults else {"selector": "min_collision", "on_road": 0.0, "no_collision": 0.0}
+            paper = (
+                {}
+                if self.defaults
+                else {
+                    "selector": "min_collision",
+                    "on_road": 0.0,
+                    "no_collision": 0.0,
+                    "hard_constraints": None,
+                    "hold_parked": False,
+                }
+            )
             if self.selector:
                 paper["selector"] = self.selector
             if self.guided_steps is not None:
@@ -149,6 +167,10 @@ class Method:
                 paper["temperature"] = self.temperature
             if self.refresh_map:
                 paper["refresh_map"] = True
+            if self.hold_parked:
+                paper["hold_parked"] = True
+            if self.project is not None:
+                paper["hard_constraints"] = HardConstraints(steps=self.project) if self.project else None
             policy = LangTrajPolicy(
                 model,
                 data,
@@ -201,20 +223,23 @@ def realism_table(
     loaded: Mapping[str, LoadedModel | None],
     progress: Callable[[str], None] | None = None,
 ) -> dict:
-    """Mean figures per method over `scenes`, the per-window figures (WOSAC, collision and offroad), and seconds per
-    simulation (`loaded`: each method's model by name, as `Method.load` gives it)."""
+    """Mean figures per method over `scenes`, the per-window figures (WOSAC, collision and offroad, and their shares
+    per cause, `sim.failures.BREAKDOWN_KEYS`), and seconds per simulation (`loaded`: each method's model by name, as
+    `Method.load` gives it)."""
     maps = [SceneMap.from_scenario(scenario) for scenario in scenes]  # once for every method
+    causes = [FailureScene.build(scenario, scene_map) for scenario, scene_map in zip(scenes, maps, strict=True)]
     table, per_window = {}, {}
     for method in methods:
         rows, seconds = [], []
-        for scenario, scene_map in zip(scenes, maps, strict=True):
+        for scenario, scene_map, scene in zip(scenes, maps, causes, strict=True):
             begin = time.perf_counter()
             rollouts = method.rollouts(scenario, config, candidates, steps, loaded[method.name])
             seconds.append(time.perf_counter() - begin)
             figures = wosac_figures(scenario, rollouts, scene_map) | safety_figures(scenario, rollouts, scene_map)
+            figures |= cause_breakdown(scenario, rollouts, scene=scene)
             rows.append(figures | {"scenario_id": scenario.scenario_id})
         per_window[method.name] = rows
-        table[method.name] = {c: nanmean([r[c] for r in rows]) for c in COLUMNS} | {
+        table[method.name] = {c: nanmean([r[c] for r in rows]) for c in (*COLUMNS, *BREAKDOWN_KEYS)} | {
             "min_meta": min(r["meta"] for r in rows),
             "windows": len(rows),
             "seconds_per_simulation": float(np.median(seconds)),
@@ -232,6 +257,18 @@ def markdown(table: dict[str, dict[str, float]]) -> str:
         for name, r in table.items()
     ]
     return markdown_table((*header, "s per simulation"), rows)
+
+
+def breakdown_markdown(table: dict[str, dict[str, float]]) -> str:
+    """Each row's offroad and collision shares and their parts per cause (`sim.failures`; keys `offroad`,
+    `collision` and `BREAKDOWN_KEYS`) as Markdown, NaN as a dash: the causes of a kind sum to its share, except
+    `offroad:no_road_edges`, the share of vehicle pairs offroad could not be measured on."""
+    columns = ("offroad", *(f"offroad:{c}" for c in OFFROAD_CAUSES[1:]), "offroad:no_road_edges", "collision",
+               *(k for k in BREAKDOWN_KEYS if k.startswith("collision:")))  # fmt: skip
+    header = [c.replace("_", " ") for c in columns]
+    header[columns.index("offroad:no_road_edges")] = "offroad not measured"
+    rows = [(name, *(cell(r.get(c)) for c in columns)) for name, r in table.items()]
+    return markdown_table(("method", *header), rows)
 
 
 @dataclass(frozen=True, kw_only=True)
