@@ -104,6 +104,20 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "map for every replan; docs/simulation.md, 'The map at each replan')",
     )
     p.add_argument(
+        "--hard-constraints",
+        type=int,
+        metavar="N",
+        help="at the last N denoising steps, project every plan onto the road and out of overlap and refit its "
+        "actions (docs/simulation.md, 'Hard constraints'; default: chosen by measurement; 0: off)",
+    )
+    p.add_argument(
+        "--hold-parked",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="agents parked in the log (still through their history, off the travel lanes) stand still unless a "
+        "prompt names them (default: chosen by measurement, docs/simulation.md)",
+    )
+    p.add_argument(
         "--selector",
         help="candidate selection: per_agent (default without guidance), min_guidance (default with it), "
         "min_collision (the paper's), min_collision_offroad, first",
@@ -179,6 +193,8 @@ def run(args: argparse.Namespace) -> int:
         warm_steps=args.warm_steps,
         temperature=args.temperature,
         refresh_map=args.refresh_map,
+        hard_constraints=args.hard_constraints,
+        hold_parked=args.hold_parked,
         compile=args.compile,
         levers=PromptLevers(args.prompt_text, args.prompt_guidance, args.prompt_selection),
     )

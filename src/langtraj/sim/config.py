@@ -84,11 +84,17 @@ class SimRequest:
     refresh_map: bool = False  # each replan chooses the map around the agents' positions then (else: the start's)
     levers: PromptLevers = ALL_LEVERS  # how prompts steer (text, guidance toward targets, adherence-first selection)
     external_clearance: float | None = None  # weight keeping the driven agents clear of external ones; None: default
+    hard_constraints: int | None = (
+        None  # project onto the road and apart at the last N denoising steps; None: default, 0: off
+    )
+    hold_parked: bool | None = None  # agents parked in the log stand still unless prompted; None: the default
     compile: bool = False  # compile the denoiser (torch.compile; pays on a GPU, docs/model.md 'Fewer, bigger kernels')
 
     def __post_init__(self) -> None:
         if self.max_driven is not None and self.max_driven < 1:
             raise InputError(f"must be >= 1, got {self.max_driven}", where="--max-driven")
+        if self.hard_constraints is not None and self.hard_constraints < 0:
+            raise InputError(f"must be >= 0, got {self.hard_constraints}", where="--hard-constraints")
         if self.undriven not in UNDRIVEN:
             raise InputError(f"must be one of {', '.join(UNDRIVEN)}, got {self.undriven!r}", where="--undriven")
 
@@ -113,5 +119,7 @@ class SimRequest:
             or self.refresh_map
             or self.levers != ALL_LEVERS
             or self.external_clearance is not None
+            or self.hard_constraints is not None
+            or self.hold_parked is not None
             or self.compile
         )

@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -35,7 +35,9 @@ from langtraj.guidance import (
     reconstruction_guidance,
 )
 from langtraj.guidance.base import FinalSteps
+from langtraj.guidance.costs import signed_road_distance
 from langtraj.guidance.library import terms_for_prompt
+from langtraj.guidance.projection import HardConstraints, ProjectionAgents, current_overlaps, projection_hook
 from langtraj.interdrive.behaviour import BEHAVIOURS
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.mapindex import MapIndex
@@ -48,6 +50,7 @@ from langtraj.registry import Registry
 from langtraj.rollouts.baselines import BASELINES
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.selection import prioritized_agents
+from langtraj.scenario.types import AgentType
 from langtraj.sim.adherence import CandidateJudge
 from langtraj.sim.checkpoints import shipped_checkpoint
 from langtraj.sim.config import ALL_LEVERS, PromptLevers, SimRequest
@@ -57,6 +60,7 @@ from langtraj.sim.external import (
     external_acceleration,
     pin_external,
 )
+from langtraj.sim.parked import parked_in_history
 from langtraj.sim.prompt_replan import Guidance, GuidanceOf, PromptReplans, with_prompt_guidance
 from langtraj.sim.prompts import PromptSteering, check_prompt_driven, merged_prompt, prompt_steering, read_prompts
 from langtraj.sim.selection import SELECTORS, CandidateSelector, chosen_states
@@ -84,6 +88,15 @@ under test; `sim.external`), chosen on a constructed follower scene (docs/testin
 react'); no term without external agents, so `simulate` is unchanged."""
 EXTERNAL_BUFFER_M = 2.0
 """The gap guidance keeps behind an external agent's forecast, bumper to bumper (m)."""
+
+DEFAULT_HARD_CONSTRAINTS: HardConstraints | None = None
+"""The hard constraints (`guidance.projection`) a LangTraj simulation applies unless told otherwise
+(`--hard-constraints N`; 0 turns them off): chosen on validation maps (docs/experiments.md, 'Traffic that stays on
+the road'), not in the paper."""
+
+DEFAULT_HOLD_PARKED = False
+"""Whether a LangTraj simulation holds the agents parked in the log where they stand unless a prompt names them
+(`--hold-parked` / `--no-hold-parked`), chosen like `DEFAULT_HARD_CONSTRAINTS`."""
 
 GUIDANCE_ONLY = PromptLevers(text=False, guidance=True, selection=False)
 """The levers of the CTG++-style baseline (`GuidanceBaselinePolicy`)."""
@@ -177,6 +190,40 @@ def model_agents(scenario: Scenario, max_driven: int | None = None) -> np.ndarra
     return prioritized_agents(scenario, max_driven)
 
 
+def on_road_vehicles(scene: GuidanceScene, xy: Tensor, vehicles: Tensor, external: Sequence[int]) -> Tensor:
+    """bool [scene agents]: the driven vehicles (`vehicles` bool [A_d], positions xy [A_d, 2] at the start) whose
+    centre is on the road there, which the hard constraints keep on it (one that starts off it, in a car park or
+    a driveway, is left where the model puts it); never an external agent; none on a map without road edges."""
+    out = torch.zeros(scene.num_agents, dtype=torch.bool)
+    if scene.road_edges.shape[0] == 0:
+        return out
+    on_road = signed_road_distance(xy.to(scene.road_edges), scene) <= 0
+    out[: len(vehicles)] = vehicles & on_road
+    out[list(external)] = False
+    return out & scene.agent_valid.cpu()
+
+
+def hold(states: Tensor, current: Tensor, slots: Sequence[int]) -> Tensor:
+    """`states` [..., A, T, 4] with the agents in `slots` standing at their current pose (`current` [..., A, 4])."""
+    if not slots:
+        return states
+    still = current.clone()
+    still[..., list(slots), 3] = 0.0
+    return pin_external(states, still, slots)
+
+
+def hard_constraints(steps: int | None, sampler_steps: int) -> HardConstraints | None:
+    """The hard constraints a request's `--hard-constraints N` asks for: None gives `DEFAULT_HARD_CONSTRAINTS`, 0
+    none, N the projection at the last N of the `sampler_steps` denoising steps."""
+    if steps is None:
+        return DEFAULT_HARD_CONSTRAINTS
+    if steps == 0:
+        return None
+    if steps > sampler_steps:
+        raise InputError(f"must be in [0, {sampler_steps}] (the DDIM steps), got {steps}", where="--hard-constraints")
+    return HardConstraints(steps=steps)
+
+
 def slots_of(scenario: Scenario, driven: np.ndarray) -> dict[int, int]:
     """Track id -> model slot of every driven agent (what guidance terms and prompts refer to)."""
     return {int(scenario.agents.ids[row]): slot for slot, row in enumerate(driven)}
@@ -199,6 +246,8 @@ class LangTrajRun:
     prompt: PromptReplans = field(default_factory=PromptReplans)
     external: tuple[int, ...] = ()  # slots of the world's external agents: seen, forecast, never moved
     clearance: tuple[GuidanceTerm, ...] = ()  # the others kept clear of the external agents, in a step of its own
+    kept_on_road: Tensor | None = None  # bool [A]: the vehicles the hard constraints keep on the road
+    held: tuple[int, ...] = ()  # slots of the agents parked in the log, held where they stand (`hold_parked`)
     executed: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
     """Per rollout: the step and the actions [A, N, 2] (physical) of the plan executed from it, which the next
     replan warm-starts from (`LangTrajPolicy.warm_steps`)."""
@@ -263,6 +312,8 @@ class LangTrajPolicy(Policy):
         temperature: float = 1.0,
         refresh_map: bool = False,
         external_clearance: float = DEFAULT_EXTERNAL_CLEARANCE,
+        hard_constraints: HardConstraints | None = DEFAULT_HARD_CONSTRAINTS,
+        hold_parked: bool = DEFAULT_HOLD_PARKED,
     ):
         if candidates < 1 or steps < 1 or rollout_batch < 0:
             raise InputError(
@@ -312,6 +363,8 @@ class LangTrajPolicy(Policy):
         if not (math.isfinite(external_clearance) and external_clearance >= 0):
             raise InputError(f"must be finite and >= 0, got {external_clearance}", where="external_clearance")
         self.external_clearance = float(external_clearance)
+        self.hard_constraints = hard_constraints
+        self.hold_parked = bool(hold_parked)
 
     @classmethod
     def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> LangTrajPolicy:
@@ -350,6 +403,8 @@ class LangTrajPolicy(Policy):
             "external_clearance": (
                 DEFAULT_EXTERNAL_CLEARANCE if request.external_clearance is None else request.external_clearance
             ),
+            "hard_constraints": hard_constraints(request.hard_constraints, request.steps),
+            "hold_parked": DEFAULT_HOLD_PARKED if request.hold_parked is None else request.hold_parked,
         }
 
     # ------------------------------------------------------------------ which agents
@@ -375,6 +430,8 @@ class LangTrajPolicy(Policy):
             "warm_steps": self.warm_steps,
             "temperature": self.temperature,
             "refresh_map": self.refresh_map,
+            "hard_constraints": None if self.hard_constraints is None else asdict(self.hard_constraints),
+            "hold_parked": self.hold_parked,
         }
 
     # ------------------------------------------------------------------ simulation
@@ -398,9 +455,14 @@ class LangTrajPolicy(Policy):
         external = tuple(int(slot) for slot in np.flatnonzero(np.isin(world.driven, world.external)))
         judge = CandidateJudge(world, list(steering.asks), index) if index is not None and steering.asks else None
         selector = SELECTORS.create(self.selector_name or self.default_selector(), where="selector")
-        if selector.uses_road or any(isinstance(term.cost, OnRoadCost) for term in terms):
-            here = torch.as_tensor(poses_to_frame(world.current(world.start)[0], origin)[:, :2])
+        here = torch.as_tensor(poses_to_frame(world.current(world.start)[0], origin)[:, :2])
+        roads = selector.uses_road or any(isinstance(term.cost, OnRoadCost) for term in terms)
+        if roads or self.hard_constraints is not None:
             scene = scene.with_road_field(cover=here)  # built once: every replan's costs sample it
+        kept_on_road = None
+        if self.hard_constraints is not None:
+            vehicles = start.agents.types[world.driven] == int(AgentType.VEHICLE)
+            kept_on_road = on_road_vehicles(scene, here.float(), torch.as_tensor(vehicles), external)
         map_arrays = sample_map(start, world.driven, origin, data)
         first = collate_scenes([scene_sample(start, data, agents=world.driven, origin=origin, map_arrays=map_arrays)])
         with torch.no_grad():
@@ -417,6 +479,23 @@ class LangTrajPolicy(Policy):
             prompt=PromptReplans(steering, judge),
             external=external,
             clearance=self.external_terms(len(world.driven), external),
+            kept_on_road=None if kept_on_road is None else kept_on_road.to(device),
+            held=self.held_slots(start, world, external),
+        )
+
+    def held_slots(self, start: Scenario, world: SimWorld, external: tuple[int, ...]) -> tuple[int, ...]:
+        """With `hold_parked`, the slots of the driven agents parked in the log (`sim.parked.parked_in_history`:
+        judged from the history, never the future) that no prompt names and that are no adversary or target:
+        they stand where they are, as the model sees them; otherwise none."""
+        if not self.hold_parked:
+            return ()
+        parked = parked_in_history(start)[world.driven]
+        named = set(self.prompt.mentions) if self.prompt is not None else set()
+        ids = start.agents.ids[world.driven]
+        return tuple(
+            slot
+            for slot in np.flatnonzero(parked).tolist()
+            if int(ids[slot]) not in named and slot not in self.free and slot not in external
         )
 
     def default_selector(self) -> str:
@@ -524,15 +603,16 @@ class LangTrajPolicy(Policy):
         prompt_terms = tuple(t for group in steered for t in group)
         terms = state.terms + prompt_terms + state.clearance
         hook = None
+        initial = batch.current_state.repeat(m, 1, 1)
+        types = batch.agent_type.repeat(m, 1)
+        model = self.model
+        external_accel = accel.repeat(m, 1)
+
+        def integrate(x: Tensor) -> Tensor:  # external agents at their forecast, not the model's guess
+            pinned = pin_external(model.integrate(initial, types, x), initial, state.external, external_accel)
+            return hold(pinned, initial, state.held)
+
         if terms:
-            initial = batch.current_state.repeat(m, 1, 1)
-            types = batch.agent_type.repeat(m, 1)
-            model = self.model
-
-            external_accel = accel.repeat(m, 1)
-
-            def integrate(x: Tensor) -> Tensor:  # external agents at their forecast, not the model's guess
-                return pin_external(model.integrate(initial, types, x), initial, state.external, external_accel)
 
             def by(rollout: Callable[[Tensor], Tensor]) -> GuidanceOf:
                 def guidance(chosen: tuple[GuidanceTerm, ...], norm: float | None, iterations: int = 1) -> Guidance:
@@ -553,6 +633,8 @@ class LangTrajPolicy(Policy):
             hook = with_prompt_guidance(hook, prompt_terms, guidance)  # its own, larger step after the scene's
             clear = by(lambda x: integrate(accelerations_only(x)))  # the others make room by braking, not swerving
             hook = with_prompt_guidance(hook, state.clearance, clear, iterations=CLEARANCE_ITERATIONS)
+        if self.hard_constraints is not None:
+            hook = self._projection(state, batch.current_state, initial, integrate, then=hook)
         start = self._warm_start(state, step, rollouts)
         states, actions = self.model.sample(
             batch,
@@ -566,7 +648,7 @@ class LangTrajPolicy(Policy):
             start=start,
             start_steps=None if start is None else self.warm_steps,
         )
-        states = pin_external(states, batch.current_state, state.external, accel)
+        states = hold(pin_external(states, batch.current_state, state.external, accel), batch.current_state, state.held)
         states, actions = state.prompt.offer_kept_plans(step, rollouts, states, actions, start)
         first = state.prompt.adherence(world, state.origin, state.scene, step, rollouts, states, steered)
         choice = state.selector.select(states, state.scene, terms, first)  # states [M, R, A, T, 4], scene frame
@@ -577,6 +659,44 @@ class LangTrajPolicy(Policy):
             state.executed.update({r: (step, chosen_actions[n].detach()) for n, r in enumerate(rollouts)})
         chosen = executed[:, : len(world.driven)].double().cpu().numpy()
         return poses_to_world(chosen, state.origin)
+
+    def _projection(
+        self,
+        state: LangTrajRun,
+        current: Tensor,
+        initial: Tensor,
+        integrate: Callable[[Tensor], Tensor],
+        then: Guidance,
+    ) -> Guidance:
+        """The hard constraints' hook (`guidance.projection`) after `then` over the sample-major rows: `current`
+        [R, A, 4] is each rollout's current state, `initial` the same repeated per candidate. Pairs that overlap
+        now in a rollout, and an adversary with its target, are never pushed apart; external agents never move."""
+        config = self.hard_constraints
+        assert config is not None and state.kept_on_road is not None
+        exempt = current_overlaps(current, state.scene, config)
+        if len(self.free) == 2:
+            exempt[:, self.free[0], self.free[1]] = exempt[:, self.free[1], self.free[0]] = True
+        movable = torch.ones_like(state.kept_on_road)
+        movable[list(state.external) + list(state.held)] = False
+        agents = ProjectionAgents(road=state.kept_on_road, movable=movable, exempt=exempt.repeat(self.candidates, 1, 1))
+        model = self.model
+        every = torch.ones(initial.shape[:2] + (model.horizon_steps,), dtype=torch.bool, device=initial.device)
+
+        def invert(states: Tensor) -> Tensor:
+            actions, _ = model.dynamics.inverse(initial, states, every)
+            return model.to_units(actions).clamp(-4.0, 4.0)
+
+        return projection_hook(
+            config,
+            state.scene,
+            agents,
+            initial,
+            integrate,
+            invert,
+            num_steps=model.schedule.num_steps,
+            sampler_steps=self.steps,
+            then=then,
+        )
 
     def _warm_start(self, state: LangTrajRun, step: int, rollouts: list[int]) -> Tensor | None:
         """Each rollout's executed actions [R, A, N, 2] shifted to `step` (zero actions after their end), or None:
