@@ -13,7 +13,7 @@ The state-space projection alternates two steps, `iterations` times, ending with
   separated. An agent that ran into the other (the other's centre within 60 degrees of its heading at their
   first contact) is held back along its own path by the headway it lacks, braked into from the start
   (`braking_delay`); head-on, each takes half; side by side, both are pushed apart across the line between their
-  nearest disks, and the one behind also gives way. An agent whose partner cannot move (an external ego, a held
+  nearest disks, half the overlap each. An agent whose partner cannot move (an external ego, a held
   parked car) takes all of it. Pairs that overlap at the current step (the log's own touching pairs, pedestrians
   walking together, a simulation's past) and `exempt` pairs (an adversary and its target) are left alone.
 - road (`project_on_road`): every point of a `road` agent (vehicles on the road at the start) whose box reaches
@@ -57,7 +57,6 @@ class HardConstraints:
     steps: int = 1
     iterations: int = 3
     rounds: int = 1
-    side_yield: bool = True
     road_margin: float = 0.2
     gap: float = 0.0
     max_offroad: float = 5.0
@@ -184,7 +183,7 @@ def separation(
         overlap = penalty * (layout.radius[i] + layout.radius[j] + config.gap)
         # 0.5 overlap^2: its gradient is the overlap along the line that separates the nearest disks.
         grad_i, grad_j = torch.autograd.grad((0.5 * overlap**2).sum(), (close.state_i, close.state_j))
-    grad_i, grad_j, overlap = grad_i[keep, :2], grad_j[keep, :2], overlap.detach()
+    grad_i, grad_j = grad_i[keep, :2], grad_j[keep, :2]
     gap = (state_j[:, :2] - state_i[:, :2]).detach()
 
     def ahead(heading: Tensor, towards: Tensor) -> Tensor:
@@ -203,8 +202,8 @@ def separation(
     roles[contact[at_contact], 1] = ahead(state_j[at_contact, 2].detach(), -gap[at_contact])
     i_behind, j_behind = roles[contact, 0], roles[contact, 1]
     both = i_behind & j_behind
-    share_i = torch.where(movable[j], torch.where(both, 0.5, 1.0), 1.0) * movable[i]
-    share_j = torch.where(movable[i], torch.where(both, 0.5, 1.0), 1.0) * movable[j]
+    share_i = torch.where(movable[j], torch.where(both, 0.5, 1.0), 1.0) * movable[i] * hit  # overlapping steps only
+    share_j = torch.where(movable[i], torch.where(both, 0.5, 1.0), 1.0) * movable[j] * hit
     side = ~(i_behind | j_behind)
     side_i = torch.where(movable[j], 0.5, 1.0) * movable[i] * side
     side_j = torch.where(movable[i], 0.5, 1.0) * movable[j] * side
@@ -212,23 +211,11 @@ def separation(
     shift.index_put_((sample, i, step), -side_i[:, None] * grad_i, accumulate=True)
     shift.index_put_((sample, j, step), -side_j[:, None] * grad_j, accumulate=True)
     delay = torch.zeros_like(xy[..., 0])
-    # Side by side, the one behind along their mean heading also gives way by the overlap: where a kerb or a third
-    # agent stops the push across (a merge), it falls in behind over the iterations instead.
-    heading_i, heading_j = state_i[:, 2].detach(), state_j[:, 2].detach()
-    mean = torch.stack([torch.cos(heading_i) + torch.cos(heading_j), torch.sin(heading_i) + torch.sin(heading_j)], -1)
-    i_rear = (gap * mean).sum(-1) > 0
-    side_yield = side & config.side_yield
-    yield_i = side_yield * i_rear * movable[i] * overlap
-    yield_j = side_yield * ~i_rear * movable[j] * overlap
     delay.index_put_(
-        (sample, i, step),
-        share_i * i_behind * headway(layout, state_i, state_j, i, j, config.gap) + yield_i,
-        accumulate=True,
+        (sample, i, step), share_i * i_behind * headway(layout, state_i, state_j, i, j, config.gap), accumulate=True
     )
     delay.index_put_(
-        (sample, j, step),
-        share_j * j_behind * headway(layout, state_j, state_i, j, i, config.gap) + yield_j,
-        accumulate=True,
+        (sample, j, step), share_j * j_behind * headway(layout, state_j, state_i, j, i, config.gap), accumulate=True
     )
     return Separation(shift=shift, delay=delay)
 
