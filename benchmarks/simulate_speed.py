@@ -15,6 +15,7 @@ Medians over --repeats runs.
     python benchmarks/simulate_speed.py [--scenes 64 128 real] [--settings paper defaults prompt]
         [--checkpoint CKPT] [--candidates 4] [--repeats 3] [--rollouts 32] [--guided-steps N]
         [--prompt "@{id} slows down"] [--dense-attention] [--compile] [--warm-steps N] [--refresh-map]
+        [--hard-constraints N] [--[no-]hold-parked]
 
 With --compile the denoiser is compiled (`LangTraj.compile_steps`, as `langtraj simulate --compile`) and one
 untimed simulation per scene and setting compiles it first. --warm-steps and --refresh-map time the replan
@@ -154,6 +155,12 @@ def main() -> None:
     parser.add_argument("--compile", action="store_true", help="compile the denoiser; an untimed run compiles it")
     parser.add_argument("--warm-steps", type=int, help="replans warm-started at the last N denoising steps")
     parser.add_argument("--refresh-map", action="store_true", help="each replan chooses its own map")
+    parser.add_argument(
+        "--hard-constraints", type=int, help="the defaults' projection at the last N denoising steps (0: off)"
+    )
+    parser.add_argument(
+        "--hold-parked", action=argparse.BooleanOptionalAction, default=None, help="the defaults hold parked agents"
+    )
     args = parser.parse_args()
     if not SCENE.is_file():
         sys.exit(f"benchmark scene not found: {SCENE}")
@@ -162,7 +169,7 @@ def main() -> None:
     from langtraj.scenario.io import read_scenario
     from langtraj.sim.checkpoints import shipped_checkpoint
     from langtraj.sim.engine import SimConfig, simulate
-    from langtraj.sim.policies import LangTrajPolicy, model_agents
+    from langtraj.sim.policies import DEFAULT_HOLD_PARKED, LangTrajPolicy, hard_constraints, model_agents
     from langtraj.sim.prompts import merged_prompt
 
     device = "cuda" if torch.cuda.is_available() else "cpu"
@@ -180,7 +187,8 @@ def main() -> None:
         f"{'dense' if args.dense_attention else 'local'} attention, "
         f"denoiser {'compiled' if args.compile else 'eager'}, warm steps {args.warm_steps}, "
         f"map {'each replan' if args.refresh_map else 'of the start'}; defaults guided at the last "
-        f"{guided} of 5 denoising steps; medians of {args.repeats} runs"
+        f"{guided} of 5 denoising steps, hard constraints {hard_constraints(args.hard_constraints, 5)}, hold parked "
+        f"{DEFAULT_HOLD_PARKED if args.hold_parked is None else args.hold_parked}; medians of {args.repeats} runs"
     )
 
     def policy(setting: str, scene) -> LangTrajPolicy:
@@ -188,8 +196,11 @@ def main() -> None:
         options |= {"warm_steps": args.warm_steps, "refresh_map": args.refresh_map}
         if setting == "paper":
             options |= {"on_road": 0.0, "no_collision": 0.0, "selector": "min_collision"}
+            options |= {"hard_constraints": None, "hold_parked": False}
         else:
             options["guided_steps"] = guided
+            options["hard_constraints"] = hard_constraints(args.hard_constraints, 5)
+            options["hold_parked"] = DEFAULT_HOLD_PARKED if args.hold_parked is None else args.hold_parked
         if setting == "prompt":
             first = int(scene.agents.ids[model_agents(scene)[0]])
             options["prompt"] = merged_prompt(scene, [args.prompt.format(id=first)])

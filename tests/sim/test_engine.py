@@ -116,8 +116,10 @@ def test_batched_rollouts_equal_sequential_ones(tiny_run):
     for batch in (0, 1):
         policy = LangTrajPolicy(model, data, candidates=3, steps=2, rollout_batch=batch)
         runs.append(simulate(scenario, policy, SimConfig(rollouts=4, replan_s=2.0, seed=5)).rollouts)
-    np.testing.assert_allclose(runs[0].x, runs[1].x, atol=1e-4)
-    np.testing.assert_allclose(runs[0].heading, runs[1].heading, atol=1e-4)
+    # Within a millimetre: the projection's float32 refit (docs/simulation.md, 'Hard constraints') rounds a little
+    # differently at another batch size, and that carries over the replans.
+    np.testing.assert_allclose(runs[0].x, runs[1].x, atol=1e-3)
+    np.testing.assert_allclose(runs[0].heading, runs[1].heading, atol=1e-3)
     assert not np.allclose(runs[0].x[0], runs[0].x[1])  # rollouts differ from one another
 
 
