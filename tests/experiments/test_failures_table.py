@@ -14,7 +14,8 @@ from scenario_builders import make_scenario
 from langtraj.cli.main import main
 from langtraj.errors import InputError
 from langtraj.experiments import experiment_settings
-from langtraj.experiments.failures import LOG_ROW, window_kind
+from langtraj.experiments.common import window_kind
+from langtraj.experiments.failures import LOG_ROW
 from langtraj.experiments.realism import Method, breakdown_markdown, realism_table
 from langtraj.interdrive.dataset import write_manifest, write_shard
 from langtraj.scenario.ids import synth_window_id

@@ -12,7 +12,7 @@ from dataset_builders import write_dataset
 
 from langtraj.cli.main import main
 from langtraj.errors import InputError
-from langtraj.experiments.realism import COLUMNS, Method
+from langtraj.experiments.realism import COLUMNS, Method, by_kind
 
 FREE_TEXT = Path(__file__).parents[1] / "data" / "free_text_prompts.yaml"
 
@@ -26,6 +26,8 @@ def test_method_specs():
     assert model.guided_steps is None and Method.parse("m=x.ckpt|defaults|guided_steps=2").guided_steps == 2
     assert model.warm_steps is None and Method.parse("m=x.ckpt|warm_steps=2").warm_steps == 2
     assert model.temperature == 1.0 and Method.parse("m=x.ckpt|temperature=0.5").temperature == 0.5
+    assert model.project is None and Method.parse("m=x.ckpt|project=2").project == 2
+    assert not model.hold_parked and Method.parse("m=x.ckpt|defaults|hold_parked").hold_parked
     for bad, message in (
         ("nothing", "expected NAME=SPEC"),
         ("cv=constant_velocity|selector=first", "takes no options"),
@@ -36,6 +38,14 @@ def test_method_specs():
     ):
         with pytest.raises(InputError, match=message):
             Method.parse(bad)
+
+
+def test_merges_and_roundabouts_get_rows_of_their_own():
+    per_window = {"m": [{c: float(k) for c in COLUMNS} | {"min_meta": 0.0} for k in range(4)]}
+    kinds = ["onramp", "city", "onramp", "allway"]
+    table = by_kind(per_window, kinds, ("onramp", "roundabout"))
+    assert list(table) == ["onramp"]  # no roundabout window: no row
+    assert table["onramp"]["m"]["meta"] == 1.0 and table["onramp"]["m"]["windows"] == 2  # windows 0 and 2
 
 
 def test_the_realism_table_scores_every_method(tiny_run, tmp_path, capsys):

@@ -21,6 +21,7 @@ from langtraj.metrics.features import SceneMap
 from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.model.config import SampleConfig
 from langtraj.rollouts.container import Rollouts
+from langtraj.scenario.ids import SYNTH_ID
 from langtraj.scenario.model import Scenario
 from langtraj.training.data import SceneDataset
 
@@ -176,3 +177,12 @@ def write_results(path: str | Path | None, results: dict[str, Any]) -> None:
     if path:
         with atomic_path(path) as tmp:
             tmp.write_text(json.dumps(results, indent=1, default=float))
+
+
+def window_kind(scenario: Scenario, dataset: str) -> str:
+    """The network kind of a synthesized window (its metadata's `kind`, else the kind its id names), else `dataset`."""
+    kind = scenario.metadata.get("kind")
+    if isinstance(kind, str) and kind:
+        return kind
+    match = SYNTH_ID.match(scenario.scenario_id)
+    return match["run"].rsplit("-", 1)[0] if match else dataset

@@ -23,9 +23,8 @@ from dataclasses import dataclass
 
 from langtraj.errors import InputError
 from langtraj.experiments.base import EXPERIMENTS, Experiment
-from langtraj.experiments.common import nanmean
+from langtraj.experiments.common import nanmean, window_kind
 from langtraj.experiments.realism import Method, RealismSettings, breakdown_markdown, windows_of
-from langtraj.scenario.ids import SYNTH_ID
 from langtraj.scenario.model import Scenario
 from langtraj.sim.config import SimConfig
 from langtraj.sim.failures import BREAKDOWN_KEYS, FailureScene, classify_failures, log_rollouts
@@ -35,15 +34,6 @@ LOG_ROW = "log (reads the future)"
 """The name of the floor's row."""
 FIGURES = ("offroad", "collision", *BREAKDOWN_KEYS)
 """A row's figures, each a mean over its windows."""
-
-
-def window_kind(scenario: Scenario, dataset: str) -> str:
-    """The network kind of a synthesized window (its metadata's `kind`, else the kind its id names), else `dataset`."""
-    kind = scenario.metadata.get("kind")
-    if isinstance(kind, str) and kind:
-        return kind
-    match = SYNTH_ID.match(scenario.scenario_id)
-    return match["run"].rsplit("-", 1)[0] if match else dataset
 
 
 def _mean_row(rows: Sequence[dict]) -> dict[str, float]:

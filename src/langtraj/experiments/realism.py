@@ -25,6 +25,7 @@ attention.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -44,6 +45,7 @@ from langtraj.experiments.common import (
     parse_named,
     require_items,
     safety_figures,
+    window_kind,
     wosac_figures,
 )
 from langtraj.guidance.projection import HardConstraints
@@ -253,10 +255,33 @@ def markdown(table: dict[str, dict[str, float]]) -> str:
     """The table as Markdown (NaN as a dash)."""
     header = ("method", "meta", "kinematic", "interactive", "map", "offroad", "collision", "lowest meta")
     rows = [
-        (name, *(cell(r[c]) for c in COLUMNS), cell(r["min_meta"]), f"{r['seconds_per_simulation']:.1f}")
+        (name, *(cell(r[c]) for c in COLUMNS), cell(r["min_meta"]), _seconds(r["seconds_per_simulation"]))
         for name, r in table.items()
     ]
     return markdown_table((*header, "s per simulation"), rows)
+
+
+def _seconds(value: float) -> str:
+    return "–" if math.isnan(value) else f"{value:.1f}"
+
+
+OWN_ROWS = ("onramp", "roundabout")
+"""Network kinds every realism table also reports on their own (merges and roundabouts: where the model's agents
+left the road and collided most, docs/experiments.md 'Traffic that stays on the road')."""
+
+
+def by_kind(per_window: Mapping[str, list[dict]], kinds: Sequence[str], chosen: Sequence[str]) -> dict[str, dict]:
+    """Each `chosen` kind that has windows (`kinds[i]`: window i's): its methods' mean figures over those windows,
+    as `realism_table`'s table."""
+    out = {}
+    for kind in (k for k in chosen if k in kinds):
+        rows = {name: [r for r, k in zip(per, kinds, strict=True) if k == kind] for name, per in per_window.items()}
+        out[kind] = {
+            name: {c: nanmean([r[c] for r in of_kind]) for c in COLUMNS}
+            | {"min_meta": min(r["meta"] for r in of_kind), "windows": len(of_kind), "seconds_per_simulation": math.nan}
+            for name, of_kind in rows.items()
+        }
+    return out
 
 
 def breakdown_markdown(table: dict[str, dict[str, float]]) -> str:
@@ -304,4 +329,11 @@ class RealismExperiment(Experiment):
             result = realism_table(settings.methods, scenes, config, candidates, steps, loaded, print)
             results[spec.name] = result | {"rollouts": rollouts}
             print(markdown(result["table"]))
+            print(f"\n{spec.name}, offroad and collisions by cause (sim.failures):")
+            print(breakdown_markdown(result["table"]))
+            kinds = [window_kind(scenario, spec.name) for scenario in scenes]
+            result["by_kind"] = by_kind(result["per_window"], kinds, OWN_ROWS)
+            for kind, table in result["by_kind"].items():
+                print(f"\n{spec.name}, {kind} windows only:")
+                print(markdown(table))
         return results
