@@ -85,3 +85,46 @@ def make_scenario(
         events=events,
         metadata={"origin": "test"},
     )
+
+
+def two_lane_road(starts, *, scenario_id: str = "straight", steps: int = 91) -> Scenario:
+    """A 500 m straight road, two lanes eastbound (centres y = 0 and 3.5, edges at -1.75 and 5.25), with a 4.5 m by
+    2 m car per (x, y, speed) of `starts`, at (x, y) at the current step (index 10) and keeping its speed for
+    `steps` steps; the first is the self-driving car."""
+    t = np.arange(steps) * 0.1
+    states = np.zeros((len(starts), steps, 9), np.float32)
+    for a, (x0, y0, speed) in enumerate(starts):
+        states[a, :, 0] = x0 - 1.0 * speed + speed * t
+        states[a, :, 1] = y0
+        states[a, :, 4] = speed
+        states[a, :, 6:9] = (4.5, 2.0, 1.6)
+    lane = np.stack([np.linspace(-200, 300, 101), np.zeros(101), np.zeros(101)], axis=1)
+    features = (
+        MapFeature(10, MapFeatureType.LANE_SURFACE_STREET, lane, left_neighbors=(LaneNeighbor(11, 0, 100, 0, 100),)),
+        MapFeature(
+            11,
+            MapFeatureType.LANE_SURFACE_STREET,
+            lane + [0, 3.5, 0],
+            right_neighbors=(LaneNeighbor(10, 0, 100, 0, 100),),
+        ),
+        MapFeature(20, MapFeatureType.ROAD_LINE_BROKEN_SINGLE_WHITE, lane + [0, 1.75, 0]),
+        MapFeature(30, MapFeatureType.ROAD_EDGE_BOUNDARY, lane + [0, -1.75, 0]),
+        MapFeature(31, MapFeatureType.ROAD_EDGE_BOUNDARY, (lane + [0, 5.25, 0])[::-1]),
+    )
+    return Scenario(
+        scenario_id=scenario_id,
+        timestamps=t,
+        current_index=10,
+        sdc_index=0,
+        agents=Agents(
+            ids=np.arange(1, len(starts) + 1),
+            types=np.full(len(starts), int(AgentType.VEHICLE), np.int8),
+            states=states,
+            valid=np.ones((len(starts), steps), bool),
+            tracks_to_predict=[1],
+            prediction_difficulty=[1],
+            objects_of_interest=[],
+        ),
+        road_map=RoadMap(features),
+        metadata={"origin": "test"},
+    )

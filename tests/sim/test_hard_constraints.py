@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scenario_builders import two_lane_road
 
 from langtraj.guidance import GuidanceTerm
 from langtraj.guidance.costs import GoalCost
@@ -13,7 +14,7 @@ from langtraj.guidance.projection import HardConstraints
 from langtraj.metrics.features import SceneMap
 from langtraj.metrics.road import distance_to_road_edge
 from langtraj.model.checkpoint import load_model
-from langtraj.scenario import Agents, AgentType, LaneNeighbor, MapFeature, MapFeatureType, RoadMap, Scenario
+from langtraj.scenario import Scenario
 from langtraj.sim.checkpoints import shipped_checkpoint
 from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.engine import simulate
@@ -24,47 +25,10 @@ PARKED_ID = 4
 
 
 def straight_road(parked: bool = True) -> Scenario:
-    """A 500 m straight road, two lanes eastbound (y = 0 and 3.5, edges at -1.75 and 5.25): three cars at 10 m/s and,
-    with `parked`, a fourth standing at the kerb (y = -0.7) all through the log."""
-    steps, length, width = 91, 4.5, 2.0
-    t = np.arange(steps) * 0.1
+    """Three cars at 10 m/s on the two-lane road and, with `parked`, a fourth standing at the kerb (y = -0.7) all
+    through the log."""
     starts = [(0.0, 0.0, 10.0), (-25.0, 0.0, 10.0), (-10.0, 3.5, 10.0)] + ([(40.0, -0.7, 0.0)] if parked else [])
-    states = np.zeros((len(starts), steps, 9), np.float32)
-    for a, (x0, y0, speed) in enumerate(starts):
-        states[a, :, 0] = x0 - 1.0 * speed + speed * t
-        states[a, :, 1] = y0
-        states[a, :, 4] = speed
-        states[a, :, 6:9] = (length, width, 1.6)
-    lane = np.stack([np.linspace(-200, 300, 101), np.zeros(101), np.zeros(101)], axis=1)
-    features = (
-        MapFeature(10, MapFeatureType.LANE_SURFACE_STREET, lane, left_neighbors=(LaneNeighbor(11, 0, 100, 0, 100),)),
-        MapFeature(
-            11,
-            MapFeatureType.LANE_SURFACE_STREET,
-            lane + [0, 3.5, 0],
-            right_neighbors=(LaneNeighbor(10, 0, 100, 0, 100),),
-        ),
-        MapFeature(20, MapFeatureType.ROAD_LINE_BROKEN_SINGLE_WHITE, lane + [0, 1.75, 0]),
-        MapFeature(30, MapFeatureType.ROAD_EDGE_BOUNDARY, lane + [0, -1.75, 0]),
-        MapFeature(31, MapFeatureType.ROAD_EDGE_BOUNDARY, (lane + [0, 5.25, 0])[::-1]),
-    )
-    return Scenario(
-        scenario_id="straight",
-        timestamps=t,
-        current_index=10,
-        sdc_index=0,
-        agents=Agents(
-            ids=np.arange(1, len(starts) + 1),
-            types=np.full(len(starts), int(AgentType.VEHICLE), np.int8),
-            states=states,
-            valid=np.ones((len(starts), steps), bool),
-            tracks_to_predict=[1],
-            prediction_difficulty=[1],
-            objects_of_interest=[],
-        ),
-        road_map=RoadMap(features),
-        metadata={"origin": "test"},
-    )
+    return two_lane_road(starts)
 
 
 @pytest.fixture(scope="module")
