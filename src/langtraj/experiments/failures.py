@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from langtraj.errors import InputError
 from langtraj.experiments.base import EXPERIMENTS, Experiment
 from langtraj.experiments.common import nanmean, window_kind
-from langtraj.experiments.realism import Method, RealismSettings, breakdown_markdown, windows_of
+from langtraj.experiments.realism import Method, RealismSettings, breakdown_markdown, dataset_windows
 from langtraj.scenario.model import Scenario
 from langtraj.sim.config import SimConfig
 from langtraj.sim.failures import BREAKDOWN_KEYS, FailureScene, classify_failures, log_rollouts
@@ -108,14 +108,8 @@ class FailuresExperiment(Experiment):
         loaded = {m.name: m.load() for m in settings.methods}  # once for every dataset
         results = {}
         for spec in settings.datasets:
-            rollouts = spec.rollouts or settings.rollouts
-            scenes = windows_of(spec, settings.windows)
-            if not scenes:
-                raise InputError("no window logs 8 s after its current step", path=spec.labels)
+            scenes, config = dataset_windows(spec, settings)
             kinds = [window_kind(scenario, spec.name) for scenario in scenes]
-            counts = f"{len(scenes)} windows, {rollouts} rollouts, {settings.candidates} candidates per replan"
-            print(f"\n{spec.name}: {counts}, K = {settings.steps}")
-            config = SimConfig(rollouts=rollouts, seed=settings.seed)
             result = failures_table(
                 settings.methods,
                 scenes,
@@ -127,7 +121,7 @@ class FailuresExperiment(Experiment):
                 floor=settings.floor,
                 progress=print,
             )
-            results[spec.name] = result | {"rollouts": rollouts}
+            results[spec.name] = result | {"rollouts": config.rollouts}
             print(breakdown_markdown(result["table"]))
             if set(kinds) != {spec.name}:  # synthesized windows: one table per network kind
                 print(f"\n{spec.name} by network kind (windows in brackets):")

@@ -44,7 +44,6 @@ from langtraj.experiments.common import (
     nanmean,
     parse_named,
     require_items,
-    safety_figures,
     window_kind,
     wosac_figures,
 )
@@ -57,7 +56,7 @@ from langtraj.scenario.model import Scenario
 from langtraj.sim.checkpoints import checkpoint_path
 from langtraj.sim.config import SimConfig
 from langtraj.sim.engine import simulate
-from langtraj.sim.failures import BREAKDOWN_KEYS, OFFROAD_CAUSES, FailureScene, cause_breakdown
+from langtraj.sim.failures import BREAKDOWN_KEYS, OFFROAD_CAUSES, FailureScene, classify_failures
 from langtraj.sim.policies import POLICIES, LangTrajPolicy, LoadedModel
 from langtraj.sim.terms import scene_wide_terms
 
@@ -205,6 +204,18 @@ def _number_option(settings: dict[str, str], key: str, kind: type, what: str):
         raise InputError(f"{key} must be {what}, got {settings[key]!r}", where="--method") from None
 
 
+def dataset_windows(spec: DatasetSpec, settings: SimulationSettings) -> tuple[list[Scenario], SimConfig]:
+    """The windows a closed-loop table simulates for dataset `spec` (`windows_of`; none is an error naming the
+    labels) and their simulation config, announced on stdout."""
+    scenes = windows_of(spec, settings.windows)
+    if not scenes:
+        raise InputError("no window logs 8 s after its current step", path=spec.labels)
+    rollouts = spec.rollouts or settings.rollouts
+    print(f"\n{spec.name}: {len(scenes)} windows, {rollouts} rollouts, {settings.candidates} candidates per replan, "
+          f"K = {settings.steps}")  # fmt: skip
+    return scenes, SimConfig(rollouts=rollouts, seed=settings.seed)
+
+
 def windows_of(spec: DatasetSpec, limit: int | None) -> list[Scenario]:
     """Windows of a dataset split that log the 8 s the metrics score (at most `limit`, in dataset order)."""
     found = []
@@ -237,8 +248,10 @@ def realism_table(
             begin = time.perf_counter()
             rollouts = method.rollouts(scenario, config, candidates, steps, loaded[method.name])
             seconds.append(time.perf_counter() - begin)
-            figures = wosac_figures(scenario, rollouts, scene_map) | safety_figures(scenario, rollouts, scene_map)
-            figures |= cause_breakdown(scenario, rollouts, scene=scene)
+            # The cause analysis finds the same off-road and collision events as the rates count: computed once.
+            report = classify_failures(scenario, rollouts, scene=scene)
+            figures = wosac_figures(scenario, rollouts, scene_map) | report.shares()
+            figures |= {"offroad": report.offroad_rate, "collision": report.collision_rate}
             rows.append(figures | {"scenario_id": scenario.scenario_id})
         per_window[method.name] = rows
         table[method.name] = {c: nanmean([r[c] for r in rows]) for c in (*COLUMNS, *BREAKDOWN_KEYS)} | {
@@ -318,14 +331,8 @@ class RealismExperiment(Experiment):
         loaded = {m.name: m.load() for m in settings.methods}  # once for every dataset
         results = {}
         for spec in settings.datasets:
-            rollouts = spec.rollouts or settings.rollouts
-            scenes = windows_of(spec, settings.windows)
-            if not scenes:
-                raise InputError("no window logs 8 s after its current step", path=spec.labels)
-            candidates, steps = settings.candidates, settings.steps
-            counts = f"{len(scenes)} windows, {rollouts} rollouts, {candidates} candidates per replan, K = {steps}"
-            print(f"\n{spec.name}: {counts}")
-            config = SimConfig(rollouts=rollouts, seed=settings.seed)
+            scenes, config = dataset_windows(spec, settings)
+            candidates, steps, rollouts = settings.candidates, settings.steps, config.rollouts
             result = realism_table(settings.methods, scenes, config, candidates, steps, loaded, print)
             results[spec.name] = result | {"rollouts": rollouts}
             print(markdown(result["table"]))
