@@ -90,6 +90,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "steps (N network calls instead of --steps; docs/simulation.md, 'Warm-started replans'); default: fresh noise",
     )
     p.add_argument(
+        "--rolling",
+        action="store_true",
+        help="keep one rolling plan per agent whose noise rises along the future and denoise it once per replan "
+        "(a checkpoint trained with model.rolling_group; docs/simulation.md, 'Rolling plans')",
+    )
+    p.add_argument(
         "--temperature",
         type=float,
         default=1.0,
@@ -191,6 +197,7 @@ def run(args: argparse.Namespace) -> int:
         dense_attention=args.dense_attention,
         guided_steps=args.guided_steps,
         warm_steps=args.warm_steps,
+        rolling=args.rolling,
         temperature=args.temperature,
         refresh_map=args.refresh_map,
         hard_constraints=args.hard_constraints,

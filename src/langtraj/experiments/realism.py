@@ -13,7 +13,8 @@ a checkpoint (`shipped`: the one inside the package), optionally followed by `|s
 `|guidance=COST:WEIGHT[+COST:WEIGHT]`, `|guided_steps=N` (the defaults' guidance at the last N denoising steps
 only), `|warm_steps=N` (replans warm-started from the executed plan, `sim.policies.LangTrajPolicy`),
 `|temperature=T` (the sampler's noise scaled by T), `|refresh_map` (each replan's map around the agents then),
-`|hold_parked` (agents parked in the log stand still unless prompted), `|project=N` (hard constraints at the
+`|hold_parked` (agents parked in the log stand still unless prompted), `|rolling` (one rolling plan per agent,
+denoised once per replan: a rolling checkpoint, `model.rolling`), `|project=N` (hard constraints at the
 last N denoising steps: on the road and apart, `guidance.projection`; 0: off),
 `|defaults` and `|dense`.
 A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says otherwise;
@@ -82,6 +83,7 @@ class Method:
     temperature: float = 1.0  # the sampler's noise scaled by this
     refresh_map: bool = False  # each replan's map around the agents' positions then (else the start's)
     hold_parked: bool = False  # agents parked in the log stand still unless prompted (else the row's setting)
+    rolling: bool = False  # one rolling plan per agent, one network call per replan (a rolling checkpoint)
     project: int | None = None  # hard constraints at the last N denoising steps (0: off); None: the row's setting
 
     def __post_init__(self) -> None:
@@ -92,7 +94,7 @@ class Method:
                 known = ", ".join(BASELINE_POLICIES + ROLLOUT_BASELINES)
                 raise InputError(f"unknown baseline {self.baseline!r}; known: {known}", where="--method")
             options = (self.selector, self.guidance, self.defaults, self.dense, self.guided_steps, self.warm_steps,
-                       self.refresh_map, self.project, self.hold_parked)  # fmt: skip
+                       self.refresh_map, self.project, self.hold_parked, self.rolling)  # fmt: skip
             if any(o not in (None, (), False) for o in options) or self.temperature != 1.0:
                 raise InputError(f"baseline {self.baseline} takes no options", where="--method")
         scene_wide_terms(self.guidance)  # checked now, before anything runs
@@ -107,13 +109,13 @@ class Method:
                 raise InputError(f"baseline {head} takes no options, got {options}", where="--method")
             return cls(name, baseline=head)
         settings: dict[str, str] = {}
-        flags = {"defaults", "dense", "refresh_map", "hold_parked"}
+        flags = {"defaults", "dense", "refresh_map", "hold_parked", "rolling"}
         for option in (o for o in options if o not in flags):
             key, eq, value = option.partition("=")
             if not eq or key not in ("selector", "guidance", "guided_steps", "warm_steps", "temperature", "project"):
                 raise InputError(
                     "expected selector=NAME, guidance=COST:WEIGHT, guided_steps=N, warm_steps=N, temperature=T, "
-                    f"project=N, defaults, dense, refresh_map or hold_parked, got {option!r}",
+                    f"project=N, defaults, dense, refresh_map, hold_parked or rolling, got {option!r}",
                     where="--method",
                 )
             settings[key] = value
@@ -126,6 +128,7 @@ class Method:
             dense="dense" in options,
             refresh_map="refresh_map" in options,
             hold_parked="hold_parked" in options,
+            rolling="rolling" in options,
             guided_steps=_int_option(settings, "guided_steps"),
             warm_steps=_int_option(settings, "warm_steps"),
             temperature=_float_option(settings, "temperature", 1.0),
@@ -170,6 +173,8 @@ class Method:
                 paper["refresh_map"] = True
             if self.hold_parked:
                 paper["hold_parked"] = True
+            if self.rolling:
+                paper["rolling"] = True
             if self.project is not None:
                 paper["hard_constraints"] = HardConstraints(steps=self.project) if self.project else None
             policy = LangTrajPolicy(

@@ -38,6 +38,11 @@ class ModelConfig:
     """Each agent token also reads its history's lateral offset and heading error to the nearest lane of its
     map pieces (`scene_encoder.lane_relative_history`; docs/model.md, 'Lane-relative inputs'). Off: the paper's
     inputs, and checkpoints trained before it."""
+    rolling_group: int = 0
+    """Actions a rolling plan moves on by at each replan (`model.rolling`): the denoiser also reads each action's own
+    noise level, and training draws levels that rise along the future for `rolling_fraction` of its scenes. 0: one
+    noise level per sample, the paper's denoiser (docs/model.md, 'Rolling plans')."""
+    rolling_fraction: float = 0.5
     gradient_checkpointing: bool = False
     """Training only: recompute each attention block in backward instead of keeping its activations
     (docs/model.md, 'Training memory'); the weights and every output stay the same."""
@@ -57,6 +62,13 @@ class ModelConfig:
             raise InputError(f"must be in [0, 1), got {self.dropout}", where="model.dropout")
         if len(self.action_scale) != 2:
             raise InputError(f"expected two values, got {list(self.action_scale)}", where="model.action_scale")
+        if self.rolling_group < 0 or (self.rolling_group and self.num_actions % self.rolling_group):
+            raise InputError(
+                f"must be 0 or divide the {self.num_actions} actions, got {self.rolling_group}",
+                where="model.rolling_group",
+            )
+        if not 0.0 <= self.rolling_fraction <= 1.0:
+            raise InputError(f"must be in [0, 1], got {self.rolling_fraction}", where="model.rolling_fraction")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -47,6 +47,13 @@ class Denoiser(nn.Module):
         self.condition_in = mlp(d, d, d)
         nn.init.zeros_(self.condition_in[-1].weight)
         nn.init.zeros_(self.condition_in[-1].bias)
+        # A rolling model (`rolling_group`) also reads each action's own noise level; zero-initialised, so a model
+        # fine-tuned from one without it starts where that one was (docs/model.md, 'Rolling plans').
+        self.num_steps = config.diffusion_steps
+        self.level_in = mlp(config.num_actions, d, d) if config.rolling_group else None
+        if self.level_in is not None:
+            nn.init.zeros_(self.level_in[-1].weight)
+            nn.init.zeros_(self.level_in[-1].bias)
         self.modulation = nn.ModuleList(nn.Linear(d, 2 * d) for _ in range(config.denoiser_blocks))
         for layer in self.modulation:
             nn.init.zeros_(layer.weight)
@@ -72,11 +79,16 @@ class Denoiser(nn.Module):
     def forward(
         self, x_k: Tensor, k: Tensor, scene: SceneContext, language: Tensor, cache: dict | None = None
     ) -> Tensor:
-        """`language` [B, A, D] is E_L for every agent (null condition where it has no text). `cache`, a dict
-        kept across the denoising steps of one scene, holds the relative-pose embeddings (`pose_cache`),
-        filled on first use when empty."""
+        """`k` is each sample's step [B], or each action's [B, N] (a rolling plan's levels; the step embedding then
+        reads their mean). `language` [B, A, D] is E_L for every agent (null condition where it has no text).
+        `cache`, a dict kept across the denoising steps of one scene, holds the relative-pose embeddings
+        (`pose_cache`), filled on first use when empty."""
         b, a, n, c = x_k.shape
-        step = self.step(step_embedding((k.float() + 1.0) * self.step_scale - 1.0, self.dim))[:, None, :]
+        mean = k.float().mean(-1) if k.dim() == 2 else k.float()
+        step = self.step(step_embedding((mean + 1.0) * self.step_scale - 1.0, self.dim))[:, None, :]
+        if self.level_in is not None:
+            levels = k if k.dim() == 2 else k[:, None].expand(b, n)
+            step = step + self.level_in((levels.float() + 1.0) / self.num_steps)[:, None, :]
         condition = step + self.condition_in(language)  # [B, A, D]: each agent's step and own text
         h = self.action_in(x_k.reshape(b, a, n * c)) + scene.agent_tokens + condition
         film = nn.functional.silu(condition)

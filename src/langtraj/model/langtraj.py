@@ -17,12 +17,21 @@ import torch
 from torch import Tensor, nn
 
 from langtraj.angles import wrap_angle
+from langtraj.errors import InputError
 from langtraj.model.batch import SceneBatch
 from langtraj.model.config import LocalAttention, ModelConfig
 from langtraj.model.denoiser import Denoiser
-from langtraj.model.diffusion import DiffusionSchedule, Guidance, classifier_free_guidance, cosine_schedule, sample
+from langtraj.model.diffusion import (
+    DiffusionSchedule,
+    Guidance,
+    classifier_free_guidance,
+    cosine_schedule,
+    sample,
+    timestep_sequence,
+)
 from langtraj.model.dynamics import DYNAMICS
 from langtraj.model.layers import mlp
+from langtraj.model.rolling import RollingSchedule, denoise_between, shift_plan
 from langtraj.model.scene_encoder import MapContext, SceneContext, SceneEncoder
 from langtraj.model.targets import fit_actions
 from langtraj.model.text_encoder import TextEncoder
@@ -48,6 +57,12 @@ class LangTraj(nn.Module):
         self.fuse = mlp(2 * d, d, d)
         self.register_buffer("action_scale", torch.tensor(config.action_scale, dtype=torch.float32), persistent=False)
         self._compiled: dict[str, Callable[..., Any]] = {}  # `compile_steps`: plain functions, not submodules
+
+    @property
+    def rolling(self) -> RollingSchedule | None:
+        """The rolling plan's levels (`model.rolling`) for a model trained with `rolling_group`; None otherwise."""
+        group = self.config.rolling_group
+        return RollingSchedule(self.config.num_actions, self.config.diffusion_steps, group) if group else None
 
     @property
     def schedule(self) -> DiffusionSchedule:
@@ -151,6 +166,10 @@ class LangTraj(nn.Module):
         x0, _ = self.target_actions(batch)
         b = x0.shape[0]
         k = torch.randint(0, self.schedule.num_steps, (b,), device=x0.device, generator=generator)
+        if self.rolling is not None:  # per-action levels: a share of the scenes at a rolling plan's
+            levels = self.rolling.training_levels(b, generator).to(x0.device)
+            rolling = torch.rand(b, device=x0.device, generator=generator) < self.config.rolling_fraction
+            k = torch.where(rolling[:, None], levels, k[:, None].expand(b, self.config.num_actions))
         noise = torch.randn(x0.shape, device=x0.device, generator=generator)
         embedded = self.text_encoder(batch.text) if self.text_encoder is not None else None
         text_weight_of = None
@@ -159,7 +178,8 @@ class LangTraj(nn.Module):
         core = self._compiled.get("loss", self._denoising_loss)
         out = core(_tensors_only(batch), x0, k, noise, embedded, text_weight_of)
         if with_states:
-            return {**out, "signal": self.schedule_alphas_cumprod[k].to(x0.dtype)}
+            signal = self.schedule_alphas_cumprod[k].to(x0.dtype)
+            return {**out, "signal": signal.mean(-1) if signal.dim() == 2 else signal}
         del out["states"]
         return out
 
@@ -173,8 +193,9 @@ class LangTraj(nn.Module):
         text_weight_of: Tensor | None,
     ) -> dict[str, Tensor]:
         """`loss` from its draws on: tensors in, tensors out, the part `compile_steps` compiles. `embedded`: the
-        text encoder's output for the batch's sentences; `text_weight_of` [B, A]: each agent's loss weight."""
-        x_k = self.schedule.q_sample(x0, k, noise)
+        text encoder's output for the batch's sentences; `text_weight_of` [B, A]: each agent's loss weight. `k`: each
+        scene's step [B], or each action's [B, N] (a rolling model)."""
+        x_k = self.schedule.q_sample(x0, k[:, None].expand(x0.shape[:3]) if k.dim() == 2 else k, noise)
         scene = self.encoder(batch)
         language = self.language(batch, scene, drop_text=embedded is None, embedded=embedded)
         pred = self.denoiser(x_k, k, scene, language)
@@ -223,24 +244,7 @@ class LangTraj(nn.Module):
         (actions [B, A, N, 2], physical, one plan per scene) warm-starts every sample of a scene: the last
         `start_steps` of the `steps` run from it, noised (`model.diffusion.sample`).
         """
-        # The scene and its sentences are encoded once; the samples share them (sample-major repeats).
-        base = self.encoder(batch, map_context, local)
-        conditional = _repeat(self.language(batch, base), num_samples)
-        unconditional = (
-            _repeat(self.language(batch, base, drop_text=True), num_samples) if guidance_weight != 0.0 else None
-        )
-        scene = base.repeat(num_samples)
-        expanded = _repeat_batch(batch, num_samples)
-
-        cache = self.denoiser.pose_cache(base)  # per scene, shared by every step and sample
-
-        def denoise(x_k: Tensor, k: Tensor) -> Tensor:
-            x0 = self._denoise(x_k, k, scene, conditional, cache)
-            if unconditional is not None:
-                uncond = self._denoise(x_k, k, scene, unconditional, cache)
-                x0 = classifier_free_guidance(x0, uncond, guidance_weight)
-            return x0
-
+        denoise, expanded = self._denoiser(batch, num_samples, guidance_weight, map_context, local)
         b, a = expanded.agent_valid.shape
         shape = (b, a, self.config.num_actions, 2)
         if start is not None:
@@ -261,6 +265,92 @@ class LangTraj(nn.Module):
         states = self.rollout(expanded, x0)
         n = batch.batch_size
         return states.reshape(num_samples, n, *states.shape[1:]), self.from_units(x0).reshape(num_samples, n, a, -1, 2)
+
+    @torch.no_grad()
+    def roll(
+        self,
+        batch: SceneBatch,
+        num_samples: int,
+        plan: Tensor | None,
+        *,
+        steps: int,
+        noise: Callable[[tuple[int, ...]], Tensor],
+        eta: float = 0.0,
+        guidance_weight: float = 0.0,
+        guidance: Guidance | None = None,
+        map_context: MapContext | None = None,
+        local: LocalAttention | None = None,
+    ) -> tuple[Tensor, Tensor, Tensor]:
+        """One replan of a rolling plan (`model.rolling`): states [S, B, A, T, 4] and actions [S, B, A, N, 2] of the
+        plan's x0 prediction, whose first `rolling_group` actions are clean, and the plan [S * B, A, N, 2] (network
+        units, sample-major) for the next replan, shifted by them. `plan` None: a cold start from `noise(shape)`
+        in `steps` calls; otherwise one call. The cold start's calls pass `guidance` their step of the sequence; every
+        rolling call (and the cold start's last) the last of the `steps` sampler steps, so hooks that act at the final
+        steps act at each replan. Other arguments as `sample`."""
+        rolling = self.rolling
+        if rolling is None:
+            raise InputError(
+                "this checkpoint was not trained to roll its plans (model.rolling_group is 0)", where="rolling"
+            )
+        denoise, expanded = self._denoiser(batch, num_samples, guidance_weight, map_context, local)
+        b, a = expanded.agent_valid.shape
+        shape = (b, a, self.config.num_actions, 2)
+        last = timestep_sequence(self.schedule.num_steps, num_inference_steps=steps)[-1]
+        calls = rolling.cold_start(steps) if plan is None else [(rolling.before(), rolling.after())]
+        x = noise(shape) if plan is None else plan
+
+        def denoise_levels(x_k: Tensor, levels: Tensor) -> Tensor:
+            return denoise(x_k, levels[None].expand(b, -1))
+
+        x0 = x
+        for i, (levels, target) in enumerate(calls):
+            hook_step = last if i == len(calls) - 1 else int(levels.min())
+            draw = noise(shape) if eta > 0 else None
+            x, x0 = denoise_between(
+                denoise_levels,
+                x,
+                levels,
+                target,
+                self.schedule,
+                guidance=guidance,
+                guidance_step=hook_step,
+                eta=eta,
+                noise=draw,
+            )
+        nxt = shift_plan(x, rolling.group, noise(shape))
+        states = self.rollout(expanded, x0)
+        n = batch.batch_size
+        actions = self.from_units(x0).reshape(num_samples, n, a, -1, 2)
+        return states.reshape(num_samples, n, *states.shape[1:]), actions, nxt
+
+    def _denoiser(
+        self,
+        batch: SceneBatch,
+        num_samples: int,
+        guidance_weight: float,
+        map_context: MapContext | None,
+        local: LocalAttention | None,
+    ) -> tuple[Callable[[Tensor, Tensor], Tensor], SceneBatch]:
+        """The x0 prediction (x_k, k) -> x0 of `num_samples` samples per scene of `batch` (sample-major rows), with
+        classifier-free guidance `guidance_weight`, and the batch repeated to those rows. The scene and its sentences
+        are encoded once; every step and sample shares them and the relative-pose terms."""
+        base = self.encoder(batch, map_context, local)
+        conditional = _repeat(self.language(batch, base), num_samples)
+        unconditional = (
+            _repeat(self.language(batch, base, drop_text=True), num_samples) if guidance_weight != 0.0 else None
+        )
+        scene = base.repeat(num_samples)
+        expanded = _repeat_batch(batch, num_samples)
+        cache = self.denoiser.pose_cache(base)  # per scene, shared by every step and sample
+
+        def denoise(x_k: Tensor, k: Tensor) -> Tensor:
+            x0 = self._denoise(x_k, k, scene, conditional, cache)
+            if unconditional is not None:
+                uncond = self._denoise(x_k, k, scene, unconditional, cache)
+                x0 = classifier_free_guidance(x0, uncond, guidance_weight)
+            return x0
+
+        return denoise, expanded
 
 
 def _tensors_only(batch: SceneBatch) -> SceneBatch:

@@ -80,6 +80,7 @@ class SimRequest:
     dense_attention: bool = False  # every agent attends to every token, however large the scene (slower)
     guided_steps: int | None = None  # the last N denoising steps get on-road / no-collision guidance; None: default
     warm_steps: int | None = None  # replans start from the executed plan, noised to the last N steps; None: fresh
+    rolling: bool = False  # keep one rolling plan per agent, one network call per replan (a rolling checkpoint)
     temperature: float = 1.0  # the sampler's noise is drawn this many times N(0, I)'s standard deviation
     refresh_map: bool = False  # each replan chooses the map around the agents' positions then (else: the start's)
     levers: PromptLevers = ALL_LEVERS  # how prompts steer (text, guidance toward targets, adherence-first selection)
@@ -115,6 +116,7 @@ class SimRequest:
             or self.dense_attention
             or self.guided_steps is not None
             or self.warm_steps is not None
+            or self.rolling
             or self.temperature != 1.0
             or self.refresh_map
             or self.levers != ALL_LEVERS

@@ -41,6 +41,7 @@ from langtraj.guidance.projection import HardConstraints, ProjectionAgents, curr
 from langtraj.interdrive.behaviour import BEHAVIOURS
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.mapindex import MapIndex
+from langtraj.model.batch import SceneBatch
 from langtraj.model.checkpoint import load_model
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import MapArrays, collate_scenes, map_coverage, sample_map, scene_frame, scene_sample
@@ -252,6 +253,9 @@ class LangTrajRun:
     executed: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
     """Per rollout: the step and the actions [A, N, 2] (physical) of the plan executed from it, which the next
     replan warm-starts from (`LangTrajPolicy.warm_steps`)."""
+    rolling: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
+    """Per rollout: the step the next replan is due and its candidates' rolling plans [M, A, N, 2] (network units,
+    `LangTrajPolicy.rolling`)."""
 
 
 @POLICIES.register
@@ -279,6 +283,9 @@ class LangTrajPolicy(Policy):
     `refresh_map`, each replan chooses its map pieces around where each rollout's agents are then, as training
     chose them around the agents at the window's current step; otherwise the start's map serves every replan
     (encoded once; agents that drive out of it see no road; docs/simulation.md, 'The map at each replan').
+    With `rolling` (a checkpoint trained with `model.rolling_group`), each candidate keeps one rolling plan whose
+    noise rises along the future; after a cold start each replan denoises it once and executes its clean first
+    actions (`LangTraj.roll`; docs/simulation.md, 'Rolling plans').
     """
 
     name = "langtraj"
@@ -310,6 +317,7 @@ class LangTrajPolicy(Policy):
         levers: PromptLevers = ALL_LEVERS,
         prompt_texts: Sequence[str] | None = None,
         warm_steps: int | None = None,
+        rolling: bool = False,
         temperature: float = 1.0,
         refresh_map: bool = False,
         external_clearance: float = DEFAULT_EXTERNAL_CLEARANCE,
@@ -357,6 +365,13 @@ class LangTrajPolicy(Policy):
         if warm_steps is not None and not 1 <= warm_steps <= steps:
             raise InputError(f"must be in [1, {steps}] (the DDIM steps), got {warm_steps}", where="--warm-steps")
         self.warm_steps = warm_steps
+        if rolling and model.rolling is None:
+            raise InputError(
+                "this checkpoint was not trained to roll its plans (model.rolling_group is 0)", where="--rolling"
+            )
+        if rolling and warm_steps is not None:
+            raise InputError("a rolling plan is its own warm start; give --rolling or --warm-steps", where="--rolling")
+        self.rolling = bool(rolling)
         if not (math.isfinite(temperature) and 0 < temperature <= 2):
             raise InputError(f"must be in (0, 2], got {temperature}", where="--temperature")
         self.temperature = float(temperature)
@@ -399,6 +414,7 @@ class LangTrajPolicy(Policy):
             "levers": request.levers,
             "prompt_texts": request.prompts,
             "warm_steps": request.warm_steps,
+            "rolling": request.rolling,
             "temperature": request.temperature,
             "refresh_map": request.refresh_map,
             "external_clearance": (
@@ -429,6 +445,7 @@ class LangTrajPolicy(Policy):
             "attention": "local" if self.local_attention else "dense",
             "prompt_levers": self.levers.names() if self.prompt is not None else [],
             "warm_steps": self.warm_steps,
+            "rolling": self.rolling,
             "temperature": self.temperature,
             "refresh_map": self.refresh_map,
             "hard_constraints": None if self.hard_constraints is None else asdict(self.hard_constraints),
@@ -566,6 +583,15 @@ class LangTrajPolicy(Policy):
         return ()
 
     def plan(self, world: SimWorld, state: LangTrajRun, step: int, horizon: int) -> np.ndarray:
+        rolls = self.model.rolling
+        if self.rolling and rolls is not None and step + horizon < world.end:
+            every = rolls.group * self.model.dynamics.steps_per_action
+            if horizon != every:
+                raise InputError(
+                    f"this checkpoint's plans roll by {every / 10:g} s; replan every {every / 10:g} s, not "
+                    f"{horizon / 10:g} s",
+                    where="--rolling",
+                )
         chunk = self.rollout_batch or world.num_rollouts
         plans = [
             self._plan_rollouts(world, state, step, list(range(lo, min(lo + chunk, world.num_rollouts))))
@@ -637,18 +663,24 @@ class LangTrajPolicy(Policy):
         if self.hard_constraints is not None:
             hook = self._projection(state, batch.current_state, initial, integrate, then=hook)
         start = self._warm_start(state, step, rollouts)
-        states, actions = self.model.sample(
-            batch,
-            m,
-            steps=self.steps,
-            guidance_weight=self.guidance_weight,
-            guidance=hook,
-            noise=noise,
-            map_context=None if self.refresh_map and step != world.start else state.map_context,
-            local=self.data.local_attention() if self.local_attention else None,
-            start=start,
-            start_steps=None if start is None else self.warm_steps,
-        )
+        common = {
+            "guidance_weight": self.guidance_weight,
+            "guidance": hook,
+            "noise": noise,
+            "map_context": None if self.refresh_map and step != world.start else state.map_context,
+            "local": self.data.local_attention() if self.local_attention else None,
+        }
+        if self.rolling:
+            states, actions = self._roll(state, step, rollouts, batch, **common)
+        else:
+            states, actions = self.model.sample(
+                batch,
+                m,
+                steps=self.steps,
+                start=start,
+                start_steps=None if start is None else self.warm_steps,
+                **common,
+            )
         states = hold(pin_external(states, batch.current_state, state.external, accel), batch.current_state, state.held)
         states, actions = state.prompt.offer_kept_plans(step, rollouts, states, actions, start)
         first = state.prompt.adherence(world, state.origin, state.scene, step, rollouts, states, steered)
@@ -698,6 +730,23 @@ class LangTrajPolicy(Policy):
             sampler_steps=self.steps,
             then=then,
         )
+
+    def _roll(
+        self, state: LangTrajRun, step: int, rollouts: list[int], batch: SceneBatch, **common: Any
+    ) -> tuple[Tensor, Tensor]:
+        """`LangTraj.roll` on each rollout's candidates' rolling plans, or from noise where a rollout has none due
+        now (the first replan); keeps the plans for the next replan. States [M, R, A, T, 4], actions [M, R, A, N, 2]."""
+        rolls = self.model.rolling
+        assert rolls is not None
+        due = [state.rolling.get(r) for r in rollouts]
+        plan = None
+        if all(d is not None and d[0] == step for d in due):
+            plan = torch.stack([d[1] for d in due if d is not None], dim=1).flatten(0, 1)  # sample-major rows
+        states, actions, nxt = self.model.roll(batch, self.candidates, plan, steps=self.steps, **common)
+        after = step + rolls.group * self.model.dynamics.steps_per_action
+        per_rollout = nxt.reshape(self.candidates, len(rollouts), *nxt.shape[1:])
+        state.rolling.update({r: (after, per_rollout[:, n]) for n, r in enumerate(rollouts)})
+        return states, actions
 
     def _warm_start(self, state: LangTrajRun, step: int, rollouts: list[int]) -> Tensor | None:
         """Each rollout's executed actions [R, A, N, 2] shifted to `step` (zero actions after their end), or None:
