@@ -156,6 +156,9 @@ def main() -> None:
     parser.add_argument("--warm-steps", type=int, help="replans warm-started at the last N denoising steps")
     parser.add_argument("--refresh-map", action="store_true", help="each replan chooses its own map")
     parser.add_argument(
+        "--rolling", action="store_true", help="rolling plans, one network call per replan (a rolling checkpoint)"
+    )
+    parser.add_argument(
         "--hard-constraints", type=int, help="the defaults' projection at the last N denoising steps (0: off)"
     )
     parser.add_argument(
@@ -185,7 +188,7 @@ def main() -> None:
         f"(trained on {data.max_agents}-agent scenes; drives every sim agent); {args.rollouts} rollouts x 8 s, "
         f"K = 5, replanning at 1 Hz, {args.candidates} candidates per replan, "
         f"{'dense' if args.dense_attention else 'local'} attention, "
-        f"denoiser {'compiled' if args.compile else 'eager'}, warm steps {args.warm_steps}, "
+        f"denoiser {'compiled' if args.compile else 'eager'}, warm steps {args.warm_steps}, rolling {args.rolling}, "
         f"map {'each replan' if args.refresh_map else 'of the start'}; defaults guided at the last "
         f"{guided} of 5 denoising steps, hard constraints {hard_constraints(args.hard_constraints, 5)}, hold parked "
         f"{DEFAULT_HOLD_PARKED if args.hold_parked is None else args.hold_parked}; medians of {args.repeats} runs"
@@ -193,7 +196,7 @@ def main() -> None:
 
     def policy(setting: str, scene) -> LangTrajPolicy:
         options = {"candidates": args.candidates, "steps": 5, "local_attention": not args.dense_attention}
-        options |= {"warm_steps": args.warm_steps, "refresh_map": args.refresh_map}
+        options |= {"warm_steps": args.warm_steps, "refresh_map": args.refresh_map, "rolling": args.rolling}
         if setting == "paper":
             options |= {"on_road": 0.0, "no_collision": 0.0, "selector": "min_collision"}
             options |= {"hard_constraints": None, "hold_parked": False}
