@@ -28,6 +28,7 @@ def test_method_specs():
     assert model.temperature == 1.0 and Method.parse("m=x.ckpt|temperature=0.5").temperature == 0.5
     assert model.project is None and Method.parse("m=x.ckpt|project=2").project == 2
     assert not model.hold_parked and Method.parse("m=x.ckpt|defaults|hold_parked").hold_parked
+    assert not model.rolling and Method.parse("m=x.ckpt|defaults|rolling").rolling
     for bad, message in (
         ("nothing", "expected NAME=SPEC"),
         ("cv=constant_velocity|selector=first", "takes no options"),
