@@ -15,10 +15,10 @@ Medians over --repeats runs.
     python benchmarks/simulate_speed.py [--scenes 64 128 real] [--settings paper defaults prompt]
         [--checkpoint CKPT] [--candidates 4] [--repeats 3] [--rollouts 32] [--guided-steps N]
         [--prompt "@{id} slows down"] [--dense-attention] [--compile] [--warm-steps N] [--refresh-map]
-        [--hard-constraints N] [--[no-]hold-parked]
+        [--hard-constraints N] [--[no-]hold-parked] [--rolling]
 
 With --compile the denoiser is compiled (`LangTraj.compile_steps`, as `langtraj simulate --compile`) and one
-untimed simulation per scene and setting compiles it first. --warm-steps and --refresh-map time the replan
+untimed simulation per scene and setting compiles it first. --warm-steps, --rolling and --refresh-map time the replan
 options of the same names (`langtraj simulate`; docs/simulation.md).
 """
 

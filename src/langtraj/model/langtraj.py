@@ -275,7 +275,6 @@ class LangTraj(nn.Module):
         *,
         steps: int,
         noise: Callable[[tuple[int, ...]], Tensor],
-        eta: float = 0.0,
         guidance_weight: float = 0.0,
         guidance: Guidance | None = None,
         map_context: MapContext | None = None,
@@ -286,7 +285,8 @@ class LangTraj(nn.Module):
         units, sample-major) for the next replan, shifted by them. `plan` None: a cold start from `noise(shape)`
         in `steps` calls; otherwise one call. The cold start's calls pass `guidance` their step of the sequence; every
         rolling call (and the cold start's last) the last of the `steps` sampler steps, so hooks that act at the final
-        steps act at each replan. Other arguments as `sample`."""
+        steps act at each replan. Steps are deterministic DDIM; `noise` draws the start and the fresh end. Other
+        arguments as `sample`."""
         rolling = self.rolling
         if rolling is None:
             raise InputError(
@@ -305,17 +305,8 @@ class LangTraj(nn.Module):
         x0 = x
         for i, (levels, target) in enumerate(calls):
             hook_step = last if i == len(calls) - 1 else int(levels.min())
-            draw = noise(shape) if eta > 0 else None
             x, x0 = denoise_between(
-                denoise_levels,
-                x,
-                levels,
-                target,
-                self.schedule,
-                guidance=guidance,
-                guidance_step=hook_step,
-                eta=eta,
-                noise=draw,
+                denoise_levels, x, levels, target, self.schedule, guidance=guidance, guidance_step=hook_step
             )
         nxt = shift_plan(x, rolling.group, noise(shape))
         states = self.rollout(expanded, x0)

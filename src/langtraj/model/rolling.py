@@ -95,12 +95,10 @@ def denoise_between(
     *,
     guidance: Guidance | None = None,
     guidance_step: int = 0,
-    eta: float = 0.0,
-    noise: Tensor | None = None,
 ) -> tuple[Tensor, Tensor]:
     """One network call on `x` [B, A, N, 2] whose actions sit at `levels` [N]: the x0 prediction (through
-    `guidance`, called with step `guidance_step` for every row), and x stepped by DDIM (`eta`) to `target`
-    [N] (each action at least as clean as before; equal levels stay put, -1 returns x0). Returns (x, x0)."""
+    `guidance`, called with step `guidance_step` for every row), and x stepped by deterministic DDIM to `target`
+    [N] (each action at least as clean as before; equal levels stay put exactly, -1 returns x0). Returns (x, x0)."""
     if torch.any(target > levels):
         raise InputError("a rolling step cannot add noise", where="target")
     b, a, n, _ = x.shape
@@ -110,7 +108,7 @@ def denoise_between(
         x0 = guidance(x0, torch.full((b,), guidance_step, dtype=torch.long, device=x.device), x)
     k = levels.to(x.device).expand(b, a, n)
     k_prev = target.to(x.device).expand(b, a, n)
-    stepped = schedule.ddim_step(x0, x, k, k_prev, eta=eta, noise=noise)
+    stepped = schedule.ddim_step(x0, x, k, k_prev)
     return torch.where((k == k_prev)[..., None], x, stepped), x0
 
 

@@ -49,7 +49,7 @@ from langtraj.model.langtraj import LangTraj
 from langtraj.model.scene_encoder import MapContext
 from langtraj.registry import Registry
 from langtraj.rollouts.baselines import BASELINES
-from langtraj.scenario.model import Scenario
+from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.selection import prioritized_agents
 from langtraj.scenario.types import AgentType
 from langtraj.sim.adherence import CandidateJudge
@@ -583,15 +583,13 @@ class LangTrajPolicy(Policy):
         return ()
 
     def plan(self, world: SimWorld, state: LangTrajRun, step: int, horizon: int) -> np.ndarray:
-        rolls = self.model.rolling
-        if self.rolling and rolls is not None and step + horizon < world.end:
-            every = rolls.group * self.model.dynamics.steps_per_action
-            if horizon != every:
-                raise InputError(
-                    f"this checkpoint's plans roll by {every / 10:g} s; replan every {every / 10:g} s, not "
-                    f"{horizon / 10:g} s",
-                    where="--rolling",
-                )
+        every = self.roll_steps
+        if every is not None and horizon != every and step + horizon < world.end:
+            rolled, asked = every * STEP_SECONDS, horizon * STEP_SECONDS
+            raise InputError(
+                f"this checkpoint's plans roll by {rolled:g} s; replan every {rolled:g} s, not {asked:g} s",
+                where="--rolling",
+            )
         chunk = self.rollout_batch or world.num_rollouts
         plans = [
             self._plan_rollouts(world, state, step, list(range(lo, min(lo + chunk, world.num_rollouts))))
@@ -734,19 +732,27 @@ class LangTrajPolicy(Policy):
     def _roll(
         self, state: LangTrajRun, step: int, rollouts: list[int], batch: SceneBatch, **common: Any
     ) -> tuple[Tensor, Tensor]:
-        """`LangTraj.roll` on each rollout's candidates' rolling plans, or from noise where a rollout has none due
-        now (the first replan); keeps the plans for the next replan. States [M, R, A, T, 4], actions [M, R, A, N, 2]."""
-        rolls = self.model.rolling
-        assert rolls is not None
-        due = [state.rolling.get(r) for r in rollouts]
+        """`LangTraj.roll` on each rollout's candidates' rolling plans, or from noise at the first replan (no plan
+        yet); keeps the plans for the next replan. States [M, R, A, T, 4], actions [M, R, A, N, 2]."""
+        every = self.roll_steps
+        assert every is not None
         plan = None
-        if all(d is not None and d[0] == step for d in due):
-            plan = torch.stack([d[1] for d in due if d is not None], dim=1).flatten(0, 1)  # sample-major rows
+        if any(r in state.rolling for r in rollouts):  # `plan` refuses other intervals, so every plan is due now
+            due = [state.rolling[r] for r in rollouts]
+            assert all(when == step for when, _ in due), f"rolling plans due at {[w for w, _ in due]}, not {step}"
+            plan = torch.stack([p for _, p in due], dim=1).flatten(0, 1)  # sample-major rows
         states, actions, nxt = self.model.roll(batch, self.candidates, plan, steps=self.steps, **common)
-        after = step + rolls.group * self.model.dynamics.steps_per_action
         per_rollout = nxt.reshape(self.candidates, len(rollouts), *nxt.shape[1:])
-        state.rolling.update({r: (after, per_rollout[:, n]) for n, r in enumerate(rollouts)})
+        state.rolling.update({r: (step + every, per_rollout[:, n]) for n, r in enumerate(rollouts)})
         return states, actions
+
+    @property
+    def roll_steps(self) -> int | None:
+        """Scenario steps a rolling plan moves on by at each replan (its replan interval); None without `rolling`."""
+        rolls = self.model.rolling
+        if not self.rolling or rolls is None:
+            return None
+        return rolls.group * self.model.dynamics.steps_per_action
 
     def _warm_start(self, state: LangTrajRun, step: int, rollouts: list[int]) -> Tensor | None:
         """Each rollout's executed actions [R, A, N, 2] shifted to `step` (zero actions after their end), or None:
