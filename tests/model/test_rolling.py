@@ -126,5 +126,6 @@ def test_training_draws_per_action_levels(batch):
     model.denoiser.forward = lambda *a, **k: seen.append(a[1]) or forward(*a, **k)  # type: ignore[method-assign]
     out = model.loss(batch, generator=torch.Generator().manual_seed(0), with_states=True)
     assert seen[0].shape == (2, 16) and out["signal"].shape == (2,)
+    assert bool((seen[0][:, 0] < seen[0][:, -1]).any())  # rising along the plan, not one level per scene
     out["loss"].backward()
     assert model.denoiser.level_in[-1].weight.grad is not None
