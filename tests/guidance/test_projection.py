@@ -15,6 +15,7 @@ from langtraj.guidance.projection import (
     ProjectionAgents,
     braking_delay,
     current_overlaps,
+    derived_heading,
     project_on_road,
     project_states,
     projection_hook,
@@ -124,7 +125,7 @@ def test_the_hook_refits_only_the_paths_it_moved_through_the_unicycle_and_keeps_
     actions = torch.zeros(1, 2, 8, 2)
     actions[0, 0, :, 1] = -0.08  # the first car turns right, off the road; the second drives straight on
     rollout = lambda x: dynamics(initial, x)  # noqa: E731
-    invert = lambda s: dynamics.inverse(initial, s, torch.ones(s.shape[:-1], dtype=torch.bool))[0]  # noqa: E731
+    invert = lambda s, rows: dynamics.inverse(initial[rows], s, torch.ones(s.shape[:-1], dtype=torch.bool))[0]  # noqa: E731
     before = rollout(actions)
     assert float(signed_road_distance(before[0, 0, :, :2], scene).max()) > 0.5
     hook = projection_hook(CONFIG, scene, agents(2), initial, rollout, invert, num_steps=100, sampler_steps=5)
@@ -163,3 +164,30 @@ def test_a_path_far_off_the_road_keeps_the_correction_of_its_last_point_near_it(
     assert float(shift[0, 0, first_far - 1].norm()) > 1.0  # that point was pulled in, and the rest moves with it
     step = torch.linalg.vector_norm(xy[0, 0, 1:] - xy[0, 0, :-1], dim=-1)
     assert float(step.max()) < 1.5  # no jump in the projected path (1.04 m per step before)
+
+
+def test_a_pull_over_may_bring_its_box_to_the_edge_the_others_keep_a_margin_from():
+    scene = make_scene(2, road_edges=ROAD)
+    # Two cars heading east, their right sides 0.1 m inside the lower edge (y = -2): inside, but within the margin.
+    states = torch.stack([drifting(drift=0.0)[0, 0], drifting(drift=0.0)[0, 0]])[None].clone()
+    states[..., 1] = torch.tensor([-0.9, -0.9])[None, :, None]
+    states[0, 1, :, 0] += 50.0  # apart
+    margin = torch.tensor([CONFIG.road_margin, 0.0])
+    mover = ProjectionAgents(road=torch.ones(2, dtype=torch.bool), movable=torch.ones(2, dtype=torch.bool),
+                             exempt=torch.zeros(2, 2, dtype=torch.bool), margin=margin)  # fmt: skip
+    projected, moved = project_states(start(states), states, scene, mover, CONFIG)
+    assert moved.tolist() == [[True, False]]  # the second (a pull-over at the kerb) stays where it is
+    assert float(projected[0, 0, :, 1].min()) == pytest.approx(-2.0 + CONFIG.road_margin + 1.0, abs=1e-3)
+
+
+def test_a_path_held_still_keeps_the_heading_it_last_moved_with_not_the_plans():
+    # A plan that turns north after 5 steps, held back so that it stands still from step 5 on (where the plan had
+    # already turned): a stopped car does not turn on the spot, so the refit is not asked to.
+    xy = torch.zeros(1, 10, 2)
+    xy[0, :5, 0] = torch.arange(1, 6, dtype=torch.float32)  # east at 1 m per step, then standing at x = 5
+    xy[0, 5:, 0] = 5.0
+    plan_heading = torch.tensor([[0.0] * 5 + [math.pi / 2] * 5])
+    heading = derived_heading(xy, plan_heading, torch.tensor([0.3]))
+    assert torch.allclose(heading[0, 6:], torch.zeros(4), atol=1e-6)  # east, as it last moved
+    standing_from_start = derived_heading(torch.zeros(1, 10, 2), plan_heading, torch.tensor([0.3]))
+    assert torch.allclose(standing_from_start, torch.full((1, 10), 0.3))  # its current heading until it moves

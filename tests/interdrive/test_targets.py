@@ -11,8 +11,9 @@ import pytest
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets import TargetUnavailable, behaviour_feasibility, derive_target, feasibility
+from langtraj.interdrive.targets.derive import KERB_CLEARANCE, KERB_MIN_CLEARANCE, kerb_distance
 from langtraj.polylines import point_at
-from langtraj.scenario import AgentType
+from langtraj.scenario import AgentType, MapFeature, MapFeatureType, RoadMap
 
 from .test_counterfactual import HALF, LEFT_LANE_STRAIGHT, RIGHT_LANE_STRAIGHT, drive, four_way, two_lane_road
 from .test_heuristics import TIME, along, scene
@@ -73,6 +74,35 @@ def test_a_pull_over_shifts_to_the_kerb_side_and_stops_ahead():
     assert goal[0] > HALF + 0.75  # right of the lane centre (no road edges here: half a lane)
     start = point_at(target.path, 0.0)
     assert abs(start[0] - HALF) < 0.1  # the shift starts from the lane centre
+
+
+def _with_kerb(road: RoadMap, x: float) -> RoadMap:
+    """`road` with a road edge along x, beside the northbound approach lanes (y = -100 ... -10)."""
+    return RoadMap((*road.features, MapFeature(99, MapFeatureType.ROAD_EDGE_BOUNDARY, line(x, -100.0, x, -10.0))))
+
+
+@pytest.mark.parametrize(
+    ("kerb", "offset"),
+    [
+        (4.0, 4.0 - 1.0 - KERB_CLEARANCE),  # a shoulder: the car's side stops KERB_CLEARANCE short of the edge
+        (1.6, 1.6 - 1.0 - KERB_MIN_CLEARANCE),  # a narrow lane: as near the edge as it may go, not over it
+    ],
+)
+def test_a_pull_over_stops_its_box_inside_the_kerb_the_map_draws(kerb, offset):
+    s = scene(_with_kerb(four_way(), HALF + kerb), drive(RIGHT_LANE_STRAIGHT, speed=6.0, start=0.0))
+    target = _target(s, 1, Behaviour.PULL_OVER)
+    beside_the_kerb = target.path[target.path[:, 1] < -12.0]  # the shift is complete past the stop, before y = -12
+    assert beside_the_kerb[-1, 0] - HALF == pytest.approx(offset, abs=0.02)  # the car is 2 m wide
+    assert f"the kerb {kerb:.1f} m to its right" in target.reason
+    assert kerb_distance(MapIndex.build(s.road_map), np.array([HALF, -40.0]), np.array([1.0, 0.0])) == pytest.approx(
+        kerb, abs=0.02
+    )
+
+
+def test_a_pull_over_with_no_room_beside_the_lane_is_infeasible():
+    s = scene(_with_kerb(four_way(), HALF + 1.3), drive(RIGHT_LANE_STRAIGHT, speed=6.0, start=0.0))
+    with pytest.raises(TargetUnavailable, match="no room beside its lane to pull over"):
+        _target(s, 1, Behaviour.PULL_OVER)
 
 
 def test_yielding_and_going_first_meet_at_the_conflict_point_of_crossing_lanes():

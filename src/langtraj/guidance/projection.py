@@ -79,18 +79,23 @@ class HardConstraints:
 class ProjectionAgents:
     """Which agents the projection moves and how, over a scene's A agents: `road` (bool [A]) are kept on the
     road, `movable` (bool [A]) may be moved at all (False: an external agent, whose states are given), and
-    `exempt` (bool [S, A, A] or [A, A], symmetric) pairs are never pushed apart, per sample row or in all."""
+    `exempt` (bool [S, A, A] or [A, A], symmetric) pairs are never pushed apart, per sample row or in all.
+    `margin` (float [A], m) is how far inside the road edge each agent's box is kept (None: the config's
+    `road_margin` for all; a prompted pull-over is asked to the kerb, nearer than that)."""
 
     road: Tensor
     movable: Tensor
     exempt: Tensor
+    margin: Tensor | None = None
 
 
-def project_on_road(states: Tensor, scene: GuidanceScene, road: Tensor, config: HardConstraints) -> Tensor:
+def project_on_road(
+    states: Tensor, scene: GuidanceScene, road: Tensor, config: HardConstraints, margin: Tensor | None = None
+) -> Tensor:
     """xy [S, A, T, 2] of `states` [S, A, T, 4] with every point of the `road` agents (bool [A]) moved along the
-    signed distance's gradient n until its box (at its heading) lies `road_margin` inside the road edge: its
-    centre at least |L/2 h.n| + |W/2 h'.n| in, the box's reach towards the edge (one Newton step: exact where the
-    nearest edge is straight)."""
+    signed distance's gradient n until its box (at its heading) lies `margin` [A] (m; None: `config.road_margin`
+    each) inside the road edge: its centre at least |L/2 h.n| + |W/2 h'.n| in, the box's reach towards the edge
+    (one Newton step: exact where the nearest edge is straight)."""
     xy = states[..., :2]
     if scene.road_edges.shape[0] == 0 or not road.any():
         return xy
@@ -106,7 +111,8 @@ def project_on_road(states: Tensor, scene: GuidanceScene, road: Tensor, config: 
     along = (torch.cos(heading) * normal[..., 0] + torch.sin(heading) * normal[..., 1]).abs()
     across = (-torch.sin(heading) * normal[..., 0] + torch.cos(heading) * normal[..., 1]).abs()
     reach = size[None, :, None, 0] / 2 * along + size[None, :, None, 1] / 2 * across
-    excess = (signed + reach + config.road_margin).clamp(min=0.0)
+    inside = config.road_margin if margin is None else margin.to(xy)[rows][None, :, None]
+    excess = (signed + reach + inside).clamp(min=0.0)
     correction = -excess[..., None] * normal  # [S, A_r, T, 2]
     # From a path's first point farther off the road than `max_offroad` on, the nearest edge no longer says where
     # the road is: the rest of the path keeps the correction of the point before (a translation it can follow).
@@ -264,17 +270,22 @@ def held_back(start: Tensor, xy: Tensor, delay: Tensor) -> Tensor:
     return gather(index - 1) + fraction * (gather(index) - gather(index - 1))
 
 
-def derived_heading(xy: Tensor, heading: Tensor) -> Tensor:
+def derived_heading(xy: Tensor, heading: Tensor, start: Tensor) -> Tensor:
     """Headings [..., T] along the path xy [..., T, 2] (central differences) where it moves at least
-    `_HEADING_STEP` m per step, else `heading`'s."""
+    `_HEADING_STEP` m per step; where it does not, the heading it last moved with (a stopped car keeps its
+    heading), or `start` [...] (the current heading) before it first moves. `heading` [..., T] (the plan's own)
+    only settles which way a moving path faces: the course nearest it (a path that moves backwards still faces
+    forwards). Not the plan's own heading where it stands: a path held back stands where the plan had turned."""
     padded = torch.cat([xy[..., :1, :], xy, xy[..., -1:, :]], dim=-2)
     delta = (padded[..., 2:, :] - padded[..., :-2, :]) / 2
     moving = torch.linalg.vector_norm(delta, dim=-1) >= _HEADING_STEP
     course = torch.atan2(delta[..., 1], delta[..., 0])
-    # Keep the angle nearest the given heading (a path that moves backwards still faces forwards).
     backwards = torch.cos(course - heading) < 0
     course = torch.where(backwards, course + math.pi, course)
-    return torch.where(moving, course, heading)
+    steps = torch.arange(xy.shape[-2], device=xy.device).expand_as(moving)
+    last = torch.cummax(torch.where(moving, steps, -1), dim=-1).values  # the last moving step so far, or -1
+    held = torch.gather(course, -1, last.clamp(min=0))
+    return torch.where(moving, course, torch.where(last >= 0, held, start[..., None].expand_as(held)))
 
 
 def project_states(
@@ -288,9 +299,10 @@ def project_states(
         apart = separation(states, xy, scene, agents, config)
         if apart is not None:
             xy = held_back(start, xy + apart.shift, apart.delay)
-        xy = project_on_road(torch.cat([xy, states[..., 2:]], dim=-1), scene, agents.road, config)
+        xy = project_on_road(torch.cat([xy, states[..., 2:]], dim=-1), scene, agents.road, config, agents.margin)
     moved = (torch.linalg.vector_norm(xy - states[..., :2], dim=-1) > _MOVED).any(-1)
-    heading = torch.where(moved[..., None], derived_heading(xy, states[..., 2]), states[..., 2])
+    derived = derived_heading(xy, states[..., 2], initial[..., 2].to(xy))
+    heading = torch.where(moved[..., None], derived, states[..., 2])
     return torch.cat([xy, heading[..., None]], dim=-1), moved
 
 
@@ -300,7 +312,7 @@ def projection_hook(
     agents: ProjectionAgents,
     initial: Tensor,
     rollout: Callable[[Tensor], Tensor],
-    invert: Callable[[Tensor], Tensor],
+    invert: Callable[[Tensor, Tensor], Tensor],
     *,
     num_steps: int,
     sampler_steps: int,
@@ -308,8 +320,9 @@ def projection_hook(
 ) -> Guidance:
     """The sampler hook (x0 [S, A, N, 2], k, x_k) -> x0 that runs `then` (guidance; None: none) and, at the last
     `config.steps` of the `sampler_steps` denoising steps, projects the plans from `initial` [S, A, 4]:
-    `rollout` maps network-unit actions to states [S, A, T, 4], `invert` maps states [S, A, T, 3] back to
-    network-unit actions; only the (row, agent) paths the projection moved get new actions."""
+    `rollout` maps network-unit actions to states [S, A, T, 4], `invert` maps states [K, T, 3] of the (row, agent)
+    paths a mask (bool [S, A]) picks back to their network-unit actions [K, N, 2]; only the paths the projection
+    moved are refitted (the refit is the projection's costliest part), the others keep their actions exactly."""
     when = FinalSteps(min(config.steps, sampler_steps), sampler_steps)
     here = scene
 
@@ -326,7 +339,8 @@ def projection_hook(
                 projected, moved = project_states(initial, states, here.to(x0.device), agents, config)
                 if not bool(moved.any()):
                     break
-                x0 = torch.where(moved[..., None, None], invert(projected).to(x0), x0)
+                x0 = x0.clone()
+                x0[moved] = invert(projected[moved], moved).to(x0)
         return x0
 
     return hook

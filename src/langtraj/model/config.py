@@ -29,6 +29,11 @@ class ModelConfig:
     num_actions: int = 16  # 0.5 s actions: 16 cover 8 s
     dynamics: str = "unicycle"
     vehicle_max_curvature: float = 0.25  # 1/m (a 4 m turn radius): vehicles cannot turn on the spot
+    turn_radius_per_length: float = 0.8
+    """A vehicle of length L (m) turns no tighter than a radius of this times L, where that is wider than
+    `vehicle_max_curvature`'s: a 12 m bus 9.6 m (a city bus's kerb-to-kerb circle is about 21 m), a car the 4 m of
+    the flat bound. Without it a long vehicle pivots like a car and its box swings off the road (issue 45).
+    0: the flat bound alone (docs/model.md, 'Dynamics')."""
     action_scale: tuple[float, float] = (4.0, 0.5)  # m/s^2 and rad/s that map to 1 in the network's units
     diffusion_steps: int = 100  # K (paper: 100 for pretraining)
     map_attention_radius: float = 50.0  # map polylines attend to polylines within this distance (m)
@@ -57,6 +62,10 @@ class ModelConfig:
         if self.hidden_dim % self.num_heads:
             raise InputError(
                 f"hidden_dim {self.hidden_dim} is not a multiple of num_heads {self.num_heads}", where="model"
+            )
+        if not (math.isfinite(self.turn_radius_per_length) and self.turn_radius_per_length >= 0):
+            raise InputError(
+                f"must be finite and >= 0, got {self.turn_radius_per_length}", where="model.turn_radius_per_length"
             )
         if not 0.0 <= self.dropout < 1.0:
             raise InputError(f"must be in [0, 1), got {self.dropout}", where="model.dropout")

@@ -629,12 +629,12 @@ class LangTrajPolicy(Policy):
         terms = state.terms + prompt_terms + state.clearance
         hook = None
         initial = batch.current_state.repeat(m, 1, 1)
-        types = batch.agent_type.repeat(m, 1)
+        types, lengths = batch.agent_type.repeat(m, 1), batch.agent_size[..., 0].repeat(m, 1)
         model = self.model
         external_accel = accel.repeat(m, 1)
 
         def integrate(x: Tensor) -> Tensor:  # external agents at their forecast, not the model's guess
-            pinned = pin_external(model.integrate(initial, types, x), initial, state.external, external_accel)
+            pinned = pin_external(model.integrate(initial, types, x, lengths), initial, state.external, external_accel)
             return hold(pinned, initial, state.held)
 
         if terms:
@@ -701,7 +701,8 @@ class LangTrajPolicy(Policy):
     ) -> Guidance:
         """The hard constraints' hook (`guidance.projection`) after `then` over the sample-major rows: `current`
         [R, A, 4] is each rollout's current state, `initial` the same repeated per candidate. Pairs that overlap
-        now in a rollout, and an adversary with its target, are never pushed apart; external agents never move."""
+        now in a rollout, and an adversary with its target, are never pushed apart; external agents never move; a
+        pull-over's box may reach the road edge itself."""
         config = self.hard_constraints
         assert config is not None and state.kept_on_road is not None
         exempt = current_overlaps(current, state.scene, config)
@@ -709,12 +710,17 @@ class LangTrajPolicy(Policy):
             exempt[:, self.free[0], self.free[1]] = exempt[:, self.free[1], self.free[0]] = True
         movable = torch.ones_like(state.kept_on_road)
         movable[list(state.external) + list(state.held)] = False
-        agents = ProjectionAgents(road=state.kept_on_road, movable=movable, exempt=exempt.repeat(self.candidates, 1, 1))
+        margin = None
+        if state.prompt.steering.kerb_slots:  # a pull-over is asked to the kerb: its box may touch the edge
+            margin = torch.full(movable.shape, config.road_margin, device=movable.device)
+            margin[list(state.prompt.steering.kerb_slots)] = 0.0
+        exempt = exempt.repeat(self.candidates, 1, 1)
+        agents = ProjectionAgents(road=state.kept_on_road, movable=movable, exempt=exempt, margin=margin)
         model = self.model
         every = torch.ones(initial.shape[:2] + (model.horizon_steps,), dtype=torch.bool, device=initial.device)
 
-        def invert(states: Tensor) -> Tensor:
-            actions, _ = model.dynamics.inverse(initial, states, every)
+        def invert(states: Tensor, rows: Tensor) -> Tensor:
+            actions, _ = model.dynamics.inverse(initial[rows], states, every[rows])
             return model.to_units(actions).clamp(-4.0, 4.0)
 
         return projection_hook(

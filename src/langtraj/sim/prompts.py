@@ -115,6 +115,12 @@ class PromptSteering:
     targets: tuple[BehaviourTarget, ...] = ()
     warnings: tuple[str, ...] = ()
 
+    @property
+    def kerb_slots(self) -> tuple[int, ...]:
+        """Slots steered to the kerb (a pull-over): their target asks their box nearer the road edge than the hard
+        constraints keep every other vehicle's (`KERB_MIN_CLEARANCE` against `HardConstraints.road_margin`)."""
+        return tuple(s.slot for s in self.steerings if s.target.behaviour is Behaviour.PULL_OVER)
+
     def to_json(self) -> dict[str, Any]:
         return {
             "read": [r.to_json() for r in self.readings],

@@ -66,7 +66,12 @@ LANE_CHANGE_S = 3.0
 LANE_CHANGE_MIN_M = 15.0
 """Least length of the new lane before its next junction that a lane change needs (m)."""
 KERB_CLEARANCE = 0.4
-"""Gap left between a pulled-over vehicle's side and the road edge (m)."""
+"""Gap a pulled-over vehicle's side is asked to leave to the road edge (m), where the road is wide enough."""
+KERB_MIN_CLEARANCE = 0.1
+"""The least gap to the road edge a pull-over is asked for (m), where the lane is too narrow for `KERB_CLEARANCE`
+and the 0.8 m shift the labeler needs."""
+KERB_SEARCH_M = 8.0
+"""How far to the right of its lane a pull-over looks for the road edge (m)."""
 CROSSING_RADIUS = 2.0
 """Two paths ahead cross where they come this close (m) at more than `CROSSING_ANGLE` (a target's conflict point,
 on map paths, before anything is driven; the judge's yield rule is the detector's, on driven tracks)."""
@@ -430,8 +435,9 @@ def _stop(ctx: TargetContext, agent: _Agent) -> BehaviourTarget:
 def _pull_over(ctx: TargetContext, agent: _Agent) -> BehaviourTarget:
     """The agent moves in the lane next to the kerb on its right (the rightmost or only lane) with room to stop
     comfortably before the next junction (the labeler does not call a stop at a junction a pull-over): the lane ahead
-    shifted to the right, to the kerb (the road edge less half the width and a clearance, at least 0.8 m off the
-    centre) or half a lane where the map has no road edges, and a stop where gentle braking brings it to rest."""
+    shifted to the right, to the kerb (`kerb_distance`, less half the width and `KERB_CLEARANCE`, at least 0.8 m off
+    the centre, but never nearer the edge than `KERB_MIN_CLEARANCE`) or half a lane where the map has no road
+    edges, and a stop where gentle braking brings it to rest."""
     index, behaviour = ctx.index, Behaviour.PULL_OVER
     if not ctx.moving(agent):
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", "it is (nearly) stopped at the current step")
@@ -461,13 +467,13 @@ def _pull_over(ctx: TargetContext, agent: _Agent) -> BehaviourTarget:
     if index.has_road_edges:
         k = min(int(stop / ROUTE_SPACING), len(lane_path) - 2)
         d = lane_path[k + 1] - lane_path[k]
-        right = np.array([d[1], -d[0]]) / max(float(np.linalg.norm(d)), 1e-9)
-        probes = point[None] + np.arange(0.5, 8.01, 0.25)[:, None] * right[None]
-        near = index.distance_to_road_edge(probes, 1.0)
-        hit = np.flatnonzero(np.isfinite(near))
-        if hit.size:
-            kerb = 0.5 + 0.25 * int(hit[0])
-            offset = float(np.clip(kerb - 0.5 * agent.width - KERB_CLEARANCE, 0.8, 3.0))
+        kerb = kerb_distance(index, point, np.array([d[1], -d[0]]) / max(float(np.linalg.norm(d)), 1e-9))
+        if kerb is not None:
+            beside = kerb - 0.5 * agent.width  # how far its centre can move right before its side meets the edge
+            offset = float(min(np.clip(beside - KERB_CLEARANCE, 0.8, 3.0), beside - KERB_MIN_CLEARANCE))
+            if offset < ctx.config.heuristics.pull_over_min_lane_offset:
+                reason = f"the road edge is {kerb:.1f} m to its right: no room beside its lane to pull over"
+                raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
             reason = f"the kerb {kerb:.1f} m to its right"
     arc = arc_lengths(lane_path)
     begin = min(max(0.3 * stop, 3.0), stop)
@@ -484,6 +490,22 @@ def _pull_over(ctx: TargetContext, agent: _Agent) -> BehaviourTarget:
         speed=0.0,
         current_speed=v,
     )
+
+
+def kerb_distance(index: MapIndex, point: np.ndarray, direction: np.ndarray) -> float | None:
+    """How far from `point` along the unit `direction` the first road edge lies (m; None: none within
+    `KERB_SEARCH_M`): sphere tracing, each step the distance to the nearest edge, so the ray never passes one."""
+    travelled = 0.0
+    for _ in range(64):  # each step at least 2 cm, or a hit
+        gap = float(index.distance_to_road_edge(point + travelled * direction, KERB_SEARCH_M)[0])
+        if not math.isfinite(gap):
+            return None
+        if gap < 0.02:
+            return travelled
+        travelled += gap
+        if travelled > KERB_SEARCH_M:
+            return None
+    return travelled
 
 
 def _speed_change(ctx: TargetContext, agent: _Agent, behaviour: Behaviour) -> BehaviourTarget:
