@@ -10,7 +10,8 @@ its agents and its map 1 km east (new track and map feature ids; until 2026-11-2
 which left the copied agents nowhere near a road edge for the on-road guidance). The model drives every
 sim agent (samples sized for them, `SampleConfig.for_agents`), as in every scored simulation, attending
 locally unless --dense-attention. The real scene is 2a1e44d405a6833f whole (66 sim agents, all driven).
-Medians over --repeats runs.
+Medians over --repeats runs; each repeat runs every setting in turn (a shared VM's speed drifts within minutes),
+and a ratio is the median of the repeats' own ratios.
 
     python benchmarks/simulate_speed.py [--scenes 64 128 real] [--settings paper defaults prompt]
         [--checkpoint CKPT] [--candidates 4] [--repeats 3] [--rollouts 32] [--guided-steps N]
@@ -211,28 +212,34 @@ def main() -> None:
 
     rows = []
     for name, scene in scenes(read_scenario(SCENE), args.scenes):
-        medians = {}
-        for setting in args.settings:
-            times = []
-            if args.compile:  # compiling for this scene's shapes is not what is timed
+        if args.compile:  # compiling for this scene's shapes is not what is timed
+            for setting in args.settings:
                 simulate(scene, policy(setting, scene), SimConfig(rollouts=args.rollouts, seed=0))
-            for repeat in range(args.repeats):
+        # Settings interleaved within each repeat, so that a shared VM's drifting speed (measured: the same run
+        # from 35 to 50 s within the hour) falls on every setting alike, and ratios are taken repeat by repeat.
+        times: dict[str, list[float]] = {setting: [] for setting in args.settings}
+        for repeat in range(args.repeats):
+            for setting in args.settings:
                 result = simulate(scene, policy(setting, scene), SimConfig(rollouts=args.rollouts, seed=repeat))
-                times.append(result.seconds)
-            medians[setting] = statistics.median(times)
-            runs = ", ".join(f"{t:.2f}" for t in times)
-            print(f"{name} ({len(result.driven_ids)} driven), {setting}: median {medians[setting]:.2f} s ({runs})")
-        rows.append((name, medians))
+                times[setting].append(result.seconds)
+        driven = len(result.driven_ids)
+        for setting, runs in times.items():
+            listed = ", ".join(f"{t:.2f}" for t in runs)
+            print(f"{name} ({driven} driven), {setting}: median {statistics.median(runs):.2f} s ({listed})")
+        rows.append((name, times))
     print("\n| scene | " + " | ".join(args.settings) + " | defaults / paper | prompt / defaults |")
     print("|" + " --- |" * (len(args.settings) + 3))
-    for name, medians in rows:
-        cells = [f"{medians[s]:.1f} s" for s in args.settings]
-        ratios = [_ratio(medians, "defaults", "paper"), _ratio(medians, "prompt", "defaults")]
+    for name, times in rows:
+        cells = [f"{statistics.median(times[s]):.1f} s" for s in args.settings]
+        ratios = [_ratio(times, "defaults", "paper"), _ratio(times, "prompt", "defaults")]
         print(f"| {name} | " + " | ".join(cells + ratios) + " |")
+    print("(ratios: the median over repeats of each repeat's ratio)")
 
 
-def _ratio(medians: dict[str, float], top: str, bottom: str) -> str:
-    return f"{medians[top] / medians[bottom]:.2f}" if top in medians and bottom in medians else "-"
+def _ratio(times: dict[str, list[float]], top: str, bottom: str) -> str:
+    if top not in times or bottom not in times:
+        return "-"
+    return f"{statistics.median(a / b for a, b in zip(times[top], times[bottom], strict=True)):.2f}"
 
 
 if __name__ == "__main__":

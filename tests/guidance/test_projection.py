@@ -15,7 +15,6 @@ from langtraj.guidance.projection import (
     ProjectionAgents,
     braking_delay,
     current_overlaps,
-    derived_heading,
     project_on_road,
     project_states,
     projection_hook,
@@ -179,15 +178,3 @@ def test_a_pull_over_may_bring_its_box_to_the_edge_the_others_keep_a_margin_from
     assert moved.tolist() == [[True, False]]  # the second (a pull-over at the kerb) stays where it is
     assert float(projected[0, 0, :, 1].min()) == pytest.approx(-2.0 + CONFIG.road_margin + 1.0, abs=1e-3)
 
-
-def test_a_path_held_still_keeps_the_heading_it_last_moved_with_not_the_plans():
-    # A plan that turns north after 5 steps, held back so that it stands still from step 5 on (where the plan had
-    # already turned): a stopped car does not turn on the spot, so the refit is not asked to.
-    xy = torch.zeros(1, 10, 2)
-    xy[0, :5, 0] = torch.arange(1, 6, dtype=torch.float32)  # east at 1 m per step, then standing at x = 5
-    xy[0, 5:, 0] = 5.0
-    plan_heading = torch.tensor([[0.0] * 5 + [math.pi / 2] * 5])
-    heading = derived_heading(xy, plan_heading, torch.tensor([0.3]))
-    assert torch.allclose(heading[0, 6:], torch.zeros(4), atol=1e-6)  # east, as it last moved
-    standing_from_start = derived_heading(torch.zeros(1, 10, 2), plan_heading, torch.tensor([0.3]))
-    assert torch.allclose(standing_from_start, torch.full((1, 10), 0.3))  # its current heading until it moves

@@ -270,22 +270,17 @@ def held_back(start: Tensor, xy: Tensor, delay: Tensor) -> Tensor:
     return gather(index - 1) + fraction * (gather(index) - gather(index - 1))
 
 
-def derived_heading(xy: Tensor, heading: Tensor, start: Tensor) -> Tensor:
+def derived_heading(xy: Tensor, heading: Tensor) -> Tensor:
     """Headings [..., T] along the path xy [..., T, 2] (central differences) where it moves at least
-    `_HEADING_STEP` m per step; where it does not, the heading it last moved with (a stopped car keeps its
-    heading), or `start` [...] (the current heading) before it first moves. `heading` [..., T] (the plan's own)
-    only settles which way a moving path faces: the course nearest it (a path that moves backwards still faces
-    forwards). Not the plan's own heading where it stands: a path held back stands where the plan had turned."""
+    `_HEADING_STEP` m per step, else `heading`'s."""
     padded = torch.cat([xy[..., :1, :], xy, xy[..., -1:, :]], dim=-2)
     delta = (padded[..., 2:, :] - padded[..., :-2, :]) / 2
     moving = torch.linalg.vector_norm(delta, dim=-1) >= _HEADING_STEP
     course = torch.atan2(delta[..., 1], delta[..., 0])
+    # Keep the angle nearest the given heading (a path that moves backwards still faces forwards).
     backwards = torch.cos(course - heading) < 0
     course = torch.where(backwards, course + math.pi, course)
-    steps = torch.arange(xy.shape[-2], device=xy.device).expand_as(moving)
-    last = torch.cummax(torch.where(moving, steps, -1), dim=-1).values  # the last moving step so far, or -1
-    held = torch.gather(course, -1, last.clamp(min=0))
-    return torch.where(moving, course, torch.where(last >= 0, held, start[..., None].expand_as(held)))
+    return torch.where(moving, course, heading)
 
 
 def project_states(
@@ -301,8 +296,7 @@ def project_states(
             xy = held_back(start, xy + apart.shift, apart.delay)
         xy = project_on_road(torch.cat([xy, states[..., 2:]], dim=-1), scene, agents.road, config, agents.margin)
     moved = (torch.linalg.vector_norm(xy - states[..., :2], dim=-1) > _MOVED).any(-1)
-    derived = derived_heading(xy, states[..., 2], initial[..., 2].to(xy))
-    heading = torch.where(moved[..., None], derived, states[..., 2])
+    heading = torch.where(moved[..., None], derived_heading(xy, states[..., 2]), states[..., 2])
     return torch.cat([xy, heading[..., None]], dim=-1), moved
 
 

@@ -68,8 +68,8 @@ LANE_CHANGE_MIN_M = 15.0
 KERB_CLEARANCE = 0.4
 """Gap a pulled-over vehicle's side is asked to leave to the road edge (m), where the road is wide enough."""
 KERB_MIN_CLEARANCE = 0.1
-"""The least gap to the road edge a pull-over is asked for (m), where the lane is too narrow for `KERB_CLEARANCE`
-and the 0.8 m shift the labeler needs."""
+"""The least gap to the road edge a pull-over is asked for (m), where the lane is too narrow for both
+`KERB_CLEARANCE` and the target's least shift of 0.8 m."""
 KERB_SEARCH_M = 8.0
 """How far to the right of its lane a pull-over looks for the road edge (m)."""
 CROSSING_RADIUS = 2.0
@@ -496,7 +496,7 @@ def kerb_distance(index: MapIndex, point: np.ndarray, direction: np.ndarray) -> 
     """How far from `point` along the unit `direction` the first road edge lies (m; None: none within
     `KERB_SEARCH_M`): sphere tracing, each step the distance to the nearest edge, so the ray never passes one."""
     travelled = 0.0
-    for _ in range(64):  # each step at least 2 cm, or a hit
+    for _ in range(64):  # a ray grazing an edge crawls: after 64 steps it is within centimetres of one
         gap = float(index.distance_to_road_edge(point + travelled * direction, KERB_SEARCH_M)[0])
         if not math.isfinite(gap):
             return None
