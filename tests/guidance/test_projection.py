@@ -177,4 +177,3 @@ def test_a_pull_over_may_bring_its_box_to_the_edge_the_others_keep_a_margin_from
     projected, moved = project_states(start(states), states, scene, mover, CONFIG)
     assert moved.tolist() == [[True, False]]  # the second (a pull-over at the kerb) stays where it is
     assert float(projected[0, 0, :, 1].min()) == pytest.approx(-2.0 + CONFIG.road_margin + 1.0, abs=1e-3)
-
