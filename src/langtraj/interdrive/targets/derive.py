@@ -468,7 +468,9 @@ def _pull_over(ctx: TargetContext, agent: _Agent) -> BehaviourTarget:
         k = min(int(stop / ROUTE_SPACING), len(lane_path) - 2)
         d = lane_path[k + 1] - lane_path[k]
         kerb = kerb_distance(index, point, np.array([d[1], -d[0]]) / max(float(np.linalg.norm(d)), 1e-9))
-        if kerb is not None:
+        if kerb is None:
+            reason = f"half a lane to its right (no road edge within {KERB_SEARCH_M:.0f} m of its lane)"
+        else:
             beside = kerb - 0.5 * agent.width  # how far its centre can move right before its side meets the edge
             offset = float(min(np.clip(beside - KERB_CLEARANCE, 0.8, 3.0), beside - KERB_MIN_CLEARANCE))
             if offset < ctx.config.heuristics.pull_over_min_lane_offset:
