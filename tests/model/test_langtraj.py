@@ -9,6 +9,7 @@ import pytest
 import torch
 from scenario_builders import make_scenario
 
+from langtraj.errors import InputError
 from langtraj.model import LangTraj, ModelConfig
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import collate_scenes, scene_sample
@@ -181,3 +182,21 @@ def test_a_kept_map_encoding_gives_the_same_samples(model):
     plain, _ = model.sample(shared, 2, steps=3, generator=torch.Generator().manual_seed(4))
     cached, _ = model.sample(shared, 2, steps=3, generator=torch.Generator().manual_seed(4), map_context=kept)
     torch.testing.assert_close(cached, plain, atol=1e-5, rtol=1e-5)
+
+
+def test_a_long_vehicle_turns_wider_than_a_car_and_a_pedestrian_is_not_bounded(model):
+    # A 12 m bus, a 4.5 m car (both vehicles) and a pedestrian, each at 8 m/s, asked the same hard yaw rate.
+    types = torch.tensor([[1, 1, 2]])  # AgentType: vehicle, vehicle, pedestrian
+    lengths = torch.tensor([[12.0, 4.5, 0.6]])
+    bound = model.max_curvature(types, lengths)
+    assert bound[0, 0] == pytest.approx(1 / (SMALL_MODEL.turn_radius_per_length * 12.0))  # a 9.6 m radius
+    assert bound[0, 1] == pytest.approx(SMALL_MODEL.vehicle_max_curvature)  # a car keeps the flat 4 m bound
+    assert torch.isinf(bound[0, 2])
+    assert torch.equal(model.max_curvature(types), torch.tensor([[0.25, 0.25, float("inf")]]))  # no lengths: flat
+    current = torch.tensor([[[0.0, 0.0, 0.0, 8.0]] * 3])
+    x0 = model.to_units(torch.tensor([0.0, 3.0]).expand(1, 3, 16, 2))
+    heading = model.integrate(current, types, x0, lengths)[0, :, 9, 2]  # after 1 s
+    assert heading[0] == pytest.approx(8.0 / 9.6, rel=1e-4) and heading[1] == pytest.approx(8.0 * 0.25, rel=1e-4)
+    assert heading[2] == pytest.approx(3.0, rel=1e-4)  # the yaw rate asked, unbounded
+    with pytest.raises(InputError, match="turn_radius_per_length"):
+        ModelConfig(turn_radius_per_length=-1.0)
