@@ -120,3 +120,17 @@ def test_a_window_of_a_longer_scene():
     assert info["logged_ego"][0, 0] == pytest.approx(float(cut_window(long, start).agents.states[0, 11, 0]))
     with pytest.raises(InputError, match="window 9 does not exist"):
         LangTrajEnv(long, window=9).reset(seed=0)
+
+
+def test_a_long_ego_turns_as_wide_as_the_models_long_vehicles():
+    from langtraj.env.environment import ego_curvature
+    from langtraj.model.config import ModelConfig
+    from langtraj.scenario.types import AgentType, StateField
+
+    scenario = follower_scene()
+    row = int(np.flatnonzero(scenario.agents.ids == EGO_ID)[0])
+    assert ego_curvature(scenario, row) == pytest.approx(ModelConfig().vehicle_max_curvature)  # a car: the flat bound
+    scenario.agents.states[row, :, StateField.LENGTH] = 12.0  # a bus
+    assert ego_curvature(scenario, row) == pytest.approx(1 / (ModelConfig().turn_radius_per_length * 12.0))
+    scenario.agents.types[row] = AgentType.PEDESTRIAN
+    assert ego_curvature(scenario, row) == float("inf")

@@ -192,10 +192,11 @@ def test_a_long_vehicle_turns_wider_than_a_car_and_a_pedestrian_is_not_bounded(m
     assert bound[0, 0] == pytest.approx(1 / (SMALL_MODEL.turn_radius_per_length * 12.0))  # a 9.6 m radius
     assert bound[0, 1] == pytest.approx(SMALL_MODEL.vehicle_max_curvature)  # a car keeps the flat 4 m bound
     assert torch.isinf(bound[0, 2])
-    assert torch.equal(model.max_curvature(types), torch.tensor([[0.25, 0.25, float("inf")]]))  # no lengths: flat
+    flat = ModelConfig(turn_radius_per_length=0.0).vehicle_curvature(lengths)
+    assert torch.equal(flat, torch.full((1, 3), 0.25))  # 0: the flat bound alone
     current = torch.tensor([[[0.0, 0.0, 0.0, 8.0]] * 3])
     x0 = model.to_units(torch.tensor([0.0, 3.0]).expand(1, 3, 16, 2))
-    heading = model.integrate(current, types, x0, lengths)[0, :, 9, 2]  # after 1 s
+    heading = model.integrate(current, types, lengths, x0)[0, :, 9, 2]  # after 1 s
     assert heading[0] == pytest.approx(8.0 / 9.6, rel=1e-4) and heading[1] == pytest.approx(8.0 * 0.25, rel=1e-4)
     assert heading[2] == pytest.approx(3.0, rel=1e-4)  # the yaw rate asked, unbounded
     with pytest.raises(InputError, match="turn_radius_per_length"):

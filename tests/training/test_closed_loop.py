@@ -97,7 +97,12 @@ def test_the_executed_candidate_is_the_closest_and_the_loss_reaches_its_denoiser
         candidates, executed = calls[2 * it], calls[2 * it + 1]
         assert not candidates.requires_grad and executed.grad is not None and executed.grad.abs().sum() > 0
         values = candidates.reshape(4, b, *candidates.shape[1:])
-        states = model.integrate(start.current_state.repeat(4, 1, 1), start.agent_type.repeat(4, 1), candidates)
+        states = model.integrate(
+            start.current_state.repeat(4, 1, 1),
+            start.agent_type.repeat(4, 1),
+            start.agent_size[..., 0].repeat(4, 1),
+            candidates,
+        )
         states = states.reshape(4, b, *states.shape[1:]).detach()
         valid = start.future_valid[:, :, :horizon] & start.agent_valid[..., None]
         err = torch.linalg.vector_norm(states[..., :2] - start.future[None, :, :, :horizon, :2], dim=-1)
@@ -105,7 +110,9 @@ def test_the_executed_candidate_is_the_closest_and_the_loss_reaches_its_denoiser
         for scene in range(b):
             nearest = int(mean[:, scene].argmin())
             torch.testing.assert_close(executed[scene].detach(), values[nearest, scene], atol=1e-5, rtol=1e-5)
-        steps = model.integrate(start.current_state, start.agent_type, executed.detach())[:, :, :10]
+        steps = model.integrate(start.current_state, start.agent_type, start.agent_size[..., 0], executed.detach())[
+            :, :, :10
+        ]
         start = start.advanced(steps)
 
 

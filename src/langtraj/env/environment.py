@@ -17,6 +17,7 @@ from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
+import torch
 
 from langtraj.angles import wrap_angle
 from langtraj.env import spaces
@@ -46,8 +47,6 @@ from langtraj.sim.stepping import SteppedSimulation
 
 EGO_PLACEHOLDER = "@ego"
 """Written in a prompt, stands for the ego's track id (chosen at reset)."""
-VEHICLE_MAX_CURVATURE = ModelConfig.vehicle_max_curvature
-"""A vehicle ego turns no tighter than the model's vehicles (1/m)."""
 
 
 @dataclass(frozen=True)
@@ -209,7 +208,7 @@ class LangTrajEnv(gym.Env):
         self._route = ego_route(scene.index, start, pose[:2], float(pose[2]), seen)
         self._observer = Observer(scenario, ego, self._route, scene.pieces)
         self._judge = EventJudge(scenario, ego, scene.edges)
-        self._curvature = VEHICLE_MAX_CURVATURE if scenario.agents.types[ego] == AgentType.VEHICLE else math.inf
+        self._curvature = ego_curvature(scenario, ego)
         self._control = np.zeros(2)
         obs, station = self._observe()
         self._start_station = self._last_station = station
@@ -380,3 +379,12 @@ def _logged_future(scenario: Scenario, row: int) -> np.ndarray:
         -1,
     )
     return out
+
+
+def ego_curvature(scenario: Scenario, row: int) -> float:
+    """The ego's tightest turn (1/m): a vehicle's as the model's vehicles of its length turn
+    (`ModelConfig.vehicle_curvature`, read at the current step), none for others."""
+    if scenario.agents.types[row] != AgentType.VEHICLE:
+        return math.inf
+    length = float(scenario.agents.states[row, scenario.current_index, StateField.LENGTH])
+    return float(ModelConfig().vehicle_curvature(torch.tensor(length)))

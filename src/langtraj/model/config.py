@@ -7,6 +7,9 @@ import math
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
+import torch
+from torch import Tensor
+
 from langtraj.errors import InputError
 from langtraj.model.text_encoder import TextEncoderConfig
 from langtraj.scenario import FUTURE_STEPS, HISTORY_STEPS
@@ -51,6 +54,15 @@ class ModelConfig:
     gradient_checkpointing: bool = False
     """Training only: recompute each attention block in backward instead of keeping its activations
     (docs/model.md, 'Training memory'); the weights and every output stay the same."""
+
+    def vehicle_curvature(self, length: Tensor) -> Tensor:
+        """The tightest turn (1/m) of vehicles of `length` [...] (m): `vehicle_max_curvature`, and no tighter than a
+        radius of `turn_radius_per_length` x the length. The one definition the model's agents and the env's ego
+        share."""
+        flat = torch.full_like(length, self.vehicle_max_curvature, dtype=torch.float32)
+        if self.turn_radius_per_length <= 0:
+            return flat
+        return torch.minimum(flat, 1.0 / (self.turn_radius_per_length * length.to(flat)).clamp(min=1e-3))
 
     def __post_init__(self) -> None:
         for name in ("hidden_dim", "num_heads", "num_actions", "diffusion_steps", "history_steps"):

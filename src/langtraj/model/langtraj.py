@@ -139,24 +139,18 @@ class LangTraj(nn.Module):
 
     def rollout(self, batch: SceneBatch, x0: Tensor) -> Tensor:
         """States [B, A, T, 4] (x, y, heading, speed) from network-unit actions [B, A, N, 2]."""
-        return self.integrate(batch.current_state, batch.agent_type, x0, batch.agent_size[..., 0])
+        return self.integrate(batch.current_state, batch.agent_type, batch.agent_size[..., 0], x0)
 
-    def integrate(
-        self, current_state: Tensor, agent_type: Tensor, x0: Tensor, agent_length: Tensor | None = None
-    ) -> Tensor:
-        """States from the current states [B, A, 4], agent types [B, A] and network-unit actions [B, A, N, 2];
-        vehicles turn no tighter than `max_curvature` (without it, an undertrained model's small yaw rates turn
-        a stopped car on the spot, and in closed loop such errors add up). `agent_length` [B, A] (m), where given,
-        widens a long vehicle's turns."""
+    def integrate(self, current_state: Tensor, agent_type: Tensor, agent_length: Tensor, x0: Tensor) -> Tensor:
+        """States from the current states [B, A, 4], agent types and lengths (m) [B, A] and network-unit actions
+        [B, A, N, 2]; each agent turns no tighter than `max_curvature` (without it, an undertrained model's small
+        yaw rates turn a stopped car on the spot, a bus pivots like a car, and in closed loop such errors add up)."""
         return self.dynamics(current_state, self.from_units(x0), self.max_curvature(agent_type, agent_length).to(x0))
 
-    def max_curvature(self, agent_type: Tensor, agent_length: Tensor | None = None) -> Tensor:
-        """Each agent's tightest turn [B, A] (1/m): `vehicle_max_curvature` for vehicles, tighter still for a long
-        one (`turn_radius_per_length` x its `agent_length`, where given); inf for pedestrians and cyclists."""
-        limit = torch.full(agent_type.shape, self.config.vehicle_max_curvature, device=agent_type.device)
-        if agent_length is not None and self.config.turn_radius_per_length > 0:
-            radius = self.config.turn_radius_per_length * agent_length.to(limit)
-            limit = torch.minimum(limit, 1.0 / radius.clamp(min=1e-3))
+    def max_curvature(self, agent_type: Tensor, agent_length: Tensor) -> Tensor:
+        """Each agent's tightest turn [B, A] (1/m): vehicles' by their length (`ModelConfig.vehicle_curvature`), inf
+        for pedestrians and cyclists."""
+        limit = self.config.vehicle_curvature(agent_length)
         return torch.where(agent_type == int(AgentType.VEHICLE), limit, torch.inf)
 
     # ------------------------------------------------------------------ training

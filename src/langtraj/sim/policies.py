@@ -634,7 +634,7 @@ class LangTrajPolicy(Policy):
         external_accel = accel.repeat(m, 1)
 
         def integrate(x: Tensor) -> Tensor:  # external agents at their forecast, not the model's guess
-            pinned = pin_external(model.integrate(initial, types, x, lengths), initial, state.external, external_accel)
+            pinned = pin_external(model.integrate(initial, types, lengths, x), initial, state.external, external_accel)
             return hold(pinned, initial, state.held)
 
         if terms:

@@ -95,15 +95,15 @@ def closed_loop_loss(
         with torch.no_grad():  # the M candidates; only the executed one needs a graph (computed again below)
             cache = model.denoiser.pose_cache(scene)  # per scene, shared by its M candidates (as in sampling)
             pred = model.denoiser(x_k, k.repeat(m), scene.repeat(m), language.repeat(m, 1, 1), cache)
-            states = model.integrate(start.repeat(m, 1, 1), current.agent_type.repeat(m, 1), pred, lengths.repeat(m, 1))
+            states = model.integrate(start.repeat(m, 1, 1), current.agent_type.repeat(m, 1), lengths.repeat(m, 1), pred)
             states = states.reshape(m, b, *states.shape[1:])
             horizon = states.shape[3]
             target_valid = current.future_valid[:, :, :horizon] & free[..., None]
             best = select_closest(states, current.future[:, :, :horizon], target_valid)
         rows = best * b + torch.arange(b, device=device)  # sample-major rows of the chosen candidates
         chosen = model.denoiser(x_k[rows], k, scene, language)  # [B, A, N, 2], in the graph
-        executed = model.integrate(start, current.agent_type, chosen, lengths)[:, :, :execute]
-        truth = model.integrate(start, current.agent_type, x0, lengths)[:, :, :execute].detach()
+        executed = model.integrate(start, current.agent_type, lengths, chosen)[:, :, :execute]
+        truth = model.integrate(start, current.agent_type, lengths, x0)[:, :, :execute].detach()
         executed = torch.where(forced[..., None, None], truth, executed)
         executed_parts.append(executed)
         current = current.advanced(executed.detach())
