@@ -76,3 +76,27 @@ def test_requests_turn_the_projection_off_or_on_at_a_number_of_steps():
     assert hard_constraints(2, 5) == HardConstraints(steps=2)
     with pytest.raises(Exception, match="--hard-constraints"):
         hard_constraints(6, 5)
+
+
+def test_a_kept_plan_offered_again_is_projected_like_a_fresh_candidate(shipped):
+    """The candidate a prompted replan makes of the plan it executed (`PromptReplans.offer_kept_plans`) is kept on
+    the road by the hard constraints as the sampled ones are, and its unprojected self is offered beside it."""
+    import torch
+
+    from langtraj.model.features import collate_scenes
+    from langtraj.sim.world import SimWorld
+
+    scenario = straight_road(parked=False)
+    model, data = shipped
+    policy = LangTrajPolicy(model, data, hard_constraints=HardConstraints())
+    world = SimWorld(scenario, policy.drives(scenario, np.arange(3)), 1)
+    state = policy.reset(world, 0)
+    batch = collate_scenes([policy._sample(world, state, world.start, 0)])
+    actions = torch.zeros(1, len(world.driven), model.config.num_actions, 2)
+    actions[0, 0, :2, 1], actions[0, 0, 2:4, 1] = -0.35, 0.35  # the first car moves right, off the road (edge at -1.75)
+    states, made = policy._realiser(state, batch, torch.zeros(1, len(world.driven)))(actions)
+    assert states.shape[:2] == made.shape[:2] == (2, 1)  # projected, then as planned
+    lowest = states[:, 0, 0, :, 1].amin(-1)  # scene frame: the first car starts at the origin, heading along x
+    assert -5.0 < lowest[1] < -3.0  # as planned it leaves the road ...
+    assert lowest[0] > -1.75 + 1.0 - 0.3  # ... projected, its side stays near the edge, not past it
+    assert torch.equal(made[1], actions)

@@ -327,14 +327,29 @@ def projection_hook(
         steps = torch.as_tensor(k, dtype=torch.long, device=x0.device).reshape(-1).expand(rows)
         if not bool(when(steps, num_steps).any()):
             return x0
-        with torch.no_grad():
-            for _ in range(config.rounds):
-                states = rollout(x0)
-                projected, moved = project_states(initial, states, here.to(x0.device), agents, config)
-                if not bool(moved.any()):
-                    break
-                x0 = x0.clone()
-                x0[moved] = invert(projected[moved], moved).to(x0)
-        return x0
+        return project_plans(config, here, agents, initial, rollout, invert, x0)
 
     return hook
+
+
+def project_plans(
+    config: HardConstraints,
+    scene: GuidanceScene,
+    agents: ProjectionAgents,
+    initial: Tensor,
+    rollout: Callable[[Tensor], Tensor],
+    invert: Callable[[Tensor, Tensor], Tensor],
+    x0: Tensor,
+) -> Tensor:
+    """Network-unit actions x0 [S, A, N, 2] planned from `initial` [S, A, 4], projected (`project_states`) and
+    refitted `config.rounds` times (`rollout` and `invert` as `projection_hook` takes them); the paths the
+    projection does not move keep their actions exactly."""
+    with torch.no_grad():
+        for _ in range(config.rounds):
+            states = rollout(x0)
+            projected, moved = project_states(initial, states, scene.to(x0.device), agents, config)
+            if not bool(moved.any()):
+                break
+            x0 = x0.clone()
+            x0[moved] = invert(projected[moved], moved).to(x0)
+    return x0

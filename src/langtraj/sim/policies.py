@@ -37,7 +37,13 @@ from langtraj.guidance import (
 from langtraj.guidance.base import FinalSteps
 from langtraj.guidance.costs import signed_road_distance
 from langtraj.guidance.library import terms_for_prompt
-from langtraj.guidance.projection import HardConstraints, ProjectionAgents, current_overlaps, projection_hook
+from langtraj.guidance.projection import (
+    HardConstraints,
+    ProjectionAgents,
+    current_overlaps,
+    project_plans,
+    projection_hook,
+)
 from langtraj.interdrive.behaviour import BEHAVIOURS
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.mapindex import MapIndex
@@ -62,7 +68,7 @@ from langtraj.sim.external import (
     pin_external,
 )
 from langtraj.sim.parked import parked_in_history
-from langtraj.sim.prompt_replan import Guidance, GuidanceOf, PromptReplans, with_prompt_guidance
+from langtraj.sim.prompt_replan import Guidance, GuidanceOf, PromptReplans, shifted_plan, with_prompt_guidance
 from langtraj.sim.prompts import PromptSteering, check_prompt_driven, merged_prompt, prompt_steering, read_prompts
 from langtraj.sim.selection import SELECTORS, CandidateSelector, chosen_states
 from langtraj.sim.terms import collision_terms, scene_wide_terms
@@ -628,15 +634,7 @@ class LangTrajPolicy(Policy):
         prompt_terms = tuple(t for group in steered for t in group)
         terms = state.terms + prompt_terms + state.clearance
         hook = None
-        initial = batch.current_state.repeat(m, 1, 1)
-        types, lengths = batch.agent_type.repeat(m, 1), batch.agent_size[..., 0].repeat(m, 1)
-        model = self.model
-        external_accel = accel.repeat(m, 1)
-
-        def integrate(x: Tensor) -> Tensor:  # external agents at their forecast, not the model's guess
-            pinned = pin_external(model.integrate(initial, types, lengths, x), initial, state.external, external_accel)
-            return hold(pinned, initial, state.held)
-
+        integrate = self._integrator(state, batch, accel, m)
         if terms:
 
             def by(rollout: Callable[[Tensor], Tensor]) -> GuidanceOf:
@@ -659,7 +657,7 @@ class LangTrajPolicy(Policy):
             clear = by(lambda x: integrate(accelerations_only(x)))  # the others make room by braking, not swerving
             hook = with_prompt_guidance(hook, state.clearance, clear, iterations=CLEARANCE_ITERATIONS)
         if self.hard_constraints is not None:
-            hook = self._projection(state, batch.current_state, initial, integrate, then=hook)
+            hook = self._projection(state, batch.current_state, m, integrate, then=hook)
         start = self._warm_start(state, step, rollouts)
         common = {
             "guidance_weight": self.guidance_weight,
@@ -680,28 +678,61 @@ class LangTrajPolicy(Policy):
                 **common,
             )
         states = hold(pin_external(states, batch.current_state, state.external, accel), batch.current_state, state.held)
-        states, actions = state.prompt.offer_kept_plans(step, rollouts, states, actions, start)
+        states, actions = state.prompt.offer_kept_plans(
+            step, rollouts, states, actions, self.model.dynamics.steps_per_action, self._realiser(state, batch, accel)
+        )
         first = state.prompt.adherence(world, state.origin, state.scene, step, rollouts, states, steered)
         choice = state.selector.select(states, state.scene, terms, first)  # states [M, R, A, T, 4], scene frame
-        executed = chosen_states(states, choice)
-        state.prompt.keep(step, rollouts, executed)
+        executed, chosen_actions = chosen_states(states, choice), chosen_states(actions, choice)
+        state.prompt.keep(step, rollouts, chosen_actions)
         if self.warm_steps is not None:
-            chosen_actions = chosen_states(actions, choice)
             state.executed.update({r: (step, chosen_actions[n].detach()) for n, r in enumerate(rollouts)})
         chosen = executed[:, : len(world.driven)].double().cpu().numpy()
         return poses_to_world(chosen, state.origin)
 
-    def _projection(
-        self,
-        state: LangTrajRun,
-        current: Tensor,
-        initial: Tensor,
-        integrate: Callable[[Tensor], Tensor],
-        then: Guidance,
-    ) -> Guidance:
-        """The hard constraints' hook (`guidance.projection`) after `then` over the sample-major rows: `current`
-        [R, A, 4] is each rollout's current state, `initial` the same repeated per candidate. Pairs that overlap
-        now in a rollout, and an adversary with its target, are never pushed apart; external agents never move; a
+    def _integrator(
+        self, state: LangTrajRun, batch: SceneBatch, accel: Tensor, copies: int
+    ) -> Callable[[Tensor], Tensor]:
+        """States [copies * R, A, T, 4] from network-unit actions of `copies` candidates of each of the batch's R
+        rollouts (sample-major rows): external agents at their forecast (`accel` [R, A]), not the model's guess, and
+        held agents where they stand."""
+        initial = batch.current_state.repeat(copies, 1, 1)
+        types, lengths = batch.agent_type.repeat(copies, 1), batch.agent_size[..., 0].repeat(copies, 1)
+        external_accel, model = accel.repeat(copies, 1), self.model
+
+        def integrate(x: Tensor) -> Tensor:
+            pinned = pin_external(model.integrate(initial, types, lengths, x), initial, state.external, external_accel)
+            return hold(pinned, initial, state.held)
+
+        return integrate
+
+    def _realiser(
+        self, state: LangTrajRun, batch: SceneBatch, accel: Tensor
+    ) -> Callable[[Tensor], tuple[Tensor, Tensor]]:
+        """Makes candidates of each rollout from physical actions [R, A, N, 2]: states [K, R, A, T, 4] and actions
+        [K, R, A, N, 2] of the plan as sampling makes one (projected onto the road and apart, and refitted, when the
+        hard constraints are on: K = 2) and of the plan as given (K = 1 without them). Offering both keeps a plan
+        that follows a prompt on offer where its projection no longer does (docs/simulation.md, 'Prompts that
+        steer')."""
+        integrate = self._integrator(state, batch, accel, 1)
+
+        def realise(actions: Tensor) -> tuple[Tensor, Tensor]:
+            plans = [self.model.to_units(actions)]
+            if self.hard_constraints is not None:
+                agents, initial, invert = self._constraints(state, batch.current_state, 1)
+                config, scene = self.hard_constraints, state.scene
+                plans.insert(0, project_plans(config, scene, agents, initial, integrate, invert, plans[0]))
+            return torch.stack([integrate(x) for x in plans]), torch.stack([self.model.from_units(x) for x in plans])
+
+        return realise
+
+    def _constraints(
+        self, state: LangTrajRun, current: Tensor, copies: int
+    ) -> tuple[ProjectionAgents, Tensor, Callable[[Tensor, Tensor], Tensor]]:
+        """What the hard constraints need over `copies` candidates of each rollout (sample-major rows), `current`
+        [R, A, 4] being each rollout's current state: the agents they move and how, the initial states, and the
+        refit (states [K, T, 3] of the rows a mask picks to network-unit actions). Pairs that overlap now in a
+        rollout, and an adversary with its target, are never pushed apart; external and held agents never move; a
         pull-over's box may reach the road edge itself."""
         config = self.hard_constraints
         assert config is not None and state.kept_on_road is not None
@@ -714,8 +745,10 @@ class LangTrajPolicy(Policy):
         if state.prompt.steering.kerb_slots:  # a pull-over is asked to the kerb: its box may touch the edge
             margin = torch.full(movable.shape, config.road_margin, device=movable.device)
             margin[list(state.prompt.steering.kerb_slots)] = 0.0
-        exempt = exempt.repeat(self.candidates, 1, 1)
-        agents = ProjectionAgents(road=state.kept_on_road, movable=movable, exempt=exempt, margin=margin)
+        agents = ProjectionAgents(
+            road=state.kept_on_road, movable=movable, exempt=exempt.repeat(copies, 1, 1), margin=margin
+        )
+        initial = current.repeat(copies, 1, 1)
         model = self.model
         every = torch.ones(initial.shape[:2] + (model.horizon_steps,), dtype=torch.bool, device=initial.device)
 
@@ -723,14 +756,28 @@ class LangTrajPolicy(Policy):
             actions, _ = model.dynamics.inverse(initial[rows], states, every[rows])
             return model.to_units(actions).clamp(-4.0, 4.0)
 
+        return agents, initial, invert
+
+    def _projection(
+        self,
+        state: LangTrajRun,
+        current: Tensor,
+        copies: int,
+        integrate: Callable[[Tensor], Tensor],
+        then: Guidance,
+    ) -> Guidance:
+        """The hard constraints' hook (`guidance.projection`) after `then` over `copies` candidates of each rollout
+        (`_constraints`), integrated by `integrate`."""
+        assert self.hard_constraints is not None
+        agents, initial, invert = self._constraints(state, current, copies)
         return projection_hook(
-            config,
+            self.hard_constraints,
             state.scene,
             agents,
             initial,
             integrate,
             invert,
-            num_steps=model.schedule.num_steps,
+            num_steps=self.model.schedule.num_steps,
             sampler_steps=self.steps,
             then=then,
         )
@@ -769,10 +816,10 @@ class LangTrajPolicy(Policy):
         shifted = []
         for r in rollouts:
             before, actions = state.executed[r]
-            done, rest = divmod(step - before, per_action)
-            if rest or done >= actions.shape[1]:
+            left = shifted_plan(actions, step - before, per_action)
+            if left is None:
                 return None
-            shifted.append(torch.cat([actions[:, done:], torch.zeros_like(actions[:, :done])], dim=1))
+            shifted.append(left)
         return torch.stack(shifted)
 
 

@@ -1,8 +1,9 @@
 """Typed prompts at each replan of a LangTraj simulation (docs/simulation.md, 'Prompts that steer'): the guidance
 terms toward each read behaviour's target for what is left of them (`PromptReplans.terms`), their own
 reconstruction-guidance step after the scene's (`with_prompt_guidance`), the plan executed at the previous replan
-offered again as a candidate (`PromptReplans.offer_kept_plans`), and the prompted agents' adherence that selection
-compares before anything else (`PromptReplans.adherence`, the selectors' `first`).
+offered again as candidates (`PromptReplans.offer_kept_plans`: projected like a sampled one, and as executed), and
+the prompted agents' adherence that selection compares before anything else (`PromptReplans.adherence`, the
+selectors' `first`).
 
 What the prompts steer is derived once per simulation from their one reading (`sim.prompts.prompt_steering`); a
 `PromptReplans` holds it, with the candidate judge, and keeps what one replan leaves the next (the executed plans).
@@ -19,7 +20,6 @@ from torch import Tensor
 from langtraj.frames import Origin, poses_to_world
 from langtraj.guidance import GuidanceScene, GuidanceTerm
 from langtraj.model.diffusion import Guidance
-from langtraj.scenario.model import STEP_SECONDS
 from langtraj.sim.adherence import CandidateJudge
 from langtraj.sim.prompts import PromptSteering
 from langtraj.sim.world import SimWorld
@@ -59,7 +59,7 @@ def then(first: Guidance | None, second: Guidance) -> Guidance:
 class PromptReplans:
     """What typed prompts steer in one simulation (`steering`, read at its start) and how its candidates are judged
     (`judge`, None without the selection lever or a read behaviour), with what each replan leaves the next: per
-    rollout, the step and the states [A, T, 4] (scene frame) of the plan executed from it (`kept`), which the next
+    rollout, the step and the actions [A, N, 2] (physical) of the plan executed from it (`kept`), which the next
     replan offers again as a candidate for the prompted agents. Without prompts it steers nothing."""
 
     steering: PromptSteering = field(default_factory=PromptSteering)
@@ -78,43 +78,35 @@ class PromptReplans:
         return sorted({slot for ask in asks for slot in (ask.slot, ask.other_slot) if slot is not None})
 
     def offer_kept_plans(
-        self, step: int, rollouts: list[int], states: Tensor, actions: Tensor, start: Tensor | None
+        self,
+        step: int,
+        rollouts: list[int],
+        states: Tensor,
+        actions: Tensor,
+        per_action: int,
+        realise: Callable[[Tensor], tuple[Tensor, Tensor]],
     ) -> tuple[Tensor, Tensor]:
-        """The candidates' states [M, R, A, T, 4] and actions [M, R, A, N, 2] with one more candidate when a judge
-        is there and every rollout has a kept plan: for each judged slot what is left of the plan executed at the
-        previous replan (continued at constant speed and heading to the horizon), and candidate 0 for the other
-        agents; its actions are candidate 0's, with the judged slots' taken from `start` (what is left of the
-        executed actions, [R, A, N, 2]) when the replan is warm-started. A plan that did what the prompt asks stays
-        on offer, so a replan that samples no such candidate keeps to it instead of putting the behaviour off (plan
-        reuse in receding-horizon control). Otherwise the candidates unchanged."""
-        if self.judge is None:
+        """The candidates' states [M, R, A, T, 4] and actions [M, R, A, N, 2] (physical) with those made of the kept
+        plans when a judge is there and every rollout has one: for each judged slot what is left of the actions it
+        executed from the previous replan (`shifted_plan`), for the other agents candidate 0's, made into candidates by
+        `realise` (actions [R, A, N, 2] to states [K, R, A, T, 4] and actions [K, R, A, N, 2]: integrated as sampling
+        integrates, external agents pinned; projected onto the road and apart when the hard constraints are on, and
+        then offered as executed too). A plan that did what the prompt asks stays on offer, so a replan that samples
+        no such candidate keeps to it instead of putting the behaviour off (plan reuse in receding-horizon control),
+        kept to the road and apart from the others where its projection still does what is asked. Otherwise the
+        candidates unchanged."""
+        if self.judge is None or any(r not in self.kept for r in rollouts):
             return states, actions
-        states = self._with_kept_plans(step, rollouts, states)
-        if states.shape[0] > actions.shape[0]:
-            kept = actions[0].clone()
-            if start is not None:
-                slots = self.judged_slots()
-                kept[:, slots] = start[:, slots]
-            actions = torch.cat([actions, kept[None]])
-        return states, actions
-
-    def _with_kept_plans(self, step: int, rollouts: list[int], states: Tensor) -> Tensor:
-        if any(r not in self.kept for r in rollouts):
-            return states
-        extra = states[0].clone()  # [R, A, T, 4]
+        extra = actions[0].clone()  # [R, A, N, 2]
+        slots = self.judged_slots()
         for n, r in enumerate(rollouts):
             before, plan = self.kept[r]
-            left = plan[:, step - before :]
-            if left.shape[1] == 0:
-                return states
-            tail = left[:, -1:].repeat(1, states.shape[3] - left.shape[1], 1)
-            steps = torch.arange(1, tail.shape[1] + 1, dtype=tail.dtype, device=tail.device)[None, :]
-            travel = tail[..., 3] * STEP_SECONDS * steps
-            tail[..., 0] = tail[..., 0] + travel * torch.cos(tail[..., 2])
-            tail[..., 1] = tail[..., 1] + travel * torch.sin(tail[..., 2])
-            for slot in self.judged_slots():
-                extra[n, slot] = torch.cat([left[slot], tail[slot]])
-        return torch.cat([states, extra[None]])
+            left = shifted_plan(plan, step - before, per_action)
+            if left is None:
+                return states, actions
+            extra[n, slots] = left[slots].to(extra)
+        kept_states, kept_actions = realise(extra)
+        return torch.cat([states, kept_states.to(states)]), torch.cat([actions, kept_actions.to(actions)])
 
     def adherence(
         self,
@@ -155,7 +147,17 @@ class PromptReplans:
         return first
 
     def keep(self, step: int, rollouts: list[int], executed: Tensor) -> None:
-        """Keep the plans [R, A, T, 4] (scene frame) executed from `step` by `rollouts`, for the next replan to offer
+        """Keep the actions [R, A, N, 2] (physical) executed from `step` by `rollouts`, for the next replan to offer
         (only with a judge: nothing else reads them)."""
         if self.judge is not None:
             self.kept.update({r: (step, executed[n].detach()) for n, r in enumerate(rollouts)})
+
+
+def shifted_plan(actions: Tensor, elapsed: int, per_action: int) -> Tensor | None:
+    """What is left of a plan's actions [..., N, 2] (physical) `elapsed` scenario steps after it was made: shifted
+    by the actions executed since, the freed end at zero (acceleration and yaw rate: constant speed and heading).
+    None when `elapsed` falls between two actions or past the plan's end."""
+    done, rest = divmod(elapsed, per_action)
+    if rest or done >= actions.shape[-2]:
+        return None
+    return torch.cat([actions[..., done:, :], torch.zeros_like(actions[..., :done, :])], dim=-2)
