@@ -29,6 +29,7 @@ def test_method_specs():
     assert model.project is None and Method.parse("m=x.ckpt|project=2").project == 2
     assert not model.hold_parked and Method.parse("m=x.ckpt|defaults|hold_parked").hold_parked
     assert not model.rolling and Method.parse("m=x.ckpt|defaults|rolling").rolling
+    assert model.project_choice and not Method.parse("m=x.ckpt|defaults|project_choice=0").project_choice
     for bad, message in (
         ("nothing", "expected NAME=SPEC"),
         ("cv=constant_velocity|selector=first", "takes no options"),

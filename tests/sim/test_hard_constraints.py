@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 from scenario_builders import two_lane_road
 
 from langtraj.guidance import GuidanceTerm
@@ -20,6 +21,7 @@ from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.engine import simulate
 from langtraj.sim.parked import parked_in_history
 from langtraj.sim.policies import LangTrajPolicy, hard_constraints
+from langtraj.sim.world import SimWorld
 
 PARKED_ID = 4
 
@@ -81,10 +83,7 @@ def test_requests_turn_the_projection_off_or_on_at_a_number_of_steps():
 def test_a_kept_plan_offered_again_is_projected_like_a_fresh_candidate(shipped):
     """The candidate a prompted replan makes of the plan it executed (`PromptReplans.offer_kept_plans`) is kept on
     the road by the hard constraints as the sampled ones are, and its unprojected self is offered beside it."""
-    import torch
-
     from langtraj.model.features import collate_scenes
-    from langtraj.sim.world import SimWorld
 
     scenario = straight_road(parked=False)
     model, data = shipped
@@ -100,3 +99,43 @@ def test_a_kept_plan_offered_again_is_projected_like_a_fresh_candidate(shipped):
     assert -5.0 < lowest[1] < -3.0  # as planned it leaves the road ...
     assert lowest[0] > -1.75 + 1.0 - 0.3  # ... projected, its side stays near the edge, not past it
     assert torch.equal(made[1], actions)
+
+
+class _Mixed:
+    """A selector taking the agent in slot `cruising` from candidate 0 and every other agent from candidate 1."""
+
+    def __init__(self, cruising: int):
+        self.cruising = cruising
+
+    def select(self, states, scene, terms, first=None):
+        choice = torch.ones(states.shape[1:3], dtype=torch.long)
+        choice[:, self.cruising] = 0
+        return choice
+
+
+@pytest.mark.parametrize("on_choice", [True, False])
+def test_a_plan_assembled_from_two_candidates_is_projected_apart(shipped, monkeypatch, on_choice):
+    """Each candidate keeps its agents apart, but a plan assembled agent by agent from two candidates need not: the
+    first car cruising (candidate 0) and the car 25 m behind it gaining 0.8 m/s^2 on it (candidate 1, where the
+    first car does the same). With `on_choice` the executed plan is projected again and the second car is held back."""
+    scenario = straight_road(parked=False)
+    model, data = shipped
+    policy = LangTrajPolicy(model, data, candidates=2, hard_constraints=HardConstraints(on_choice=on_choice))
+    world = SimWorld(scenario, policy.drives(scenario, np.arange(3)), 1)
+    state = policy.reset(world, 0)
+    first, second = (int(np.flatnonzero(world.driven == row)[0]) for row in (0, 1))  # model slots of the two cars
+    state.selector = _Mixed(first)
+    physical = torch.zeros(2, 1, 3, model.config.num_actions, 2)
+    physical[1, 0, [first, second], :, 0] = 0.8  # candidate 1: the two cars accelerate alike
+
+    def sample(batch, num_samples, **_):
+        x = model.to_units(physical)
+        return torch.stack([model.rollout(batch, x[i]) for i in range(num_samples)]), model.from_units(x)
+
+    monkeypatch.setattr(model, "sample", sample)
+    plan = policy.plan(world, state, world.start, model.horizon_steps)  # [R, A, T, 4], world frame
+    gap = plan[0, first, :, 0] - plan[0, second, :, 0]  # the two cars' centres along the road
+    if on_choice:
+        assert gap.min() > 4.5 - 0.3  # a car length apart, whatever each candidate did
+    else:
+        assert gap.min() < 4.5 - 1.0  # the assembled plan drives the second car into the first

@@ -15,7 +15,8 @@ only), `|warm_steps=N` (replans warm-started from the executed plan, `sim.polici
 `|temperature=T` (the sampler's noise scaled by T), `|refresh_map` (each replan's map around the agents then),
 `|hold_parked` (agents parked in the log stand still unless prompted), `|rolling` (one rolling plan per agent,
 denoised once per replan: a rolling checkpoint, `model.rolling`), `|project=N` (hard constraints at the
-last N denoising steps: on the road and apart, `guidance.projection`; 0: off),
+last N denoising steps: on the road and apart, `guidance.projection`; 0: off), `|project_choice=0` (the plan
+assembled agent by agent by `per_agent` selection is not projected again, `HardConstraints.on_choice`),
 `|defaults` and `|dense`.
 A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says otherwise;
 `|defaults` adds `langtraj simulate`'s default guidance and selection (on-road guidance, no-collision
@@ -29,7 +30,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -58,7 +59,7 @@ from langtraj.sim.checkpoints import checkpoint_path
 from langtraj.sim.config import SimConfig
 from langtraj.sim.engine import simulate
 from langtraj.sim.failures import BREAKDOWN_KEYS, OFFROAD_CAUSES, FailureScene, classify_failures
-from langtraj.sim.policies import POLICIES, LangTrajPolicy, LoadedModel
+from langtraj.sim.policies import DEFAULT_HARD_CONSTRAINTS, POLICIES, LangTrajPolicy, LoadedModel
 from langtraj.sim.terms import scene_wide_terms
 
 COLUMNS = ("meta", "kinematic", "interactive", "map", "offroad", "collision")
@@ -85,6 +86,7 @@ class Method:
     hold_parked: bool = False  # agents parked in the log stand still unless prompted (else the row's setting)
     rolling: bool = False  # one rolling plan per agent, one network call per replan (a rolling checkpoint)
     project: int | None = None  # hard constraints at the last N denoising steps (0: off); None: the row's setting
+    project_choice: bool = True  # with hard constraints, the executed plan assembled per agent is projected again
 
     def __post_init__(self) -> None:
         if (self.baseline is None) == (self.checkpoint is None):
@@ -95,7 +97,7 @@ class Method:
                 raise InputError(f"unknown baseline {self.baseline!r}; known: {known}", where="--method")
             options = (self.selector, self.guidance, self.defaults, self.dense, self.guided_steps, self.warm_steps,
                        self.refresh_map, self.project, self.hold_parked, self.rolling)  # fmt: skip
-            if any(o not in (None, (), False) for o in options) or self.temperature != 1.0:
+            if any(o not in (None, (), False) for o in options) or self.temperature != 1.0 or not self.project_choice:
                 raise InputError(f"baseline {self.baseline} takes no options", where="--method")
         scene_wide_terms(self.guidance)  # checked now, before anything runs
 
@@ -112,10 +114,12 @@ class Method:
         flags = {"defaults", "dense", "refresh_map", "hold_parked", "rolling"}
         for option in (o for o in options if o not in flags):
             key, eq, value = option.partition("=")
-            if not eq or key not in ("selector", "guidance", "guided_steps", "warm_steps", "temperature", "project"):
+            known = ("selector", "guidance", "guided_steps", "warm_steps", "temperature", "project", "project_choice")
+            if not eq or key not in known:
                 raise InputError(
                     "expected selector=NAME, guidance=COST:WEIGHT, guided_steps=N, warm_steps=N, temperature=T, "
-                    f"project=N, defaults, dense, refresh_map, hold_parked or rolling, got {option!r}",
+                    "project=N, project_choice=0|1, defaults, dense, refresh_map, hold_parked or rolling, "
+                    f"got {option!r}",
                     where="--method",
                 )
             settings[key] = value
@@ -133,6 +137,7 @@ class Method:
             warm_steps=_int_option(settings, "warm_steps"),
             temperature=_float_option(settings, "temperature", 1.0),
             project=_int_option(settings, "project"),
+            project_choice=_int_option(settings, "project_choice") != 0,
         )
 
     def load(self) -> LoadedModel | None:
@@ -177,6 +182,9 @@ class Method:
                 paper["rolling"] = True
             if self.project is not None:
                 paper["hard_constraints"] = HardConstraints(steps=self.project) if self.project else None
+            constraints = paper.get("hard_constraints", DEFAULT_HARD_CONSTRAINTS)
+            if not self.project_choice and constraints is not None:
+                paper["hard_constraints"] = replace(constraints, on_choice=False)
             policy = LangTrajPolicy(
                 model,
                 data,

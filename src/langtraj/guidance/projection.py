@@ -51,8 +51,9 @@ _AHEAD = 0.5  # cos 60 degrees: another agent whose centre lies within 60 degree
 class HardConstraints:
     """The projection's settings (docs/simulation.md, 'Hard constraints'): at the last `steps` denoising steps,
     `iterations` rounds of (apart, road); vehicles keep their box `road_margin` (m) inside the road edge; agents'
-    disks keep `gap` (m) apart; points more than `max_offroad` m off the road are
-    left where they are."""
+    disks keep `gap` (m) apart; points more than `max_offroad` m off the road are left where they are. With
+    `on_choice`, the plan a simulation executes is projected once more after selection: a selector that assembles
+    each agent from a different candidate (`per_agent`) undoes the guarantee each candidate had."""
 
     steps: int = 1
     iterations: int = 3
@@ -61,6 +62,7 @@ class HardConstraints:
     gap: float = 0.0
     max_offroad: float = 5.0
     num_disks: int = 5
+    on_choice: bool = True
 
     def __post_init__(self) -> None:
         if min(self.steps, self.iterations, self.rounds, self.num_disks) < 1:

@@ -684,6 +684,11 @@ class LangTrajPolicy(Policy):
         first = state.prompt.adherence(world, state.origin, state.scene, step, rollouts, states, steered)
         choice = state.selector.select(states, state.scene, terms, first)  # states [M, R, A, T, 4], scene frame
         executed, chosen_actions = chosen_states(states, choice), chosen_states(actions, choice)
+        config = self.hard_constraints
+        if config is not None and config.on_choice and choice.dim() == 2:  # assembled from different candidates
+            fixed = state.prompt.judged_slots()  # what a prompted agent chose to do what it is asked is kept
+            executed, chosen_actions = self._realiser(state, batch, accel, fixed=fixed)(chosen_actions)
+            executed, chosen_actions = executed[0], chosen_actions[0]
         state.prompt.keep(step, rollouts, chosen_actions)
         if self.warm_steps is not None:
             state.executed.update({r: (step, chosen_actions[n].detach()) for n, r in enumerate(rollouts)})
@@ -707,19 +712,19 @@ class LangTrajPolicy(Policy):
         return integrate
 
     def _realiser(
-        self, state: LangTrajRun, batch: SceneBatch, accel: Tensor
+        self, state: LangTrajRun, batch: SceneBatch, accel: Tensor, fixed: Sequence[int] = ()
     ) -> Callable[[Tensor], tuple[Tensor, Tensor]]:
         """Makes candidates of each rollout from physical actions [R, A, N, 2]: states [K, R, A, T, 4] and actions
         [K, R, A, N, 2] of the plan as sampling makes one (projected onto the road and apart, and refitted, when the
-        hard constraints are on: K = 2) and of the plan as given (K = 1 without them). Offering both keeps a plan
-        that follows a prompt on offer where its projection no longer does (docs/simulation.md, 'Prompts that
-        steer')."""
+        hard constraints are on: K = 2; the `fixed` slots neither moved nor kept on the road) and of the plan as
+        given (K = 1 without them). Offering both keeps a plan that follows a prompt on offer where its projection
+        no longer does (docs/simulation.md, 'Prompts that steer')."""
         integrate = self._integrator(state, batch, accel, 1)
 
         def realise(actions: Tensor) -> tuple[Tensor, Tensor]:
             plans = [self.model.to_units(actions)]
             if self.hard_constraints is not None:
-                agents, initial, invert = self._constraints(state, batch.current_state, 1)
+                agents, initial, invert = self._constraints(state, batch.current_state, 1, fixed)
                 config, scene = self.hard_constraints, state.scene
                 plans.insert(0, project_plans(config, scene, agents, initial, integrate, invert, plans[0]))
             return torch.stack([integrate(x) for x in plans]), torch.stack([self.model.from_units(x) for x in plans])
@@ -727,27 +732,27 @@ class LangTrajPolicy(Policy):
         return realise
 
     def _constraints(
-        self, state: LangTrajRun, current: Tensor, copies: int
+        self, state: LangTrajRun, current: Tensor, copies: int, fixed: Sequence[int] = ()
     ) -> tuple[ProjectionAgents, Tensor, Callable[[Tensor, Tensor], Tensor]]:
         """What the hard constraints need over `copies` candidates of each rollout (sample-major rows), `current`
         [R, A, 4] being each rollout's current state: the agents they move and how, the initial states, and the
         refit (states [K, T, 3] of the rows a mask picks to network-unit actions). Pairs that overlap now in a
-        rollout, and an adversary with its target, are never pushed apart; external and held agents never move; a
-        pull-over's box may reach the road edge itself."""
+        rollout, and an adversary with its target, are never pushed apart; external and held agents and the `fixed`
+        slots never move (nor are the fixed kept on the road); a pull-over's box may reach the road edge itself."""
         config = self.hard_constraints
         assert config is not None and state.kept_on_road is not None
         exempt = current_overlaps(current, state.scene, config)
         if len(self.free) == 2:
             exempt[:, self.free[0], self.free[1]] = exempt[:, self.free[1], self.free[0]] = True
         movable = torch.ones_like(state.kept_on_road)
-        movable[list(state.external) + list(state.held)] = False
+        movable[list(state.external) + list(state.held) + list(fixed)] = False
+        road = state.kept_on_road.clone()
+        road[list(fixed)] = False
         margin = None
         if state.prompt.steering.kerb_slots:  # a pull-over is asked to the kerb: its box may touch the edge
             margin = torch.full(movable.shape, config.road_margin, device=movable.device)
             margin[list(state.prompt.steering.kerb_slots)] = 0.0
-        agents = ProjectionAgents(
-            road=state.kept_on_road, movable=movable, exempt=exempt.repeat(copies, 1, 1), margin=margin
-        )
+        agents = ProjectionAgents(road=road, movable=movable, exempt=exempt.repeat(copies, 1, 1), margin=margin)
         initial = current.repeat(copies, 1, 1)
         model = self.model
         every = torch.ones(initial.shape[:2] + (model.horizon_steps,), dtype=torch.bool, device=initial.device)
