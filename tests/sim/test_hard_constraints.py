@@ -93,7 +93,8 @@ def test_a_kept_plan_offered_again_is_projected_like_a_fresh_candidate(shipped):
     batch = collate_scenes([policy._sample(world, state, world.start, 0)])
     actions = torch.zeros(1, len(world.driven), model.config.num_actions, 2)
     actions[0, 0, :2, 1], actions[0, 0, 2:4, 1] = -0.35, 0.35  # the first car moves right, off the road (edge at -1.75)
-    states, made = policy._realiser(state, batch, torch.zeros(1, len(world.driven)))(actions)
+    exempt = policy._exempt(state, batch.current_state)
+    states, made = policy._realiser(state, batch, torch.zeros(1, len(world.driven)), exempt)(actions)
     assert states.shape[:2] == made.shape[:2] == (2, 1)  # projected, then as planned
     lowest = states[:, 0, 0, :, 1].amin(-1)  # scene frame: the first car starts at the origin, heading along x
     assert -5.0 < lowest[1] < -3.0  # as planned it leaves the road ...

@@ -656,8 +656,9 @@ class LangTrajPolicy(Policy):
             hook = with_prompt_guidance(hook, prompt_terms, guidance)  # its own, larger step after the scene's
             clear = by(lambda x: integrate(accelerations_only(x)))  # the others make room by braking, not swerving
             hook = with_prompt_guidance(hook, state.clearance, clear, iterations=CLEARANCE_ITERATIONS)
-        if self.hard_constraints is not None:
-            hook = self._projection(state, batch.current_state, m, integrate, then=hook)
+        exempt = None if self.hard_constraints is None else self._exempt(state, batch.current_state)  # once a replan
+        if exempt is not None:
+            hook = self._projection(state, batch.current_state, exempt, m, integrate, then=hook)
         start = self._warm_start(state, step, rollouts)
         common = {
             "guidance_weight": self.guidance_weight,
@@ -679,7 +680,12 @@ class LangTrajPolicy(Policy):
             )
         states = hold(pin_external(states, batch.current_state, state.external, accel), batch.current_state, state.held)
         states, actions = state.prompt.offer_kept_plans(
-            step, rollouts, states, actions, self.model.dynamics.steps_per_action, self._realiser(state, batch, accel)
+            step,
+            rollouts,
+            states,
+            actions,
+            self.model.dynamics.steps_per_action,
+            self._realiser(state, batch, accel, exempt),
         )
         first = state.prompt.adherence(world, state.origin, state.scene, step, rollouts, states, steered)
         choice = state.selector.select(states, state.scene, terms, first)  # states [M, R, A, T, 4], scene frame
@@ -687,8 +693,8 @@ class LangTrajPolicy(Policy):
         config = self.hard_constraints
         if config is not None and config.on_choice and choice.dim() == 2:  # assembled from different candidates
             fixed = state.prompt.judged_slots()  # what a prompted agent chose to do what it is asked is kept
-            executed, chosen_actions = self._realiser(state, batch, accel, fixed=fixed)(chosen_actions)
-            executed, chosen_actions = executed[0], chosen_actions[0]
+            realise = self._realiser(state, batch, accel, exempt, fixed=fixed, as_given=False)
+            executed, chosen_actions = (made[0] for made in realise(chosen_actions))
         state.prompt.keep(step, rollouts, chosen_actions)
         if self.warm_steps is not None:
             state.executed.update({r: (step, chosen_actions[n].detach()) for n, r in enumerate(rollouts)})
@@ -712,38 +718,52 @@ class LangTrajPolicy(Policy):
         return integrate
 
     def _realiser(
-        self, state: LangTrajRun, batch: SceneBatch, accel: Tensor, fixed: Sequence[int] = ()
+        self,
+        state: LangTrajRun,
+        batch: SceneBatch,
+        accel: Tensor,
+        exempt: Tensor | None,
+        fixed: Sequence[int] = (),
+        as_given: bool = True,
     ) -> Callable[[Tensor], tuple[Tensor, Tensor]]:
         """Makes candidates of each rollout from physical actions [R, A, N, 2]: states [K, R, A, T, 4] and actions
         [K, R, A, N, 2] of the plan as sampling makes one (projected onto the road and apart, and refitted, when the
-        hard constraints are on: K = 2; the `fixed` slots neither moved nor kept on the road) and of the plan as
-        given (K = 1 without them). Offering both keeps a plan that follows a prompt on offer where its projection
-        no longer does (docs/simulation.md, 'Prompts that steer')."""
+        hard constraints are on, `exempt` being `_exempt`'s pairs; the `fixed` slots neither moved nor kept on the
+        road) and, with `as_given`, of the plan as given. Offering both keeps a plan that follows a prompt on offer
+        where its projection no longer does (docs/simulation.md, 'Prompts that steer')."""
         integrate = self._integrator(state, batch, accel, 1)
 
         def realise(actions: Tensor) -> tuple[Tensor, Tensor]:
-            plans = [self.model.to_units(actions)]
-            if self.hard_constraints is not None:
-                agents, initial, invert = self._constraints(state, batch.current_state, 1, fixed)
+            given = self.model.to_units(actions)
+            plans = [given] if as_given or exempt is None else []
+            if exempt is not None:
+                assert self.hard_constraints is not None
+                agents, initial, invert = self._constraints(state, batch.current_state, exempt, 1, fixed)
                 config, scene = self.hard_constraints, state.scene
-                plans.insert(0, project_plans(config, scene, agents, initial, integrate, invert, plans[0]))
+                plans.insert(0, project_plans(config, scene, agents, initial, integrate, invert, given))
             return torch.stack([integrate(x) for x in plans]), torch.stack([self.model.from_units(x) for x in plans])
 
         return realise
 
+    def _exempt(self, state: LangTrajRun, current: Tensor) -> Tensor:
+        """bool [R, A, A]: the pairs the hard constraints never push apart in each rollout, `current` [R, A, 4] being
+        its current state: those that overlap now, and an adversary with its target."""
+        assert self.hard_constraints is not None
+        exempt = current_overlaps(current, state.scene, self.hard_constraints)
+        if len(self.free) == 2:
+            exempt[:, self.free[0], self.free[1]] = exempt[:, self.free[1], self.free[0]] = True
+        return exempt
+
     def _constraints(
-        self, state: LangTrajRun, current: Tensor, copies: int, fixed: Sequence[int] = ()
+        self, state: LangTrajRun, current: Tensor, exempt: Tensor, copies: int, fixed: Sequence[int] = ()
     ) -> tuple[ProjectionAgents, Tensor, Callable[[Tensor, Tensor], Tensor]]:
         """What the hard constraints need over `copies` candidates of each rollout (sample-major rows), `current`
         [R, A, 4] being each rollout's current state: the agents they move and how, the initial states, and the
-        refit (states [K, T, 3] of the rows a mask picks to network-unit actions). Pairs that overlap now in a
-        rollout, and an adversary with its target, are never pushed apart; external and held agents and the `fixed`
-        slots never move (nor are the fixed kept on the road); a pull-over's box may reach the road edge itself."""
+        refit (states [K, T, 3] of the rows a mask picks to network-unit actions). The `exempt` pairs (`_exempt`)
+        are never pushed apart; external and held agents and the `fixed` slots never move (nor are the fixed kept
+        on the road); a pull-over's box may reach the road edge itself."""
         config = self.hard_constraints
         assert config is not None and state.kept_on_road is not None
-        exempt = current_overlaps(current, state.scene, config)
-        if len(self.free) == 2:
-            exempt[:, self.free[0], self.free[1]] = exempt[:, self.free[1], self.free[0]] = True
         movable = torch.ones_like(state.kept_on_road)
         movable[list(state.external) + list(state.held) + list(fixed)] = False
         road = state.kept_on_road.clone()
@@ -767,6 +787,7 @@ class LangTrajPolicy(Policy):
         self,
         state: LangTrajRun,
         current: Tensor,
+        exempt: Tensor,
         copies: int,
         integrate: Callable[[Tensor], Tensor],
         then: Guidance,
@@ -774,7 +795,7 @@ class LangTrajPolicy(Policy):
         """The hard constraints' hook (`guidance.projection`) after `then` over `copies` candidates of each rollout
         (`_constraints`), integrated by `integrate`."""
         assert self.hard_constraints is not None
-        agents, initial, invert = self._constraints(state, current, copies)
+        agents, initial, invert = self._constraints(state, current, exempt, copies)
         return projection_hook(
             self.hard_constraints,
             state.scene,
