@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import os
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -108,8 +108,13 @@ class Visit:
         assert self.page.evaluate("() => window.pwned") is None
 
 
-def visit(browser: Browser, site: Site, name: str) -> Visit:
-    page = browser.new_context(viewport={"width": 1280, "height": 900}).new_page()
+def visit(browser: Browser, site: Site, name: str, routes: dict[str, Callable[[Any], None]] | None = None) -> Visit:
+    """A fresh context on the site's login page; `routes` (glob -> handler) are set on the context before its first
+    request, as routes added to a live page once missed a request (CI, stop 52)."""
+    context = browser.new_context(viewport={"width": 1280, "height": 900})
+    for pattern, handler in (routes or {}).items():
+        context.route(pattern, handler)
+    page = context.new_page()
     page.set_default_timeout(10_000)
     v = Visit(page, name)
 
@@ -156,10 +161,19 @@ def test_two_annotators_disagree_reviewer_accepts_admin_exports(site: Site, brow
 def label_keyboard_only(browser: Browser, site: Site) -> None:
     """ann1 labels the window with the keyboard alone; the first submit meets a network error and the page
     retries it with the same submission id. 7 passes 17, 17 yields (the detector's suggestion, kept)."""
-    v = visit(browser, site, "ann1")
+    bodies: list[dict[str, Any]] = []
+
+    def first_attempt_fails(route: Any) -> None:
+        bodies.append(route.request.post_data_json)
+        if len(bodies) == 1:
+            route.abort("connectionreset")
+        else:
+            route.continue_()
+
+    v = visit(browser, site, "ann1", routes={"**/api/slots/*/submit": first_attempt_fails})
+    page = v.page
     v.shot("0-login")
     keyboard_login(v)
-    page = v.page
     expect(page.locator("#progress")).to_have_text("you: 0 done, overall: 0/2 slots, 0 windows accepted")
     v.press("n")
     v.heading("Step 1 of 3: which two agents interact?")
@@ -196,16 +210,6 @@ def label_keyboard_only(browser: Browser, site: Site) -> None:
     v.press("Enter")
     expect(page.get_by_role("button", name=re.compile("Submit"))).to_be_visible()
 
-    bodies: list[dict[str, Any]] = []
-
-    def first_attempt_fails(route: Any) -> None:
-        bodies.append(route.request.post_data_json)
-        if len(bodies) == 1:
-            route.abort("connectionreset")
-        else:
-            route.continue_()
-
-    page.route("**/api/slots/*/submit", first_attempt_fails)
     v.press("Enter")
     expect(page.locator("#protocol .idle")).to_contain_text("Submitted")
     v.shot("5-submitted")
