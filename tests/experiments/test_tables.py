@@ -30,6 +30,7 @@ def test_method_specs():
     assert not model.hold_parked and Method.parse("m=x.ckpt|defaults|hold_parked").hold_parked
     assert not model.rolling and Method.parse("m=x.ckpt|defaults|rolling").rolling
     assert model.project_choice and not Method.parse("m=x.ckpt|defaults|project_choice=0").project_choice
+    assert model.polish is None and Method.parse("m=x.ckpt|defaults|polish=0").polish == 0
     for bad, message in (
         ("nothing", "expected NAME=SPEC"),
         ("cv=constant_velocity|selector=first", "takes no options"),
@@ -37,6 +38,7 @@ def test_method_specs():
         ("m=x.ckpt|guidance=goal:1", "'goal' cannot be given here"),
         ("m=x.ckpt|guided_steps=two", "guided_steps must be an integer"),
         ("m=x.ckpt|temperature=cold", "temperature must be a number"),
+        ("m=x.ckpt|polish=many", "polish must be an integer"),
     ):
         with pytest.raises(InputError, match=message):
             Method.parse(bad)

@@ -14,7 +14,9 @@ from langtraj.guidance.projection import (
     HardConstraints,
     ProjectionAgents,
     braking_delay,
+    corner_reach,
     current_overlaps,
+    polish_on_road,
     project_on_road,
     project_states,
     projection_hook,
@@ -136,9 +138,49 @@ def test_the_hook_refits_only_the_paths_it_moved_through_the_unicycle_and_keeps_
     assert torch.equal(hook(actions, torch.tensor([99]), actions), actions)  # not at an early step
 
 
+def test_corner_reach_is_how_far_the_most_off_road_corner_lies_past_the_edge():
+    scene = make_scene(1, road_edges=ROAD)  # the helper's agents are 4.5 m by 2 m
+    states = torch.tensor([[[[0.0, -1.0, 0.0, 5.0], [0.0, -1.0, math.pi / 2, 5.0], [0.0, 3.0, 0.0, 5.0]]]])
+    reach = corner_reach(states, scene, torch.tensor([0]))
+    assert torch.allclose(reach[0, 0], torch.tensor([0.0, 1.25, -2.0]), atol=2e-3)  # side on the edge; nose past
+
+
+def test_the_polish_drives_a_box_the_unicycle_left_past_the_edge_back_inside_and_touches_nothing_else():
+    dynamics = Unicycle()
+    scene = make_scene(3, road_edges=ROAD)
+    initial = torch.tensor([[[0.0, 0.0, 0.0, 10.0], [0.0, 4.0, 0.0, 10.0], [0.0, 0.0, 0.0, 10.0]]])
+    actions = torch.zeros(1, 3, 8, 2)
+    actions[0, 0, :, 1] = actions[0, 2, :, 1] = -0.08  # the first and third cars turn off the road; the second not
+    rollout = lambda x: dynamics(initial, x)  # noqa: E731
+    rows = torch.tensor([0])
+    assert float(corner_reach(rollout(actions), scene, rows).max()) > 2.0
+    config = HardConstraints(polish=30)
+    polished = polish_on_road(config, scene, agents(3, road=[True, True, False]), rollout, actions)
+    assert float(corner_reach(rollout(polished), scene, rows).max()) < -config.road_margin + 0.05
+    assert torch.equal(polished[0, 1:], actions[0, 1:])  # inside already, and not kept on the road: untouched
+    assert torch.equal(polish_on_road(HardConstraints(polish=0), scene, agents(3), rollout, actions), actions)
+
+
+def test_the_polish_never_leaves_a_path_worse_than_it_found_it():
+    """A rate far too large overshoots at every step: each path keeps the best actions it reached, here its own."""
+    dynamics = Unicycle()
+    scene = make_scene(1, road_edges=ROAD)
+    initial = torch.tensor([[[0.0, -0.9, 0.0, 10.0]]])  # its side 0.1 m inside the edge, 0.1 m past the margin
+    actions = torch.zeros(1, 1, 8, 2)
+    rollout = lambda x: dynamics(initial, x)  # noqa: E731
+    rows = torch.tensor([0])
+    before = float(corner_reach(rollout(actions), scene, rows).max())
+    polished = polish_on_road(HardConstraints(polish=5, polish_rate=4.0), scene, agents(1), rollout, actions)
+    assert float(corner_reach(rollout(polished), scene, rows).max()) <= before + 1e-6
+
+
 def test_bad_settings_are_refused():
     with pytest.raises(InputError, match="steps"):
         HardConstraints(steps=0)
+    with pytest.raises(InputError, match="polish"):
+        HardConstraints(polish=-1)
+    with pytest.raises(InputError, match="polish_rate"):
+        HardConstraints(polish_rate=float("inf"))
     with pytest.raises(InputError, match="road_margin"):
         HardConstraints(road_margin=float("nan"))
 

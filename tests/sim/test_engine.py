@@ -114,17 +114,16 @@ def test_batched_rollouts_equal_sequential_ones(tiny_run):
     model, data = load_model(checkpoint)
     scenario = make_scenario(5)
     runs = []
-    # Without the choice's projection: with several threads, float32 sums round by batch size, the projection of the
-    # assembled choice then flips a decision, and the rollouts part by centimetres (measured: 2.8 cm, 2 threads; the
-    # same to the millimetre with 1). A known weakness (docs/simulation.md, 'Hard constraints').
-    unchosen = HardConstraints(on_choice=False)
-    for batch in (0, 1):
-        policy = LangTrajPolicy(model, data, candidates=3, steps=2, rollout_batch=batch, hard_constraints=unchosen)
+    for batch in (0, 1):  # the default hard constraints: projected candidates, choice and polish
+        policy = LangTrajPolicy(
+            model, data, candidates=3, steps=2, rollout_batch=batch, hard_constraints=HardConstraints()
+        )
         runs.append(simulate(scenario, policy, SimConfig(rollouts=4, replan_s=2.0, seed=5)).rollouts)
-    # Within a millimetre: the projection's float32 refit (docs/simulation.md, 'Hard constraints') rounds a little
-    # differently at another batch size, and that carries over the replans.
-    np.testing.assert_allclose(runs[0].x, runs[1].x, atol=1e-3)
-    np.testing.assert_allclose(runs[0].heading, runs[1].heading, atol=1e-3)
+    # Within a centimetre: float32 sums round a little differently at another batch size (more so with several torch
+    # threads), the projection's refit and polish carry that over the replans (measured: 1.7 mm with 2 threads);
+    # docs/simulation.md, 'Hard constraints'. Rollouts of one another differ by metres.
+    np.testing.assert_allclose(runs[0].x, runs[1].x, atol=1e-2)
+    np.testing.assert_allclose(runs[0].heading, runs[1].heading, atol=1e-2)
     assert not np.allclose(runs[0].x[0], runs[0].x[1])  # rollouts differ from one another
 
 

@@ -17,6 +17,7 @@ only), `|warm_steps=N` (replans warm-started from the executed plan, `sim.polici
 denoised once per replan: a rolling checkpoint, `model.rolling`), `|project=N` (hard constraints at the
 last N denoising steps: on the road and apart, `guidance.projection`; 0: off), `|project_choice=0` (the plan
 assembled agent by agent by `per_agent` selection is not projected again, `HardConstraints.on_choice`),
+`|polish=N` (N descent steps polishing projected plans onto the road, `HardConstraints.polish`; 0: none),
 `|defaults` and `|dense`.
 A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says otherwise;
 `|defaults` adds `langtraj simulate`'s default guidance and selection (on-road guidance, no-collision
@@ -87,6 +88,7 @@ class Method:
     rolling: bool = False  # one rolling plan per agent, one network call per replan (a rolling checkpoint)
     project: int | None = None  # hard constraints at the last N denoising steps (0: off); None: the row's setting
     project_choice: bool = True  # with hard constraints, the executed plan assembled per agent is projected again
+    polish: int | None = None  # with hard constraints, descent steps polishing plans onto the road (None: the default)
 
     def __post_init__(self) -> None:
         if (self.baseline is None) == (self.checkpoint is None):
@@ -96,7 +98,7 @@ class Method:
                 known = ", ".join(BASELINE_POLICIES + ROLLOUT_BASELINES)
                 raise InputError(f"unknown baseline {self.baseline!r}; known: {known}", where="--method")
             options = (self.selector, self.guidance, self.defaults, self.dense, self.guided_steps, self.warm_steps,
-                       self.refresh_map, self.project, self.hold_parked, self.rolling)  # fmt: skip
+                       self.refresh_map, self.project, self.hold_parked, self.rolling, self.polish)  # fmt: skip
             if any(o not in (None, (), False) for o in options) or self.temperature != 1.0 or not self.project_choice:
                 raise InputError(f"baseline {self.baseline} takes no options", where="--method")
         scene_wide_terms(self.guidance)  # checked now, before anything runs
@@ -114,11 +116,12 @@ class Method:
         flags = {"defaults", "dense", "refresh_map", "hold_parked", "rolling"}
         for option in (o for o in options if o not in flags):
             key, eq, value = option.partition("=")
-            known = ("selector", "guidance", "guided_steps", "warm_steps", "temperature", "project", "project_choice")
+            known = ("selector", "guidance", "guided_steps", "warm_steps", "temperature", "project", "project_choice",
+                     "polish")  # fmt: skip
             if not eq or key not in known:
                 raise InputError(
                     "expected selector=NAME, guidance=COST:WEIGHT, guided_steps=N, warm_steps=N, temperature=T, "
-                    "project=N, project_choice=0|1, defaults, dense, refresh_map, hold_parked or rolling, "
+                    "project=N, project_choice=0|1, polish=N, defaults, dense, refresh_map, hold_parked or rolling, "
                     f"got {option!r}",
                     where="--method",
                 )
@@ -138,6 +141,7 @@ class Method:
             temperature=_float_option(settings, "temperature", 1.0),
             project=_int_option(settings, "project"),
             project_choice=_int_option(settings, "project_choice") != 0,
+            polish=_int_option(settings, "polish"),
         )
 
     def load(self) -> LoadedModel | None:
@@ -183,8 +187,10 @@ class Method:
             if self.project is not None:
                 paper["hard_constraints"] = HardConstraints(steps=self.project) if self.project else None
             constraints = paper.get("hard_constraints", DEFAULT_HARD_CONSTRAINTS)
-            if not self.project_choice and constraints is not None:
-                paper["hard_constraints"] = replace(constraints, on_choice=False)
+            if constraints is not None and (not self.project_choice or self.polish is not None):
+                on_choice = self.project_choice and constraints.on_choice
+                polish = constraints.polish if self.polish is None else self.polish
+                paper["hard_constraints"] = replace(constraints, on_choice=on_choice, polish=polish)
             policy = LangTrajPolicy(
                 model,
                 data,
