@@ -155,10 +155,10 @@ def test_the_polish_drives_a_box_the_unicycle_left_past_the_edge_back_inside_and
     rows = torch.tensor([0])
     assert float(corner_reach(rollout(actions), scene, rows).max()) > 2.0
     config = HardConstraints(polish=30)
-    polished = polish_on_road(config, scene, agents(3, road=[True, True, False]), rollout, actions)
+    polished = polish_on_road(config, scene, agents(3, road=[True, True, False]), initial, rollout, actions)
     assert float(corner_reach(rollout(polished), scene, rows).max()) < -config.road_margin + 0.05
     assert torch.equal(polished[0, 1:], actions[0, 1:])  # inside already, and not kept on the road: untouched
-    assert torch.equal(polish_on_road(HardConstraints(polish=0), scene, agents(3), rollout, actions), actions)
+    assert torch.equal(polish_on_road(HardConstraints(polish=0), scene, agents(3), initial, rollout, actions), actions)
 
 
 def test_the_polish_never_leaves_a_path_worse_than_it_found_it():
@@ -170,8 +170,27 @@ def test_the_polish_never_leaves_a_path_worse_than_it_found_it():
     rollout = lambda x: dynamics(initial, x)  # noqa: E731
     rows = torch.tensor([0])
     before = float(corner_reach(rollout(actions), scene, rows).max())
-    polished = polish_on_road(HardConstraints(polish=5, polish_rate=4.0), scene, agents(1), rollout, actions)
+    polished = polish_on_road(HardConstraints(polish=5, polish_rate=4.0), scene, agents(1), initial, rollout, actions)
     assert float(corner_reach(rollout(polished), scene, rows).max()) <= before + 1e-6
+
+
+def test_a_car_over_the_kerb_is_not_driven_off_it_but_kept_from_going_farther_and_a_standing_one_is_left():
+    dynamics = Unicycle()
+    scene = make_scene(1, road_edges=ROAD)
+    initial = torch.tensor([[[0.0, -1.5, 0.0, 2.0]]])  # its side 0.5 m past the edge, rolling along it
+    rollout = lambda x: dynamics(initial, x)  # noqa: E731
+    along = torch.zeros(1, 1, 8, 2)
+    assert torch.equal(polish_on_road(HardConstraints(), scene, agents(1), initial, rollout, along), along)
+    turning_off = torch.zeros(1, 1, 8, 2)
+    turning_off[0, 0, :, 0], turning_off[0, 0, :, 1] = 0.25, -0.1  # faster, turning further off the road
+    reach = float(corner_reach(rollout(turning_off), scene, torch.tensor([0])).max())
+    polished = polish_on_road(HardConstraints(polish=30), scene, agents(1), initial, rollout, turning_off)
+    after = float(corner_reach(rollout(polished), scene, torch.tensor([0])).max())
+    assert reach > 3.0 and after < 0.5 + 0.3  # brought back near where it was (its line)
+    standing = initial.clone()
+    standing[..., 3] = 0.0  # a standing car's plan is left as it is (it would be set driving)
+    stand = lambda x: dynamics(standing, x)  # noqa: E731
+    assert torch.equal(polish_on_road(HardConstraints(), scene, agents(1), standing, stand, turning_off), turning_off)
 
 
 def test_bad_settings_are_refused():

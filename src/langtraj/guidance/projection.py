@@ -56,6 +56,9 @@ _AHEAD = 0.5  # cos 60 degrees: another agent whose centre lies within 60 degree
 # line gives a gradient below it and a step in proportion, not a full step of the rate (which, from gradients of
 # float noise, parted batched and one-by-one rollouts by 0.6 m).
 _POLISH_EPS = 1e-2
+# Metres per second below which an agent is standing and its plan is not polished: Adam's steps on its acceleration
+# set cars parked over the kerb driving (nuScenes windows of standing cars lost 0.1 of their meta to that).
+_POLISH_MIN_SPEED = 0.5
 
 
 @dataclass(frozen=True)
@@ -331,12 +334,14 @@ def projection_hook(
     num_steps: int,
     sampler_steps: int,
     then: Guidance | None = None,
+    drive: Callable[[Tensor, Tensor], Tensor] | None = None,
 ) -> Guidance:
     """The sampler hook (x0 [S, A, N, 2], k, x_k) -> x0 that runs `then` (guidance; None: none) and, at the last
     `config.steps` of the `sampler_steps` denoising steps, projects the plans from `initial` [S, A, 4]:
     `rollout` maps network-unit actions to states [S, A, T, 4], `invert` maps states [K, T, 3] of the (row, agent)
     paths a mask (bool [S, A]) picks back to their network-unit actions [K, N, 2]; only the paths the projection
-    moved are refitted (the refit is the projection's costliest part), the others keep their actions exactly."""
+    moved are refitted (the refit is the projection's costliest part), the others keep their actions exactly;
+    `drive`, the polish's integrator of picked paths (`polish_on_road`)."""
     when = FinalSteps(min(config.steps, sampler_steps), sampler_steps)
     here = scene
 
@@ -347,7 +352,7 @@ def projection_hook(
         steps = torch.as_tensor(k, dtype=torch.long, device=x0.device).reshape(-1).expand(rows)
         if not bool(when(steps, num_steps).any()):
             return x0
-        return project_plans(config, here, agents, initial, rollout, invert, x0)
+        return project_plans(config, here, agents, initial, rollout, invert, x0, drive)
 
     return hook
 
@@ -360,11 +365,12 @@ def project_plans(
     rollout: Callable[[Tensor], Tensor],
     invert: Callable[[Tensor, Tensor], Tensor],
     x0: Tensor,
+    drive: Callable[[Tensor, Tensor], Tensor] | None = None,
 ) -> Tensor:
     """Network-unit actions x0 [S, A, N, 2] planned from `initial` [S, A, 4], projected (`project_states`),
     refitted `config.rounds` times (`rollout` and `invert` as `projection_hook` takes them) and polished
-    (`polish_on_road`); a path the projection does not move and whose box stays inside its line keeps its actions
-    exactly."""
+    (`polish_on_road`, `drive` as it takes it); a path the projection does not move and whose box stays inside its
+    line keeps its actions exactly."""
     scene = scene.to(x0.device)
     with torch.no_grad():
         for _ in range(config.rounds):
@@ -374,15 +380,20 @@ def project_plans(
                 break
             x0 = x0.clone()
             x0[moved] = invert(projected[moved], moved).to(x0)
-    return polish_on_road(config, scene, agents, rollout, x0)
+    return polish_on_road(config, scene, agents, initial, rollout, x0, drive)
 
 
 def corner_reach(states: Tensor, scene: GuidanceScene, rows: Tensor) -> Tensor:
     """[S, len(rows), T]: how far (m, positive off the road) the most off-road corner of the box of each agent in
     `rows` lies past the road edge along `states` [S, A, T, >= 3], as the off-road metric judges a box."""
-    xy, heading = states[:, rows, :, :2], states[:, rows, :, 2]
-    size = scene.agent_size.to(xy)[rows]
-    half_length, half_width = size[None, :, None, 0] / 2, size[None, :, None, 1] / 2
+    size = scene.agent_size.to(states)[rows][None, :, None]
+    return box_reach(states[:, rows, :, :2], states[:, rows, :, 2], size, scene)
+
+
+def box_reach(xy: Tensor, heading: Tensor, size: Tensor, scene: GuidanceScene) -> Tensor:
+    """[...]: how far (m, positive off the road) the most off-road corner of a box of `size` (length, width; [..., 2],
+    broadcasting) centred at xy [..., 2] with `heading` [...] lies past the road edge of `scene`."""
+    half_length, half_width = size[..., 0] / 2, size[..., 1] / 2
     cos, sin = torch.cos(heading), torch.sin(heading)
     reach = None
     for along, across in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
@@ -398,49 +409,67 @@ def polish_on_road(
     config: HardConstraints,
     scene: GuidanceScene,
     agents: ProjectionAgents,
+    initial: Tensor,
     rollout: Callable[[Tensor], Tensor],
     x0: Tensor,
+    drive: Callable[[Tensor, Tensor], Tensor] | None = None,
 ) -> Tensor:
-    """Network-unit actions x0 [S, A, N, 2] after `config.polish` Adam steps (rate `polish_rate`) on the (row, agent)
-    paths of movable road agents whose box reaches past the line `margin` inside the road edge anywhere (the others
-    keep x0 exactly). Each path's loss is the squared reach past that line, summed over steps, plus `polish_anchor`
-    times the squared change of its actions; each path ends at the lowest-loss actions it reached, so none ends worse
-    than it began. Adam steps every action of a path by about the rate, whatever its gradient's size: it slows a car
-    as readily as it steers it, and braking is what keeps roundabout plans on the ring (validation maps: steering
-    alone left 0.41 of roundabout vehicles off the road, normalized gradient steps 0.32, Adam 0.15; 0.41 without the
-    polish); docs/experiments.md, 'Polished onto the road'."""
+    """Network-unit actions x0 [S, A, N, 2] planned from `initial` [S, A, 4] after `config.polish` Adam steps (rate
+    `polish_rate`) on the (row, agent) paths of movable road agents moving at `_POLISH_MIN_SPEED` or more whose box
+    reaches past its line anywhere (the others keep x0 exactly). A box's line lies `margin` inside the road edge, or
+    where the box reaches at the start if that is farther out: a car over the kerb may stay there, not be driven off
+    it. Each path's loss is the squared reach past its line, summed over steps, plus `polish_anchor` times the
+    squared change of its actions; each path ends at the lowest-loss actions it reached, so none ends worse than it
+    began. Adam steps every action of a path by about the rate, whatever its gradient's size: it slows a car as
+    readily as it steers it, and braking is what keeps roundabout plans on the ring (validation maps: steering alone
+    left 0.41 of roundabout vehicles off the road, normalized gradient steps 0.32, Adam 0.15; 0.41 without the
+    polish); docs/experiments.md, 'Polished onto the road'. `drive` maps actions [K, N, 2] of the K paths a mask
+    (bool [S, A]) picks to their states [K, T, 4] (they are movable: no pinned or held agent among them), so that
+    only those are integrated; None: through `rollout`, every path each step."""
     rows = (agents.road & agents.movable).nonzero()[:, 0]
     if config.polish == 0 or len(rows) == 0 or scene.road_edges.shape[0] == 0:
         return x0
-    inside = config.road_margin if agents.margin is None else agents.margin.to(x0)[rows][None, :, None]
-    anchor = x0.detach()
-
-    def loss_of(actions: Tensor) -> tuple[Tensor, Tensor]:
-        """Each path's loss [S, A] and whether its box reaches past the line [S, A]."""
-        reach = corner_reach(rollout(actions), scene, rows) + inside  # [S, rows, T]
-        loss = config.polish_anchor * (actions - anchor).pow(2).sum((-2, -1))
-        past = torch.zeros(loss.shape, dtype=torch.bool, device=loss.device)
-        past[:, rows] = (reach > 0).any(-1).detach()
-        return loss.index_add(1, rows, reach.clamp(min=0).pow(2).sum(-1)), past
-
+    margin = torch.full((x0.shape[1],), config.road_margin) if agents.margin is None else agents.margin.cpu()
     with torch.no_grad():
-        best_loss, polished = loss_of(anchor)
+        start = corner_reach(initial[:, :, None], scene, rows)[..., 0]  # [S, rows]: the box's reach at the start
+        line = torch.zeros(x0.shape[:2], dtype=x0.dtype, device=x0.device)  # [S, A]: how far inside the edge
+        line[:, rows] = torch.minimum(margin.to(x0)[rows][None], -start)
+        reach = corner_reach(rollout(x0), scene, rows) + line[:, rows, None]
+    polished = torch.zeros(x0.shape[:2], dtype=torch.bool, device=x0.device)
+    polished[:, rows] = (reach > 0).any(-1) & (initial[:, rows, 3] >= _POLISH_MIN_SPEED)
     if not bool(polished.any()):
         return x0
+    if drive is None:
+
+        def drive(paths: Tensor, mask: Tensor) -> Tensor:
+            return rollout(x0.detach().masked_scatter(mask[..., None, None].expand_as(x0), paths))[mask]
+
+    slot = polished.nonzero()[:, 1]
+    size, inside = scene.agent_size.to(x0)[slot][:, None], line[polished][:, None]
+    anchor = x0.detach()[polished]  # [K, N, 2]
+
+    def loss_of(actions: Tensor) -> Tensor:
+        """Each path's loss [K]."""
+        states = drive(actions, polished)
+        past = (box_reach(states[..., :2], states[..., 2], size, scene) + inside).clamp(min=0)
+        return past.pow(2).sum(-1) + config.polish_anchor * (actions - anchor).pow(2).sum((-2, -1))
+
+    with torch.no_grad():
+        best_loss = loss_of(anchor)
     best = anchor
     actions = anchor.clone().requires_grad_(True)
     optimizer = torch.optim.Adam([actions], lr=config.polish_rate, eps=_POLISH_EPS)
     with torch.enable_grad():
         for _ in range(config.polish):
-            loss, _ = loss_of(actions)
-            lower = polished & (loss.detach() < best_loss)
-            best = torch.where(lower[..., None, None], actions.detach(), best)
+            loss = loss_of(actions)
+            lower = loss.detach() < best_loss
+            best = torch.where(lower[:, None, None], actions.detach(), best)
             best_loss = torch.where(lower, loss.detach(), best_loss)
-            (gradient,) = torch.autograd.grad(loss.sum(), actions)
-            actions.grad = torch.where(polished[..., None, None], gradient, torch.zeros_like(gradient))
+            (actions.grad,) = torch.autograd.grad(loss.sum(), actions)
             optimizer.step()
     with torch.no_grad():
         last = actions.detach().clamp(-4.0, 4.0)
-        loss, _ = loss_of(last)
-    lower = polished & (loss < best_loss)
-    return torch.where(lower[..., None, None], last, best)
+        best = torch.where((loss_of(last) < best_loss)[:, None, None], last, best)
+    out = x0.clone()
+    out[polished] = best.to(x0)
+    return out

@@ -658,7 +658,7 @@ class LangTrajPolicy(Policy):
             hook = with_prompt_guidance(hook, state.clearance, clear, iterations=CLEARANCE_ITERATIONS)
         exempt = None if self.hard_constraints is None else self._exempt(state, batch.current_state)  # once a replan
         if exempt is not None:
-            hook = self._projection(state, batch.current_state, exempt, m, integrate, then=hook)
+            hook = self._projection(state, batch, exempt, m, integrate, then=hook)
         start = self._warm_start(state, step, rollouts)
         common = {
             "guidance_weight": self.guidance_weight,
@@ -738,9 +738,9 @@ class LangTrajPolicy(Policy):
             plans = [given] if as_given or exempt is None else []
             if exempt is not None:
                 assert self.hard_constraints is not None
-                agents, initial, invert = self._constraints(state, batch.current_state, exempt, 1, fixed)
+                agents, initial, invert, drive = self._constraints(state, batch, exempt, 1, fixed)
                 config, scene = self.hard_constraints, state.scene
-                plans.insert(0, project_plans(config, scene, agents, initial, integrate, invert, given))
+                plans.insert(0, project_plans(config, scene, agents, initial, integrate, invert, given, drive))
             return torch.stack([integrate(x) for x in plans]), torch.stack([self.model.from_units(x) for x in plans])
 
         return realise
@@ -755,13 +755,14 @@ class LangTrajPolicy(Policy):
         return exempt
 
     def _constraints(
-        self, state: LangTrajRun, current: Tensor, exempt: Tensor, copies: int, fixed: Sequence[int] = ()
-    ) -> tuple[ProjectionAgents, Tensor, Callable[[Tensor, Tensor], Tensor]]:
-        """What the hard constraints need over `copies` candidates of each rollout (sample-major rows), `current`
-        [R, A, 4] being each rollout's current state: the agents they move and how, the initial states, and the
-        refit (states [K, T, 3] of the rows a mask picks to network-unit actions). The `exempt` pairs (`_exempt`)
-        are never pushed apart; external and held agents and the `fixed` slots never move (nor are the fixed kept
-        on the road); a pull-over's box may reach the road edge itself."""
+        self, state: LangTrajRun, batch: SceneBatch, exempt: Tensor, copies: int, fixed: Sequence[int] = ()
+    ) -> tuple[ProjectionAgents, Tensor, Callable[[Tensor, Tensor], Tensor], Callable[[Tensor, Tensor], Tensor]]:
+        """What the hard constraints need over `copies` candidates of each of the batch's rollouts (sample-major
+        rows): the agents they move and how, the initial states, the refit (states [K, T, 3] of the rows a mask picks
+        to network-unit actions) and the polish's integrator (network-unit actions [K, N, 2] of the rows a mask picks
+        to their states, movable agents only). The `exempt` pairs (`_exempt`) are never pushed apart; external and
+        held agents and the `fixed` slots never move (nor are the fixed kept on the road); a pull-over's box may reach
+        the road edge itself."""
         config = self.hard_constraints
         assert config is not None and state.kept_on_road is not None
         movable = torch.ones_like(state.kept_on_road)
@@ -773,7 +774,8 @@ class LangTrajPolicy(Policy):
             margin = torch.full(movable.shape, config.road_margin, device=movable.device)
             margin[list(state.prompt.steering.kerb_slots)] = 0.0
         agents = ProjectionAgents(road=road, movable=movable, exempt=exempt.repeat(copies, 1, 1), margin=margin)
-        initial = current.repeat(copies, 1, 1)
+        initial = batch.current_state.repeat(copies, 1, 1)
+        types, lengths = batch.agent_type.repeat(copies, 1), batch.agent_size[..., 0].repeat(copies, 1)
         model = self.model
         every = torch.ones(initial.shape[:2] + (model.horizon_steps,), dtype=torch.bool, device=initial.device)
 
@@ -781,12 +783,15 @@ class LangTrajPolicy(Policy):
             actions, _ = model.dynamics.inverse(initial[rows], states, every[rows])
             return model.to_units(actions).clamp(-4.0, 4.0)
 
-        return agents, initial, invert
+        def drive(actions: Tensor, rows: Tensor) -> Tensor:
+            return model.integrate(initial[rows], types[rows], lengths[rows], actions)
+
+        return agents, initial, invert, drive
 
     def _projection(
         self,
         state: LangTrajRun,
-        current: Tensor,
+        batch: SceneBatch,
         exempt: Tensor,
         copies: int,
         integrate: Callable[[Tensor], Tensor],
@@ -795,7 +800,7 @@ class LangTrajPolicy(Policy):
         """The hard constraints' hook (`guidance.projection`) after `then` over `copies` candidates of each rollout
         (`_constraints`), integrated by `integrate`."""
         assert self.hard_constraints is not None
-        agents, initial, invert = self._constraints(state, current, exempt, copies)
+        agents, initial, invert, drive = self._constraints(state, batch, exempt, copies)
         return projection_hook(
             self.hard_constraints,
             state.scene,
@@ -806,6 +811,7 @@ class LangTrajPolicy(Policy):
             num_steps=self.model.schedule.num_steps,
             sampler_steps=self.steps,
             then=then,
+            drive=drive,
         )
 
     def _roll(
