@@ -104,12 +104,14 @@ class ProjectionAgents:
     road, `movable` (bool [A]) may be moved at all (False: an external agent, whose states are given), and
     `exempt` (bool [S, A, A] or [A, A], symmetric) pairs are never pushed apart, per sample row or in all.
     `margin` (float [A], m) is how far inside the road edge each agent's box is kept (None: the config's
-    `road_margin` for all; a prompted pull-over is asked to the kerb, nearer than that)."""
+    `road_margin` for all; a prompted pull-over is asked to the kerb, nearer than that). `polish` (bool [A]) are the
+    agents whose plans `polish_on_road` may move (None: every movable road agent; a prompted one is left out)."""
 
     road: Tensor
     movable: Tensor
     exempt: Tensor
     margin: Tensor | None = None
+    polish: Tensor | None = None
 
 
 def project_on_road(
@@ -415,7 +417,8 @@ def polish_on_road(
     drive: Callable[[Tensor, Tensor], Tensor] | None = None,
 ) -> Tensor:
     """Network-unit actions x0 [S, A, N, 2] planned from `initial` [S, A, 4] after `config.polish` Adam steps (rate
-    `polish_rate`) on the (row, agent) paths of movable road agents moving at `_POLISH_MIN_SPEED` or more whose box
+    `polish_rate`) on the (row, agent) paths of movable road agents (`agents.polish` of them, when given) moving at
+    `_POLISH_MIN_SPEED` or more whose box
     reaches past its line anywhere (the others keep x0 exactly). A box's line lies `margin` inside the road edge, or
     where the box reaches at the start if that is farther out: a car over the kerb may stay there, not be driven off
     it. Each path's loss is the squared reach past its line, summed over steps, plus `polish_anchor` times the
@@ -426,7 +429,8 @@ def polish_on_road(
     polish); docs/experiments.md, 'Polished onto the road'. `drive` maps actions [K, N, 2] of the K paths a mask
     (bool [S, A]) picks to their states [K, T, 4] (they are movable: no pinned or held agent among them), so that
     only those are integrated; None: through `rollout`, every path each step."""
-    rows = (agents.road & agents.movable).nonzero()[:, 0]
+    rows = agents.road & agents.movable
+    rows = (rows if agents.polish is None else rows & agents.polish.to(rows.device)).nonzero()[:, 0]
     if config.polish == 0 or len(rows) == 0 or scene.road_edges.shape[0] == 0:
         return x0
     margin = torch.full((x0.shape[1],), config.road_margin) if agents.margin is None else agents.margin.cpu()

@@ -773,7 +773,12 @@ class LangTrajPolicy(Policy):
         if state.prompt.steering.kerb_slots:  # a pull-over is asked to the kerb: its box may touch the edge
             margin = torch.full(movable.shape, config.road_margin, device=movable.device)
             margin[list(state.prompt.steering.kerb_slots)] = 0.0
-        agents = ProjectionAgents(road=road, movable=movable, exempt=exempt.repeat(copies, 1, 1), margin=margin)
+        polish = None
+        if state.prompt.steering.prompted_slots:  # a prompt's own manoeuvre (a turn, a pull-over) is not polished away
+            polish = torch.ones_like(movable)
+            polish[list(state.prompt.steering.prompted_slots)] = False
+        exempt = exempt.repeat(copies, 1, 1)
+        agents = ProjectionAgents(road=road, movable=movable, exempt=exempt, margin=margin, polish=polish)
         initial = batch.current_state.repeat(copies, 1, 1)
         types, lengths = batch.agent_type.repeat(copies, 1), batch.agent_size[..., 0].repeat(copies, 1)
         model = self.model

@@ -121,6 +121,13 @@ class PromptSteering:
         constraints keep every other vehicle's (`KERB_MIN_CLEARANCE` against `HardConstraints.road_margin`)."""
         return tuple(s.slot for s in self.steerings if s.target.behaviour is Behaviour.PULL_OVER)
 
+    @property
+    def prompted_slots(self) -> tuple[int, ...]:
+        """Slots a prompt steers or judges (with a pair behaviour's other agent): their manoeuvre is the prompt's, which
+        the hard constraints' polish leaves as the projection made it (`HardConstraints.polish`)."""
+        slots = {s.slot for s in self.steerings} | {a.slot for a in self.asks} | {a.other_slot for a in self.asks}
+        return tuple(sorted(slot for slot in slots if slot is not None))
+
     def to_json(self) -> dict[str, Any]:
         return {
             "read": [r.to_json() for r in self.readings],
