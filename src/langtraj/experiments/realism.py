@@ -187,9 +187,9 @@ class Method:
             if self.project is not None:
                 paper["hard_constraints"] = HardConstraints(steps=self.project) if self.project else None
             constraints = paper.get("hard_constraints", DEFAULT_HARD_CONSTRAINTS)
-            if constraints is not None and (not self.project_choice or self.polish is not None):
-                on_choice = self.project_choice and constraints.on_choice
+            if constraints is not None:
                 polish = constraints.polish if self.polish is None else self.polish
+                on_choice = self.project_choice and constraints.on_choice
                 paper["hard_constraints"] = replace(constraints, on_choice=on_choice, polish=polish)
             policy = LangTrajPolicy(
                 model,

@@ -418,22 +418,21 @@ def polish_on_road(
 ) -> Tensor:
     """Network-unit actions x0 [S, A, N, 2] planned from `initial` [S, A, 4] after `config.polish` Adam steps (rate
     `polish_rate`) on the (row, agent) paths of movable road agents (`agents.polish` of them, when given) moving at
-    `_POLISH_MIN_SPEED` or more whose box
-    reaches past its line anywhere (the others keep x0 exactly). A box's line lies `margin` inside the road edge, or
-    where the box reaches at the start if that is farther out: a car over the kerb may stay there, not be driven off
-    it. Each path's loss is the squared reach past its line, summed over steps, plus `polish_anchor` times the
-    squared change of its actions; each path ends at the lowest-loss actions it reached, so none ends worse than it
-    began. Adam steps every action of a path by about the rate, whatever its gradient's size: it slows a car as
-    readily as it steers it, and braking is what keeps roundabout plans on the ring (validation maps: steering alone
-    left 0.41 of roundabout vehicles off the road, normalized gradient steps 0.32, Adam 0.15; 0.41 without the
-    polish); docs/experiments.md, 'Polished onto the road'. `drive` maps actions [K, N, 2] of the K paths a mask
-    (bool [S, A]) picks to their states [K, T, 4] (they are movable: no pinned or held agent among them), so that
-    only those are integrated; None: through `rollout`, every path each step."""
+    `_POLISH_MIN_SPEED` or more whose box reaches past its line anywhere (the others keep x0 exactly). A box's line
+    lies `margin` inside the road edge, or where the box reaches at the start if that is farther out: a car over the
+    kerb may stay there, not be driven off it. Each path's loss is the squared reach past its line, summed over
+    steps, plus `polish_anchor` times the squared change of its actions; each path ends at the lowest-loss actions it
+    reached, so none ends worse than it began. Adam steps every action of a path by about the rate, whatever its
+    gradient's size: it slows a car as readily as it steers it, and braking is what keeps roundabout plans on the
+    ring (validation maps: steering alone left 0.41 of roundabout vehicles off the road, normalized gradient steps
+    0.32, Adam 0.15; 0.41 without the polish); docs/experiments.md, 'Polished onto the road'. `drive` maps actions
+    [K, N, 2] of the K paths a mask (bool [S, A]) picks to their states [K, T, 4] (they are movable: no pinned or
+    held agent among them), so that only those are integrated; None: through `rollout`, every path each step."""
     rows = agents.road & agents.movable
     rows = (rows if agents.polish is None else rows & agents.polish.to(rows.device)).nonzero()[:, 0]
     if config.polish == 0 or len(rows) == 0 or scene.road_edges.shape[0] == 0:
         return x0
-    margin = torch.full((x0.shape[1],), config.road_margin) if agents.margin is None else agents.margin.cpu()
+    margin = torch.full(x0.shape[1:2], config.road_margin) if agents.margin is None else agents.margin
     with torch.no_grad():
         start = corner_reach(initial[:, :, None], scene, rows)[..., 0]  # [S, rows]: the box's reach at the start
         line = torch.zeros(x0.shape[:2], dtype=x0.dtype, device=x0.device)  # [S, A]: how far inside the edge
@@ -458,10 +457,8 @@ def polish_on_road(
         past = (box_reach(states[..., :2], states[..., 2], size, scene) + inside).clamp(min=0)
         return past.pow(2).sum(-1) + config.polish_anchor * (actions - anchor).pow(2).sum((-2, -1))
 
-    with torch.no_grad():
-        best_loss = loss_of(anchor)
-    best = anchor
-    actions = anchor.clone().requires_grad_(True)
+    best, best_loss = anchor, torch.full(anchor.shape[:1], math.inf, dtype=x0.dtype, device=x0.device)
+    actions = anchor.clone().requires_grad_(True)  # the first step's loss is the anchor's own
     optimizer = torch.optim.Adam([actions], lr=config.polish_rate, eps=_POLISH_EPS)
     with torch.enable_grad():
         for _ in range(config.polish):
