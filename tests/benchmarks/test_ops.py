@@ -38,6 +38,8 @@ def test_train_ops_counts_a_tiny_step_by_part_without_the_target_fit():
     assert lines[0].startswith("tiny: batch 2, cpu, precision 32-true, compile off")
 
 
+# Slow (2 min: a whole simulation under the profiler); `pytest -m slow`.
+@pytest.mark.slow
 @pytest.mark.skipif(not SCENE.is_file(), reason=f"needs the real scene {SCENE.name} in ../shared/data/real")
 def test_sample_ops_counts_the_denoising_and_guidance_steps_of_a_simulation():
     lines = _run("sample_ops.py", "--agents", "16", "--rollouts", "1", "--top", "3")

@@ -105,6 +105,8 @@ def load_recipe_text(folder: Path, data: dict):
     return load_recipe(folder / "r.yaml")
 
 
+# Slow (1 min); `pytest -m slow`. A killed `train` resuming is tests/cli/test_train_and_sample.py's.
+@pytest.mark.slow
 def test_a_killed_recipe_resumes_its_stage_from_the_last_checkpoint(recipe_file, tmp_path):
     """SIGKILL in the middle of stage 1, then the same command: it goes on from the checkpoint it had."""
     data = yaml.safe_load(recipe_file.read_text())

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from scenario_builders import make_scenario
 
 from cli.helpers import assert_one_line_error, run_cli
@@ -22,6 +23,8 @@ def test_render_png_and_video_of_a_window(tmp_path: Path, capsys) -> None:
     assert "91 frames of toy_w91" in out
 
 
+# Slow (1 min, every real file); `pytest -m slow`. tests/viz/test_video.py renders one real scene by default.
+@pytest.mark.slow
 def test_every_real_file_renders_to_mp4(real_files: list[Path], tmp_path: Path, capsys) -> None:
     import imageio_ffmpeg
 

@@ -6,6 +6,7 @@ import json
 from types import SimpleNamespace
 
 import imageio.v3 as iio
+import pytest
 
 from langtraj.cli.main import main
 from langtraj.experiments import demo
@@ -16,6 +17,8 @@ from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.scenario.io import read_scenario
 
 
+# Slow (1 min); `pytest -m slow`. CI runs `langtraj demo` itself (.ci/run) and checks what it writes.
+@pytest.mark.slow
 def test_demo_writes_three_panels_and_a_summary(tiny_run, tmp_path, capsys):
     checkpoint, _ = tiny_run
     out = tmp_path / "demo"

@@ -76,7 +76,10 @@ def _complete(folder: Path) -> None:
     json.loads((folder / "job.json").read_text())
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL], ids=["ctrl-c", "kill"])
+# The kill is slow-marked (1 min; `pytest -m slow`): ctrl-c runs the same job and checks the same files by default.
+@pytest.mark.parametrize(
+    "sig", [signal.SIGINT, pytest.param(signal.SIGKILL, marks=pytest.mark.slow)], ids=["ctrl-c", "kill"]
+)
 def test_a_server_stopped_mid_job_leaves_whole_files_and_an_interrupted_job(real_data_dir, tmp_path, sig):
     if os.name != "posix":
         pytest.skip("POSIX signals")

@@ -56,6 +56,8 @@ def _train(config: Path, labels: Path, out: Path, *extra: str) -> subprocess.Com
     )
 
 
+# Slow (1.5 min: two training processes); `pytest -m slow`. The one-process resume is in the default run.
+@pytest.mark.slow
 def test_two_processes_train_and_resume_exactly(tmp_path):
     labels = write_dataset(tmp_path, 12)
     config = tmp_path / "ddp.yaml"
