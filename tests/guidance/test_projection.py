@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 import torch
@@ -159,6 +160,25 @@ def test_the_polish_drives_a_box_the_unicycle_left_past_the_edge_back_inside_and
     assert float(corner_reach(rollout(polished), scene, rows).max()) < -config.road_margin + 0.05
     assert torch.equal(polished[0, 1:], actions[0, 1:])  # inside already, and not kept on the road: untouched
     assert torch.equal(polish_on_road(HardConstraints(polish=0), scene, agents(3), initial, rollout, actions), actions)
+
+
+def test_a_steer_only_path_is_steered_back_inside_at_the_speeds_it_planned():
+    """A prompted agent's polish moves its yaw rate only: its accelerations (a prompt's "slows down", a turn's
+    braking) are kept exactly, while a free agent on the same path may brake as well."""
+    dynamics = Unicycle()
+    scene = make_scene(2, road_edges=ROAD)
+    initial = torch.tensor([[[0.0, 0.0, 0.0, 10.0], [0.0, 0.0, 0.0, 10.0]]])
+    actions = torch.zeros(1, 2, 8, 2)
+    actions[0, :, :, 0], actions[0, :, :, 1] = 0.5, -0.08  # both speed up while turning off the road
+    rollout = lambda x: dynamics(initial, x)  # noqa: E731
+    config = HardConstraints(polish=30)
+    steered = replace(agents(2), steer_only=torch.tensor([True, False]))
+    polished = polish_on_road(config, scene, steered, initial, rollout, actions)
+    assert torch.equal(polished[0, 0, :, 0], actions[0, 0, :, 0])  # its accelerations untouched
+    assert not torch.equal(polished[0, 1, :, 0], actions[0, 1, :, 0])  # the free one's not
+    rows = torch.tensor([0])
+    assert float(corner_reach(rollout(actions), scene, rows).max()) > 2.0
+    assert float(corner_reach(rollout(polished), scene, rows).max()) < 0.0  # steered back inside the edge
 
 
 def test_the_polish_never_leaves_a_path_worse_than_it_found_it():

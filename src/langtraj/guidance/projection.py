@@ -69,7 +69,9 @@ class HardConstraints:
     `on_choice`, the plan a simulation executes is projected once more after selection: a selector that assembles
     each agent from a different candidate (`per_agent`) undoes the guarantee each candidate had. `polish` Adam
     steps of rate `polish_rate` (network units) then move the actions of paths whose box still reaches past the line,
-    anchored to the refit's by `polish_anchor` (`polish_on_road`; `polish=0` turns it off)."""
+    anchored to the refit's by `polish_anchor` (`polish_on_road`; `polish=0` turns it off). With `steer_prompted`,
+    a prompted agent's plans are polished too, on their yaw rate only: braking a clipped corner away undoes a turn or a
+    pull-over, steering it back inside does not (False: prompted agents are not polished)."""
 
     steps: int = 1
     iterations: int = 3
@@ -82,6 +84,7 @@ class HardConstraints:
     polish: int = 10
     polish_rate: float = 0.3
     polish_anchor: float = 0.001
+    steer_prompted: bool = True
 
     def __post_init__(self) -> None:
         if self.polish < 0:
@@ -105,13 +108,15 @@ class ProjectionAgents:
     `exempt` (bool [S, A, A] or [A, A], symmetric) pairs are never pushed apart, per sample row or in all.
     `margin` (float [A], m) is how far inside the road edge each agent's box is kept (None: the config's
     `road_margin` for all; a prompted pull-over is asked to the kerb, nearer than that). `polish` (bool [A]) are the
-    agents whose plans `polish_on_road` may move (None: every movable road agent; a prompted one is left out)."""
+    agents whose plans `polish_on_road` may move (None: every movable road agent; a prompted one is left out), and
+    of them `steer_only` (bool [A]; None: none) those it may only steer, not speed up or slow down (a prompted one)."""
 
     road: Tensor
     movable: Tensor
     exempt: Tensor
     margin: Tensor | None = None
     polish: Tensor | None = None
+    steer_only: Tensor | None = None
 
 
 def project_on_road(
@@ -418,16 +423,17 @@ def polish_on_road(
 ) -> Tensor:
     """Network-unit actions x0 [S, A, N, 2] planned from `initial` [S, A, 4] after `config.polish` Adam steps (rate
     `polish_rate`) on the (row, agent) paths of movable road agents (`agents.polish` of them, when given) moving at
-    `_POLISH_MIN_SPEED` or more whose box reaches past its line anywhere (the others keep x0 exactly). A box's line
-    lies `margin` inside the road edge, or where the box reaches at the start if that is farther out: a car over the
-    kerb may stay there, not be driven off it. Each path's loss is the squared reach past its line, summed over
-    steps, plus `polish_anchor` times the squared change of its actions; each path ends at the lowest-loss actions it
-    reached, so none ends worse than it began. Adam steps every action of a path by about the rate, whatever its
-    gradient's size: it slows a car as readily as it steers it, and braking is what keeps roundabout plans on the
-    ring (validation maps: steering alone left 0.41 of roundabout vehicles off the road, normalized gradient steps
-    0.32, Adam 0.15; 0.41 without the polish); docs/experiments.md, 'Polished onto the road'. `drive` maps actions
-    [K, N, 2] of the K paths a mask (bool [S, A]) picks to their states [K, T, 4] (they are movable: no pinned or
-    held agent among them), so that only those are integrated; None: through `rollout`, every path each step."""
+    `_POLISH_MIN_SPEED` or more whose box reaches past its line anywhere (the others keep x0 exactly); the paths of
+    `agents.steer_only` are stepped on their yaw rate only. A box's line lies `margin` inside the road edge, or where
+    the box reaches at the start if that is farther out: a car over the kerb may stay there, not be driven off it.
+    Each path's loss is the squared reach past its line, summed over steps, plus `polish_anchor` times the squared
+    change of its actions; each path ends at the lowest-loss actions it reached, so none ends worse than it began.
+    Adam steps every action of a path by about the rate, whatever its gradient's size: it slows a car as readily as it
+    steers it, and braking is what keeps roundabout plans on the ring (validation maps: steering alone left 0.41 of
+    roundabout vehicles off the road, normalized gradient steps 0.32, Adam 0.15; 0.41 without the polish);
+    docs/experiments.md, 'Polished onto the road'. `drive` maps actions [K, N, 2] of the K paths a mask (bool [S, A])
+    picks to their states [K, T, 4] (they are movable: no pinned or held agent among them), so that only those are
+    integrated; None: through `rollout`, every path each step."""
     rows = agents.road & agents.movable
     rows = (rows if agents.polish is None else rows & agents.polish.to(rows.device)).nonzero()[:, 0]
     if config.polish == 0 or len(rows) == 0 or scene.road_edges.shape[0] == 0:
@@ -450,6 +456,7 @@ def polish_on_road(
     slot = polished.nonzero()[:, 1]
     size, inside = scene.agent_size.to(x0)[slot][:, None], line[polished][:, None]
     anchor = x0.detach()[polished]  # [K, N, 2]
+    steer_only = None if agents.steer_only is None else agents.steer_only.to(slot.device)[slot]  # [K]
 
     def loss_of(actions: Tensor) -> Tensor:
         """Each path's loss [K]."""
@@ -466,7 +473,10 @@ def polish_on_road(
             lower = loss.detach() < best_loss
             best = torch.where(lower[:, None, None], actions.detach(), best)
             best_loss = torch.where(lower, loss.detach(), best_loss)
-            (actions.grad,) = torch.autograd.grad(loss.sum(), actions)
+            (grad,) = torch.autograd.grad(loss.sum(), actions)
+            if steer_only is not None:  # no acceleration step: Adam leaves an action with no gradient where it is
+                grad[steer_only, :, 0] = 0.0
+            actions.grad = grad
             optimizer.step()
     with torch.no_grad():
         last = actions.detach().clamp(-4.0, 4.0)

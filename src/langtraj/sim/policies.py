@@ -773,12 +773,16 @@ class LangTrajPolicy(Policy):
         if state.prompt.steering.kerb_slots:  # a pull-over is asked to the kerb: its box may touch the edge
             margin = torch.full(movable.shape, config.road_margin, device=movable.device)
             margin[list(state.prompt.steering.kerb_slots)] = 0.0
-        polish = None
-        if state.prompt.steering.prompted_slots:  # a prompt's own manoeuvre (a turn, a pull-over) is not polished away
-            polish = torch.ones_like(movable)
-            polish[list(state.prompt.steering.prompted_slots)] = False
+        polish = steer_only = None
+        if prompted := list(state.prompt.steering.prompted_slots):  # a prompt's manoeuvre is not braked away
+            if config.steer_prompted:
+                steer_only = torch.zeros_like(movable)
+                steer_only[prompted] = True
+            else:
+                polish = torch.ones_like(movable)
+                polish[prompted] = False
         exempt = exempt.repeat(copies, 1, 1)
-        agents = ProjectionAgents(road=road, movable=movable, exempt=exempt, margin=margin, polish=polish)
+        agents = ProjectionAgents(road, movable, exempt, margin=margin, polish=polish, steer_only=steer_only)
         initial = batch.current_state.repeat(copies, 1, 1)
         types, lengths = batch.agent_type.repeat(copies, 1), batch.agent_size[..., 0].repeat(copies, 1)
         model = self.model
