@@ -7,6 +7,7 @@ import os
 from pathlib import Path
 
 import pytest
+import torch
 from dataset_builders import train_tiny
 from scenario_builders import make_scenario
 
@@ -49,3 +50,23 @@ def tiny_run(tmp_path_factory) -> tuple[Path, Path]:
     """A tiny trained checkpoint (2 steps on toy scenes), shared by the simulation and command tests:
     (checkpoint, scenario file of toy scenes with tracks 7, 17, 37, 47 valid at the current step)."""
     return train_tiny(tmp_path_factory.mktemp("sim"), 8)
+
+
+@pytest.fixture(autouse=True)
+def _torch_global_state_restored():
+    """No test leaves torch's process-wide settings (threads, default dtype, grad mode) other than it found them: a
+    later test would run, and time, under them. A fixture that changes one for a module restores it at teardown."""
+    before = (torch.get_num_threads(), torch.get_default_dtype(), torch.is_grad_enabled())
+    yield
+    after = (torch.get_num_threads(), torch.get_default_dtype(), torch.is_grad_enabled())
+    assert after == before, f"torch's (threads, default dtype, grad mode) changed from {before} to {after}"
+
+
+@pytest.fixture
+def one_torch_thread():
+    """One torch thread for a test whose pinned figures came from one (matrix products sum in another order on
+    more), restored after."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)

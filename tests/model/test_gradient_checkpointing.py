@@ -4,6 +4,7 @@ checkpoint still loads and gives the outputs it gave before the option existed."
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import replace
 
 import pytest
@@ -69,10 +70,13 @@ def test_checkpointing_changes_nothing_outside_training():
 
 
 @pytest.fixture(scope="module")
-def shipped() -> LangTraj:
+def shipped() -> Iterator[LangTraj]:
+    """The shipped model, with one torch thread for this module's pinned figures (restored after)."""
+    threads = torch.get_num_threads()
     torch.set_num_threads(1)
     model, _ = load_model(shipped_checkpoint())
-    return model
+    yield model
+    torch.set_num_threads(threads)
 
 
 def test_the_shipped_checkpoint_loads_and_gives_the_outputs_it_gave_before(shipped):

@@ -222,8 +222,7 @@ the code before the pose-major attention (3245b18): equal bit for bit there and 
 another CPU's matrix-product kernels may round differently."""
 
 
-def test_the_shipped_checkpoint_samples_what_it_sampled_before_the_attention_was_laid_out_anew():
-    torch.set_num_threads(1)
+def test_the_shipped_checkpoint_samples_what_it_sampled_before_the_attention_was_laid_out_anew(one_torch_thread):
     model, _ = load_model(shipped_checkpoint())
     batch = toy_batch(b=2, a=12, m=10)
     for local, before in ((None, SHIPPED_BEFORE_DENSE), (LocalAttention(agents=5, map_pieces=4), SHIPPED_BEFORE_LOCAL)):

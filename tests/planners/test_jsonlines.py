@@ -135,7 +135,7 @@ def test_a_planner_that_hangs_times_out(tmp_path):
     start = time.monotonic()
     with pytest.raises(PlannerTimeout, match=r"did not answer hello within 1 s"):
         SubprocessPlanner(command, timeout_s=1.0)
-    assert time.monotonic() - start < 4.0
+    assert time.monotonic() - start < 30  # cut short, not waited out (the planner sleeps 60 s): no speed limit
 
 
 def test_a_planner_that_hangs_mid_episode_times_out_and_is_killed(tmp_path):
@@ -155,7 +155,7 @@ def test_a_planner_that_hangs_mid_episode_times_out_and_is_killed(tmp_path):
     with pytest.raises(PlannerError, match="failed reset earlier"):
         planner.act(make_observation())
     planner.close()
-    assert time.monotonic() - start < 4.0 and planner._process.poll() is not None
+    assert time.monotonic() - start < 30 and planner._process.poll() is not None  # cut short and killed
 
 
 @pytest.mark.parametrize(

@@ -70,7 +70,7 @@ def test_a_hanging_planner_is_stopped_by_the_step_limit(tmp_path):
         start = time.perf_counter()
         result = run_episode(_task(tmp_path, "bad", f"suites.fakes:{planner}", step_timeout=1.0))
         assert (result.status, result.reasons) == ("fail", [f"planner timed out after 1 s at step {step}"])
-        assert time.perf_counter() - start < 5
+        assert time.perf_counter() - start < 30  # cut short, not waited out (the hang is 60 s): no speed limit
 
 
 def test_a_hanging_planner_command_is_stopped_by_its_timeout(tmp_path, monkeypatch):

@@ -1,0 +1,89 @@
+"""The environment's judges on constructed scenes (docs/testing.md, 'Step info'): time to collision against its
+closed form, collisions and who caused them, off-road at a road edge, and the reward's terms."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scenario_builders import two_lane_road
+
+from langtraj.env.events import AT_FAULT_MIN_SPEED, EventJudge
+from langtraj.env.reward import RewardConfig
+from langtraj.errors import InputError
+from langtraj.metrics.interaction import MAX_TTC
+from langtraj.metrics.road import road_edge_index
+from langtraj.scenario.drivable import measured_road_edges
+from langtraj.scenario.types import StateField
+
+# two_lane_road's cars are 4.5 m long and 2 m wide; its road edges lie at y = -1.75 and y = 5.25.
+LENGTH, WIDTH, EDGE = 4.5, 2.0, -1.75
+
+
+def judged(cars: list[tuple[float, float, float]], *, heading: float = 0.0):
+    """The ego's (the first car's) events among `cars` (x, y, speed; every car heading `heading`) and a car parked
+    far ahead in the other lane, at the current step of a two-lane road, judged against its road edges."""
+    cars = [*cars, (250.0, 3.5, 0.0)]
+    scenario = two_lane_road(cars)
+    edges = road_edge_index([f.points for f in measured_road_edges(scenario)])  # as the environment builds it
+    states = scenario.agents.states[:, scenario.current_index].copy()
+    for row, (x, y, speed) in enumerate(cars):
+        states[row, StateField.X], states[row, StateField.Y] = x, y
+        states[row, StateField.HEADING] = heading
+        states[row, StateField.VX], states[row, StateField.VY] = speed * math.cos(heading), speed * math.sin(heading)
+    return EventJudge(scenario, 0, edges).judge(states, np.ones(len(cars), bool))
+
+
+def test_time_to_collision_is_the_bumper_gap_over_the_closing_speed():
+    gap = 20.0 - LENGTH  # centres 20 m apart: 15.5 m bumper to bumper
+    assert judged([(0.0, 0.0, 10.0), (20.0, 0.0, 5.0)]).ttc == pytest.approx(gap / 5.0)
+    assert judged([(0.0, 0.0, 10.0), (20.0, 0.0, 12.0)]).ttc == MAX_TTC  # pulling away: never
+    assert judged([(0.0, 0.0, 10.0), (20.0, 3.5, 0.0)]).ttc == MAX_TTC  # in the other lane: not followed
+    assert judged([(0.0, 0.0, 10.0), (-20.0, 0.0, 20.0)]).ttc == MAX_TTC  # behind: not followed
+
+
+def test_the_gap_to_the_nearest_box_and_who_is_hit():
+    apart = judged([(0.0, 0.0, 10.0), (10.0, 0.0, 10.0), (30.0, 3.5, 10.0)])
+    assert apart.min_distance == pytest.approx(10.0 - LENGTH)
+    assert not apart.collision and apart.collided_with == () and not apart.at_fault
+    hit = judged([(0.0, 0.0, 10.0), (4.0, 0.0, 3.0), (30.0, 3.5, 10.0)])  # 0.5 m into the car ahead
+    assert hit.collided_with == (2,) and hit.min_distance == pytest.approx(-0.5)
+
+
+def test_the_ego_causes_a_collision_it_drives_into_not_one_it_is_run_into():
+    assert judged([(0.0, 0.0, 10.0), (4.0, 0.0, 3.0)]).at_fault  # into the car ahead
+    assert not judged([(0.0, 0.0, 3.0), (-4.0, 0.0, 10.0)]).at_fault  # run into from behind
+    standing = judged([(0.0, 0.0, AT_FAULT_MIN_SPEED / 2), (4.0, 0.0, 0.0)])
+    assert standing.collision and not standing.at_fault  # hardly moving: not its doing
+
+
+def test_off_road_is_the_box_past_the_edge_not_its_centre():
+    inside = EDGE + WIDTH / 2 + 0.05  # its right side 5 cm inside the edge
+    assert not judged([(0.0, inside, 10.0)]).offroad
+    assert judged([(0.0, inside - 0.1, 10.0)]).offroad  # its side 5 cm past it, the centre on the road
+    across = EDGE + LENGTH / 2 + 0.1  # turned across the lane, its tail 10 cm inside the edge
+    assert not judged([(0.0, across, 10.0)], heading=math.pi / 2).offroad
+    assert judged([(0.0, across - 0.2, 10.0)], heading=math.pi / 2).offroad  # its tail 10 cm past it
+
+
+def test_no_edges_nothing_is_off_road():
+    scenario = two_lane_road([(0.0, -10.0, 10.0), (250.0, 3.5, 0.0)])  # the ego wholly past the edge
+    states = scenario.agents.states[:, scenario.current_index]
+    assert not EventJudge(scenario, 0, None).judge(states, np.ones(2, bool)).offroad
+
+
+def test_the_reward_is_progress_minus_each_penalty_once():
+    config = RewardConfig(progress=0.1, collision=5.0, at_fault_collision=2.0, offroad=1.0)
+    assert config.reward(10.0, False, False, False) == pytest.approx(1.0)
+    assert config.reward(10.0, True, False, False) == pytest.approx(1.0 - 5.0)
+    assert config.reward(10.0, True, True, False) == pytest.approx(1.0 - 5.0 - 2.0)
+    assert config.reward(10.0, False, True, True) == pytest.approx(1.0 - 1.0)  # at fault without a collision: none
+    assert config.reward(-2.0, False, False, False) == pytest.approx(-0.2)  # losing ground costs
+
+
+def test_a_reward_weight_that_is_not_a_finite_number_is_refused():
+    with pytest.raises(InputError, match=r"reward\.offroad"):
+        RewardConfig(offroad=math.nan)
+    with pytest.raises(InputError, match=r"reward\.progress"):
+        RewardConfig(progress="fast")  # type: ignore[arg-type]
