@@ -7,6 +7,7 @@ inside the functions that use them, torch from the model's layer upward (below i
 from __future__ import annotations
 
 import ast
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -73,9 +74,20 @@ def _imports(path: Path) -> list[tuple[str, tuple[str, ...], str]]:
     return found
 
 
+SPEC = re.compile(r"langtraj\.(\w+)(\.\w+)*:\w+")
+"""An object named by a "module:Name" string (`registry.import_object`): an import all the same, made at run time."""
+
+
+def _spec_packages(path: Path) -> set[str]:
+    """The langtraj packages a file names in "langtraj.module:Name" strings (a suite's environment class, a
+    registry's entries), which it imports when it resolves them."""
+    constants = (n.value for n in ast.walk(ast.parse(path.read_text())) if isinstance(n, ast.Constant))
+    return {m[1] for value in constants if isinstance(value, str) and (m := SPEC.fullmatch(value))}
+
+
 def _imported_packages(path: Path) -> set[str]:
-    """The langtraj packages (and top-level modules) a file imports, at any level."""
-    found = set()
+    """The langtraj packages (and top-level modules) a file imports, at any level, "module:Name" strings included."""
+    found = _spec_packages(path)
     for module, names, _ in _imports(path):
         if module == "langtraj":  # `from langtraj import x`
             found |= {name for name in names if not name.startswith("__")}
@@ -187,8 +199,10 @@ def test_the_checks_read_imports_at_every_level(tmp_path):
         "        from langtraj.cli import simulate\n"
         "        from langtraj import sim\n"
         "        import ray\n"
+        "ENV = 'langtraj.env:LangTrajEnv'  # resolved at run time: an import all the same\n"
+        "NOTE = 'see langtraj.studio for more'\n"
     )
-    assert _imported_packages(source) == {"scenario", "model", "cli", "sim"}
+    assert _imported_packages(source) == {"scenario", "model", "cli", "sim", "env"}
     places = {module: place for module, _, place in _imports(source)}
     assert places == {
         "typing": "module",

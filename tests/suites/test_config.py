@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import textwrap
 from pathlib import Path
 
@@ -9,7 +10,7 @@ import pytest
 
 from langtraj.errors import InputError
 from langtraj.suites import Criteria, load_suite
-from langtraj.suites.config import DEFAULT_REAL_DATA
+from langtraj.suites.config import real_data_folder
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -56,21 +57,22 @@ def test_reads_cases_with_defaults_and_placeholders(tmp_path, monkeypatch):
     assert [c.seeds for c in suite.with_seeds(3).cases] == [(0, 1, 2), (0, 1, 2)]
 
 
-def test_real_data_variable_defaults_to_the_shared_folder(tmp_path, monkeypatch):
+def test_the_real_data_folder_is_the_one_given_else_the_variable_else_beside_the_working_directory(
+    tmp_path, monkeypatch
+):
+    """Never the installed package's location: an installed LangTraj has no checkout beside it."""
     monkeypatch.delenv("LANGTRAJ_REAL_DATA", raising=False)
-    assert REPO.parent / "shared" / "data" / "real" == DEFAULT_REAL_DATA
-    path = _suite(tmp_path, "name: s\ncases:\n  - {name: a, scenario: '${LANGTRAJ_REAL_DATA}/x.tfrecord'}\n")
-    with pytest.raises(InputError, match=r"cases\[0\]\.scenario: no such file: .*shared/data/real/x.tfrecord"):
-        load_suite(path)
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    path = _suite(tmp_path, "name: s\ncases:\n  - {name: a, scenario: '${LANGTRAJ_REAL_DATA}/scene.tfrecord'}\n")
+    missing = re.escape(str(tmp_path / "shared" / "data" / "real" / "scene.tfrecord"))
+    with pytest.raises(InputError, match=rf"cases\[0\]\.scenario: no such file: {missing}"):
+        load_suite(path)  # ../shared/data/real under the working directory
+    assert load_suite(path, real_data=tmp_path).cases[0].scenario == tmp_path / "scene.tfrecord"
     monkeypatch.setenv("LANGTRAJ_REAL_DATA", str(tmp_path))
-    assert (
-        load_suite(
-            _suite(tmp_path, "name: s\ncases:\n  - {name: a, scenario: '${LANGTRAJ_REAL_DATA}/scene.tfrecord'}\n")
-        )
-        .cases[0]
-        .scenario
-        == tmp_path / "scene.tfrecord"
-    )
+    assert load_suite(path).cases[0].scenario == tmp_path / "scene.tfrecord"
+    assert real_data_folder(work) == work  # given beats the variable
 
 
 @pytest.mark.parametrize(
@@ -136,8 +138,9 @@ def test_suite_level_errors(tmp_path, body, message):
 
 def test_the_example_suite_loads(monkeypatch):
     monkeypatch.delenv("LANGTRAJ_REAL_DATA", raising=False)
-    if not (DEFAULT_REAL_DATA / "motion_data_one_scenario.tfrecord").is_file():
-        pytest.skip(f"real scenario files not found in {DEFAULT_REAL_DATA}")
+    monkeypatch.chdir(REPO)  # as the README's commands run
+    if not (real_data_folder() / "motion_data_one_scenario.tfrecord").is_file():
+        pytest.skip(f"real scenario files not found in {real_data_folder()}")
     suite = load_suite(REPO / "configs" / "suites" / "example.yaml")
     assert len(suite.cases) >= 4 and suite.episodes >= len(suite.cases)
     assert all(c.scenario.is_file() for c in suite.cases)

@@ -47,6 +47,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="seconds a planner may take per call before its case fails (default 10)",
     )
     p.add_argument("--no-video", action="store_true", help="no videos of the episodes that do not pass")
+    p.add_argument(
+        "--real-data",
+        type=Path,
+        metavar="DIR",
+        help="the folder ${LANGTRAJ_REAL_DATA} names in the suite (default: that variable, else ../shared/data/real)",
+    )
     p.set_defaults(func=run)
 
 
@@ -55,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     from langtraj.suites.episode import DEFAULT_ENV, EpisodeResult
     from langtraj.suites.report import summary_line
 
-    suite = load_suite(args.suite)
+    suite = load_suite(args.suite, real_data=args.real_data)
     if args.seeds is not None:
         suite = suite.with_seeds(args.seeds)
     options = RunOptions(

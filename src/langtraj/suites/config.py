@@ -23,9 +23,10 @@ cases:
 ```
 
 Scenario and checkpoint paths are relative to the suite file's folder (or absolute); `${NAME}` is replaced by the
-environment variable NAME, and `${LANGTRAJ_REAL_DATA}` defaults to `../shared/data/real` beside the source checkout
-(the real scenes tests read). In prompts, `@adv` is the case's adversary and `@ego` the ego's track id (the env
-replaces it at reset, when the ego is known).
+environment variable NAME; `${LANGTRAJ_REAL_DATA}` is the folder `load_suite` is given (`langtraj test --real-data`),
+else the variable, else `../shared/data/real` under the working directory (where the README's commands run). In
+prompts, `@adv` is the case's adversary and `@ego` the ego's track id (the env replaces it at reset, when the ego is
+known).
 """
 
 from __future__ import annotations
@@ -43,8 +44,9 @@ from langtraj.settings import build_dataclass, read_yaml, require
 
 REAL_DATA_VARIABLE = "LANGTRAJ_REAL_DATA"
 """The environment variable naming the folder of real scenes (as in the tests)."""
-DEFAULT_REAL_DATA = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "real"
-"""`${LANGTRAJ_REAL_DATA}` when the variable is unset: `../shared/data/real` beside the source checkout."""
+DEFAULT_REAL_DATA = Path("..") / "shared" / "data" / "real"
+"""`${LANGTRAJ_REAL_DATA}` when neither a folder nor the variable is given, under the working directory: the shared
+real scenes beside a checkout the README's commands run in (never the installed package's location)."""
 
 NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 """A suite's or case's name: letters, digits, '.', '_' and '-', not starting with a punctuation mark."""
@@ -132,16 +134,28 @@ _CASE_KEYS = tuple(f.name for f in dataclasses.fields(SuiteCase))
 _DEFAULT_KEYS = ("seeds", "criteria", "checkpoint", "max_steps")
 
 
-def load_suite(path: str | Path) -> Suite:
-    """The suite at `path`; any mistake raises one InputError naming the file and the key."""
+def load_suite(path: str | Path, *, real_data: str | Path | None = None) -> Suite:
+    """The suite at `path`, `${LANGTRAJ_REAL_DATA}` in it being `real_data` when given (`real_data_folder`); any
+    mistake raises one InputError naming the file and the key."""
     path = Path(path)
+    variables = {**os.environ, REAL_DATA_VARIABLE: str(real_data_folder(real_data))}
     try:
-        return _parse_suite(read_yaml(path), path)
+        return _parse_suite(read_yaml(path), path, variables)
     except InputError as exc:
         raise exc.located(path=path) from None
 
 
-def _parse_suite(data: dict[str, Any], path: Path) -> Suite:
+def real_data_folder(given: str | Path | None = None) -> Path:
+    """The folder of real scenes: `given`, else `$LANGTRAJ_REAL_DATA`, else `DEFAULT_REAL_DATA` under the working
+    directory."""
+    if given is not None:
+        return Path(given).expanduser().resolve()
+    if os.environ.get(REAL_DATA_VARIABLE):
+        return Path(os.environ[REAL_DATA_VARIABLE]).expanduser().resolve()
+    return (Path.cwd() / DEFAULT_REAL_DATA).resolve()
+
+
+def _parse_suite(data: dict[str, Any], path: Path, variables: dict[str, str]) -> Suite:
     _known(data, ("name", "defaults", "cases"), "")
     name = data.get("name")
     require(isinstance(name, str) and bool(NAME.fullmatch(name)), "name", _name_rule(name))
@@ -153,7 +167,7 @@ def _parse_suite(data: dict[str, Any], path: Path) -> Suite:
     require(isinstance(criteria, dict), "defaults.criteria", f"expected a mapping, got {type(criteria).__name__}")
     _criteria(criteria, "defaults.criteria")  # checked here, so that a mistake is named where it is made
     seeds = _seeds(defaults["seeds"], "defaults.seeds") if defaults.get("seeds") is not None else (0,)
-    checkpoint = _path(defaults.get("checkpoint"), base, "defaults.checkpoint", optional=True)
+    checkpoint = _path(defaults.get("checkpoint"), base, "defaults.checkpoint", variables, optional=True)
     max_steps = _max_steps(defaults.get("max_steps"), "defaults.max_steps")
     raw_cases = data.get("cases")
     require(isinstance(raw_cases, list) and bool(raw_cases), "cases", "expected a non-empty list of cases")
@@ -161,7 +175,7 @@ def _parse_suite(data: dict[str, Any], path: Path) -> Suite:
     for i, raw in enumerate(raw_cases):
         where = f"cases[{i}]"
         require(isinstance(raw, dict), where, f"expected a mapping, got {type(raw).__name__}")
-        cases.append(_case(raw, where, base, criteria, seeds, checkpoint, max_steps))
+        cases.append(_case(raw, where, base, variables, criteria, seeds, checkpoint, max_steps))
     seen: dict[str, int] = {}
     for i, case in enumerate(cases):
         require(
@@ -177,6 +191,7 @@ def _case(
     raw: dict[str, Any],
     where: str,
     base: Path,
+    variables: dict[str, str],
     default_criteria: dict[str, Any],
     default_seeds: tuple[int, ...],
     default_checkpoint: Path | None,
@@ -186,7 +201,7 @@ def _case(
     name = raw.get("name")
     require(isinstance(name, str) and bool(NAME.fullmatch(name)), f"{where}.name", _name_rule(name))
     require("scenario" in raw, where, "missing scenario")
-    scenario = _path(raw["scenario"], base, f"{where}.scenario")
+    scenario = _path(raw["scenario"], base, f"{where}.scenario", variables)
     index = _int(raw.get("index", 0), f"{where}.index", minimum=0)
     window = _int(raw["window"], f"{where}.window", minimum=0) if raw.get("window") is not None else None
     ego = _optional_id(raw.get("ego"), f"{where}.ego")
@@ -220,7 +235,7 @@ def _case(
     criteria = _criteria({**default_criteria, **overrides}, at)
     seeds = _seeds(raw["seeds"], f"{where}.seeds") if raw.get("seeds") is not None else default_seeds
     checkpoint = (
-        _path(raw["checkpoint"], base, f"{where}.checkpoint")
+        _path(raw["checkpoint"], base, f"{where}.checkpoint", variables)
         if raw.get("checkpoint") is not None
         else default_checkpoint
     )
@@ -267,17 +282,15 @@ def _max_steps(value: Any, where: str) -> int | None:
     return steps
 
 
-def _path(value: Any, base: Path, where: str, *, optional: bool = False) -> Path | None:
+def _path(value: Any, base: Path, where: str, variables: dict[str, str], *, optional: bool = False) -> Path | None:
     if value is None and optional:
         return None
     require(isinstance(value, str) and bool(value), where, f"expected a path, got {value!r}")
 
     def variable(match: re.Match) -> str:
         name = match.group(1)
-        if name in os.environ:
-            return os.environ[name]
-        require(name == REAL_DATA_VARIABLE, where, f"the environment variable {name} is not set")
-        return str(DEFAULT_REAL_DATA)
+        require(name in variables, where, f"the environment variable {name} is not set")
+        return variables[name]
 
     path = Path(_VARIABLE.sub(variable, value)).expanduser()
     path = path if path.is_absolute() else base / path
