@@ -7,6 +7,7 @@ import pytest
 
 from langtraj.env.spaces import MAX_ACCEL, MAX_YAW_RATE, NUM_ROUTE_POINTS, action_space, observation_space
 from langtraj.planners import IDMConfig, IDMPlanner
+from langtraj.scenario.types import TrafficLightState
 
 from .helpers import left_curve, make_observation, vehicle
 
@@ -72,6 +73,10 @@ def test_stops_for_red_lights_on_the_route_only():
 
 
 def test_caution_stops_only_where_a_comfortable_stop_is_possible():
+    for state in TrafficLightState:  # the states' own meaning decides (`is_stop`, `is_caution`), flashing included
+        far = accel(lights=[(40.0, 0.0, int(state))])
+        assert (far < 0.0) == (state.is_stop or state.is_caution), state
+    assert accel(lights=[(40.0, 0.0, int(TrafficLightState.FLASHING_CAUTION))]) < 0.0
     assert accel(lights=[(40.0, 0.0, 5)]) < 0.0  # 10 m/s stops within 25 m
     assert accel(lights=[(12.0, 0.0, 5)]) == pytest.approx(FREE)  # too close: go on
     assert accel(lights=[(12.0, 0.0, 4)]) < -2.0  # but red brakes

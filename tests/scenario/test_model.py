@@ -109,3 +109,15 @@ def test_slice_steps_clips_and_shifts_events() -> None:
     assert (event.start, event.end) == (0, 15)
     with pytest.raises(IndexError):
         scenario.slice_steps(80, 100, current_index=0)
+
+
+def test_a_light_at_a_step_is_its_last_valid_state_up_to_then_never_a_later_one():
+    red, green = 4, 6
+    states = np.array([[red, 0, 0], [0, green, 0], [0, 0, 0], [green, red, red]], np.int8)  # [T = 4, L = 3]
+    valid = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 0], [1, 1, 1]], bool)
+    lights = TrafficLights([1, 2, 3], states, valid, np.zeros((3, 3)))
+    held, known = lights.held_at(2)  # lane 1 last seen red at 0, lane 2 green at 1, lane 3 not yet
+    assert held.tolist() == [red, green, 0] and known.tolist() == [True, True, False]
+    held, known = lights.held_at(3)
+    assert held.tolist() == [green, red, red] and known.all()
+    assert lights.held_at(0)[0].tolist() == [red, 0, 0]

@@ -63,10 +63,7 @@ class Observer:
         if lights is None or not len(lights.lane_ids):
             self.light_points, self.light_states = np.zeros((0, 2)), np.zeros(0, np.int64)
         else:
-            known = lights.valid[: scenario.current_index + 1]  # held at their last state up to the start
-            last = np.where(known.any(0), known.shape[0] - 1 - np.argmax(known[::-1], axis=0), -1)
-            states = np.where(last >= 0, lights.states[np.maximum(last, 0), np.arange(len(last))], 0)
-            keep = last >= 0
+            states, keep = lights.held_at(scenario.current_index)
             self.light_points = np.asarray(lights.stop_points[keep, :2], np.float64)
             self.light_states = states[keep].astype(np.int64)
 

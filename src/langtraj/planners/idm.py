@@ -18,11 +18,13 @@ from langtraj.env.spaces import MAX_ACCEL, MAX_YAW_RATE
 from langtraj.planners.base import PLANNERS, Planner
 from langtraj.polylines import arc_lengths, point_at, project_on_polyline
 from langtraj.scenario.model import STEP_SECONDS
+from langtraj.scenario.types import TrafficLightState
 
-STOP_STATES = (1, 4, 7)
-"""WOMD light states that mean stop: arrow stop, stop, flashing stop."""
-CAUTION_STATES = (2, 5)
-"""WOMD light states that mean caution (arrow, plain): stop only where a comfortable stop is still possible."""
+STOP_STATES = tuple(int(state) for state in TrafficLightState if state.is_stop)
+"""Light states that mean stop (`TrafficLightState.is_stop`: arrow stop, stop, flashing stop)."""
+CAUTION_STATES = tuple(int(state) for state in TrafficLightState if state.is_caution)
+"""Light states that mean caution (`TrafficLightState.is_caution`: arrow, plain and flashing): stop only where a
+comfortable stop is still possible."""
 _BEHIND_M = 50.0  # the route is extended this far behind its first point, so agents alongside get signed stations
 _MIN_GAP_M = 0.1  # the IDM gap never divides by less
 CUT_IN_SAMPLES = 5

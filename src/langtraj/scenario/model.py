@@ -374,6 +374,17 @@ class TrafficLights:
     def num_lanes(self) -> int:
         return len(self.lane_ids)
 
+    def held_at(self, step: int) -> tuple[np.ndarray, np.ndarray]:
+        """Each lane's light at `step`, the one rule wherever a light is read at a step (the env's observation, the
+        studio, a simulation's lights after its start): its state int8 [L] at its last valid step up to `step` (a
+        source that skips a step does not turn a red light off), and bool [L] whether it was ever valid by then
+        (UNKNOWN where not). Never reads past `step`."""
+        known = self.valid[: step + 1]
+        seen = known.any(axis=0)
+        last = known.shape[0] - 1 - np.argmax(known[::-1], axis=0)
+        states = np.where(seen, self.states[np.where(seen, last, 0), np.arange(self.num_lanes)], np.int8(0))
+        return states.astype(np.int8), seen
+
     def slice_steps(self, start: int, stop: int) -> TrafficLights:
         return replace(self, states=self.states[start:stop], valid=self.valid[start:stop])
 

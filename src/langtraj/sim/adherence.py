@@ -216,13 +216,12 @@ class CandidateJudge:
 
 
 def _held_lights(world: SimWorld) -> TrafficLights:
-    """The world's traffic lights with every step after the start showing the start's states (the logged future
-    of the lights is not read)."""
+    """The world's traffic lights with every step after the start showing the lights as held at the start
+    (`TrafficLights.held_at`; the logged future of the lights is not read)."""
     lights = world.scenario.traffic_lights
     assert lights is not None
     states, valid = lights.states.copy(), lights.valid.copy()
-    states[world.start + 1 :] = states[world.start]
-    valid[world.start + 1 :] = valid[world.start]
+    states[world.start + 1 :], valid[world.start + 1 :] = lights.held_at(world.start)
     return replace(lights, states=states, valid=valid)
 
 

@@ -114,16 +114,9 @@ def _lights(scenario: Scenario) -> list[dict[str, Any]]:
     lights = scenario.traffic_lights
     if lights is None:
         return []
-    c = scenario.current_index
-    out = []
-    for lane, point in enumerate(lights.stop_points):
-        if not lights.valid[c, lane]:
-            continue
-        out.append(
-            {
-                "x": round(float(point[0]), 2),
-                "y": round(float(point[1]), 2),
-                "state": light_state(lights.states[c, lane]),
-            }
-        )
-    return out
+    states, known = lights.held_at(scenario.current_index)
+    return [
+        {"x": round(float(point[0]), 2), "y": round(float(point[1]), 2), "state": light_state(state)}
+        for point, state, seen in zip(lights.stop_points, states, known, strict=True)
+        if seen
+    ]
