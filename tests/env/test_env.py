@@ -11,7 +11,7 @@ from gymnasium.utils.env_checker import check_env
 from scenes import EGO_ID, FOLLOWER_ID, follower_scene
 
 from langtraj.env import ENV_ID, LangTrajEnv
-from langtraj.env.spaces import action_space, observation_space
+from langtraj.env.spaces import AgentColumn, EgoColumn, action_space, observation_space
 from langtraj.errors import InputError
 
 BRAKE = np.array([-4.0, 0.0], np.float32)
@@ -39,9 +39,9 @@ def test_registered_make_and_observation_contents():
     env = gymnasium.make(f"langtraj.env:{ENV_ID}", scenario=follower_scene())
     obs, info = env.reset(seed=0)
     assert info["ego_id"] == EGO_ID and info["route_source"] == "log" and info["logged_ego"].shape == (80, 4)
-    assert obs["ego"][3] == pytest.approx(10.0, abs=0.05)  # its speed
+    assert obs["ego"][EgoColumn.SPEED] == pytest.approx(10.0, abs=0.05)  # its speed
     follower = list(obs["agents_id"]).index(FOLLOWER_ID)
-    assert obs["agents"][follower, 0] == pytest.approx(-16.5, abs=0.1)  # 12 m gap + a car length, behind
+    assert obs["agents"][follower, AgentColumn.X] == pytest.approx(-16.5, abs=0.1)  # 12 m gap + a car length, behind
     assert obs["route_valid"].all() and np.allclose(obs["route"][:, 1], 0.0, atol=1e-3)  # straight ahead
     assert not obs["route_speed_limit"].any()  # the constructed lanes give no speed limit
     assert obs["map_valid"].any() and action_space("control").contains(BRAKE)
@@ -106,7 +106,8 @@ def test_many_scenes_at_once_through_gymnasiums_vector_environment(mode, options
     obs, info = envs.reset(seed=[0, 1])
     assert obs["agents"].shape == (2, 16, 7) and list(info["ego_id"]) == [EGO_ID, EGO_ID]
     obs = envs.step(np.stack([BRAKE, np.zeros(2, np.float32)]))[0]
-    assert obs["ego"][0, 3] < obs["ego"][1, 3]  # the first ego brakes, the second keeps its speed
+    speed = obs["ego"][:, EgoColumn.SPEED]
+    assert speed[0] < speed[1]  # the first ego brakes, the second keeps its speed
     envs.close()
 
 

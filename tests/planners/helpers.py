@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from langtraj.env.spaces import NUM_ROUTE_POINTS, ROUTE_SPACING_M, observation_space
+from langtraj.env.spaces import NUM_ROUTE_POINTS, ROUTE_SPACING_M, AgentColumn, EgoColumn, observation_space
 
 EGO_SIZE = (4.5, 2.0)
 
@@ -39,14 +39,16 @@ def make_observation(
     (x, y, heading, vx, vy, length, width) in the ego frame and `lights` (x, y, state)."""
     space = observation_space()
     obs = {key: np.zeros(sub.shape, sub.dtype) for key, sub in space.spaces.items()}
-    obs["ego"][:] = [*pose, speed, 0.0, 0.0, *EGO_SIZE]
+    ego = obs["ego"]
+    ego[[EgoColumn.X, EgoColumn.Y, EgoColumn.HEADING]] = pose
+    ego[EgoColumn.SPEED], (ego[EgoColumn.LENGTH], ego[EgoColumn.WIDTH]) = speed, EGO_SIZE
     obs["time"][0] = time
     route = straight_route() if route is None else np.asarray(route)
     obs["route"][: len(route)] = route
     obs["route_valid"][: len(route)] = 1
     obs["route_speed_limit"][: len(route)] = speed_limits
-    for i, row in enumerate(agents):
-        obs["agents"][i] = row
+    for i, row in enumerate(agents):  # rows listed in AgentColumn's order
+        obs["agents"][i, list(AgentColumn)] = row
         obs["agents_id"][i] = 100 + i
         obs["agents_type"][i] = 1 if agent_types is None else agent_types[i]
         obs["agents_valid"][i] = 1

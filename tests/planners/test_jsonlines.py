@@ -12,7 +12,7 @@ import time
 import numpy as np
 import pytest
 
-from langtraj.env.spaces import observation_space
+from langtraj.env.spaces import EgoColumn, observation_space
 from langtraj.planners import (
     IDMPlanner,
     LogReplayPlanner,
@@ -49,7 +49,7 @@ def _script(tmp_path, source: str) -> str:
 
 def test_observations_round_trip_through_json():
     obs = {key: value for key, value in observation_space().sample().items()}
-    obs["ego"][2] = np.nan  # non-finite values travel as null
+    obs["ego"][EgoColumn.HEADING] = np.nan  # non-finite values travel as null
     data = json.loads(json.dumps(encode_observation(obs), allow_nan=False))
     back = decode_observation(data)
     assert set(back) == set(obs)

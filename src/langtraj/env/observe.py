@@ -15,6 +15,7 @@ import numpy as np
 from langtraj.angles import wrap_angle
 from langtraj.env import spaces
 from langtraj.env.route import Route
+from langtraj.env.spaces import AgentColumn, EgoColumn
 from langtraj.frames import points_to_frame
 from langtraj.model.features import feature_pieces
 from langtraj.scenario.model import Scenario
@@ -75,9 +76,10 @@ class Observer:
         me = states[self.ego].astype(np.float64)
         speed = float(np.hypot(me[StateField.VX], me[StateField.VY]))
         pose = me[[StateField.X, StateField.Y, StateField.HEADING]]
-        ego = np.array(
-            [pose[0], pose[1], pose[2], speed, control[0], control[1], me[StateField.LENGTH], me[StateField.WIDTH]]
-        )
+        ego = np.zeros(len(EgoColumn))
+        ego[[EgoColumn.X, EgoColumn.Y, EgoColumn.HEADING]] = pose
+        ego[EgoColumn.SPEED], ego[EgoColumn.ACCELERATION], ego[EgoColumn.YAW_RATE] = speed, control[0], control[1]
+        ego[EgoColumn.LENGTH], ego[EgoColumn.WIDTH] = me[StateField.LENGTH], me[StateField.WIDTH]
         station = self.route.station(pose[:2])
         route_xy, route_valid, limits = self.route.ahead(station, spaces.NUM_ROUTE_POINTS, spaces.ROUTE_SPACING_M)
         obs = {
@@ -104,18 +106,12 @@ class Observer:
         c, si = np.cos(pose[2]), np.sin(pose[2])
         vx, vy = s[:, StateField.VX], s[:, StateField.VY]
         heading = wrap_angle(s[:, StateField.HEADING] - pose[2])
-        table = np.zeros((k, len(spaces.AGENT_FIELDS)), np.float32)
-        table[: len(rows)] = np.stack(
-            [
-                *to_ego_frame(s[:, [StateField.X, StateField.Y]], pose).T,
-                heading,
-                c * vx + si * vy,
-                -si * vx + c * vy,
-                s[:, StateField.LENGTH],
-                s[:, StateField.WIDTH],
-            ],
-            -1,
-        )
+        table = np.zeros((k, len(AgentColumn)), np.float32)
+        n = len(rows)
+        table[:n, [AgentColumn.X, AgentColumn.Y]] = to_ego_frame(s[:, [StateField.X, StateField.Y]], pose)
+        table[:n, AgentColumn.HEADING] = heading
+        table[:n, AgentColumn.VX], table[:n, AgentColumn.VY] = c * vx + si * vy, -si * vx + c * vy
+        table[:n, AgentColumn.LENGTH], table[:n, AgentColumn.WIDTH] = s[:, StateField.LENGTH], s[:, StateField.WIDTH]
         ids, types, mask = np.full(k, -1, np.int64), np.zeros(k, np.int64), np.zeros(k, np.int8)
         ids[: len(rows)], types[: len(rows)], mask[: len(rows)] = self.ids[rows], self.types[rows], 1
         return {"agents": table, "agents_id": ids, "agents_type": types, "agents_valid": mask}

@@ -9,6 +9,8 @@ from here.
 
 from __future__ import annotations
 
+from enum import IntEnum
+
 import numpy as np
 from gymnasium import spaces
 
@@ -28,11 +30,38 @@ MAP_RADIUS_M = 60.0
 NUM_LIGHTS = 16
 """The nearest traffic-light stop points."""
 
-EGO_FIELDS = ("x", "y", "heading", "speed", "acceleration", "yaw_rate", "length", "width")
-"""Columns of `ego`: its world pose (x, y, heading: the only world-frame values, for planners that keep a map of
-their own), speed (m/s), the acceleration and yaw rate it executed last step, and its box."""
-AGENT_FIELDS = ("x", "y", "heading", "vx", "vy", "length", "width")
-"""Columns of `agents` (ego frame)."""
+
+class EgoColumn(IntEnum):
+    """Columns of `ego`, read by name (`observation["ego"][EgoColumn.SPEED]`): its world pose (x, y, heading: the
+    only world-frame values, for planners that keep a map of their own), speed (m/s), the acceleration and yaw rate
+    it executed last step, and its box."""
+
+    X = 0
+    Y = 1
+    HEADING = 2
+    SPEED = 3
+    ACCELERATION = 4
+    YAW_RATE = 5
+    LENGTH = 6
+    WIDTH = 7
+
+
+class AgentColumn(IntEnum):
+    """Columns of `agents` (ego frame), read by name (`observation["agents"][:, AgentColumn.VX]`)."""
+
+    X = 0
+    Y = 1
+    HEADING = 2
+    VX = 3
+    VY = 4
+    LENGTH = 5
+    WIDTH = 6
+
+
+EGO_FIELDS = tuple(column.name.lower() for column in EgoColumn)
+"""The names of `ego`'s columns, in order (the JSON-lines protocol and docs/testing.md list them)."""
+AGENT_FIELDS = tuple(column.name.lower() for column in AgentColumn)
+"""The names of `agents`' columns, in order."""
 
 MAX_ACCEL = 8.0
 MAX_YAW_RATE = 1.5

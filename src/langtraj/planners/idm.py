@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from langtraj.angles import wrap_angle
-from langtraj.env.spaces import MAX_ACCEL, MAX_YAW_RATE
+from langtraj.env.spaces import MAX_ACCEL, MAX_YAW_RATE, AgentColumn, EgoColumn
 from langtraj.planners.base import PLANNERS, Planner
 from langtraj.polylines import arc_lengths, point_at, project_on_polyline
 from langtraj.scenario.model import STEP_SECONDS
@@ -84,8 +84,8 @@ class IDMPlanner(Planner):
 
     def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
         ego = np.asarray(observation["ego"], np.float64)
-        speed = max(0.0, float(ego[3])) if np.isfinite(ego[3]) else 0.0
-        length, width = float(ego[6]), float(ego[7])
+        speed = max(0.0, float(ego[EgoColumn.SPEED])) if np.isfinite(ego[EgoColumn.SPEED]) else 0.0
+        length, width = float(ego[EgoColumn.LENGTH]), float(ego[EgoColumn.WIDTH])
         on_route = np.asarray(observation["route_valid"], bool)
         route = np.asarray(observation["route"], np.float64)[on_route]
         limits = np.asarray(observation["route_speed_limit"], np.float64)[on_route]
@@ -191,23 +191,25 @@ class IDMPlanner(Planner):
         valid = np.asarray(observation["agents_valid"], bool) & np.isfinite(agents).all(axis=1)
         if valid.any():
             agents = agents[valid]
-            on = project_on_polyline(agents[:, :2], line)
+            on = project_on_polyline(agents[:, [AgentColumn.X, AgentColumn.Y]], line)
             station = on.station - _BEHIND_M
             along = headings[on.segment]
-            relative = agents[:, 2] - along
+            relative = agents[:, AgentColumn.HEADING] - along
             cos, sin = np.abs(np.cos(relative)), np.abs(np.sin(relative))
-            half_lateral = 0.5 * (agents[:, 5] * sin + agents[:, 6] * cos)
-            half_along = 0.5 * (agents[:, 5] * cos + agents[:, 6] * sin)
+            agent_length, agent_width = agents[:, AgentColumn.LENGTH], agents[:, AgentColumn.WIDTH]
+            half_lateral = 0.5 * (agent_length * sin + agent_width * cos)
+            half_along = 0.5 * (agent_length * cos + agent_width * sin)
             reach = 0.5 * width + half_lateral + c.corridor_margin
             overlaps = np.abs(on.offset) <= reach
             if c.cut_in_horizon > 0:  # same-direction agents whose forecast enters the corridor, in one projection
                 times = np.linspace(0.0, c.cut_in_horizon, CUT_IN_SAMPLES + 1)[1:]
-                ahead_xy = agents[None, :, :2] + times[:, None, None] * agents[None, :, 3:5]  # [S, K, 2]
+                xy, velocity = agents[:, [AgentColumn.X, AgentColumn.Y]], agents[:, [AgentColumn.VX, AgentColumn.VY]]
+                ahead_xy = xy[None] + times[:, None, None] * velocity[None]  # [S, K, 2]
                 there = project_on_polyline(ahead_xy.reshape(-1, 2), line).offset.reshape(len(times), -1)
                 overlaps |= (np.cos(relative) > 0.0) & (np.abs(there) <= reach).any(axis=0)
             ahead = overlaps & (station > 0.0)
             gaps = station - 0.5 * length - half_along
-            lead_speeds = agents[:, 3] * np.cos(along) + agents[:, 4] * np.sin(along)
+            lead_speeds = agents[:, AgentColumn.VX] * np.cos(along) + agents[:, AgentColumn.VY] * np.sin(along)
             found.append(np.stack([gaps[ahead], lead_speeds[ahead]], axis=1))
 
         lights = np.asarray(observation["lights"], np.float64)

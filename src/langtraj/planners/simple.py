@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from langtraj.angles import wrap_angle
-from langtraj.env.spaces import TRAJECTORY_POSES
+from langtraj.env.spaces import TRAJECTORY_POSES, EgoColumn
 from langtraj.errors import InputError
 from langtraj.frames import poses_to_frame
 from langtraj.planners.base import PLANNERS, Planner
@@ -52,7 +52,7 @@ class LogReplayPlanner(Planner):
 
     def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
         ego = np.asarray(observation["ego"], np.float64)
-        origin = (float(ego[0]), float(ego[1]), float(ego[2]))
+        origin = (float(ego[EgoColumn.X]), float(ego[EgoColumn.Y]), float(ego[EgoColumn.HEADING]))
         step = round(float(np.asarray(observation["time"]).reshape(-1)[0]) / STEP_SECONDS)
         poses = self.logged[:, :3]
         usable = np.isfinite(poses).all(axis=1)
