@@ -165,7 +165,8 @@ def test_a_planner_that_hangs_mid_episode_times_out_and_is_killed(tmp_path):
         ("[1, 2]", "answered act with JSON that is not an object"),
         ('{"acceleration": 1}', 'answered act without "action"'),
         ('{"action": [1, 2, 3]}', "an action of shape (3,), expected (2,)"),
-        ('{"action": ["a", "b"]}', 'a non-numeric "action"'),
+        ('{"action": ["a", "b"]}', "an action that is not an array of numbers (list)"),
+        ('{"action": [1, null]}', "a non-finite action"),  # the one rule of env.spaces.checked_action
     ],
 )
 def test_bad_replies_raise_planner_errors(tmp_path, reply, expected):

@@ -349,16 +349,9 @@ class LangTrajEnv(gym.Env):
 
     def _control_of(self, action: Any, pose: np.ndarray) -> np.ndarray:
         try:
-            values = np.asarray(action, np.float64)
-        except (TypeError, ValueError):
-            raise InputError(f"not a numeric array: {action!r}"[:200], where="action") from None
-        if values.shape != self.action_space.shape:
-            raise InputError(
-                f"shape {values.shape} does not fit the {self.action_kind} action space {self.action_space.shape}",
-                where="action",
-            )
-        if not np.isfinite(values).all():
-            raise InputError("non-finite values", where="action")
+            values = spaces.checked_action(action, self.action_kind)
+        except spaces.ActionError as error:
+            raise InputError(f"{error.problem} ({self.action_kind} action space)", where="action") from None
         return track(pose, values) if self.action_kind == "trajectory" else values
 
 

@@ -10,6 +10,7 @@ from here.
 from __future__ import annotations
 
 from enum import IntEnum
+from typing import Any
 
 import numpy as np
 from gymnasium import spaces
@@ -121,3 +122,28 @@ def action_space(kind: str = "control") -> spaces.Box:
             np.tile(-bound, (TRAJECTORY_POSES, 1)), np.tile(bound, (TRAJECTORY_POSES, 1)), dtype=np.float32
         )
     raise ValueError(f"action must be one of {', '.join(ACTION_KINDS)}, got {kind!r}")
+
+
+class ActionError(ValueError):
+    """An action that is not one of its action space's: `problem` says how, as "an action of shape (3,), expected
+    (2,)" (each caller says who gave it and when)."""
+
+    def __init__(self, problem: str):
+        super().__init__(problem)
+        self.problem = problem
+
+
+def checked_action(action: Any, kind: str) -> np.ndarray:
+    """`action` as a float64 array of the `kind` action space's shape: the one check of a planner's action (the env,
+    a suite's episode, the JSON-lines protocol); raises ActionError for anything not numeric, of another shape or
+    not finite. Bounds are not checked: the env clips a control to them and tracks a trajectory as it can."""
+    try:
+        values = np.asarray(action, np.float64)
+    except (TypeError, ValueError):
+        raise ActionError(f"an action that is not an array of numbers ({type(action).__name__})") from None
+    expected = action_space(kind).shape
+    if values.shape != expected:
+        raise ActionError(f"an action of shape {values.shape}, expected {expected}")
+    if not np.isfinite(values).all():
+        raise ActionError("a non-finite action")
+    return values

@@ -39,7 +39,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from langtraj.env.spaces import ACTION_KINDS, action_space, observation_space
+from langtraj.env.spaces import ACTION_KINDS, ActionError, checked_action, observation_space
 from langtraj.planners.base import (
     DEFAULT_STEP_TIMEOUT_S,
     Planner,
@@ -197,7 +197,6 @@ class SubprocessPlanner(Planner):
             self.close()
             raise
         self.action_kind = kind  # type: ignore[misc]  # learned from the planner, per instance
-        self._action_shape = action_space(kind).shape
 
     def reset(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> None:
         """Sends the reset message and waits for its reply (any object)."""
@@ -210,12 +209,9 @@ class SubprocessPlanner(Planner):
         if "action" not in reply:
             raise self._error(f'answered act without "action": {_clip(json.dumps(reply))}')
         try:
-            action = np.array(reply["action"], dtype=np.float64).astype(np.float32)
-        except (TypeError, ValueError):
-            raise self._error(f'answered act with a non-numeric "action": {_clip(json.dumps(reply))}') from None
-        if action.shape != self._action_shape:
-            raise self._error(f"answered act with an action of shape {action.shape}, expected {self._action_shape}")
-        return action
+            return checked_action(reply["action"], self.action_kind).astype(np.float32)
+        except ActionError as error:
+            raise self._error(f"answered act with {error.problem}: {_clip(json.dumps(reply))}") from None
 
     def close(self) -> None:
         """Sends close, waits `CLOSE_WAIT_S` for the planner to exit, then kills it. Safe to call twice."""

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from langtraj.env.spaces import action_space
+from langtraj.env.spaces import ActionError, checked_action
 from langtraj.errors import one_line
 from langtraj.registry import import_object
 from langtraj.suites.config import EPISODE_STEPS, SuiteCase
@@ -188,10 +188,9 @@ class _Episode:
         observation, info = self.env.reset(seed=task.seed)
         self.ego = int(info["ego_id"])
         self.call_planner(lambda: reset_planner(self.planner, observation, info), "in reset")
-        expected = action_space(kind).shape
         for step in range(1, (case.max_steps or EPISODE_STEPS) + 1):
             action = self.call_planner(lambda obs=observation: self.planner.act(obs), f"at step {step}")
-            action = check_action(action, expected, step)
+            action = check_action(action, kind, step)
             observation, _, terminated, truncated, info = self.env.step(action)
             self.record.add(info)
             if terminated or truncated:
@@ -225,19 +224,13 @@ class _Episode:
         return relative
 
 
-def check_action(action: Any, expected: tuple[int, ...], step: int) -> np.ndarray:
-    """`action` as a float32 array of shape `expected`; a wrong shape or a non-finite value fails the episode."""
+def check_action(action: Any, kind: str, step: int) -> np.ndarray:
+    """`action` as a float32 array of the `kind` action space (`env.spaces.checked_action`); one that is not fails
+    the episode."""
     try:
-        array = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise _Failed(
-            f"planner returned an action that is not an array of numbers ({type(action).__name__}) at step {step}"
-        ) from None
-    if array.shape != tuple(expected):
-        raise _Failed(f"planner returned an action of shape {array.shape}, expected {tuple(expected)} at step {step}")
-    if not np.isfinite(array).all():
-        raise _Failed(f"planner returned a non-finite action at step {step}")
-    return array.astype(np.float32)
+        return checked_action(action, kind).astype(np.float32)
+    except ActionError as error:
+        raise _Failed(f"planner returned {error.problem} at step {step}") from None
 
 
 def run_episode(task: EpisodeTask) -> EpisodeResult:
