@@ -19,6 +19,7 @@ LAYERS = (
     ("angles", "frames", "polylines", "fileio", "registry", "settings", "web"),
     ("executors", "runs"),
     ("scenario",),
+    ("roads",),
     ("rollouts", "viz", "synth", "interdrive"),
     ("metrics", "model"),
     ("guidance",),

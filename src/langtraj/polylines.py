@@ -1,6 +1,6 @@
 """Polylines in the plane, in numpy: arc lengths, resampling, points at a station, and projections onto segments.
 
-The one implementation of these for the map index (`interdrive.mapindex`), behaviour targets (`interdrive.targets`)
+The one implementation of these for the map index (`roads`), behaviour targets (`interdrive.targets`)
 and the road field (`guidance.road_field`); the differentiable torch projection is `guidance.geometry`'s. A
 polyline is an array [N, 2] of (x, y) points (further columns, a z say, are ignored); a point's station is its arc
 length along the polyline from the first point; a lateral offset is positive on the left of the direction of travel.

@@ -11,7 +11,7 @@ from interdrive.test_counterfactual import LEFT_LANE_STRAIGHT, RIGHT_LANE_RIGHT,
 from interdrive.test_heuristics import scene
 
 from langtraj.cli.main import main
-from langtraj.interdrive.mapindex import MapIndex
+from langtraj.roads import MapIndex
 from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.io import write_scenarios
 from langtraj.sim.config import ALL_LEVERS

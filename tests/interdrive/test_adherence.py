@@ -5,13 +5,13 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+from roads.test_mapindex import three_lane_road
 
 from langtraj.interdrive.adherence import AdherenceChecker, prompt_facts, prompt_for_sentence
 from langtraj.interdrive.dataset import PromptEntry, WindowRecord
 from langtraj.interdrive.labels import WindowLabels
 
 from .test_heuristics import TIME, car_on_lane, scene
-from .test_mapindex import three_lane_road
 
 
 def _prompt(mentions, labels=(), subtype=None) -> PromptEntry:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from roads.test_mapindex import arc, line
 
 from langtraj.errors import InputError
 from langtraj.interdrive.adherence import label_facts, lane_change_key, lane_change_side, prompt_facts
@@ -17,18 +18,17 @@ from langtraj.interdrive.counterfactual import feasible_alternatives, logged_fac
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.free_text import load_free_text_prompts
 from langtraj.interdrive.labels import AgentLabel
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.prompts import Prompt, mentions_in, parse_user_prompt
 from langtraj.interdrive.prompts.user import recognize_prompt
 from langtraj.interdrive.reader import read_prompt
 from langtraj.interdrive.targets import CounterfactualConfig, behaviour_feasibility
 from langtraj.interdrive.taxonomy import LABELS_BY_KEY, SUBTYPES_BY_ID
+from langtraj.roads import MapIndex
 from langtraj.scenario import AgentType, LaneNeighbor, MapFeature, MapFeatureType, RoadMap, Scenario
 
 from .test_ground_truth import VEH, straight
 from .test_ground_truth import scene as track_scene
 from .test_heuristics import TIME, along, scene
-from .test_mapindex import arc, line
 
 FREE_TEXT = Path(__file__).resolve().parents[1] / "data" / "free_text_prompts.yaml"
 LANE = MapFeatureType.LANE_SURFACE_STREET

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from roads.test_mapindex import LANE_WIDTH, ROAD_X, arc, junction_map, line, three_lane_road
 
 from langtraj.interdrive.heuristics import (
     LABEL_RULES,
@@ -16,14 +17,12 @@ from langtraj.interdrive.heuristics import (
     label_agents,
 )
 from langtraj.interdrive.labels import AgentLabel, Undecided
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.taxonomy import LABELS_BY_KEY, check_params
+from langtraj.roads import MapIndex
 from langtraj.runs import value_runs as runs
 from langtraj.scenario import Agents, AgentType, LaneNeighbor, MapFeature, MapFeatureType, RoadMap, Scenario
 from langtraj.scenario.io import read_scenario
 from langtraj.scenario.windowing import cut_window
-
-from .test_mapindex import LANE_WIDTH, ROAD_X, arc, junction_map, line, three_lane_road
 
 T = 91
 CURRENT = 10

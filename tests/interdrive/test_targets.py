@@ -7,17 +7,17 @@ import math
 
 import numpy as np
 import pytest
+from roads.test_mapindex import line
 
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets import TargetUnavailable, behaviour_feasibility, derive_target, feasibility
 from langtraj.interdrive.targets.derive import KERB_CLEARANCE, KERB_MIN_CLEARANCE, kerb_distance
 from langtraj.polylines import point_at
+from langtraj.roads import MapIndex
 from langtraj.scenario import AgentType, MapFeature, MapFeatureType, RoadMap
 
 from .test_counterfactual import HALF, LEFT_LANE_STRAIGHT, RIGHT_LANE_STRAIGHT, drive, four_way, two_lane_road
 from .test_heuristics import TIME, along, scene
-from .test_mapindex import line
 
 
 def _target(s, track, behaviour, other=None):

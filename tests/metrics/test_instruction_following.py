@@ -22,13 +22,13 @@ from interdrive.test_heuristics import scene
 from langtraj.errors import InputError
 from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.counterfactual import Behaviour, feasible_alternatives, make_alternative
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.metrics.instruction_following import (
     Judgement,
     instruction_following,
     judge_rollouts,
     rollout_scenario,
 )
+from langtraj.roads import MapIndex
 from langtraj.rollouts.container import Rollouts
 from langtraj.scenario import FUTURE_STEPS
 from langtraj.scenario.types import StateField

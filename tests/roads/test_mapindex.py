@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from langtraj.interdrive.mapindex import MapIndex, SegmentSet
+from langtraj.roads import MapIndex, SegmentSet
 from langtraj.scenario import LaneNeighbor, MapFeature, MapFeatureType, RoadMap
 
 LANE_WIDTH = 3.5

@@ -17,8 +17,8 @@ from interdrive.test_heuristics import TIME, scene
 from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.counterfactual import make_alternative
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.metrics.instruction_following import judge_rollouts
+from langtraj.roads import MapIndex
 from langtraj.rollouts.container import Rollouts
 from langtraj.scenario import AgentType, Scenario, TrafficLights
 from langtraj.scenario.types import StateField, TrafficLightState

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from interdrive.test_counterfactual import HALF, LEFT_LANE_STRAIGHT, RIGHT_LANE_STRAIGHT, drive, four_way
 from interdrive.test_heuristics import TIME, along, scene
-from interdrive.test_mapindex import line
+from roads.test_mapindex import line
 
 from langtraj.errors import InputError
 from langtraj.guidance import RouteCost

@@ -28,10 +28,10 @@ from langtraj.env.reward import RewardConfig
 from langtraj.env.route import ego_route
 from langtraj.errors import InputError
 from langtraj.interdrive.heuristics import HeuristicConfig
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
 from langtraj.metrics.road import RoadEdgeIndex, road_edge_index
 from langtraj.model.config import ModelConfig
+from langtraj.roads import MapIndex
 from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.scenario.drivable import measured_road_edges
 from langtraj.scenario.io import read_scenario

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
-from langtraj.interdrive.targets.routes import chain_path, continued, route, straight_line
 from langtraj.polylines import arc_lengths, project_on_polyline
+from langtraj.roads import MapIndex
+from langtraj.roads.routes import chain_path, continued, route, straight_line
 
 ROUTE_LENGTH_M = 250.0
 """How far the route reaches beyond the logged end point (or from the ego, without a log)."""
@@ -37,7 +37,7 @@ class Route:
 
     @classmethod
     def of(cls, points: np.ndarray, source: str, limits: np.ndarray | None = None, ends: np.ndarray | None = None):
-        """The route through `points` (a point every `ROUTE_SPACING` m, as `interdrive.targets.routes` draws them);
+        """The route through `points` (a point every `ROUTE_SPACING` m, as `roads.routes` draws them);
         `limits` [L] the speed limits (m/s) of its successive lanes, the l-th up to arc length `ends[l]` (None: no
         lanes, no limits)."""
         points = np.asarray(points, np.float64)

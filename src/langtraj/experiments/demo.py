@@ -33,9 +33,9 @@ from langtraj.interdrive.adherence import AdherenceChecker, prompt_facts
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.counterfactual import Alternative, feasible_alternatives
 from langtraj.interdrive.dataset import BuildConfig, PromptEntry, label_file, load_window
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets import TargetUnavailable, derive_target
 from langtraj.metrics.instruction_following import rollout_scenario
+from langtraj.roads import MapIndex
 from langtraj.rollouts import Rollouts
 from langtraj.scenario.io import expand_scenario_paths
 from langtraj.scenario.model import HISTORY_STEPS, WINDOW_STEPS, Scenario

@@ -42,11 +42,11 @@ from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.counterfactual import Alternative, feasible_alternatives
 from langtraj.interdrive.free_text import FreeTextPrompt, load_free_text_prompts
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.metrics.controllability import agent_rates, min_ade
 from langtraj.metrics.features import SceneMap
 from langtraj.metrics.instruction_following import Judgement, instruction_following, judge_rollouts
 from langtraj.model.checkpoint import load_model
+from langtraj.roads import MapIndex
 from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType

@@ -25,8 +25,8 @@ from langtraj.interdrive.dataset import PromptEntry, WindowRecord
 from langtraj.interdrive.detector import DetectorConfig, detect_interactions
 from langtraj.interdrive.heuristics import HeuristicConfig, label_agents
 from langtraj.interdrive.labels import AgentLabel, InteractionLabel
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.taxonomy import LANE_POSITIONS
+from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 
 Fact = tuple[str, int, str] | tuple[str, int, int, str]

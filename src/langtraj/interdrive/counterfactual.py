@@ -22,9 +22,9 @@ from langtraj.interdrive.behaviour import (
     opposite_subtype,
 )
 from langtraj.interdrive.dataset import PromptEntry
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.prompts import Prompt, mentions_in
 from langtraj.interdrive.targets import CounterfactualConfig, behaviour_feasibility, feasibility
+from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
 

@@ -29,7 +29,6 @@ from langtraj.interdrive.detector import detect_interactions
 from langtraj.interdrive.ground_truth import ground_truth_interactions
 from langtraj.interdrive.heuristics import HeuristicConfig, label_agents
 from langtraj.interdrive.labels import InteractionLabel, LabelSource, WindowLabels
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.prompts import (
     TEMPLATES_ONLY,
     LLMConfig,
@@ -40,6 +39,7 @@ from langtraj.interdrive.prompts import (
     llm_phrase_bank,
     role_rephrase,
 )
+from langtraj.roads import MapIndex
 from langtraj.scenario.ids import map_group
 from langtraj.scenario.io import read_scenario, read_scenarios
 from langtraj.scenario.model import Scenario

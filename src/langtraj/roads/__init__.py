@@ -1,5 +1,7 @@
-"""Map queries and the lane primitives of the heuristic labeler and the interaction detector, built once per scene
-over a `RoadMap` (docs/interdrive.md describes both labelers).
+"""The road network as a layer of its own (docs/design.md, 'Layers'): map queries and lane primitives built once per
+scene over a `RoadMap` (`MapIndex`), and paths drawn along the lane graph (`roads.routes`). The labelers
+(`interdrive`), the simulation (`sim`) and the environment (`env`) all read the road from here; it reads nothing
+above `scenario`.
 
 Lanes and road edges are resampled to short segments (at most `SEGMENT_SPACING_M` long) and bucketed in a
 uniform grid, so a batch of positions is matched to its nearest segments by vectorised numpy (no scipy).
@@ -18,13 +20,14 @@ What each query relies on, and what it falls back to (each `*_source` attribute 
 - crosswalks and road edges: the `CROSSWALK` polygons and `ROAD_EDGE_*` polylines, where the map has any.
 
 Modules: `segments` (`SegmentSet`, the grid of short segments), `records` (`LaneMatch`, `LaneChange`), `lane_graph`
-(lane links, neighbour spans, junction lanes, derived at build time), `index` (`MapIndex` and its queries).
+(lane links, neighbour spans, junction lanes, derived at build time), `index` (`MapIndex` and its queries), `routes`
+(a lane's centreline from a station, a route along lanes continued by the straightest exits, a straight line).
 """
 
-from langtraj.interdrive.mapindex.index import MapIndex
-from langtraj.interdrive.mapindex.records import LaneChange, LaneMatch
-from langtraj.interdrive.mapindex.segments import SEGMENT_SPACING_M, SegmentSet
 from langtraj.polylines import arc_lengths  # re-exported for the modules that still import it from here
+from langtraj.roads.index import MapIndex
+from langtraj.roads.records import LaneChange, LaneMatch
+from langtraj.roads.segments import SEGMENT_SPACING_M, SegmentSet
 
 __all__ = [
     "SEGMENT_SPACING_M",

@@ -11,7 +11,7 @@ from typing import Literal
 import numpy as np
 
 from langtraj.angles import wrap_angle
-from langtraj.interdrive.mapindex.lane_graph import (
+from langtraj.roads.lane_graph import (
     _ending_lanes,
     _geometric_junctions,
     _junction_distances,
@@ -19,8 +19,8 @@ from langtraj.interdrive.mapindex.lane_graph import (
     _NeighborSpan,
     _symmetric_links,
 )
-from langtraj.interdrive.mapindex.records import LaneMatch, LanePosition, Side
-from langtraj.interdrive.mapindex.segments import SegmentSet, _best_per_query, arc_lengths
+from langtraj.roads.records import LaneMatch, LanePosition, Side
+from langtraj.roads.segments import SegmentSet, _best_per_query, arc_lengths
 from langtraj.scenario.model import MapFeature, RoadMap
 from langtraj.scenario.types import MapFeatureType
 

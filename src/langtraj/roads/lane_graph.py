@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from langtraj.angles import wrap_angle
-from langtraj.interdrive.mapindex.segments import SegmentSet, arc_lengths
+from langtraj.roads.segments import SegmentSet, arc_lengths
 from langtraj.scenario.model import MapFeature
 
 JUNCTION_CROSSING_ANGLE = math.radians(30.0)

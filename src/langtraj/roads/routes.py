@@ -9,8 +9,8 @@ import math
 import numpy as np
 
 from langtraj.angles import wrap_angle
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.polylines import arc_lengths, point_at, resample
+from langtraj.roads import MapIndex
 
 ROUTE_SPACING = 1.0
 """Spacing of a target's path points (m)."""

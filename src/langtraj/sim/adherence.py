@@ -39,8 +39,8 @@ from langtraj.interdrive.detector import (
 )
 from langtraj.interdrive.detector.parts import Pair
 from langtraj.interdrive.heuristics import HeuristicConfig, label_agents
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.taxonomy import InteractionType
+from langtraj.roads import MapIndex
 from langtraj.scenario.model import Agents, Scenario, TrafficLights
 from langtraj.scenario.types import StateField
 from langtraj.sim.world import SimWorld

@@ -55,7 +55,6 @@ from matplotlib.path import Path as MplPath
 
 from langtraj.errors import InputError
 from langtraj.interdrive.heuristics.config import HeuristicConfig
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.metrics.controllability import collision_flags, offroad_flags
 from langtraj.metrics.features import COLLISION_THRESHOLD, OFFROAD_THRESHOLD, SceneMap
 from langtraj.metrics.interaction import pair_signed_distance
@@ -67,6 +66,7 @@ from langtraj.metrics.road import (
     distance_to_road_edge,
 )
 from langtraj.polylines import project_on_segments
+from langtraj.roads import MapIndex
 from langtraj.rollouts.baselines import generate_baseline
 from langtraj.rollouts.container import Rollouts
 from langtraj.rollouts.validation import check_rollouts

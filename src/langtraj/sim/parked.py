@@ -10,7 +10,7 @@ import numpy as np
 from langtraj.interdrive.heuristics.config import HeuristicConfig
 from langtraj.interdrive.heuristics.context import LabelContext
 from langtraj.interdrive.heuristics.kinematics import Kinematics
-from langtraj.interdrive.mapindex import MapIndex
+from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 
 

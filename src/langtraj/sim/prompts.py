@@ -18,10 +18,10 @@ from langtraj.frames import Origin
 from langtraj.guidance.steering import Steering
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.dataset import PromptEntry
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.prompts import parse_user_prompt
 from langtraj.interdrive.reader import PromptReading, read_prompt
 from langtraj.interdrive.targets import BehaviourTarget, Feasibility, TargetUnavailable, derive_target, feasibility
+from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 from langtraj.sim.adherence import Ask
 from langtraj.sim.config import PromptLevers

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from langtraj.errors import InputError
-from langtraj.interdrive.mapindex import MapIndex
+from langtraj.roads import MapIndex
 from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.scenario.io import expand_scenario_paths, read_scenario, read_scenarios
 from langtraj.scenario.model import WINDOW_STEPS, Scenario

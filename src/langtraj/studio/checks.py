@@ -13,10 +13,10 @@ from typing import Any
 import numpy as np
 
 from langtraj.errors import InputError
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.prompts import MAX_PROMPT_CHARS  # the prompt parser's limit, checked before reading
 from langtraj.interdrive.reader import PromptReading
 from langtraj.interdrive.targets import BehaviourTarget
+from langtraj.roads import MapIndex
 from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.scenario.model import Scenario
 from langtraj.sim.config import ALL_LEVERS

@@ -9,7 +9,7 @@ from functools import cached_property
 import numpy as np
 
 from langtraj.interdrive.detector.config import MOVERS, DetectorConfig
-from langtraj.interdrive.mapindex import LaneMatch, MapIndex
+from langtraj.roads import LaneMatch, MapIndex
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.types import StateField
 

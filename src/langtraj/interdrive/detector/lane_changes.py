@@ -16,7 +16,7 @@ from langtraj.interdrive.detector.arrays import SceneArrays
 from langtraj.interdrive.detector.lanes import LaneGeometry
 from langtraj.interdrive.detector.parts import Pair, ScenePart
 from langtraj.interdrive.labels import AgentLabel
-from langtraj.interdrive.mapindex import LaneChange
+from langtraj.roads import LaneChange
 from langtraj.runs import true_runs
 
 

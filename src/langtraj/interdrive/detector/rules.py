@@ -18,9 +18,9 @@ from langtraj.interdrive.detector.parts import Pair
 from langtraj.interdrive.detector.scene import SceneGeometry
 from langtraj.interdrive.ground_truth import filter_to_window, label_sort_key
 from langtraj.interdrive.labels import AgentLabel, InteractionLabel, LabelSource
-from langtraj.interdrive.mapindex import LaneChange, MapIndex
 from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID, InteractionType
 from langtraj.registry import Registry
+from langtraj.roads import LaneChange, MapIndex
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.types import AgentType
 

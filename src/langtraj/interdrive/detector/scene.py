@@ -19,7 +19,7 @@ from langtraj.interdrive.detector.parts import ScenePart
 from langtraj.interdrive.detector.paths import PathGeometry
 from langtraj.interdrive.detector.yields import YieldGeometry
 from langtraj.interdrive.labels import AgentLabel
-from langtraj.interdrive.mapindex import MapIndex
+from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 
 

@@ -13,7 +13,7 @@ from langtraj.interdrive.heuristics.config import HeuristicConfig
 from langtraj.interdrive.heuristics.kinematics import Kinematics, _steps
 from langtraj.interdrive.heuristics.runs import INVALID, absorb_short_runs
 from langtraj.interdrive.labels import AgentLabel, Undecided
-from langtraj.interdrive.mapindex import LaneChange, LaneMatch, MapIndex
+from langtraj.roads import LaneChange, LaneMatch, MapIndex
 from langtraj.runs import true_runs, value_runs
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType

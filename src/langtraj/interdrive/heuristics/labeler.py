@@ -8,7 +8,7 @@ from langtraj.interdrive.heuristics.context import LabelContext
 from langtraj.interdrive.heuristics.kinematics import Kinematics
 from langtraj.interdrive.heuristics.rules import LABEL_RULES
 from langtraj.interdrive.labels import AgentLabel, Undecided
-from langtraj.interdrive.mapindex import MapIndex
+from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 
 

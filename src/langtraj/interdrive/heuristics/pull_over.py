@@ -7,7 +7,7 @@ import numpy as np
 
 from langtraj.angles import wrap_angle
 from langtraj.interdrive.heuristics.context import LabelContext
-from langtraj.interdrive.mapindex import MapIndex
+from langtraj.roads import MapIndex
 
 
 def _lane_frame(index: MapIndex, lane: int, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -2,8 +2,8 @@
 (it can exactly when the map gives a target). Read from the scene at the current step only.
 
 Modules, in the order they build on each other: `config` (`CounterfactualConfig`, how far the map is searched),
-`lanes_ahead` (the agent on its lane, the next junction's branches, the road ahead), `routes` (paths drawn along the
-lane graph), `derive` (`BehaviourTarget`, `derive_target`, `TargetUnavailable`), `feasibility` (`Feasibility`,
+`lanes_ahead` (the agent on its lane, the next junction's branches, the road ahead; paths along the lane graph are
+`roads.routes`), `derive` (`BehaviourTarget`, `derive_target`, `TargetUnavailable`), `feasibility` (`Feasibility`,
 `feasibility`, `behaviour_feasibility`). See docs/interdrive.md ('Targets and feasibility').
 """
 

@@ -34,7 +34,6 @@ import numpy as np
 from langtraj.angles import wrap_angle
 from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour, Side
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets.config import CounterfactualConfig
 from langtraj.interdrive.targets.lanes_ahead import (
     AgentOnLane,
@@ -44,9 +43,10 @@ from langtraj.interdrive.targets.lanes_ahead import (
     junction_ahead,
     stations_ahead,
 )
-from langtraj.interdrive.targets.routes import ROUTE_SPACING, route, straight_line
 from langtraj.interdrive.taxonomy import LABELS_BY_KEY
 from langtraj.polylines import arc_lengths, point_at, project_on_polyline, resample
+from langtraj.roads import MapIndex
+from langtraj.roads.routes import ROUTE_SPACING, route, straight_line
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
 from langtraj.scenario.types import AgentType, StateField
 

@@ -7,9 +7,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
-from langtraj.interdrive.mapindex import MapIndex
 from langtraj.interdrive.targets.config import CounterfactualConfig
 from langtraj.interdrive.targets.derive import BehaviourTarget, Status, TargetContext, TargetUnavailable
+from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 
 

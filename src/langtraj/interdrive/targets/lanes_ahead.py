@@ -14,8 +14,8 @@ import numpy as np
 from langtraj.angles import wrap_angle
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.heuristics import HeuristicConfig
-from langtraj.interdrive.mapindex import SEGMENT_SPACING_M, MapIndex
 from langtraj.interdrive.targets.config import CounterfactualConfig
+from langtraj.roads import SEGMENT_SPACING_M, MapIndex
 from langtraj.scenario.model import Scenario
 
 JUNCTION_ENTRY_M = 5.0
