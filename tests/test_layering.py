@@ -32,9 +32,10 @@ LAYERS = (
 )
 """Each package may import only packages of earlier layers (and itself)."""
 RANK = {package: rank for rank, layer in enumerate(LAYERS) for package in layer}
-APART = {"sim": {"synth", "viz", "labeling"}}
+APART = {"sim": {"synth", "viz", "labeling"}, "env": {"interdrive"}}
 """Lower packages a package never imports, not even lazily: the simulation engine needs no SUMO factory, renderer
-or labeling tool (what the model may load: tests/model/test_imports.py)."""
+or labeling tool (what the model may load: tests/model/test_imports.py); the env reads the road from `roads`, not
+from the labels package."""
 
 
 def _top_package(path: Path) -> str:

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from langtraj.env.route import Route, ego_route
-from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
 from langtraj.roads import MapIndex
+from langtraj.roads.position import AgentOnLane
 from langtraj.scenario import MapFeature, MapFeatureType, RoadMap
 from langtraj.scenario.model import MPH_TO_MPS
 

@@ -27,11 +27,10 @@ from langtraj.env.observe import MapPieces, Observer
 from langtraj.env.reward import RewardConfig
 from langtraj.env.route import ego_route
 from langtraj.errors import InputError
-from langtraj.interdrive.heuristics import HeuristicConfig
-from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
 from langtraj.metrics.road import RoadEdgeIndex, road_edge_index
 from langtraj.model.config import ModelConfig
 from langtraj.roads import MapIndex
+from langtraj.roads.position import AgentOnLane
 from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.scenario.drivable import measured_road_edges
 from langtraj.scenario.io import read_scenario
@@ -203,7 +202,7 @@ class LangTrajEnv(gym.Env):
         self._ego, self._ego_id = ego, ego_id
         pose = self._pose()
         logged = _logged_future(scenario, ego)
-        start = AgentOnLane.of(scenario, ego, scene.index, HeuristicConfig())
+        start = AgentOnLane.of(scenario, ego, scene.index)
         seen = logged[np.isfinite(logged[:, 0]), :2]
         self._route = ego_route(scene.index, start, pose[:2], float(pose[2]), seen)
         self._observer = Observer(scenario, ego, self._route, scene.pieces)

@@ -14,9 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
 from langtraj.polylines import arc_lengths, project_on_polyline
 from langtraj.roads import MapIndex
+from langtraj.roads.position import AgentOnLane
 from langtraj.roads.routes import chain_path, continued, route, straight_line
 
 ROUTE_LENGTH_M = 250.0

@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from langtraj.roads.position import LANE_MATCH_MAX_HEADING, LANE_MATCH_RADIUS
+
 
 @dataclass(frozen=True)
 class HeuristicConfig:
@@ -52,9 +54,9 @@ class HeuristicConfig:
     """A turn's span runs from this fraction of its heading change to one minus it."""
     min_path_length: float = 5.0
     """Shortest future path of a vehicle given a turn / straight label (m)."""
-    lane_match_radius: float = 3.0
+    lane_match_radius: float = LANE_MATCH_RADIUS
     """Largest distance from a vehicle to the centerline of its matched lane (m)."""
-    lane_match_max_heading: float = math.radians(45.0)
+    lane_match_max_heading: float = LANE_MATCH_MAX_HEADING
     """Largest heading disagreement between a vehicle and its matched lane (rad)."""
     off_road_distance: float = 4.0
     """A vehicle farther than this from every drivable lane centerline is off the main roads (m)."""

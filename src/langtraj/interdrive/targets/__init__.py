@@ -10,7 +10,7 @@ Modules, in the order they build on each other: `config` (`CounterfactualConfig`
 from langtraj.interdrive.targets.config import CounterfactualConfig
 from langtraj.interdrive.targets.derive import SPEED_CHANGE, BehaviourTarget, Status, TargetUnavailable, derive_target
 from langtraj.interdrive.targets.feasibility import Feasibility, behaviour_feasibility, feasibility
-from langtraj.interdrive.targets.lanes_ahead import AgentOnLane
+from langtraj.roads.position import AgentOnLane
 
 __all__ = [
     "SPEED_CHANGE",

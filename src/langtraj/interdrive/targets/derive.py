@@ -200,7 +200,10 @@ class TargetContext:
         if not self.scenario.agents.valid[row, c]:
             return None
         state = self.scenario.agents.states[row, c]
-        here = AgentOnLane.of(self.scenario, row, self.index, self.config.heuristics)
+        cfg = self.config.heuristics
+        here = AgentOnLane.of(
+            self.scenario, row, self.index, radius=cfg.lane_match_radius, max_heading=cfg.lane_match_max_heading
+        )
         return _Agent(
             track_id,
             AgentType(int(self.scenario.agents.types[row])),

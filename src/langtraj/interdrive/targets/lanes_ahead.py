@@ -6,48 +6,18 @@ feasibility')."""
 from __future__ import annotations
 
 import heapq
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from langtraj.angles import wrap_angle
 from langtraj.interdrive.behaviour import Behaviour
-from langtraj.interdrive.heuristics import HeuristicConfig
 from langtraj.interdrive.targets.config import CounterfactualConfig
 from langtraj.roads import SEGMENT_SPACING_M, MapIndex
-from langtraj.scenario.model import Scenario
+from langtraj.roads.position import AgentOnLane
 
 JUNCTION_ENTRY_M = 5.0
 """An agent less than this far into a junction lane may yet take any branch its entry lane leads to (m)."""
-
-
-@dataclass(frozen=True)
-class AgentOnLane:
-    """Where an agent is at the current step: its lane (index into the map index, -1 if none), station, speed."""
-
-    lane: int
-    station: float
-    speed: float
-
-    @classmethod
-    def of(cls, scenario: Scenario, agent: int, index: MapIndex, cfg: HeuristicConfig) -> AgentOnLane:
-        """Agent row `agent` matched to a lane as the heuristic labeler matches vehicles."""
-        agents, c = scenario.agents, scenario.current_index
-        speed = float(np.hypot(*agents.velocity[agent, c]))
-        back = [t for t in range(c - 5, c) if t >= 0 and agents.valid[agent, t]]
-        if back:  # from positions, as the labelers measure speed (some sources leave velocities at zero)
-            step = float(np.median(np.diff(scenario.timestamps))) if scenario.num_steps > 1 else 0.1
-            speed = float(np.linalg.norm(agents.xy[agent, c] - agents.xy[agent, back[0]])) / ((c - back[0]) * step)
-        if not index.has_lanes:
-            return cls(-1, math.nan, speed)
-        match = index.match_lanes(
-            agents.xy[agent, c][None],
-            agents.heading[agent, c : c + 1],
-            radius=cfg.lane_match_radius,
-            max_heading_diff=cfg.lane_match_max_heading,
-        )
-        return cls(int(match.lane[0]), float(match.station[0]), speed)
 
 
 # ---------------------------------------------------------------------------------------------- junctions
