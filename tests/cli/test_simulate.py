@@ -115,7 +115,7 @@ def test_baseline_policies_need_no_checkpoint(tiny_run, tmp_path):
         (["--prompt", "@7 turns left", "--prompt", "@7 stops"], "named by two prompts"),
         (["--adversary", "7", "--target", "7"], "same agent"),
         (["--adversary", "27", "--target", "7"], "@27 is not an agent of this scene at its current step"),
-        (["--adversary", "7"], "go together"),
+        (["--adversary", "7"], "an adversary needs a target"),
         (["--guidance", "goal=1"], "'goal' cannot be given here"),
         (["--guidance", "on_road=-1"], "must be finite and >= 0"),
         (["--guidance", "on_road"], "expected NAME=WEIGHT"),

@@ -111,8 +111,8 @@ def test_the_long_prompt_never_reaches_the_reader(
     ("pair", "expected"),
     [
         ({"adversary": 1580}, "an adversary needs a target"),
-        ({"adversary": 1580, "target": 1580}, "both @1580"),
-        ({"adversary": 1580, "target": 99999}, "target @99999 is not a sim agent"),
+        ({"adversary": 1580, "target": 1580}, "the same agent (@1580)"),
+        ({"adversary": 1580, "target": 99999}, "@99999 is not an agent of this scene at its current step"),
     ],
 )
 def test_collision_pair_problems(client: TestClient, womd_key: str, pair: dict, expected: str) -> None:

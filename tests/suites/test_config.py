@@ -95,8 +95,12 @@ def test_the_real_data_folder_is_the_one_given_else_the_variable_else_beside_the
         ("  - {name: a, scenario: scene.tfrecord, window: -2}", "cases[0].window: must be >= 0"),
         ("  - {name: a, scenario: scene.tfrecord, ego: car}", "cases[0].ego: expected a track id"),
         ("  - {name: a, scenario: scene.tfrecord, adversary: 3}", "cases[0].target: an adversary needs a target"),
+        ("  - {name: a, scenario: scene.tfrecord, adversary: 3, target: 3}", "cases[0].target: the adversary and the"),
         ("  - {name: a, scenario: scene.tfrecord, target: bus, adversary: 3}", "cases[0].target: expected a track id"),
-        ("  - {name: a, scenario: scene.tfrecord, ego: 3, adversary: 3, target: 4}", "cases[0].adversary: 3 is also"),
+        (
+            "  - {name: a, scenario: scene.tfrecord, ego: 3, adversary: 3, target: 4}",
+            "cases[0].adversary: @3 is the ego",
+        ),
         ("  - {name: a, scenario: scene.tfrecord, prompts: ['@adv brakes']}", "cases[0].prompts[0]: '@adv' needs"),
         ("  - {name: a, scenario: scene.tfrecord, prompts: '@1 brakes'}", "cases[0].prompts: expected a list"),
         ("  - {name: a, scenario: scene.tfrecord, max_steps: 81}", "cases[0].max_steps: must be at most 80"),

@@ -43,6 +43,7 @@ from langtraj.sim.policies import POLICIES, LoadedModel
 from langtraj.sim.prompts import prompt_mentions, user_prompt_entry
 from langtraj.sim.setup import build_policy
 from langtraj.sim.stepping import SteppedSimulation
+from langtraj.sim.terms import pair_problem
 
 EGO_PLACEHOLDER = "@ego"
 """Written in a prompt, stands for the ego's track id (chosen at reset)."""
@@ -178,8 +179,9 @@ class LangTrajEnv(gym.Env):
                 raise InputError(f"{text!r} asks something of the ego, which the planner drives", where="prompts")
         target = ego_id if episode.target == "ego" else episode.target
         adversary = ego_id if episode.adversary == "ego" else episode.adversary
-        if adversary == ego_id:
-            raise InputError("the adversary cannot be the ego, which the planner drives", where="adversary")
+        problem = pair_problem(adversary, target, ego=ego_id)  # the scene's own agents: checked by the simulation
+        if problem is not None:
+            raise InputError(problem[1], where=problem[0])
         request = SimRequest(
             policy=self.policy_name,
             checkpoint=self.checkpoint,

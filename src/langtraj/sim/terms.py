@@ -4,7 +4,7 @@ adversary into a target, and the scene-wide costs `--guidance NAME=WEIGHT` names
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 
 from langtraj.errors import InputError
 from langtraj.guidance import GUIDANCE, CollisionCost, GuidanceCost, GuidanceTerm
@@ -43,26 +43,47 @@ def scene_wide_terms(items: Sequence[str]) -> list[GuidanceTerm]:
     return terms
 
 
+def pair_problem(
+    adversary: int | str | None,
+    target: int | str | None,
+    *,
+    sim_ids: Collection[int] | None = None,
+    driven: Collection[int] | None = None,
+    ego: int | str | None = None,
+) -> tuple[str, str] | None:
+    """What is wrong with an adversary and a target (track ids; `ego` the ego's, or "ego" before it is known) as a
+    collision pair, as ("adversary" or "target", why), or None: the one rule `simulate`, the env, a suite and the
+    studio apply. Both or neither; two agents; the adversary not the ego (which a planner drives); where the scene
+    is known, both sim agents (`sim_ids`: valid at the current step) and, where the model's agents are, both driven
+    (`driven`)."""
+    if adversary is None and target is None:
+        return None
+    if adversary is None or target is None:
+        return ("target" if target is None else "adversary", "an adversary needs a target and a target an adversary")
+    if adversary == target:
+        return "target", f"the adversary and the target are the same agent (@{adversary})"
+    if ego is not None and adversary in (ego, "ego"):
+        return "adversary", f"@{adversary} is the ego, which the planner drives; it cannot be the adversary"
+    for role, track in (("adversary", adversary), ("target", target)):
+        if sim_ids is not None and track not in sim_ids:
+            shown = sorted(sim_ids)
+            listed = f"{', '.join(str(i) for i in shown[:30])}{' ...' if len(shown) > 30 else ''}"
+            return role, f"@{track} is not an agent of this scene at its current step; sim agents: {listed}"
+        if driven is not None and track not in driven:
+            return role, f"@{track} is not among the {len(driven)} agents the model drives"
+    return None
+
+
 def collision_terms(scenario: Scenario, slots: Mapping[int, int], request: SimRequest) -> list[GuidanceTerm]:
     """The collision term of `request.adversary` and `request.target` (track ids; `slots` maps the driven
-    ones to model slots), or none when neither is given."""
+    ones to model slots), or none when neither is given; a pair `pair_problem` refuses raises InputError."""
     adversary, target = request.adversary, request.target
-    if adversary is None and target is None:
-        return []
-    if adversary is None or target is None:
-        raise InputError("--adversary and --target go together", where="arguments")
-    if adversary == target:
-        raise InputError(f"the adversary and the target are the same agent (@{adversary})", where="--target")
     sim_ids = set(scenario.agents.ids[sim_agent_indices(scenario)].tolist())
-    for flag, track in (("--adversary", adversary), ("--target", target)):
-        if track not in sim_ids:
-            raise InputError(
-                f"@{track} is not an agent of this scene at its current step; sim agents: "
-                f"{', '.join(str(i) for i in sorted(sim_ids)[:30])}{' ...' if len(sim_ids) > 30 else ''}",
-                where=flag,
-            )
-        if track not in slots:
-            raise InputError(f"@{track} is not among the {len(slots)} agents the model drives", where=flag)
+    problem = pair_problem(adversary, target, sim_ids=sim_ids, driven=set(slots))
+    if problem is not None:
+        raise InputError(problem[1], where=f"--{problem[0]}")
+    if adversary is None or target is None:
+        return []
     if not math.isfinite(request.collision_weight) or request.collision_weight < 0:
         raise InputError(f"must be finite and >= 0, got {request.collision_weight}", where="--collision-weight")
     return [GuidanceTerm(CollisionCost(slots[adversary], slots[target]), request.collision_weight)]

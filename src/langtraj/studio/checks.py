@@ -21,6 +21,7 @@ from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.scenario.model import Scenario
 from langtraj.sim.config import ALL_LEVERS
 from langtraj.sim.prompts import prompt_steering, read_prompts, user_prompt_entry
+from langtraj.sim.terms import pair_problem
 
 _WORLD: tuple[float, float, float] = (0.0, 0.0, 0.0)
 """The frame the steering terms are built in; the checks use only the world-frame targets."""
@@ -150,14 +151,6 @@ def _check(
 
 
 def _pair_error(adversary: int | None, target: int | None, sim_ids: list[int]) -> str | None:
-    """What is wrong with a collision pair (as `langtraj simulate` refuses it), or None."""
-    if adversary is None and target is None:
-        return None
-    if adversary is None or target is None:
-        return "an adversary needs a target and a target an adversary"
-    if adversary == target:
-        return f"the adversary and the target are both @{adversary}"
-    for role, track in (("adversary", adversary), ("target", target)):
-        if track not in sim_ids:
-            return f"{role} @{track} is not a sim agent (valid at the current step) of this scene"
-    return None
+    """What is wrong with a collision pair (`sim.terms.pair_problem`, as `langtraj simulate` refuses it), or None."""
+    problem = pair_problem(adversary, target, sim_ids=set(sim_ids))
+    return None if problem is None else problem[1]

@@ -41,6 +41,7 @@ from typing import Any
 from langtraj.env import EPISODE_STEPS  # a full episode (8 s at 10 Hz); `max_steps` may cut it shorter
 from langtraj.errors import InputError
 from langtraj.settings import build_dataclass, read_yaml, require
+from langtraj.sim.terms import pair_problem
 
 REAL_DATA_VARIABLE = "LANGTRAJ_REAL_DATA"
 """The environment variable naming the folder of real scenes (as in the tests)."""
@@ -209,16 +210,8 @@ def _case(
     target = raw.get("target")
     if target != "ego":
         target = _optional_id(target, f"{where}.target", also="or 'ego'")
-    require(
-        (adversary is None) == (target is None),
-        f"{where}.{'target' if adversary is not None else 'adversary'}",
-        "an adversary needs a target and a target an adversary",
-    )
-    require(
-        adversary is None or adversary not in (ego, target),
-        f"{where}.adversary",
-        f"{adversary} is also the case's {'ego' if adversary == ego else 'target'}",
-    )
+    problem = pair_problem(adversary, target, ego=ego)  # the scene is read at run time, by the env
+    require(problem is None, f"{where}.{problem[0] if problem else ''}", problem[1] if problem else "")
     prompts = raw.get("prompts") or []
     require(isinstance(prompts, list), f"{where}.prompts", f"expected a list of text, got {type(prompts).__name__}")
     texts = []
