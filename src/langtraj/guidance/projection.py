@@ -70,8 +70,8 @@ class HardConstraints:
     each agent from a different candidate (`per_agent`) undoes the guarantee each candidate had. `polish` Adam
     steps of rate `polish_rate` (network units) then move the actions of paths whose box still reaches past the line,
     anchored to the refit's by `polish_anchor` (`polish_on_road`; `polish=0` turns it off). With `steer_prompted`,
-    a prompted agent's plans are polished too, on their yaw rate only: braking a clipped corner away undoes a turn or a
-    pull-over, steering it back inside does not (False: prompted agents are not polished)."""
+    a prompted agent's plans are polished too, on their yaw rate only (braking a clipped corner away undid turns), a
+    pull-over's not at all (steering it away from the kerb undid it); False: prompted agents are not polished."""
 
     steps: int = 1
     iterations: int = 3

@@ -297,11 +297,12 @@ class CandidatePlanning:
             margin[list(state.prompt.steering.kerb_slots)] = 0.0
         polish = steer_only = None
         if prompted := list(state.prompt.steering.prompted_slots):  # a prompt's manoeuvre is not braked away
-            if config.steer_prompted:
+            polish = torch.ones_like(movable)
+            if config.steer_prompted:  # steered back inside instead, but a pull-over not away from its kerb
                 steer_only = torch.zeros_like(movable)
                 steer_only[prompted] = True
+                polish[list(state.prompt.steering.kerb_slots)] = False
             else:
-                polish = torch.ones_like(movable)
                 polish[prompted] = False
         exempt = exempt.repeat(copies, 1, 1)
         agents = ProjectionAgents(road, movable, exempt, margin=margin, polish=polish, steer_only=steer_only)
