@@ -75,10 +75,9 @@ def test_the_tiny_preset_prints_a_table_and_its_peak_last():
     assert match and float(match.group(1)) > 0
 
 
-def test_the_gpu_short_estimate_matches_the_peak_measured_on_an_h200(bench):
+def test_the_gpu_short_estimate_matches_the_peak_measured_on_an_h200(bench, one_torch_thread):
     """Calibration: the count before the allowance is within 10 % of a real GPU's allocator peak."""
     said: list[str] = []
-    torch.set_num_threads(1)
     peak = bench.run(ROOT / "configs" / "gpu-short.yaml", [1, 2], None, say=said.append)
     total = float(next(line for line in said if line.startswith("total")).split()[-1])
     assert total == pytest.approx(H200_PEAK_GIB, rel=0.1)
