@@ -45,7 +45,7 @@ from langtraj.interdrive.evaluation import TypeCounts, add_counts, macro_f1, mat
 from langtraj.interdrive.ground_truth import ground_truth_interactions
 from langtraj.interdrive.heuristics import HeuristicConfig, label_agents
 from langtraj.interdrive.labels import AgentLabel
-from langtraj.interdrive.mapindex import MapIndex
+from langtraj.roads import MapIndex
 from langtraj.runs import true_runs
 from langtraj.scenario.io import read_scenarios
 from langtraj.scenario.model import STEP_SECONDS, Scenario
