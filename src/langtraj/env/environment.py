@@ -352,7 +352,7 @@ class LangTrajEnv(gym.Env):
         try:
             values = spaces.checked_action(action, self.action_kind)
         except spaces.ActionError as error:
-            raise InputError(f"{error.problem} ({self.action_kind} action space)", where="action") from None
+            raise InputError(f"{error} ({self.action_kind} action space)", where="action") from None
         return track(pose, values) if self.action_kind == "trajectory" else values
 
 

@@ -59,11 +59,6 @@ class AgentColumn(IntEnum):
     WIDTH = 6
 
 
-EGO_FIELDS = tuple(column.name.lower() for column in EgoColumn)
-"""The names of `ego`'s columns, in order (the JSON-lines protocol and docs/testing.md list them)."""
-AGENT_FIELDS = tuple(column.name.lower() for column in AgentColumn)
-"""The names of `agents`' columns, in order."""
-
 MAX_ACCEL = 8.0
 MAX_YAW_RATE = 1.5
 """Bounds of the control action, those of the model's unicycle (`langtraj.model.dynamics.Unicycle`)."""
@@ -88,12 +83,12 @@ def observation_space() -> spaces.Dict:
     """The space every observation lies in."""
     return spaces.Dict(
         {
-            "ego": _box(len(EGO_FIELDS), bound=WORLD_BOUND_M),
+            "ego": _box(len(EgoColumn), bound=WORLD_BOUND_M),
             "time": spaces.Box(0.0, LOCAL_BOUND, shape=(1,), dtype=np.float32),
             "route": _box(NUM_ROUTE_POINTS, 2),
             "route_valid": spaces.MultiBinary(NUM_ROUTE_POINTS),
             "route_speed_limit": spaces.Box(0.0, LOCAL_BOUND, shape=(NUM_ROUTE_POINTS,), dtype=np.float32),
-            "agents": _box(NUM_AGENTS, len(AGENT_FIELDS)),
+            "agents": _box(NUM_AGENTS, len(AgentColumn)),
             "agents_id": spaces.Box(-1, _MAX_ID, shape=(NUM_AGENTS,), dtype=np.int64),
             "agents_type": spaces.Box(0, 4, shape=(NUM_AGENTS,), dtype=np.int64),
             "agents_valid": spaces.MultiBinary(NUM_AGENTS),
@@ -125,12 +120,8 @@ def action_space(kind: str = "control") -> spaces.Box:
 
 
 class ActionError(ValueError):
-    """An action that is not one of its action space's: `problem` says how, as "an action of shape (3,), expected
+    """An action that is not one of its action space's; its message says how, as "an action of shape (3,), expected
     (2,)" (each caller says who gave it and when)."""
-
-    def __init__(self, problem: str):
-        super().__init__(problem)
-        self.problem = problem
 
 
 def checked_action(action: Any, kind: str) -> np.ndarray:

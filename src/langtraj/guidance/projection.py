@@ -108,8 +108,9 @@ class ProjectionAgents:
     `exempt` (bool [S, A, A] or [A, A], symmetric) pairs are never pushed apart, per sample row or in all.
     `margin` (float [A], m) is how far inside the road edge each agent's box is kept (None: the config's
     `road_margin` for all; a prompted pull-over is asked to the kerb, nearer than that). `polish` (bool [A]) are the
-    agents whose plans `polish_on_road` may move (None: every movable road agent; a prompted one is left out), and
-    of them `steer_only` (bool [A]; None: none) those it may only steer, not speed up or slow down (a prompted one)."""
+    agents whose plans `polish_on_road` may move (None: every movable road agent; a prompted pull-over is left out),
+    and of them `steer_only` (bool [A]; None: none) those it may only steer, not speed up or slow down (a prompted
+    agent, `HardConstraints.steer_prompted`)."""
 
     road: Tensor
     movable: Tensor

@@ -211,7 +211,7 @@ class SubprocessPlanner(Planner):
         try:
             return checked_action(reply["action"], self.action_kind).astype(np.float32)
         except ActionError as error:
-            raise self._error(f"answered act with {error.problem}: {_clip(json.dumps(reply))}") from None
+            raise self._error(f"answered act with {error}: {_clip(json.dumps(reply))}") from None
 
     def close(self) -> None:
         """Sends close, waits `CLOSE_WAIT_S` for the planner to exit, then kills it. Safe to call twice."""

@@ -211,7 +211,8 @@ def _case(
     if target != "ego":
         target = _optional_id(target, f"{where}.target", also="or 'ego'")
     problem = pair_problem(adversary, target, ego=ego)  # the scene is read at run time, by the env
-    require(problem is None, f"{where}.{problem[0] if problem else ''}", problem[1] if problem else "")
+    if problem is not None:
+        raise InputError(problem[1], where=f"{where}.{problem[0]}")
     prompts = raw.get("prompts") or []
     require(isinstance(prompts, list), f"{where}.prompts", f"expected a list of text, got {type(prompts).__name__}")
     texts = []

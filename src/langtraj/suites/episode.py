@@ -230,7 +230,7 @@ def check_action(action: Any, kind: str, step: int) -> np.ndarray:
     try:
         return checked_action(action, kind).astype(np.float32)
     except ActionError as error:
-        raise _Failed(f"planner returned {error.problem} at step {step}") from None
+        raise _Failed(f"planner returned {error} at step {step}") from None
 
 
 def run_episode(task: EpisodeTask) -> EpisodeResult:
