@@ -24,6 +24,7 @@ LAYERS = (
     ("metrics", "model"),
     ("guidance",),
     ("sim",),
+    ("cases",),
     ("training", "labeling", "env"),
     ("planners",),
     ("suites", "experiments"),

@@ -84,7 +84,7 @@ def test_bad_episodes_are_refused():
         LangTrajEnv(follower_scene(), ego=99).reset(seed=0)
     with pytest.raises(InputError, match="asks something of the ego"):
         LangTrajEnv(follower_scene(), prompts=["@ego slows down"]).reset(seed=0)
-    with pytest.raises(InputError, match="unknown reset option"):
+    with pytest.raises(InputError, match="options: unknown keys nope"):
         LangTrajEnv(follower_scene()).reset(seed=0, options={"nope": 1})
 
 

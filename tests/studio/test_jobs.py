@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+from langtraj.cases import Case
 from langtraj.rollouts.container import Rollouts
 from langtraj.studio.app import StudioConfig, create_app
 from langtraj.studio.catalog import Catalog
@@ -50,7 +51,7 @@ def test_a_real_job_end_to_end(catalog: Catalog, womd_key: str, tmp_path: Path) 
         job = _wait(client, job_id)
     finally:
         app.state.board.close()
-    assert (job["status"], job["progress"], job["error"], job["seed"]) == ("done", 1.0, None, 3)
+    assert (job["status"], job["progress"], job["error"], job["case"]["seeds"]) == ("done", 1.0, None, [3])
     assert job["started"] and job["finished"]
     result = job["result"]
     assert (result["start_step"], result["step_seconds"]) == (10, 0.1)
@@ -116,7 +117,9 @@ def test_a_job_stopped_mid_run_leaves_only_complete_files(catalog: Catalog, womd
         real(job, folder, report_and_stop, stop)
 
     board = JobBoard(JobStore(tmp_path / "jobs"), runner)
-    spec = JobSpec(womd_key, WOMD_ID, tuple(PROMPTS), rollouts=2)
+    entry = catalog.entry(womd_key)
+    case = Case(scenario=entry.file, index=entry.index, prompts=tuple(PROMPTS))
+    spec = JobSpec(womd_key, WOMD_ID, case, rollouts=2)
     job = board.run(board.submit(spec))
     assert (job.status, job.error) == ("interrupted", INTERRUPTED)
     folder = board.folder(job.id)
@@ -126,7 +129,7 @@ def test_a_job_stopped_mid_run_leaves_only_complete_files(catalog: Catalog, womd
 
 
 def _record(store: JobStore, job_id: str, status: str, created: str) -> None:
-    store.save(Job(job_id, JobSpec("s0", WOMD_ID, ("@1 stops",)), status=status, created=created))  # type: ignore[arg-type]
+    store.save(Job(job_id, JobSpec("s0", WOMD_ID, Case(prompts=("@1 stops",))), status=status, created=created))
 
 
 def test_jobs_survive_a_restart(catalog: Catalog, tmp_path: Path) -> None:
@@ -163,7 +166,7 @@ def test_jobs_survive_a_restart(catalog: Catalog, tmp_path: Path) -> None:
 
 def test_jobs_submitted_within_one_second_list_newest_first(tmp_path: Path) -> None:
     board = JobBoard(JobStore(tmp_path / "jobs"), lambda job, folder, report, stop: None)
-    spec = JobSpec("s0", WOMD_ID, ("@1 stops",))
+    spec = JobSpec("s0", WOMD_ID, Case(prompts=("@1 stops",)))
     submitted = [board.submit(spec).id for _ in range(5)]  # well within a second: the ids' random tails decide nothing
     assert [j.id for j in board.jobs()] == submitted[::-1]
     reloaded = JobBoard(JobStore(tmp_path / "jobs"), lambda job, folder, report, stop: None)

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from langtraj.cases import Case
 from langtraj.env.spaces import action_space, observation_space
 from langtraj.errors import InputError
 
@@ -40,21 +41,17 @@ class FakeEnv:
 
     def __init__(
         self,
-        scenario: Any,
+        scenario: Any = None,
         *,
-        index: int = 0,
-        window: int | None = None,
-        ego: int | None = None,
-        prompts: Any = (),
-        adversary: int | None = None,
-        target: Any = None,
-        checkpoint: Path | None = None,
+        case: Case | None = None,
         action: str = "control",
         terminate_on_collision: bool = False,
         terminate_on_offroad: bool = False,
         render_mode: str | None = None,
     ):
-        self.data = json.loads(Path(scenario).read_text())
+        case = case or Case(scenario=scenario)
+        index, ego, prompts, adversary, target = case.index, case.ego, case.prompts, case.adversary, case.target
+        self.data = json.loads(Path(case.scenario).read_text())
         if self.data.get("error_at") == 0:
             raise InputError("the fake scene cannot be built", where="scenario")
         self.kind = action

@@ -8,8 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from langtraj.cases import Criteria
 from langtraj.errors import InputError
-from langtraj.suites import Criteria, load_suite
+from langtraj.suites import load_suite
 from langtraj.suites.config import real_data_folder
 
 REPO = Path(__file__).resolve().parents[2]
@@ -102,7 +103,7 @@ def test_the_real_data_folder_is_the_one_given_else_the_variable_else_beside_the
             "cases[0].adversary: @3 is the ego",
         ),
         ("  - {name: a, scenario: scene.tfrecord, prompts: ['@adv brakes']}", "cases[0].prompts[0]: '@adv' needs"),
-        ("  - {name: a, scenario: scene.tfrecord, prompts: '@1 brakes'}", "cases[0].prompts: expected a list"),
+        ("  - {name: a, scenario: scene.tfrecord, prompts: {a: 1}}", "cases[0].prompts: expected a list"),
         ("  - {name: a, scenario: scene.tfrecord, max_steps: 81}", "cases[0].max_steps: must be at most 80"),
         ("  - {name: a, scenario: scene.tfrecord, colour: red}", "cases[0]: unknown keys colour"),
         ("  - {name: a, scenario: '${NO_SUCH_VARIABLE_X}/a'}", "the environment variable NO_SUCH_VARIABLE_X"),

@@ -9,14 +9,15 @@ from pathlib import Path
 
 import pytest
 
-from langtraj.suites import Criteria, EpisodeTask, SuiteCase, run_episode
+from langtraj.cases import Case, Criteria
+from langtraj.suites import EpisodeTask, run_episode
 from suites.fakes import FAKE_ENV, TESTS_DIR, FakeEnv, write_scene
 
 
 def _task(tmp_path: Path, scene: str = "good", planner: str | None = "suites.fakes:GoodPlanner", **kw) -> EpisodeTask:
     behaviour = kw.pop("behaviour", {})
-    case_keys = {k: kw.pop(k) for k in list(kw) if k in SuiteCase.__dataclass_fields__}
-    case = SuiteCase(name=f"{scene}-case", scenario=write_scene(tmp_path, scene, **behaviour), **case_keys)
+    case_keys = {k: kw.pop(k) for k in list(kw) if k in Case.__dataclass_fields__}
+    case = Case(name=f"{scene}-case", scenario=write_scene(tmp_path, scene, **behaviour), **case_keys)
     options = {"planner": planner, "planner_cmd": None, "step_timeout": 5.0, "video": False} | kw
     return EpisodeTask(suite="s", case=case, seed=0, out=tmp_path / "out", env=FAKE_ENV, **options)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from langtraj.suites import Criteria
+from langtraj.cases import Criteria
 from langtraj.suites.verdict import StepRecord, episode_figures, judge
 
 

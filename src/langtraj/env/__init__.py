@@ -8,11 +8,9 @@ from typing import Any
 
 import gymnasium
 
-from langtraj.scenario.model import FUTURE_STEPS
+from langtraj.cases import EGO_PLACEHOLDER, EPISODE_STEPS
 
 ENV_ID = "LangTraj-v0"
-EPISODE_STEPS = FUTURE_STEPS
-"""Steps of an episode: the 8 s every simulation runs."""
 
 if ENV_ID not in gymnasium.registry:
     gymnasium.register(
@@ -24,8 +22,6 @@ if ENV_ID not in gymnasium.registry:
 
 _LAZY = {
     "LangTrajEnv": "langtraj.env.environment",
-    "Episode": "langtraj.env.environment",
-    "EGO_PLACEHOLDER": "langtraj.env.environment",
     "RewardConfig": "langtraj.env.reward",
 }
 
@@ -38,4 +34,4 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'langtraj.env' has no attribute {name!r}")
 
 
-__all__ = ["EGO_PLACEHOLDER", "ENV_ID", "EPISODE_STEPS", "Episode", "LangTrajEnv", "RewardConfig"]
+__all__ = ["EGO_PLACEHOLDER", "ENV_ID", "EPISODE_STEPS", "LangTrajEnv", "RewardConfig"]

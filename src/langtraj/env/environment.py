@@ -20,6 +20,7 @@ import numpy as np
 import torch
 
 from langtraj.angles import wrap_angle
+from langtraj.cases import EGO_PLACEHOLDER, Case, read_case
 from langtraj.env import spaces
 from langtraj.env.dynamics import step_unicycle, track
 from langtraj.env.events import EventJudge
@@ -45,42 +46,8 @@ from langtraj.sim.setup import build_policy
 from langtraj.sim.stepping import SteppedSimulation
 from langtraj.sim.terms import pair_problem
 
-EGO_PLACEHOLDER = "@ego"
-"""Written in a prompt, stands for the ego's track id (chosen at reset)."""
-
-
-@dataclass(frozen=True)
-class Episode:
-    """What one episode simulates: a scene (a file and its index, or a `Scenario`; `window` W: the W-th 9.1-s window
-    of a longer one, as `langtraj render --window`), the ego (a track id; None: the
-    scene's self-driving car, else its most important vehicle), prompts for the other agents (`@ego` names the
-    ego), and an optional adversary driven into a target (track ids, "ego" allowed) by collision guidance."""
-
-    scenario: str | Path | Scenario | None = None
-    index: int = 0
-    window: int | None = None
-    ego: int | None = None
-    prompts: tuple[str, ...] = ()
-    adversary: int | None = None
-    target: int | str | None = None
-
-    def updated(self, options: dict[str, Any] | None) -> Episode:
-        """This episode with `reset`'s options (the same keys) replacing its fields."""
-        if not options:
-            return self
-        unknown = set(options) - set(self.__dataclass_fields__)
-        if unknown:
-            raise InputError(f"unknown reset option(s) {', '.join(sorted(unknown))}", where="options")
-        changed = dict(options)
-        if "prompts" in changed:
-            changed["prompts"] = _prompts(changed["prompts"])
-        return replace(self, **changed)
-
-
-def _prompts(value: Any) -> tuple[str, ...]:
-    if isinstance(value, str):
-        return (value,)
-    return tuple(str(p) for p in (value or ()))
+RESET_KEYS = ("scenario", "index", "window", "ego", "prompts", "adversary", "target")
+"""The keys of the episode's `Case` that `reset(options=...)` may change."""
 
 
 @dataclass(frozen=True)
@@ -105,13 +72,15 @@ class _Scene:
 
 class LangTrajEnv(gym.Env):
     """One ego under a planner's control in a scene every other agent of which LangTraj simulates
-    (docs/testing.md). Keywords: see `Episode` (scene, ego, prompts, adversary, target; `reset(options=...)` may
-    change any of them), `checkpoint` (default: the shipped one), `policy` of the other agents (a registered
-    `sim.policies.POLICIES` name; "log_replay" reads their logged future: a labelled baseline), `action`
-    ("control" or "trajectory", `env.spaces`), `replan_s` (the others' replanning interval), `candidates` per
-    replan, `terminate_on_collision` / `terminate_on_offroad`, `reward` (`RewardConfig`), `render_mode`
-    ("rgb_array"), and `simulation`: further `sim.config.SimRequest` settings of the others' policy (guidance
-    weights, `selector`, ...), `device` the model runs on (e.g. "cuda"; default: where it loads, the CPU)."""
+    (docs/testing.md). What an episode simulates is a `langtraj.cases.Case`: `case`, its fields replaced by the
+    keywords of the same name that are given (scene, ego, prompts, adversary, target; `checkpoint`, default: the
+    shipped one), read by `read_case`; `reset(options=...)` may change those of `RESET_KEYS`. The other keywords:
+    `policy` of the other agents (a registered `sim.policies.POLICIES` name; "log_replay" reads their logged
+    future: a labelled baseline), `action` ("control" or "trajectory", `env.spaces`), `replan_s` (the others'
+    replanning interval), `candidates` per replan, `terminate_on_collision` / `terminate_on_offroad`, `reward`
+    (`RewardConfig`), `render_mode` ("rgb_array"), and `simulation`: further `sim.config.SimRequest` settings of
+    the others' policy (guidance weights, `selector`, ...), `device` the model runs on (e.g. "cuda"; default:
+    where it loads, the CPU)."""
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 10}
 
@@ -119,13 +88,14 @@ class LangTrajEnv(gym.Env):
         self,
         scenario: str | Path | Scenario | None = None,
         *,
-        index: int = 0,
+        index: int | None = None,
         window: int | None = None,
         ego: int | None = None,
-        prompts: str | tuple[str, ...] | list[str] = (),
+        prompts: str | tuple[str, ...] | list[str] | None = None,
         adversary: int | None = None,
         target: int | str | None = None,
         checkpoint: str | Path | None = None,
+        case: Case | None = None,
         policy: str = "langtraj",
         action: str = "control",
         replan_s: float = 1.0,
@@ -142,8 +112,17 @@ class LangTrajEnv(gym.Env):
                 f"must be one of {self.metadata['render_modes']} or None, got {render_mode!r}", where="render_mode"
             )
         POLICIES.get(policy, where="policy")
-        self.episode = Episode(scenario, index, window, ego, _prompts(prompts), adversary, target)
-        self.checkpoint = None if checkpoint is None else Path(checkpoint)
+        given = {
+            "scenario": scenario,
+            "index": index,
+            "window": window,
+            "ego": ego,
+            "prompts": prompts,
+            "adversary": adversary,
+            "target": target,
+            "checkpoint": checkpoint,
+        }
+        self.case = read_case({k: v for k, v in given.items() if v is not None}, defaults=case)
         self.policy_name = policy
         self.action_kind = action
         self.action_space = spaces.action_space(action)
@@ -168,7 +147,7 @@ class LangTrajEnv(gym.Env):
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        episode = self.episode.updated(options)
+        episode = read_case(options or {}, where="options", defaults=self.case, keys=RESET_KEYS)
         scene = self._scene(episode)
         scenario = scene.scenario
         ego = self._ego_row(scenario, episode.ego)
@@ -178,13 +157,13 @@ class LangTrajEnv(gym.Env):
             if user_prompt_entry(scenario, text).mentions[0] == ego_id:
                 raise InputError(f"{text!r} asks something of the ego, which the planner drives", where="prompts")
         target = ego_id if episode.target == "ego" else episode.target
-        adversary = ego_id if episode.adversary == "ego" else episode.adversary
+        adversary = episode.adversary
         problem = pair_problem(adversary, target, ego=ego_id)  # the scene's own agents: checked by the simulation
         if problem is not None:
             raise InputError(problem[1], where=problem[0])
         request = SimRequest(
             policy=self.policy_name,
-            checkpoint=self.checkpoint,
+            checkpoint=self.case.checkpoint,
             prompts=prompts,
             adversary=adversary,
             target=None if target is None else int(target),
@@ -195,7 +174,7 @@ class LangTrajEnv(gym.Env):
             from langtraj.model.checkpoint import load_model
             from langtraj.sim.checkpoints import shipped_checkpoint
 
-            model, data = load_model(self.checkpoint or shipped_checkpoint())
+            model, data = load_model(self.case.checkpoint or shipped_checkpoint())
             self._loaded = (model.to(self.device) if self.device else model, data)
         policy, described = build_policy(scenario, request, self._loaded)
         sim_seed = int(self.np_random.integers(2**31 - 1))
@@ -296,7 +275,7 @@ class LangTrajEnv(gym.Env):
         self._sim = None
 
     # ------------------------------------------------------------------ helpers
-    def _scene(self, episode: Episode) -> _Scene:
+    def _scene(self, episode: Case) -> _Scene:
         source = episode.scenario
         if source is None:
             raise InputError("no scenario given (a file or a Scenario)", where="scenario")

@@ -17,6 +17,7 @@ from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from langtraj.cases import NAME, read_case
 from langtraj.errors import InputError
 from langtraj.fileio import read_json
 from langtraj.studio.cases import DuplicateCase, case_of, save_case
@@ -25,7 +26,6 @@ from langtraj.studio.checks import check_prompts
 from langtraj.studio.jobs import Job, JobBoard, JobSpec, JobStore, Runner
 from langtraj.studio.simulation import RESULT_FILE, ROLLOUTS_FILE, JobRunner
 from langtraj.studio.views import scene_view
-from langtraj.suites.config import NAME
 from langtraj.web import with_security_headers
 
 STATIC = Path(__file__).with_name("static")
@@ -121,7 +121,7 @@ def create_app(
     app.add_exception_handler(RequestValidationError, _validation)
     app.add_exception_handler(StarletteHTTPException, _http)
     _scene_routes(app, catalog)
-    _job_routes(app, catalog, board, Path(config.data) / "suites")
+    _job_routes(app, catalog, board, Path(config.data) / "suites", config.checkpoint)
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
     return app
 
@@ -184,7 +184,7 @@ def _scene_routes(app: FastAPI, catalog: Catalog) -> None:
         return checks.to_json()
 
 
-def _job_routes(app: FastAPI, catalog: Catalog, board: JobBoard, suites: Path) -> None:
+def _job_routes(app: FastAPI, catalog: Catalog, board: JobBoard, suites: Path, checkpoint: Path | None) -> None:
     video_lock = threading.Lock()
 
     def job_of(job_id: str) -> Job:
@@ -208,16 +208,11 @@ def _job_routes(app: FastAPI, catalog: Catalog, board: JobBoard, suites: Path) -
         checks = check_prompts(loaded.scenario, body.prompts, body.adversary, body.target, loaded.map_index)
         if not checks.ok:
             raise InputError(checks.first_error() or "the prompts cannot be run")
-        spec = JobSpec(
-            scene=body.scene,
-            scenario_id=loaded.scenario.scenario_id,
-            prompts=tuple(body.prompts),
-            rollouts=body.rollouts,
-            seed=body.seed,
-            adversary=body.adversary,
-            target=body.target,
-            compare=body.compare,
-        )
+        entry = catalog.entry(body.scene)
+        case = {"scenario": entry.file, "index": entry.index, "window": entry.window, "prompts": body.prompts}
+        case |= {"adversary": body.adversary, "target": body.target, "seeds": [body.seed]}
+        case = read_case(case | {"checkpoint": checkpoint})
+        spec = JobSpec(body.scene, loaded.scenario.scenario_id, case, rollouts=body.rollouts, compare=body.compare)
         return {"job": board.submit(spec).to_json()}
 
     @app.get("/api/jobs")
@@ -249,11 +244,8 @@ def _job_routes(app: FastAPI, catalog: Catalog, board: JobBoard, suites: Path) -
     @app.post("/api/jobs/{job_id}/case")
     def case(job_id: str, body: CaseBody) -> dict[str, Any]:
         found = job_of(job_id)
-        entry = catalog.entry(found.spec.scene)
-        if entry is None:
-            raise NotFound(f"no scene {found.spec.scene!r} in this studio's catalog")
         try:
-            path = save_case(suites, body.suite, case_of(found, entry, body.name, body.criteria))
+            path = save_case(suites, body.suite, case_of(found, body.name, body.criteria))
         except DuplicateCase as exc:
             raise Conflict(str(exc)) from None
         return {"suite": str(path), "case": body.name}
@@ -274,9 +266,10 @@ def _render(catalog: Catalog, job: Job, path: Path) -> None:
     folder = path.parent
     played = rollout_scenario(scenario, Rollouts.load(folder / ROLLOUTS_FILE), 0)
     result = read_json(folder / RESULT_FILE, "no result file")
-    named = prompt_mentions(scenario, job.spec.prompts)
-    named += [t for t in (job.spec.adversary, job.spec.target) if t is not None and t not in named]
-    caption = "; ".join(job.spec.prompts)[:120] or "no prompt"
+    case = job.spec.case
+    named = prompt_mentions(scenario, case.prompts)
+    named += [t for t in (case.adversary, case.target) if t is not None and t not in named]
+    caption = "; ".join(case.prompts)[:120] or "no prompt"
     marks = marks_from_prompt({"targets": result["runs"]["prompted"]["targets"]})
     render = RenderConfig(size_px=VIDEO_PX, highlight_ids=tuple(named), show_ids=True, caption=caption, marks=marks)
     save_video(played, path, render, start=scenario.current_index, progress=False)

@@ -1,7 +1,8 @@
-"""Keeping a job as a test-suite case: the job's scene (file, index, window), prompts, collision pair and seed,
-with optional criteria, appended to a suite YAML under the studio's suites folder (created with its `name:` when
-missing). The new file is checked by `suites.config.load_suite` before it replaces the old one, so a bad case
-leaves the suite as it was (docs/studio.md, 'POST /api/jobs/{id}/case'; docs/testing.md, 'Scenario suites')."""
+"""Keeping a job as a test-suite case: the job's `Case` (scene file, index and window, prompts, collision pair, seed
+and checkpoint), named and with optional criteria, appended to a suite YAML under the studio's suites folder
+(created with its `name:` when missing). The new file is checked by `suites.config.load_suite` before it replaces
+the old one, so a bad case leaves the suite as it was (docs/studio.md, 'POST /api/jobs/{id}/case'; docs/testing.md,
+'Scenario suites')."""
 
 from __future__ import annotations
 
@@ -10,11 +11,11 @@ from typing import Any
 
 import yaml
 
+from langtraj.cases import NAME, Case, case_json, read_case
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_path
-from langtraj.studio.catalog import SceneEntry
 from langtraj.studio.jobs import Job
-from langtraj.suites.config import NAME, load_suite
+from langtraj.suites.config import load_suite
 
 
 class DuplicateCase(InputError):
@@ -28,25 +29,16 @@ def suite_path(suites: Path, suite: str) -> Path:
     return Path(suites) / name
 
 
-def case_of(job: Job, entry: SceneEntry, name: str, criteria: dict[str, Any] | None) -> dict[str, Any]:
-    """The suite case of a job (keys of `suites.config`; the env chooses the ego)."""
-    spec = job.spec
-    case: dict[str, Any] = {"name": name, "scenario": str(entry.file.resolve()), "index": entry.index}
-    if entry.window is not None:
-        case["window"] = entry.window
-    if spec.prompts:
-        case["prompts"] = list(spec.prompts)
-    if spec.adversary is not None:
-        case |= {"adversary": spec.adversary, "target": spec.target}
-    case["seeds"] = [spec.seed]
-    if criteria:
-        case["criteria"] = dict(criteria)
-    return case
+def case_of(job: Job, name: str, criteria: dict[str, Any] | None) -> Case:
+    """The job's case, named `name`, with `criteria` (keys of `langtraj.cases.Criteria`) over the defaults; the env
+    chooses the ego."""
+    return read_case({"name": name, "criteria": criteria or {}}, defaults=job.spec.case)
 
 
-def save_case(suites: Path, suite: str, case: dict[str, Any]) -> Path:
-    """Append `case` to the suite file `suite` under `suites`; returns the file. A duplicate case name raises
-    DuplicateCase, a case the suite format refuses InputError; either way the file is left as it was."""
+def save_case(suites: Path, suite: str, case: Case) -> Path:
+    """Append `case` (as `case_json` writes it, compactly) to the suite file `suite` under `suites`; returns the
+    file. A duplicate case name raises DuplicateCase, a case the suite format refuses InputError; either way the
+    file is left as it was."""
     path = suite_path(suites, suite)
     if path.is_file():
         try:
@@ -60,9 +52,9 @@ def save_case(suites: Path, suite: str, case: dict[str, Any]) -> Path:
     cases = data.get("cases") or []
     if not isinstance(cases, list):
         raise InputError("cases: expected a list", path=path)
-    if any(isinstance(c, dict) and c.get("name") == case["name"] for c in cases):
-        raise DuplicateCase(f"the suite already has a case named {case['name']!r}", path=path)
-    data["cases"] = [*cases, case]
+    if any(isinstance(c, dict) and c.get("name") == case.name for c in cases):
+        raise DuplicateCase(f"the suite already has a case named {case.name!r}", path=path)
+    data["cases"] = [*cases, case_json(case, compact=True)]
     with atomic_path(path) as tmp:
         tmp.write_text(yaml.safe_dump(data, sort_keys=False, allow_unicode=True))
         try:

@@ -10,11 +10,12 @@ import queue
 import secrets
 import threading
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Literal, get_args
 
+from langtraj.cases import Case, case_json, read_case
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_path, read_json
 
@@ -30,17 +31,19 @@ class Interrupted(Exception):
 
 @dataclass(frozen=True)
 class JobSpec:
-    """What a job simulates: catalog key `scene` (scenario `scenario_id`), the prompts, `rollouts` rollouts from
-    `seed`, the collision pair, and whether the scene is also simulated without the prompts (`compare`)."""
+    """What a job simulates: the `case` (its scene file, index and window, prompts, collision pair, first seed and
+    checkpoint; `langtraj.cases.Case`) of the catalog's scene `scene` (scenario `scenario_id`), in `rollouts`
+    rollouts, and whether the scene is also simulated without the prompts (`compare`)."""
 
     scene: str
     scenario_id: str
-    prompts: tuple[str, ...] = ()
+    case: Case
     rollouts: int = 4
-    seed: int = 0
-    adversary: int | None = None
-    target: int | None = None
     compare: bool = True
+
+    @property
+    def seed(self) -> int:
+        return self.case.seeds[0]
 
 
 @dataclass(frozen=True)
@@ -59,20 +62,24 @@ class Job:
     finished: str | None = None
 
     def to_json(self) -> dict[str, Any]:
-        spec = asdict(self.spec)
-        spec["prompts"] = list(self.spec.prompts)
-        return {"id": self.id, **spec, **{k: v for k, v in asdict(self).items() if k not in ("id", "spec")}}
+        """The job record (job.json, and the API's job): id, scene, scenario_id, rollouts, compare, the case as
+        `case_json` writes it, then where the job stands."""
+        spec = {k: getattr(self.spec, k) for k in ("scene", "scenario_id", "rollouts", "compare")}
+        state = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("id", "spec")}
+        return {"id": self.id, **spec, "case": case_json(self.spec.case), **state}
 
     @classmethod
     def from_json(cls, data: dict[str, Any], where: str) -> Job:
         try:
-            names = set(JobSpec.__dataclass_fields__)
-            spec = JobSpec(**{k: v for k, v in data.items() if k in names})
-            spec = replace(spec, prompts=tuple(spec.prompts))
+            case = read_case(data["case"], where="case")
+            names = ("scene", "scenario_id", "rollouts", "compare")
+            spec = JobSpec(case=case, **{k: data[k] for k in names if k in data})
             rest = {k: v for k, v in data.items() if k in cls.__dataclass_fields__ and k not in ("id", "spec")}
             job = cls(id=str(data["id"]), spec=spec, **rest)
         except (KeyError, TypeError) as exc:
             raise InputError(f"not a job record ({exc})", path=where) from None
+        except InputError as exc:
+            raise exc.located(path=where) from None
         if job.status not in STATUSES:
             raise InputError(f"unknown status {job.status!r}", path=where)
         return job

@@ -78,22 +78,25 @@ class JobRunner:
             return self._loaded
 
     def __call__(self, job: Job, folder: Path, report: Report, stop: threading.Event) -> None:
-        spec = job.spec
+        spec, case = job.spec, job.spec.case
         scene = self.catalog.load(spec.scene)
         if scene is None:
             raise InputError(f"no scene {spec.scene!r} in this studio's catalog (started with other files?)")
+        if case.checkpoint != self.checkpoint:
+            asked, runs = (str(path or "the shipped checkpoint") for path in (case.checkpoint, self.checkpoint))
+            raise InputError(f"this job asks for {asked}; the studio runs {runs} (start it with that checkpoint)")
         scenario = scene.scenario
-        checks = check_prompts(scenario, spec.prompts, spec.adversary, spec.target, scene.map_index)
+        checks = check_prompts(scenario, case.prompts, case.adversary, case.target, scene.map_index)
         if not checks.ok:
             raise InputError(checks.first_error() or "the prompts cannot be run")
         report(0.0, "loading the model")
         loaded = self.model()
-        runs = [("prompted", spec.prompts)] + ([("unprompted", ())] if spec.compare else [])
+        runs = [("prompted", case.prompts)] + ([("unprompted", ())] if spec.compare else [])
         config = SimConfig(rollouts=spec.rollouts, seed=spec.seed)
         per_run = len(replan_schedule(scenario.current_index, config.replan_steps))
         total = per_run * len(runs)
-        readings = read_prompts(spec.prompts)
-        checker = AdherenceChecker.build(scenario, map_index=scene.map_index) if spec.prompts else None
+        readings = read_prompts(case.prompts)
+        checker = AdherenceChecker.build(scenario, map_index=scene.map_index) if case.prompts else None
         out: dict[str, Any] = {}
         done = 0
         for number, (name, prompts) in enumerate(runs):
@@ -110,7 +113,7 @@ class JobRunner:
                 done += 1
 
             request = SimRequest(
-                checkpoint=self.checkpoint, prompts=tuple(prompts), adversary=spec.adversary, target=spec.target
+                checkpoint=case.checkpoint, prompts=tuple(prompts), adversary=case.adversary, target=case.target
             )
             policy, _ = build_policy(scenario, request, loaded)
             result = simulate(scenario, CountedPolicy(policy, before, after), config)
@@ -118,7 +121,7 @@ class JobRunner:
             out[name] = run_json(
                 scenario,
                 result.rollouts,
-                spec.prompts,
+                case.prompts,
                 readings,
                 checker,
                 result.report,

@@ -23,10 +23,10 @@ from typing import Any
 
 import numpy as np
 
+from langtraj.cases import Case
 from langtraj.env.spaces import ActionError, checked_action
 from langtraj.errors import one_line
 from langtraj.registry import import_object
-from langtraj.suites.config import EPISODE_STEPS, SuiteCase
 from langtraj.suites.deadline import StepTimeout, deadline
 from langtraj.suites.verdict import StepRecord, episode_figures, judge
 
@@ -48,7 +48,7 @@ class EpisodeTask:
     class ("module:Class")."""
 
     suite: str
-    case: SuiteCase
+    case: Case
     seed: int
     planner: str | None
     planner_cmd: str | None
@@ -174,21 +174,12 @@ class _Episode:
         except Exception as error:
             raise _Failed(f"planner has a bad action_kind ({one_line(error)})") from None
         self.env = import_object(task.env, "env")(
-            case.scenario,
-            index=case.index,
-            window=case.window,
-            ego=case.ego,
-            prompts=case.prompts,
-            adversary=case.adversary,
-            target=case.target,
-            checkpoint=case.checkpoint,
-            action=kind,
-            terminate_on_collision=case.criteria.terminate_on_collision,
+            case=case, action=kind, terminate_on_collision=case.criteria.terminate_on_collision
         )
         observation, info = self.env.reset(seed=task.seed)
         self.ego = int(info["ego_id"])
         self.call_planner(lambda: reset_planner(self.planner, observation, info), "in reset")
-        for step in range(1, (case.max_steps or EPISODE_STEPS) + 1):
+        for step in range(1, case.steps + 1):
             action = self.call_planner(lambda obs=observation: self.planner.act(obs), f"at step {step}")
             action = check_action(action, kind, step)
             observation, _, terminated, truncated, info = self.env.step(action)

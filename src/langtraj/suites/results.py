@@ -5,20 +5,20 @@ suites').
 results.json:
     suite, suite_file: the suite's name and file. planner / planner_cmd: what drove the ego (one is null).
     step_timeout: the per-call limit (s). started, finished: ISO 8601 times (finished null while running).
-    complete: whether every episode has finished. summary: `summary()`. cases: each case's name, status
-    (`case_status`), seeds, scenario, index, ego, prompts, adversary and target. episodes: each finished
-    episode's `EpisodeResult.to_json()`, in suite order (case, then seed).
+    complete: whether every episode has finished. summary: `summary()`. cases: each case as
+    `langtraj.cases.case_json` writes it (every key of a suite's case), with its `status` (`case_status`).
+    episodes: each finished episode's `EpisodeResult.to_json()`, in suite order (case, then seed).
 """
 
 from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from langtraj.cases import case_json
 from langtraj.fileio import atomic_path
 from langtraj.suites.config import Suite
 from langtraj.suites.episode import EpisodeResult
@@ -103,22 +103,7 @@ class SuiteResults:
 
     def to_json(self) -> dict[str, Any]:
         statuses = self.case_statuses()
-        cases = [
-            {
-                "name": c.name,
-                "status": statuses[c.name],
-                "seeds": list(c.seeds),
-                "scenario": str(c.scenario),
-                "index": c.index,
-                "ego": c.ego,
-                "prompts": list(c.prompts),
-                "adversary": c.adversary,
-                "target": c.target,
-                "max_steps": c.max_steps,
-                "criteria": asdict(c.criteria),
-            }
-            for c in self.suite.cases
-        ]
+        cases = [{**case_json(c), "status": statuses[c.name]} for c in self.suite.cases]
         return {
             **self.header,
             "complete": self.complete,

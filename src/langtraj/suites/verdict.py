@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from langtraj.suites.config import Criteria
+from langtraj.cases import Criteria
 
 STEP_KEYS = ("collision", "at_fault", "offroad", "ttc", "min_distance", "progress", "progress_m", "speed")
 """The env's step-info figures recorded at every step (`collided_with` is kept too, for the steps with a collision)."""

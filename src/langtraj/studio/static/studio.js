@@ -921,10 +921,10 @@ function renderJobs() {
   const lis = S.jobs.map((j) => {
     const el = jobItem(j.id);
     el.li.classList.toggle('open', Boolean(S.openJob && S.openJob.id === j.id));
-    el.title.textContent = `${j.scenario_id || j.scene} · ${j.rollouts} rollout${j.rollouts === 1 ? '' : 's'}, seed ${j.seed}`;
+    el.title.textContent = `${j.scenario_id || j.scene} · ${j.rollouts} rollout${j.rollouts === 1 ? '' : 's'}, seed ${j.case.seeds[0]}`;
     el.badge.textContent = j.status;
     el.badge.className = `status-badge ${j.status}`;
-    el.prompts.textContent = (j.prompts || []).join(' · ') || '(no prompt)';
+    el.prompts.textContent = (j.case.prompts || []).join(' · ') || '(no prompt)';
     el.bar.value = clamp(Number(j.progress) || (j.status === 'done' ? 1 : 0), 0, 1);
     el.bar.hidden = !active(j);
     const pct = `${Math.round(el.bar.value * 100)}%`;
@@ -965,7 +965,7 @@ async function openJob(id) {
   const res = job.result;
   const runs = res.runs || {};
   $('replay-meta').textContent = `Job ${job.id} · ${job.scenario_id} · ${job.rollouts} rollout${job.rollouts === 1 ? '' : 's'}, `
-    + `seed ${job.seed}${runs.prompted && runs.prompted.seconds ? ` · simulated in ${fmt(runs.prompted.seconds, 1)} s` : ''}`;
+    + `seed ${job.case.seeds[0]}${runs.prompted && runs.prompted.seconds ? ` · simulated in ${fmt(runs.prompted.seconds, 1)} s` : ''}`;
   const which = $('which-rollout');
   which.replaceChildren(...Array.from({ length: S.replay.nRollouts }, (_, k) => h('option', { value: k }, `rollout ${k + 1}`)));
   const R = S.replay;
