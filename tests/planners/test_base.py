@@ -92,7 +92,8 @@ def test_module_class_specs_load_subclasses_and_duck_typed_classes(user_module):
     ("spec", "expected"),
     [
         ("no_such_planner", "unknown planner 'no_such_planner'; known: idm"),
-        ("no_such_module:Planner", "cannot import module 'no_such_module'"),
+        ("no_such_module:Planner", "no module 'no_such_module' (of 'no_such_module:Planner') in the working directory"),
+        ("user_planners_x.sub:P", "add that folder to PYTHONPATH"),
         ("broken_planners:X", "cannot import module 'broken_planners' of 'broken_planners:X' (RuntimeError: no GPU)"),
         ("user_planners:Missing", "module 'user_planners' has no 'Missing'"),
         ("user_planners:NoAct", "class 'user_planners:NoAct' has no act method"),
@@ -106,6 +107,19 @@ def test_bad_specs_raise_one_line_input_errors(user_module, spec, expected):
         load_planner(spec)
     message = str(caught.value)
     assert message.startswith("--planner: ") and expected in message and "\n" not in message
+
+
+def test_a_planner_module_in_the_working_directory_is_found(tmp_path, monkeypatch):
+    """`langtraj test --planner mine:Planner` run from the folder of mine.py, as `python -m` would find it; the
+    working directory comes after sys.path, so it never shadows an installed package."""
+    (tmp_path / "cwd_planners.py").write_text(textwrap.dedent(USER_MODULE))
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "path", [p for p in sys.path if p not in ("", ".", str(tmp_path))])
+    try:
+        assert issubclass(load_planner("cwd_planners:Braking"), Planner)
+        assert sys.path[-1] == str(tmp_path)
+    finally:
+        sys.modules.pop("cwd_planners", None)
 
 
 def test_planner_action_kind_defaults_to_control_and_rejects_others():

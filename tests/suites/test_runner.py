@@ -50,9 +50,10 @@ def test_a_bad_planner_fails_its_case_and_the_other_passes(tmp_path, two_case_su
         "1",
         "0",
     )
-    assert cases["good-case"].find("failure") is None and cases["good-case"].get("classname") == "fake"
-    failure = cases["bad-case"].find("failure")
-    assert failure.get("message") == f"seed 0: {reason}"
+    assert cases["good-case[seed0]"].find("failure") is None and cases["good-case[seed0]"].get("classname") == "fake"
+    failure = cases["bad-case[seed0]"].find("failure")
+    assert failure.get("message") == reason
+    assert ("Traceback" in failure.text) == (planner == "RaisingPlanner")  # the planner's own, for its author
     report = (options.out / "report.md").read_text()
     assert "**FAIL: 1 of 2 cases failed, 0 with errors (1 of 2 episodes passed)" in report
     assert "## bad-case: FAIL" in report and reason in report and "## good-case: PASS" in report
@@ -76,7 +77,7 @@ def test_results_are_written_as_episodes_finish(tmp_path, two_case_suite):
     assert saved["summary"]["finished"] == 2 and saved["summary"]["episodes"] == 4
     assert "only 2 of 4 episodes finished" in (options.out / "report.md").read_text()
     _, cases = _junit_cases(options.out)
-    assert cases["bad-case"].find("skipped") is not None
+    assert cases["good-case[seed0]"].find("skipped") is None and cases["bad-case[seed1]"].find("skipped") is not None
 
 
 def test_seeds_cases_and_errors_in_the_reports(tmp_path):
@@ -86,7 +87,7 @@ def test_seeds_cases_and_errors_in_the_reports(tmp_path):
     path = write_suite(
         tmp_path,
         [
-            {"name": "ok", "scenario": "good.json", "seeds": [0, 1, 2]},
+            {"name": "ok", "scenario": "good.json", "seeds": [0, 1, 2], "window": 1},
             {"name": "crash", "scenario": "crash.json", "seeds": 2},
             {"name": "broken", "scenario": "broken.json"},
         ],
@@ -105,15 +106,17 @@ def test_seeds_cases_and_errors_in_the_reports(tmp_path):
     crash = saved["episodes"][3]
     assert crash["figures"]["first_at_fault_step"] == 5 and crash["figures"]["at_fault_with"] == [42]
     suite, cases = _junit_cases(options.out)
-    assert (suite.get("tests"), suite.get("failures"), suite.get("errors")) == ("3", "1", "1")
-    expected = "seed 0: at-fault collision with 42 at step 5; seed 1: at-fault collision with 42 at step 5"
-    assert cases["crash"].find("failure").get("message") == expected
-    error = cases["broken"].find("error")
-    assert error.get("message") == "seed 0: LangTraj raised RuntimeError: the fake env broke at step 3"
+    assert (suite.get("tests"), suite.get("failures"), suite.get("errors")) == ("6", "2", "1")  # one per episode
+    for seed in (0, 1):
+        assert cases[f"crash[seed{seed}]"].find("failure").get("message") == "at-fault collision with 42 at step 5"
+    assert all(cases[f"ok[seed{seed}]"].find("failure") is None for seed in (0, 1, 2))
+    error = cases["broken[seed0]"].find("error")
+    assert error.get("message") == "LangTraj raised RuntimeError: the fake env broke at step 3"
     assert "Traceback" in error.text
     assert float(suite.get("time")) > 0 and all(float(c.get("time")) > 0 for c in cases.values())
     report = (options.out / "report.md").read_text()
     assert "| 1 | FAIL | step 5 (42) | step 5 (42) | no | 5.00 | 0.06 |" in report
+    assert "`good.json` (index 0, window 1), ego the env's choice." in report
 
 
 def test_failed_episodes_videos_are_linked(tmp_path):

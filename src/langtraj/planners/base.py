@@ -9,7 +9,9 @@ need not import LangTraj at all: any class with callable `reset` and `act` metho
 from __future__ import annotations
 
 import inspect
+import sys
 from abc import ABC, abstractmethod
+from pathlib import Path
 from typing import Any, ClassVar, cast
 
 import numpy as np
@@ -66,7 +68,7 @@ def load_planner(spec: str) -> type[Planner]:
     module_name, _, class_name = spec.partition(":")
     if not module_name or not class_name:
         raise InputError(f"{spec!r} is neither a planner name nor package.module:Class", where=WHERE)
-    found = import_object(spec, WHERE)
+    found = _import_planner(spec, module_name)
     if not inspect.isclass(found):
         raise InputError(f"{spec!r} is not a class", where=WHERE)
     if not issubclass(found, Planner):
@@ -78,6 +80,29 @@ def load_planner(spec: str) -> type[Planner]:
     except InputError as exc:
         raise InputError(f"{spec!r} has {exc.detail}", where=WHERE) from None
     return cast(type[Planner], found)
+
+
+def _import_planner(spec: str, module_name: str) -> Any:
+    """`import_object(spec)`, the working directory searched after sys.path (as for `python -m`, but never ahead of
+    installed packages); a module found nowhere says how to point at it."""
+    here = str(Path.cwd())
+    if here not in sys.path:
+        sys.path.append(here)
+    try:
+        return import_object(spec, WHERE)
+    except InputError as exc:
+        missing = exc.__cause__
+        parts = module_name.split(".")
+        own = isinstance(missing, ModuleNotFoundError) and missing.name in {
+            ".".join(parts[: i + 1]) for i in range(len(parts))
+        }
+        if not own:
+            raise
+        raise InputError(
+            f"no module {module_name!r} (of {spec!r}) in the working directory {here} or on sys.path; run from the "
+            "folder that holds it or add that folder to PYTHONPATH",
+            where=WHERE,
+        ) from None
 
 
 def planner_action_kind(planner: Any) -> str:

@@ -74,7 +74,8 @@ class EpisodeResult:
     its end). figures: `verdict.episode_figures` plus `planner_seconds` (all its calls) and
     `planner_max_step_seconds`. steps: the per-step record (`StepRecord.to_json()`). seconds: the episode's wall
     time. video: the video's path relative to the output folder, or None. video_error: why the video could not be
-    written, or None. traceback: the traceback of an error, or None.
+    written, or None. traceback: the traceback of an error, or of the planner's exception that failed the episode, or
+    None.
     """
 
     case: str
@@ -108,11 +109,11 @@ class EpisodeResult:
 
 
 class _Failed(Exception):
-    """The planner failed the episode (`reason`: one line)."""
+    """The planner failed the episode (`reason`: one line; `trace`: the planner's traceback, when it raised)."""
 
-    def __init__(self, reason: str):
+    def __init__(self, reason: str, trace: str | None = None):
         super().__init__(reason)
-        self.reason = reason
+        self.reason, self.trace = reason, trace
 
 
 class _Episode:
@@ -141,7 +142,7 @@ class _Episode:
         except PlannerError as error:
             raise _Failed(f"planner failed {when}: {str(error).splitlines()[0] if str(error) else error}") from None
         except Exception as error:
-            raise _Failed(f"planner raised {one_line(error)} {when}") from None
+            raise _Failed(f"planner raised {one_line(error)} {when}", traceback.format_exc()) from None
         finally:
             spent = time.perf_counter() - start
             self.planner_seconds += spent
@@ -232,7 +233,7 @@ def run_episode(task: EpisodeTask) -> EpisodeResult:
     try:
         episode.run()
     except _Failed as failure:
-        result.status, result.reasons = "fail", [failure.reason]
+        result.status, result.reasons, result.traceback = "fail", [failure.reason], failure.trace
     except Exception as error:
         steps = episode.record.steps
         where = f"at step {steps + 1}" if episode.ego is not None else "before the episode started"

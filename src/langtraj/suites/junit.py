@@ -1,7 +1,8 @@
-"""`junit.xml`: a suite run for CI (JUnit XML, as pytest writes it): one `<testsuite>` named after the suite, one
-`<testcase classname="SUITE" name="CASE">` per case with its time (the sum of its episodes' seconds). A case
-fails when any of its seeds fails: `<failure message="seed 0: reason; seed 2: reason">`; a case none of whose
-seeds failed but some errored gets `<error>` instead (docs/testing.md, 'Scenario suites')."""
+"""`junit.xml`: a suite run for CI (JUnit XML, as pytest writes it for a parametrized test): one `<testsuite>`
+named after the suite, one `<testcase classname="SUITE" name="CASE[seedK]">` per episode with its seconds, so CI
+shows which seed failed. A failed episode gets `<failure message="reason; reason">` (with the planner's traceback
+when it raised), an errored one `<error>` with LangTraj's traceback, one that did not finish (an interrupted run)
+`<skipped>` (docs/testing.md, 'Scenario suites')."""
 
 from __future__ import annotations
 
@@ -9,47 +10,46 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from langtraj.fileio import atomic_path
+from langtraj.suites.episode import EpisodeResult
 from langtraj.suites.results import SuiteResults
 
 JUNIT_FILE = "junit.xml"
 
 
-def _message(results: list, status: str) -> str:
-    return "; ".join(f"seed {r.seed}: {' / '.join(r.reasons) or status}" for r in results if r.status == status)
+def junit_name(case: str, seed: int) -> str:
+    """The JUnit name of an episode: `CASE[seedK]`, as pytest names a parametrized test."""
+    return f"{case}[seed{seed}]"
+
+
+def _line(result: EpisodeResult) -> str:
+    reasons = f": {' / '.join(result.reasons)}" if result.reasons else ""
+    return f"{result.status}{reasons}" + (f" (video: {result.video})" if result.video else "")
 
 
 def junit_tree(results: SuiteResults) -> ET.ElementTree:
     """The JUnit XML document of `results`."""
-    statuses = results.case_statuses()
     counts = {"tests": 0, "failures": 0, "errors": 0, "skipped": 0}
     total = 0.0
     suite = ET.Element("testsuite", name=results.suite.name, timestamp=str(results.header["started"]))
     for case in results.suite.cases:
-        episodes = results.of_case(case.name)
-        seconds = sum(r.seconds for r in episodes)
-        total += seconds
-        counts["tests"] += 1
-        element = ET.SubElement(suite, "testcase", classname=results.suite.name, name=case.name, time=f"{seconds:.3f}")
-        status = statuses[case.name]
-        lines = [
-            f"seed {r.seed}: {r.status}"
-            + (f": {' / '.join(r.reasons)}" if r.reasons else "")
-            + (f" (video: {r.video})" if r.video else "")
-            for r in episodes
-        ]
-        if status == "fail":
-            counts["failures"] += 1
-            child = ET.SubElement(element, "failure", message=_message(episodes, "fail"), type="fail")
-            child.text = "\n".join(lines)
-        elif status == "error":
-            counts["errors"] += 1
-            child = ET.SubElement(element, "error", message=_message(episodes, "error"), type="error")
-            child.text = "\n".join(lines + [r.traceback or "" for r in episodes if r.status == "error"])
-        elif status == "pending":
-            counts["skipped"] += 1
-            ET.SubElement(element, "skipped", message="not run to its end (the run was interrupted)")
-        if status != "pending":
-            ET.SubElement(element, "system-out").text = "\n".join(lines)
+        for seed in case.seeds:
+            result = results.episodes.get((case.name, seed))
+            seconds = result.seconds if result else 0.0
+            total += seconds
+            counts["tests"] += 1
+            name = junit_name(str(case.name), seed)
+            element = ET.SubElement(suite, "testcase", classname=results.suite.name, name=name, time=f"{seconds:.3f}")
+            if result is None:
+                counts["skipped"] += 1
+                ET.SubElement(element, "skipped", message="not run to its end (the run was interrupted)")
+                continue
+            if result.status in ("fail", "error"):
+                counts["failures" if result.status == "fail" else "errors"] += 1
+                message = "; ".join(result.reasons) or result.status
+                child = ET.SubElement(element, "failure" if result.status == "fail" else "error", message=message)
+                child.set("type", result.status)
+                child.text = "\n".join(t for t in (_line(result), result.traceback) if t)
+            ET.SubElement(element, "system-out").text = _line(result)
     for key, value in counts.items():
         suite.set(key, str(value))
     suite.set("time", f"{total:.3f}")

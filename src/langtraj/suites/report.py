@@ -89,7 +89,8 @@ def render_report(results: SuiteResults) -> str:
     statuses = results.case_statuses()
     for case in results.suite.cases:
         ego = case.ego if case.ego is not None else "the env's choice"
-        described = f"`{Path(case.scenario).name}` (index {case.index}), ego {ego}"
+        window = "" if case.window is None else f", window {case.window}"
+        described = f"`{Path(case.scenario).name}` (index {case.index}{window}), ego {ego}"
         if case.adversary is not None:
             described += f", adversary {case.adversary} -> {case.target}"
         lines += ["", f"## {case.name}: {statuses[case.name].upper()}", "", described + "."]
