@@ -21,6 +21,7 @@ from langtraj.planners import (
     SubprocessPlanner,
     decode_observation,
     encode_observation,
+    reset_planner,
     serve,
 )
 from langtraj.planners.jsonlines import decode_info, encode_info
@@ -82,7 +83,7 @@ def test_serve_answers_each_message_with_one_line():
     out = io.StringIO()
     serve(IDMPlanner(), io.StringIO("".join(json.dumps(m) + "\n" for m in messages)), out)
     replies = [json.loads(line) for line in out.getvalue().splitlines()]
-    assert replies[:2] == [{"action_kind": "control"}, {}] and len(replies) == 3
+    assert replies[:2] == [{"action_kind": "control", "reads_log": False}, {}] and len(replies) == 3
     np.testing.assert_allclose(replies[2]["action"], IDMPlanner().act(obs), rtol=1e-6)
 
 
@@ -235,3 +236,40 @@ def test_served_planners_may_print(tmp_path, monkeypatch):
     finally:
         planner.close()
     assert "resetting" in (tmp_path / "stderr.txt").read_text()
+
+
+PEEKING = """
+import numpy as np
+class Peeking:
+    reads_log = {reads_log}
+    def reset(self, observation, info):
+        self.saw = "logged_ego" in info
+    def act(self, observation):
+        return np.array([1.0 if self.saw else 0.0, 0.0])
+"""
+
+
+@pytest.mark.parametrize("reads_log", [False, True])
+def test_only_a_planner_that_reads_the_log_is_given_it_in_process_and_over_json_lines(tmp_path, reads_log):
+    """The ego's logged future is the log-replay baseline's alone: a planner declaring nothing never sees it."""
+    (tmp_path / "peeking.py").write_text(PEEKING.format(reads_log=reads_log))
+    sys.path.insert(0, str(tmp_path))
+    try:
+        from peeking import Peeking
+
+        info = {"scenario_id": "s", "ego_id": 1, "step_seconds": 0.1, "logged_ego": np.zeros((80, 4))}
+        local = Peeking()
+        reset_planner(local, make_observation(), info)
+        command = f"env PYTHONPATH={shlex.quote(str(tmp_path))} {SERVE} peeking:Peeking"
+        remote = SubprocessPlanner(command, timeout_s=30.0)
+        try:
+            assert remote.reads_log is reads_log
+            reset_planner(remote, make_observation(), info)
+            remote_saw = bool(remote.act(make_observation())[0] == 1.0)
+        finally:
+            remote.close()
+    finally:
+        sys.path.remove(str(tmp_path))
+        sys.modules.pop("peeking", None)
+    assert local.saw is reads_log and remote_saw is reads_log
+    assert "logged_ego" in info  # the caller's info is left as it was

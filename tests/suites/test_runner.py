@@ -167,3 +167,15 @@ def test_bad_options_are_refused_before_anything_is_written(tmp_path, two_case_s
     with pytest.raises(InputError):
         run_suite(load_suite(two_case_suite), run)
     assert not run.out.exists()
+
+
+def test_a_log_replay_planner_is_flagged_as_a_baseline(tmp_path, two_case_suite):
+    options = _options(tmp_path, "log_replay")
+    run_suite(load_suite(two_case_suite), options)
+    saved = json.loads((options.out / "results.json").read_text())
+    assert [e["reads_log"] for e in saved["episodes"]] == [True, True]
+    assert "a log-replay baseline, not a planner under test" in (options.out / "report.md").read_text()
+    plain = _options(tmp_path / "plain")
+    run_suite(load_suite(two_case_suite), plain)
+    assert not any(e["reads_log"] for e in json.loads((plain.out / "results.json").read_text())["episodes"])
+    assert "log-replay baseline" not in (plain.out / "report.md").read_text()

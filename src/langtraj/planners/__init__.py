@@ -12,6 +12,7 @@ from langtraj.planners.base import (
     PlannerTimeout,
     load_planner,
     planner_action_kind,
+    planner_reads_log,
     reset_planner,
 )
 from langtraj.planners.idm import IDMConfig, IDMPlanner
@@ -32,6 +33,7 @@ __all__ = [
     "encode_observation",
     "load_planner",
     "planner_action_kind",
+    "planner_reads_log",
     "reset_planner",
     "serve",
 ]

@@ -34,15 +34,18 @@ class PlannerTimeout(PlannerError):
 
 class Planner(ABC):
     """Drives the ego: `reset` at the start of each episode, then one `act` per step (docs/testing.md,
-    'Planners'); `action_kind` says which action space `act` answers in (`langtraj.env.spaces.action_space`)."""
+    'Planners'); `action_kind` says which action space `act` answers in (`langtraj.env.spaces.action_space`);
+    `reads_log` that it is a log-replay baseline, which alone is given the ego's logged future (and flagged as such
+    in the reports)."""
 
     name: ClassVar[str]
     action_kind: ClassVar[str] = "control"
+    reads_log: ClassVar[bool] = False
 
     def reset(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> None:  # noqa: B027
         """Start of an episode: the first observation and the environment's reset info (`scenario_id`, `ego_id`,
-        `step_seconds`, `logged_ego`: [80, 4] logged future world x, y, heading, speed, NaN where unlogged, for
-        log-replay baselines only). Nothing by default."""
+        `step_seconds`, ...; `logged_ego`, [80, 4] logged future world x, y, heading, speed, NaN where unlogged, only
+        for a planner that `reads_log`). Nothing by default."""
 
     @abstractmethod
     def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
@@ -124,9 +127,22 @@ def reset_takes_info(reset: Any) -> bool:
     return len(positional) >= 2 or any(p.kind == p.VAR_POSITIONAL for p in parameters)
 
 
+LOG_KEY = "logged_ego"
+"""The reset info's key holding the ego's logged future: given only to planners that declare `reads_log`."""
+
+
+def planner_reads_log(planner: Any) -> bool:
+    """Whether the planner declares itself a log-replay baseline (`reads_log` True): only such a planner is given
+    the ego's logged future."""
+    return getattr(planner, "reads_log", False) is True
+
+
 def reset_planner(planner: Any, observation: dict[str, np.ndarray], info: dict[str, Any]) -> None:
     """Calls `planner.reset(observation, info)`, or `planner.reset(observation)` for planners whose `reset`
-    takes one argument (users may leave the info out)."""
+    takes one argument (users may leave the info out); the info's logged future is left out unless the planner
+    `reads_log` (no planner under test sees the future)."""
+    if not planner_reads_log(planner):
+        info = {k: v for k, v in info.items() if k != LOG_KEY}
     if reset_takes_info(planner.reset):
         planner.reset(observation, info)
     else:

@@ -7,18 +7,20 @@ JSON object on one line, UTF-8, ending in a newline; the planner answers each me
 writes nothing else to stdout (logs go to stderr):
 
     runner -> planner                                        planner -> runner
-    {"type": "hello", "protocol": 1}                         {"action_kind": "control"}     (or "trajectory")
+    {"type": "hello", "protocol": 1}                         {"action_kind": "control", "reads_log": false}
     {"type": "reset", "observation": OBS, "info": INFO}      {}                             (any object)
     {"type": "act", "observation": OBS}                      {"action": [a, yaw_rate]}      (or [[x, y, heading], ...])
     {"type": "close"}                                        (no answer: the planner exits)
 
 Hello once after the start; reset at the start of each episode, then one act per 0.1 s step; close at the end.
-OBS is the observation (`langtraj.env.spaces.observation_space`) with each key's array as nested lists of numbers
-(`encode_observation`); INFO is the reset info as JSON (`scenario_id`, `ego_id`, `step_seconds`, `logged_ego` as
-[80][4] lists); a NaN or infinity anywhere is null. An action is nested lists of the shape of its action space:
-control [2] (acceleration, yaw rate), trajectory [10][3] poses. A reply that is not one JSON object, an act reply
-without a well-shaped "action", or a planner that exits raises `PlannerError`; no reply within the time limit
-raises `PlannerTimeout`. `serve` is the planner side, for any Python planner (`python -m langtraj.planners.serve`).
+The hello's reply: `action_kind` "control" (default) or "trajectory"; `reads_log` true only for a log-replay
+baseline (default false), which alone gets `logged_ego` in INFO. OBS is the observation
+(`langtraj.env.spaces.observation_space`) with each key's array as nested lists of numbers (`encode_observation`);
+INFO is the reset info as JSON (`scenario_id`, `ego_id`, `step_seconds`, ...; `logged_ego` as [80][4] lists); a NaN
+or infinity anywhere is null. An action is nested lists of the shape of its action space: control [2]
+(acceleration, yaw rate), trajectory [10][3] poses. A reply that is not one JSON object, an act reply without a
+well-shaped "action", or a planner that exits raises `PlannerError`; no reply within the time limit raises
+`PlannerTimeout`. `serve` is the planner side, for any Python planner (`python -m langtraj.planners.serve`).
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ from langtraj.planners.base import (
     PlannerError,
     PlannerTimeout,
     planner_action_kind,
+    planner_reads_log,
     reset_planner,
 )
 
@@ -192,11 +195,15 @@ class SubprocessPlanner(Planner):
             kind = reply.get("action_kind", "control")
             if kind not in ACTION_KINDS:
                 raise self._error(f"answered hello with action_kind {kind!r}, not one of {', '.join(ACTION_KINDS)}")
+            reads_log = reply.get("reads_log", False)
+            if not isinstance(reads_log, bool):
+                raise self._error(f"answered hello with reads_log {reads_log!r}, not true or false")
         except BaseException:
             self._broken = self._broken or "failed its hello"
             self.close()
             raise
         self.action_kind = kind  # type: ignore[misc]  # learned from the planner, per instance
+        self.reads_log = reads_log  # type: ignore[misc]
 
     def reset(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> None:
         """Sends the reset message and waits for its reply (any object)."""
@@ -337,7 +344,10 @@ def serve(planner: Any, stdin: IO[str] | None = None, stdout: IO[str] | None = N
             kind = message.get("type")
             with contextlib.redirect_stdout(sys.stderr):
                 if kind == "hello":
-                    reply: dict[str, Any] = {"action_kind": planner_action_kind(planner)}
+                    reply: dict[str, Any] = {
+                        "action_kind": planner_action_kind(planner),
+                        "reads_log": planner_reads_log(planner),
+                    }
                 elif kind == "reset":
                     reset_planner(planner, decode_observation(message["observation"]), decode_info(message["info"]))
                     reply = {}

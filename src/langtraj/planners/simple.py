@@ -38,6 +38,7 @@ class LogReplayPlanner(Planner):
 
     name = "log_replay"
     action_kind = "trajectory"
+    reads_log = True
 
     def __init__(self) -> None:
         self.logged = np.full((0, 4), np.nan)

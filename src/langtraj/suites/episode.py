@@ -73,9 +73,10 @@ class EpisodeResult:
     reset). criteria: each checked criterion's `CriterionResult.to_json()` (empty when the episode did not run to
     its end). figures: `verdict.episode_figures` plus `planner_seconds` (all its calls) and
     `planner_max_step_seconds`. steps: the per-step record (`StepRecord.to_json()`). seconds: the episode's wall
-    time. video: the video's path relative to the output folder, or None. video_error: why the video could not be
-    written, or None. traceback: the traceback of an error, or of the planner's exception that failed the episode, or
-    None.
+    time. reads_log: whether the planner declared itself a log-replay baseline and was given the ego's logged
+    future (`planners.planner_reads_log`). video: the video's path relative to the output folder, or None.
+    video_error: why the video could not be written, or None. traceback: the traceback of an error, or of the
+    planner's exception that failed the episode, or None.
     """
 
     case: str
@@ -87,6 +88,7 @@ class EpisodeResult:
     figures: dict[str, Any] = field(default_factory=dict)
     steps: dict[str, list] = field(default_factory=dict)
     seconds: float = 0.0
+    reads_log: bool = False
     video: str | None = None
     video_error: str | None = None
     traceback: str | None = None
@@ -102,6 +104,7 @@ class EpisodeResult:
             "figures": dict(self.figures),
             "steps": dict(self.steps),
             "seconds": round(self.seconds, 3),
+            "reads_log": self.reads_log,
             "video": self.video,
             "video_error": self.video_error,
             "traceback": self.traceback,
@@ -127,6 +130,7 @@ class _Episode:
         self.ego: int | None = None
         self.planner_seconds = 0.0
         self.planner_max = 0.0
+        self.reads_log = False
 
     def call_planner(self, fn: Callable[[], Any], when: str) -> Any:
         """`fn()` (a planner call) under the step limit; whatever goes wrong fails the episode, naming `when`."""
@@ -166,10 +170,11 @@ class _Episode:
     def run(self) -> None:
         """Plan and step until the episode ends; raises `_Failed` for the planner's failures, anything else for
         the environment's."""
-        from langtraj.planners import planner_action_kind, reset_planner
+        from langtraj.planners import planner_action_kind, planner_reads_log, reset_planner
 
         task, case = self.task, self.task.case
         self.planner = self.make_planner()
+        self.reads_log = planner_reads_log(self.planner)
         try:
             kind = planner_action_kind(self.planner)
         except Exception as error:
@@ -246,7 +251,7 @@ def run_episode(task: EpisodeTask) -> EpisodeResult:
         failed = [v.reason for v in verdicts if not v.passed]
         if failed:
             result.status, result.reasons = "fail", [r or "" for r in failed]
-    result.ego = episode.ego
+    result.ego, result.reads_log = episode.ego, episode.reads_log
     result.figures = figures | {
         "planner_seconds": round(episode.planner_seconds, 4),
         "planner_max_step_seconds": round(episode.planner_max, 4),

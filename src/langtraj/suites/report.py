@@ -86,6 +86,8 @@ def render_report(results: SuiteResults) -> str:
         f"Planner {driver}; suite file `{results.suite.path}`; step timeout {header['step_timeout']:g} s; "
         f"started {header['started']}.",
     ]
+    if any(r.reads_log for r in results.episodes.values()):
+        lines += ["", "**The planner read the ego's logged future: a log-replay baseline, not a planner under test.**"]
     statuses = results.case_statuses()
     for case in results.suite.cases:
         ego = case.ego if case.ego is not None else "the env's choice"
