@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from langtraj.angles import wrap_angle
+
 NUM_AGENTS = 16
 """The nearest other agents in an observation (by distance between centres)."""
 AGENT_RADIUS_M = 80.0
@@ -126,8 +128,9 @@ class ActionError(ValueError):
 
 def checked_action(action: Any, kind: str) -> np.ndarray:
     """`action` as a float64 array of the `kind` action space's shape: the one check of a planner's action (the env,
-    a suite's episode, the JSON-lines protocol); raises ActionError for anything not numeric, of another shape or
-    not finite. Bounds are not checked: the env clips a control to them and tracks a trajectory as it can."""
+    a suite's episode, the JSON-lines protocol); raises ActionError for anything not numeric, of another shape, not
+    finite, or (a trajectory) with a pose beyond the space's `TRAJECTORY_BOUND_M`. A trajectory's headings are
+    wrapped to (-pi, pi]; a control is not bounded here: the env clips it to the unicycle's bounds."""
     try:
         values = np.asarray(action, np.float64)
     except (TypeError, ValueError):
@@ -137,4 +140,13 @@ def checked_action(action: Any, kind: str) -> np.ndarray:
         raise ActionError(f"an action of shape {values.shape}, expected {expected}")
     if not np.isfinite(values).all():
         raise ActionError("a non-finite action")
+    if kind == "trajectory":
+        far = np.abs(values[:, :2]).max(axis=1)
+        if (far > TRAJECTORY_BOUND_M).any():
+            k = int(np.argmax(far > TRAJECTORY_BOUND_M))
+            raise ActionError(
+                f"a trajectory pose {k} {far[k]:.1f} m from the ego, beyond the space's {TRAJECTORY_BOUND_M:g} m"
+            )
+        values = values.copy()
+        values[:, 2] = wrap_angle(values[:, 2])
     return values
