@@ -2,10 +2,11 @@
 [--executor process|ray] [--step-timeout S] [--no-video] --out DIR`.
 
 Runs a planner through every case of a scenario suite (docs/testing.md, 'Scenario suites'): one episode per
-(case, seed) in the LangTraj environment, judged by the case's criteria. DIR receives `results.json` (rewritten
-after every finished episode), `report.md`, `junit.xml`, `videos/<case>-seed<k>.mp4` of the episodes that did not
-pass, and `planner-logs/` (the stderr of a --planner-cmd planner). Exit status 0 when every case passes, 1 when
-any fails or errors, 2 for bad input (the suite file, the planner, the flags), found before anything is written.
+(case, seed) in the LangTraj environment, judged by the case's criteria and by whether its prompts happened. DIR
+receives `results.json` (rewritten after every finished episode), `report.md`, `junit.xml`,
+`videos/<case>-seed<k>.mp4` of the episodes that did not pass, and `planner-logs/` (the stderr of a --planner-cmd
+planner). Exit status 0 when every case passes, 1 when any fails, errors or its scenario did not happen, 2 for bad
+input (the suite file, the planner, the flags), found before anything is written.
 
 See README.md.
 """

@@ -206,6 +206,7 @@ class LangTrajEnv(gym.Env):
             "start_step": scenario.current_index,
             "prompts": list(prompts),
             "prompted_ids": prompted,
+            "prompt_warnings": list(self._sim.report().get("prompt_warnings", [])),
             "adversary": adversary,
             "target": target,
             "policy": self.policy_name,

@@ -103,13 +103,17 @@ class AdherenceChecker:
         heuristics: HeuristicConfig | None = None,
         detector: DetectorConfig | None = None,
         map_index: MapIndex | None = None,
+        *,
+        logged: bool = True,
     ) -> AdherenceChecker:
-        """The checker of `scenario` with its logged facts; `map_index` may be passed to reuse one."""
+        """The checker of `scenario` with its logged facts (`logged` False: none, one labelling saved where no prompt
+        is checked against the log); `map_index` may be passed to reuse one."""
         heuristics = heuristics or HeuristicConfig()
         detector = detector or DetectorConfig()
         index = map_index or MapIndex.build(scenario.road_map, infer_neighbors=heuristics.infer_neighbors)
         checker = cls(scenario, index, frozenset(), heuristics, detector)
-        checker.logged = checker.facts(scenario)
+        if logged:
+            checker.logged = checker.facts(scenario)
         return checker
 
     def facts(self, scenario: Scenario) -> frozenset[Fact]:

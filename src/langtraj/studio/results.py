@@ -2,11 +2,9 @@
 rollout whether it collides or leaves the road, the WOSAC realism of the rollouts where the scene logs its
 future, and the rollouts themselves as the page replays them (docs/studio.md, 'GET /api/jobs/{id}').
 
-A prompt is judged as instruction following judges it (`metrics.instruction_following`): the facts of its read
-behaviour (`interdrive.behaviour.behaviour_facts`) among the facts the labelers find in the rollout
-(`AdherenceChecker.facts` of `rollout_scenario`). A typed prompt names no interaction subtype, so a pair
-behaviour is followed when the detector finds the interaction of its type between the two agents, whatever the
-subtype, as the simulation's own candidate judge counts it (docs/simulation.md, 'Prompts that steer')."""
+A prompt is judged as instruction following and the suites judge it: its reading's `PromptReading.followed` among
+the facts the labelers find in the rollout (`AdherenceChecker.facts` of `rollout_scenario`), as the simulation's
+own candidate judge counts it (docs/simulation.md, 'Prompts that steer')."""
 
 from __future__ import annotations
 
@@ -17,10 +15,8 @@ from typing import Any
 import numpy as np
 
 from langtraj.errors import InputError
-from langtraj.interdrive.adherence import AdherenceChecker, Fact
-from langtraj.interdrive.behaviour import BEHAVIOURS, behaviour_facts
+from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.reader import PromptReading
-from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID
 from langtraj.metrics.controllability import collision_flags, offroad_flags
 from langtraj.metrics.instruction_following import rollout_scenario
 from langtraj.metrics.wosac import evaluate_scenario
@@ -37,23 +33,6 @@ REALISM_FIELDS = {
     "offroad_rate": "simulated_offroad_rate",
 }
 """The WOSAC figures a run reports (name in the result: `ScenarioMetrics` field)."""
-
-
-def followed(reading: PromptReading, found: frozenset[Fact]) -> bool | None:
-    """Whether the facts `found` in a rollout follow a read prompt (None: a prompt not read cannot be judged)."""
-    if reading.behaviour is None or reading.agent is None:
-        return None
-    spec = BEHAVIOURS[reading.behaviour]
-    if not spec.is_pair:
-        return behaviour_facts(reading.behaviour, reading.agent) <= found
-    if reading.other is None:
-        return None
-    return any(
-        fact[0] == "interaction"
-        and fact[1:3] == (reading.agent, reading.other)
-        and SUBTYPES_BY_ID[str(fact[3])].type is spec.interaction
-        for fact in found
-    )
 
 
 def judge_prompts(
@@ -80,7 +59,7 @@ def judge_prompts(
                 "agent": reading.agent,
                 "other": reading.other,
                 "behaviour": None if reading.behaviour is None else reading.behaviour.value,
-                "followed": [followed(reading, f) if judge else None for f in found]
+                "followed": [reading.followed(f) if judge else None for f in found]
                 if judge
                 else [None] * rollouts.num_rollouts,
             }

@@ -1,5 +1,6 @@
-"""One episode of a suite case: the planner drives the ego of the LangTraj environment for one seed, and the
-case's criteria judge what happened (docs/testing.md, 'Scenario suites').
+"""One episode of a suite case: the planner drives the ego of the LangTraj environment for one seed, the case's
+criteria judge what the ego did, and the labelers whether the case's prompts happened (`suites.happened`;
+docs/testing.md, 'Scenario suites').
 
 `run_episode` never raises for what a planner or the environment does: a planner that raises, hangs, or answers
 with an action of the wrong shape or non-finite values fails the episode with a one-line reason; an exception in
@@ -28,6 +29,7 @@ from langtraj.env.spaces import ActionError, checked_action
 from langtraj.errors import one_line
 from langtraj.registry import import_object
 from langtraj.suites.deadline import StepTimeout, deadline
+from langtraj.suites.happened import PromptVerdict, judge_prompts, not_happened
 from langtraj.suites.verdict import StepRecord, episode_figures, judge
 
 DEFAULT_ENV = "langtraj.env:LangTrajEnv"
@@ -67,9 +69,13 @@ class EpisodeTask:
 class EpisodeResult:
     """What one episode gave (one entry of results.json's `episodes`).
 
-    case, seed: which episode. status: "pass" (every criterion held), "fail" (a criterion failed, or the planner
-    raised, hung or answered a bad action) or "error" (LangTraj's environment raised). reasons: one line per failed
-    criterion or the failure / error (empty when it passed). ego: the ego's track id (None when the env was never
+    case, seed: which episode. status: "pass" (every criterion held and every prompt judged was followed), "fail" (a
+    criterion failed, or the planner raised, hung or answered a bad action), "not_happened" (every criterion held
+    but a prompt was not followed: the case's scenario did not happen, not a pass; `suites.happened`) or "error"
+    (LangTraj's environment raised). reasons: one line per failed criterion, prompt not followed, or the failure /
+    error (empty when it passed). prompts: each prompt's `PromptVerdict.to_json()` (its reading and whether the
+    played episode followed it). prompt_warnings: what the simulation's reading of the prompts asks in vain of the
+    map. ego: the ego's track id (None when the env was never
     reset). criteria: each checked criterion's `CriterionResult.to_json()` (empty when the episode did not run to
     its end). figures: `verdict.episode_figures` plus `planner_seconds` (all its calls) and
     `planner_max_step_seconds`. steps: the per-step record (`StepRecord.to_json()`). seconds: the episode's wall
@@ -83,6 +89,8 @@ class EpisodeResult:
     seed: int
     status: str
     reasons: list[str] = field(default_factory=list)
+    prompts: list[dict[str, Any]] = field(default_factory=list)
+    prompt_warnings: list[str] = field(default_factory=list)
     ego: int | None = None
     criteria: list[dict[str, Any]] = field(default_factory=list)
     figures: dict[str, Any] = field(default_factory=dict)
@@ -99,6 +107,8 @@ class EpisodeResult:
             "seed": self.seed,
             "status": self.status,
             "reasons": list(self.reasons),
+            "prompts": list(self.prompts),
+            "prompt_warnings": list(self.prompt_warnings),
             "ego": self.ego,
             "criteria": list(self.criteria),
             "figures": dict(self.figures),
@@ -131,6 +141,8 @@ class _Episode:
         self.planner_seconds = 0.0
         self.planner_max = 0.0
         self.reads_log = False
+        self.prompts: list[str] = []
+        self.prompt_warnings: list[str] = []
 
     def call_planner(self, fn: Callable[[], Any], when: str) -> Any:
         """`fn()` (a planner call) under the step limit; whatever goes wrong fails the episode, naming `when`."""
@@ -184,6 +196,8 @@ class _Episode:
         )
         observation, info = self.env.reset(seed=task.seed)
         self.ego = int(info["ego_id"])
+        self.prompts = [str(p) for p in info.get("prompts", [])]
+        self.prompt_warnings = [str(w) for w in info.get("prompt_warnings", [])]
         self.call_planner(lambda: reset_planner(self.planner, observation, info), "in reset")
         for step in range(1, case.steps + 1):
             action = self.call_planner(lambda obs=observation: self.planner.act(obs), f"at step {step}")
@@ -192,6 +206,12 @@ class _Episode:
             self.record.add(info)
             if terminated or truncated:
                 break
+
+    def judge_prompts(self) -> list[PromptVerdict]:
+        """Each prompt judged on the episode as played (none before the first step)."""
+        if self.env is None or not self.record.steps or not self.prompts:
+            return []
+        return judge_prompts(self.env.played(), self.prompts)
 
     def close(self) -> None:
         """Close the planner (its failures to close are ignored) and the env."""
@@ -251,6 +271,19 @@ def run_episode(task: EpisodeTask) -> EpisodeResult:
         failed = [v.reason for v in verdicts if not v.passed]
         if failed:
             result.status, result.reasons = "fail", [r or "" for r in failed]
+    if result.status in ("pass", "fail"):
+        try:
+            prompts = episode.judge_prompts()
+        except Exception as error:
+            result.status = "error"
+            result.reasons.append(f"LangTraj raised {one_line(error)} when judging the prompts")
+            result.traceback = traceback.format_exc()
+        else:
+            result.prompts = [p.to_json() for p in prompts]
+            missed = not_happened(prompts)
+            if result.status == "pass" and missed:
+                result.status, result.reasons = "not_happened", missed
+    result.prompt_warnings = episode.prompt_warnings
     result.ego, result.reads_log = episode.ego, episode.reads_log
     result.figures = figures | {
         "planner_seconds": round(episode.planner_seconds, 4),

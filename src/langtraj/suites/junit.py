@@ -1,7 +1,8 @@
 """`junit.xml`: a suite run for CI (JUnit XML, as pytest writes it for a parametrized test): one `<testsuite>`
 named after the suite, one `<testcase classname="SUITE" name="CASE[seedK]">` per episode with its seconds, so CI
 shows which seed failed. A failed episode gets `<failure message="reason; reason">` (with the planner's traceback
-when it raised), an errored one `<error>` with LangTraj's traceback, one that did not finish (an interrupted run)
+when it raised), an errored one `<error>` with LangTraj's traceback, one whose scenario did not happen `<skipped
+type="not_happened">` (not a pass: the case tested nothing), one that did not finish (an interrupted run)
 `<skipped>` (docs/testing.md, 'Scenario suites')."""
 
 from __future__ import annotations
@@ -43,7 +44,11 @@ def junit_tree(results: SuiteResults) -> ET.ElementTree:
                 counts["skipped"] += 1
                 ET.SubElement(element, "skipped", message="not run to its end (the run was interrupted)")
                 continue
-            if result.status in ("fail", "error"):
+            if result.status == "not_happened":
+                counts["skipped"] += 1
+                message = "; ".join(result.reasons)
+                ET.SubElement(element, "skipped", message=message, type="not_happened").text = _line(result)
+            elif result.status in ("fail", "error"):
                 counts["failures" if result.status == "fail" else "errors"] += 1
                 message = "; ".join(result.reasons) or result.status
                 child = ET.SubElement(element, "failure" if result.status == "fail" else "error", message=message)

@@ -1,6 +1,7 @@
-"""`report.md`: a suite run for people: a summary line, then one Markdown table per case (seed, status, at-fault
-collision, collision with whom, offroad, min TTC, progress, seconds, reason), failed episodes' videos linked
-(docs/testing.md, 'Scenario suites')."""
+"""`report.md`: a suite run for people: a summary line, then per case a Markdown table of its episodes (seed,
+status, at-fault collision, collision with whom, offroad, min TTC, progress, seconds, reason; videos of those that
+did not pass linked) and one of its prompts (how each was read, and per seed whether the episode followed it), with
+the simulation's warnings (docs/testing.md, 'Scenario suites')."""
 
 from __future__ import annotations
 
@@ -49,7 +50,7 @@ def _row(result: EpisodeResult) -> list[str]:
         reason = f"{reason} (no video: {result.video_error})"
     return [
         str(result.seed),
-        result.status.upper() if result.status != "pass" else "pass",
+        result.status.upper().replace("_", " ") if result.status != "pass" else "pass",
         _step(f.get("first_at_fault_step"), f.get("at_fault_with", [])),
         _step(f.get("first_collision_step"), f.get("collided_with", [])),
         offroad,
@@ -65,13 +66,32 @@ def summary_line(results: SuiteResults) -> str:
     passed) in 12.3 s`."""
     s = results.summary()
     verdict = "PASS" if results.passed else "FAIL"
+    missed = f", {s['cases_not_happened']} whose scenario did not happen" if s["cases_not_happened"] else ""
     line = (
-        f"{verdict}: {s['cases_failed']} of {s['cases']} cases failed, {s['cases_errors']} with errors "
+        f"{verdict}: {s['cases_failed']} of {s['cases']} cases failed, {s['cases_errors']} with errors{missed} "
         f"({s['passed']} of {s['episodes']} episodes passed) in {s['seconds']:.1f} s"
     )
     if not results.complete:
         line += f"; only {s['finished']} of {s['episodes']} episodes finished"
     return line
+
+
+def _prompt_lines(episodes: list[EpisodeResult]) -> list[str]:
+    """How each prompt was read (the first episode's reading: every seed reads the same text), the warnings, and per
+    seed whether the played episode followed it."""
+    if not episodes or not episodes[0].prompts:
+        return []
+    lines = ["", "| prompt | read as | " + " | ".join(f"seed {r.seed}" for r in episodes) + " |"]
+    lines.append("|" + " --- |" * (2 + len(episodes)))
+    for k, prompt in enumerate(episodes[0].prompts):
+        cells = [prompt["text"], prompt["reading"]]
+        for result in episodes:
+            verdict = result.prompts[k] if k < len(result.prompts) else {}
+            followed = verdict.get("followed")
+            cells.append({True: "followed", False: "NOT FOLLOWED"}.get(followed, f"not judged: {verdict.get('why')}"))
+        lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
+    warnings = sorted({w for r in episodes for w in r.prompt_warnings})
+    return lines + ([""] if warnings else []) + [f"Warning: {_cell(w)}  " for w in warnings]
 
 
 def render_report(results: SuiteResults) -> str:
@@ -100,6 +120,7 @@ def render_report(results: SuiteResults) -> str:
         lines += ["", "| " + " | ".join(COLUMNS) + " |", "|" + " --- |" * len(COLUMNS)]
         for result in results.of_case(case.name):
             lines.append("| " + " | ".join(_cell(c) for c in _row(result)) + " |")
+        lines += _prompt_lines(results.of_case(case.name))
         missing = [s for s in case.seeds if (case.name, s) not in results.episodes]
         if missing:
             lines += ["", f"Not finished: seeds {', '.join(map(str, missing))}."]

@@ -27,13 +27,13 @@ RESULTS_FILE = "results.json"
 
 
 def case_status(results: list[EpisodeResult], expected: int) -> str:
-    """A case's status from its episodes: "fail" when any failed, else "error" when any errored, else "pass"
-    once all `expected` finished ("pending" before)."""
+    """A case's status from its episodes: "fail" when any failed, else "error" when any errored, else
+    "not_happened" when the scenario did not happen in some, else "pass" once all `expected` finished ("pending"
+    before)."""
     statuses = {r.status for r in results}
-    if "fail" in statuses:
-        return "fail"
-    if "error" in statuses:
-        return "error"
+    for status in ("fail", "error", "not_happened"):
+        if status in statuses:
+            return status
     return "pass" if len(results) >= expected else "pending"
 
 
@@ -84,8 +84,8 @@ class SuiteResults:
         return {c.name: case_status(self.of_case(c.name), len(c.seeds)) for c in self.suite.cases}
 
     def summary(self) -> dict[str, Any]:
-        """Counts: `episodes` (in the suite), `finished`, `passed`, `failed`, `errors`; `cases`, `cases_passed`,
-        `cases_failed`, `cases_errors`; and `seconds` of wall time so far."""
+        """Counts: `episodes` (in the suite), `finished`, `passed`, `failed`, `errors`, `not_happened`; `cases`,
+        `cases_passed`, `cases_failed`, `cases_errors`, `cases_not_happened`; and `seconds` of wall time so far."""
         statuses = [r.status for r in self.episodes.values()]
         cases = list(self.case_statuses().values())
         return {
@@ -94,10 +94,12 @@ class SuiteResults:
             "passed": statuses.count("pass"),
             "failed": statuses.count("fail"),
             "errors": statuses.count("error"),
+            "not_happened": statuses.count("not_happened"),
             "cases": len(cases),
             "cases_passed": cases.count("pass"),
             "cases_failed": cases.count("fail"),
             "cases_errors": cases.count("error"),
+            "cases_not_happened": cases.count("not_happened"),
             "seconds": round(self.seconds, 2),
         }
 

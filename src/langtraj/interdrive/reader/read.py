@@ -13,7 +13,8 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
+from langtraj.interdrive.adherence import Fact
+from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour, behaviour_facts
 from langtraj.interdrive.prompts.compose import MENTION, mentions_in
 from langtraj.interdrive.reader.rules import (
     CONTRAST,
@@ -25,6 +26,7 @@ from langtraj.interdrive.reader.rules import (
     SUBSUMES,
     verb,
 )
+from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID
 
 # ---------------------------------------------------------------------------------------------- clauses and subjects
 
@@ -67,6 +69,25 @@ class PromptReading:
     @property
     def read(self) -> bool:
         return self.behaviour is not None
+
+    def followed(self, found: frozenset[Fact]) -> bool | None:
+        """Whether the facts the labelers `found` in a rollout follow this reading (None: nothing read, or a pair
+        behaviour without its other agent): the one rule of the studio, the suites and instruction following. A
+        typed prompt names no interaction subtype, so a pair behaviour is followed when the detector finds the
+        interaction of its type between the two agents, whatever the subtype."""
+        if self.behaviour is None or self.agent is None:
+            return None
+        spec = BEHAVIOURS[self.behaviour]
+        if not spec.is_pair:
+            return behaviour_facts(self.behaviour, self.agent) <= found
+        if self.other is None:
+            return None
+        return any(
+            fact[0] == "interaction"
+            and fact[1:3] == (self.agent, self.other)
+            and SUBTYPES_BY_ID[str(fact[3])].type is spec.interaction
+            for fact in found
+        )
 
     def describe(self) -> str:
         """One line: `read as: @12 turn_left ("hang a left")`, `read as: @12 yield @7 ("gives way to @7")` or

@@ -1,0 +1,82 @@
+"""Whether an episode's scenario happened: each prompt of the case, read as the simulation read it
+(`sim.prompts.read_prompts`), judged on the played episode by the labelers (`AdherenceChecker.facts`,
+`PromptReading.followed`), the one judge of the studio and of instruction following. An episode whose planner kept
+every criterion while a prompt was not followed did not test what the case asks: its status is `not_happened`,
+not a pass (docs/testing.md, 'Scenario suites')."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from langtraj.interdrive.adherence import AdherenceChecker
+from langtraj.scenario.model import Scenario
+from langtraj.sim.prompts import read_prompts
+
+
+@dataclass(frozen=True)
+class PromptVerdict:
+    """One prompt of an episode: its `text`, how it was read (`reading`: `PromptReading.describe()`; `behaviour`,
+    `agent`, `other`), and `followed`: True or False as the labelers judge the played episode, None where it cannot
+    be judged (`why`: nothing was read, or an agent it names is not in the scene)."""
+
+    text: str
+    reading: str
+    behaviour: str | None
+    agent: int | None
+    other: int | None
+    followed: bool | None
+    why: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "text": self.text,
+            "reading": self.reading,
+            "behaviour": self.behaviour,
+            "agent": self.agent,
+            "other": self.other,
+            "followed": self.followed,
+            "why": self.why,
+        }
+
+
+def judge_prompts(played: Scenario, texts: Sequence[str]) -> list[PromptVerdict]:
+    """Each of `texts` (the prompts as the env ran them, `@ego` replaced) judged on `played` (the history and the
+    simulated steps: `LangTrajEnv.played()`); the labelers run once, and only when some prompt can be judged."""
+    readings = read_prompts(texts)
+    present = {int(i) for i in played.agents.ids}
+    why = []
+    for reading in readings:
+        named = [t for t in (reading.agent, reading.other) if t is not None]
+        if not reading.read:
+            why.append(f"not read ({reading.reason})")
+        elif missing := [f"@{t}" for t in named if t not in present]:
+            why.append(f"{', '.join(missing)} not in the scene")
+        else:
+            why.append(None)
+    found = frozenset()
+    if any(w is None for w in why):
+        found = AdherenceChecker.build(played, logged=False).facts(played)
+    out = []
+    for text, reading, reason in zip(texts, readings, why, strict=True):
+        verdict = reading.followed(found) if reason is None else None
+        if reason is None and verdict is None:
+            reason = "a pair behaviour without its other agent"
+        out.append(
+            PromptVerdict(
+                text=text,
+                reading=reading.describe(),
+                behaviour=None if reading.behaviour is None else reading.behaviour.value,
+                agent=reading.agent,
+                other=reading.other,
+                followed=verdict,
+                why=reason,
+            )
+        )
+    return out
+
+
+def not_happened(verdicts: Sequence[PromptVerdict]) -> list[str]:
+    """One reason per prompt the played episode did not follow (empty: the scenario happened, as far as judged)."""
+    return [f"scenario did not happen: {v.text!r} ({v.reading}) not followed" for v in verdicts if v.followed is False]
