@@ -9,11 +9,13 @@ import numpy as np
 import pytest
 from scenario_builders import two_lane_road
 
-from langtraj.env.events import AT_FAULT_MIN_SPEED, EventJudge
+from langtraj.env.events import EventJudge
+from langtraj.env.fault import STOPPED_SPEED
 from langtraj.env.reward import RewardConfig
 from langtraj.errors import InputError
 from langtraj.metrics.interaction import MAX_TTC
 from langtraj.metrics.road import road_edge_index
+from langtraj.roads import MapIndex
 from langtraj.scenario.drivable import measured_road_edges
 from langtraj.scenario.types import StateField
 
@@ -32,7 +34,8 @@ def judged(cars: list[tuple[float, float, float]], *, heading: float = 0.0):
         states[row, StateField.X], states[row, StateField.Y] = x, y
         states[row, StateField.HEADING] = heading
         states[row, StateField.VX], states[row, StateField.VY] = speed * math.cos(heading), speed * math.sin(heading)
-    return EventJudge(scenario, 0, edges).judge(states, np.ones(len(cars), bool))
+    index = MapIndex.build(scenario.road_map)
+    return EventJudge(scenario, 0, edges, index).judge(states, np.ones(len(cars), bool))
 
 
 def test_time_to_collision_is_the_bumper_gap_over_the_closing_speed():
@@ -51,11 +54,33 @@ def test_the_gap_to_the_nearest_box_and_who_is_hit():
     assert hit.collided_with == (2,) and hit.min_distance == pytest.approx(-0.5)
 
 
-def test_the_ego_causes_a_collision_it_drives_into_not_one_it_is_run_into():
-    assert judged([(0.0, 0.0, 10.0), (4.0, 0.0, 3.0)]).at_fault  # into the car ahead
-    assert not judged([(0.0, 0.0, 3.0), (-4.0, 0.0, 10.0)]).at_fault  # run into from behind
-    standing = judged([(0.0, 0.0, AT_FAULT_MIN_SPEED / 2), (4.0, 0.0, 0.0)])
-    assert standing.collision and not standing.at_fault  # hardly moving: not its doing
+def _kinds(events) -> list[tuple[int, str, bool]]:
+    return [(c.partner, c.kind.value, c.at_fault) for c in events.contacts]
+
+
+def test_fault_goes_by_the_kind_of_contact():
+    # the ego rear-ends a slower lead with its front bumper: at fault
+    assert _kinds(judged([(0.0, 0.0, 10.0), (4.0, 0.0, 3.0)])) == [(2, "front", True)]
+    # the ego drives into a car standing still: at fault, whatever part touches
+    assert _kinds(judged([(0.0, 0.0, 10.0), (4.0, 0.0, 0.0)])) == [(2, "stopped_other", True)]
+    # a stopped ego hit from behind: not at fault; so too a moving one run into from behind
+    standing = judged([(0.0, 0.0, STOPPED_SPEED / 2), (-4.0, 0.0, 10.0)])
+    assert standing.collision and _kinds(standing) == [(2, "stopped_ego", False)] and not standing.at_fault
+    assert _kinds(judged([(0.0, 0.0, 3.0), (-4.0, 0.0, 10.0)])) == [(2, "rear", False)]
+
+
+def test_a_side_contact_is_the_fault_of_whoever_left_their_lane():
+    # the other drifts out of the left lane (centre y = 3.5) into the ego, which keeps its lane's centre
+    drifted = judged([(0.0, 0.0, 10.0), (1.0, 1.9, 10.0)])
+    assert _kinds(drifted) == [(2, "lateral", False)] and drifted.collision and not drifted.at_fault
+    # the ego drifts out of its lane into a car keeping the centre of the left lane
+    assert _kinds(judged([(0.0, 1.6, 10.0), (1.0, 3.5, 10.0)])) == [(2, "lateral", True)]
+    # a little off its centre, its box 0.3 m past its lane's side at most: still in its lane
+    assert _kinds(judged([(0.0, 0.3, 10.0), (1.0, 2.2, 10.0)])) == [(2, "lateral", False)]
+    # a cut-in landing on the ego's bumper, the other still across both lanes: its doing, not the ego's
+    assert _kinds(judged([(0.0, 0.0, 10.0), (4.0, 1.5, 9.0)])) == [(2, "lateral", False)]
+    # the same car once in the ego's lane: the ego drove into it
+    assert _kinds(judged([(0.0, 0.0, 10.0), (4.3, 0.2, 9.0)])) == [(2, "front", True)]
 
 
 def test_off_road_is_the_box_past_the_edge_not_its_centre():

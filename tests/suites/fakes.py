@@ -98,6 +98,10 @@ class FakeEnv:
             "time": k * 0.1,
             "collision": collision,
             "collided_with": d.get("collided_with", [7]) if collision else [],
+            "collisions": [
+                {"with": i, "kind": "front" if d.get("at_fault") else "rear", "at_fault": bool(d.get("at_fault"))}
+                for i in (d.get("collided_with", [7]) if collision else [])
+            ],
             "at_fault": collision and d.get("at_fault", False),
             "offroad": d.get("offroad_at") is not None and k >= d["offroad_at"],
             "ttc": ttc,

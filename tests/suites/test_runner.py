@@ -179,3 +179,17 @@ def test_a_log_replay_planner_is_flagged_as_a_baseline(tmp_path, two_case_suite)
     run_suite(load_suite(two_case_suite), plain)
     assert not any(e["reads_log"] for e in json.loads((plain.out / "results.json").read_text())["episodes"])
     assert "log-replay baseline" not in (plain.out / "report.md").read_text()
+
+
+def test_a_collision_that_fails_nothing_is_reported_with_its_video(tmp_path):
+    """A bystander runs into the ego (not its fault): the case passes, and the collision is there to see."""
+    write_scene(tmp_path, "bumped", collide_at=12, collided_with=[42], steps=20)
+    path = write_suite(tmp_path, [{"name": "bumped", "scenario": "bumped.json"}])
+    options = RunOptions(out=tmp_path / "out", planner="suites.fakes:GoodPlanner", env=FAKE_ENV)
+    results = run_suite(load_suite(path), options)
+    assert results.case_statuses() == {"bumped": "pass"}
+    (episode,) = json.loads((options.out / "results.json").read_text())["episodes"]
+    assert episode["figures"]["collisions"] == [{"step": 12, "with": 42, "kind": "rear", "at_fault": False}]
+    assert episode["video"] == "videos/bumped-seed0.mp4" and (options.out / episode["video"]).is_file()
+    report = (options.out / "report.md").read_text()
+    assert "Collision, seed 0: step 12 with 42 (rear, not the ego's fault) ([video](videos/bumped-seed0.mp4))" in report

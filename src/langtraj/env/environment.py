@@ -187,7 +187,7 @@ class LangTrajEnv(gym.Env):
         seen = logged[np.isfinite(logged[:, 0]), :2]
         self._route = ego_route(scene.index, start, pose[:2], float(pose[2]), seen)
         self._observer = Observer(scenario, ego, self._route, scene.pieces)
-        self._judge = EventJudge(scenario, ego, scene.edges)
+        self._judge = EventJudge(scenario, ego, scene.edges, scene.index)
         self._curvature = ego_curvature(scenario, ego)
         self._control = np.zeros(2)
         obs, station = self._observe()
@@ -243,6 +243,7 @@ class LangTrajEnv(gym.Env):
             "time": (self._sim.step - self._sim.world.start) * STEP_SECONDS,
             "collision": events.collision,
             "collided_with": list(events.collided_with),
+            "collisions": [c.to_json() for c in events.contacts],
             "at_fault": events.at_fault,
             "offroad": events.offroad,
             "ttc": events.ttc,

@@ -1,6 +1,7 @@
-"""What happened to the ego at a step (docs/testing.md, 'Step info'): collision and with whom, whether the ego
-caused it, off-road, time to collision with the agent ahead, with the WOSAC metrics' own box geometry
-(`metrics.interaction`, `metrics.road`), so a suite and the realism scores agree on what a collision is."""
+"""What happened to the ego at a step (docs/testing.md, 'Step info'): each collision, with whom, of which kind and
+whether the ego caused it (`env.fault`), off-road, time to collision with the agent ahead, with the WOSAC metrics'
+own box geometry (`metrics.interaction`, `metrics.road`), so a suite and the realism scores agree on what a
+collision is."""
 
 from __future__ import annotations
 
@@ -9,42 +10,59 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from langtraj.angles import wrap_angle
+from langtraj.env.fault import CollisionKind, at_fault, collision_kind, left_its_lane
 from langtraj.metrics.features import COLLISION_THRESHOLD, OFFROAD_THRESHOLD
 from langtraj.metrics.interaction import MAX_TTC, pair_signed_distance, time_to_collision
 from langtraj.metrics.road import RoadEdgeIndex, distance_to_road_edge
+from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import StateField
 
-AT_FAULT_MIN_SPEED = 0.5
-"""An ego slower than this (m/s) does not cause a collision."""
-AT_FAULT_CONE = math.radians(60.0)
-"""The ego causes a collision with an agent whose centre lies within this angle of its heading (its front)."""
+
+@dataclass(frozen=True)
+class Contact:
+    """One agent whose box overlaps the ego's: its track id, the kind of contact and whether the ego caused it."""
+
+    partner: int
+    kind: CollisionKind
+    at_fault: bool
+
+    def to_json(self) -> dict[str, object]:
+        return {"with": self.partner, "kind": self.kind.value, "at_fault": self.at_fault}
 
 
 @dataclass(frozen=True)
 class StepEvents:
     """The ego's safety figures at one step."""
 
-    collided_with: tuple[int, ...]  # track ids whose boxes overlap the ego's
-    at_fault: bool  # a collision the ego causes: it moves and the other is in front of it
+    contacts: tuple[Contact, ...]  # every agent whose box overlaps the ego's
     offroad: bool
     ttc: float  # s until the ego reaches the agent it follows at constant speeds (`MAX_TTC` when none)
     min_distance: float  # m between the ego's box and the nearest other box (negative: overlap)
 
     @property
     def collision(self) -> bool:
-        return bool(self.collided_with)
+        return bool(self.contacts)
+
+    @property
+    def collided_with(self) -> tuple[int, ...]:
+        return tuple(c.partner for c in self.contacts)
+
+    @property
+    def at_fault(self) -> bool:
+        """A collision the ego causes (`env.fault`)."""
+        return any(c.at_fault for c in self.contacts)
 
 
 class EventJudge:
-    """Judges the ego (scenario row `ego`) against every other valid agent and the road edges of `scenario`
-    (`edges`: `metrics.road.road_edge_index` of them, None without any)."""
+    """Judges the ego (scenario row `ego`) against every other valid agent, the road edges of `scenario` (`edges`:
+    `metrics.road.road_edge_index` of them, None without any) and its lanes (`index`, for side contacts)."""
 
-    def __init__(self, scenario: Scenario, ego: int, edges: RoadEdgeIndex | None):
+    def __init__(self, scenario: Scenario, ego: int, edges: RoadEdgeIndex | None, index: MapIndex | None = None):
         self.ego = ego
         self.ids = scenario.agents.ids.astype(np.int64)
         self.edges = edges
+        self.index = index
 
     def judge(self, states: np.ndarray, valid: np.ndarray) -> StepEvents:
         """The figures from every agent's state [A, 9] and validity [A] at one step."""
@@ -65,10 +83,13 @@ class EventJudge:
         gap = pair_signed_distance(x[e], y[e], heading[e], length[e], width[e],
                                    x[others], y[others], heading[others], length[others], width[others])  # fmt: skip
         hit = others[gap < COLLISION_THRESHOLD]
-        at_fault = False
-        if len(hit) and speed[e] > AT_FAULT_MIN_SPEED:
-            bearing = np.arctan2(y[hit] - y[e], x[hit] - x[e]) - heading[e]
-            at_fault = bool((np.abs(wrap_angle(bearing)) < AT_FAULT_CONE).any())
+        boxes = np.stack([x, y, heading, length, width], axis=1)
+        contacts, left_lane = [], None
+        for row in hit:
+            kind = collision_kind(boxes[e], boxes[row], float(speed[e]), float(speed[row]), self.index)
+            if kind is CollisionKind.LATERAL and left_lane is None:
+                left_lane = left_its_lane(self.index, boxes[e])
+            contacts.append(Contact(int(self.ids[row]), kind, at_fault(kind, left_lane)))
         offroad = False
         if self.edges is not None:
             one = s[e : e + 1]
@@ -78,8 +99,7 @@ class EventJudge:
             )  # fmt: skip
             offroad = bool(dist[0] > OFFROAD_THRESHOLD)
         return StepEvents(
-            collided_with=tuple(int(i) for i in self.ids[hit]),
-            at_fault=at_fault,
+            contacts=tuple(contacts),
             offroad=offroad,
             ttc=float(min(ttc[0, 0, 0], MAX_TTC)),
             min_distance=float(gap.min()) if len(gap) else math.inf,

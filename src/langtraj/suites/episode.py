@@ -38,7 +38,8 @@ START_TIMEOUT_S = 30.0
 """The least time a planner command gets for its first reply (it may load a model then)."""
 VIDEO_FOLDER = "videos"
 LOG_FOLDER = "planner-logs"
-"""Under the output folder: the videos of failed episodes and the stderr of planner commands."""
+"""Under the output folder: the videos of the episodes that did not pass or had a collision, and the stderr of
+planner commands."""
 CAPTION_CHARS = 120
 
 
@@ -46,8 +47,8 @@ CAPTION_CHARS = 120
 class EpisodeTask:
     """Everything one episode needs, picklable for any executor: the suite's name, the case and seed, the planner
     as a spec (`load_planner`) or a command (`SubprocessPlanner`; exactly one of the two), the per-call time limit
-    in seconds, the output folder, whether to write a video when the episode does not pass, and the environment
-    class ("module:Class")."""
+    in seconds, the output folder, whether to write a video when the episode does not pass or has a collision, and
+    the environment class ("module:Class")."""
 
     suite: str
     case: Case
@@ -290,8 +291,15 @@ def run_episode(task: EpisodeTask) -> EpisodeResult:
         "planner_max_step_seconds": round(episode.planner_max, 4),
     }
     result.steps = episode.record.to_json()
-    if task.video and result.status != "pass" and episode.env is not None and episode.record.steps:
-        caption = f"{task.case.name} seed {task.seed}: {result.reasons[0]}"
+    if (
+        task.video
+        and (result.status != "pass" or figures["collision"])
+        and episode.env is not None
+        and episode.record.steps
+    ):
+        first = figures["collisions"][0] if figures["collisions"] else None
+        what = result.reasons[0] if result.reasons else f"collision with {first['with']} at step {first['step']}"
+        caption = f"{task.case.name} seed {task.seed}: {what}"
         try:
             result.video = episode.video(caption)
         except Exception as error:

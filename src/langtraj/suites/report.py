@@ -76,6 +76,19 @@ def summary_line(results: SuiteResults) -> str:
     return line
 
 
+def _collision_lines(episodes: list[EpisodeResult]) -> list[str]:
+    """Every collision of the case's episodes, whether or not it failed a criterion, with its video."""
+    lines = []
+    for result in episodes:
+        for c in result.figures.get("collisions", []):
+            fault = "the ego at fault" if c["at_fault"] else "not the ego's fault"
+            video = f" ([video]({result.video}))" if result.video else ""
+            lines.append(
+                f"Collision, seed {result.seed}: step {c['step']} with {c['with']} ({c['kind']}, {fault}){video}  "
+            )
+    return [""] + lines if lines else []
+
+
 def _prompt_lines(episodes: list[EpisodeResult]) -> list[str]:
     """How each prompt was read (the first episode's reading: every seed reads the same text), the warnings, and per
     seed whether the played episode followed it."""
@@ -120,6 +133,7 @@ def render_report(results: SuiteResults) -> str:
         lines += ["", "| " + " | ".join(COLUMNS) + " |", "|" + " --- |" * len(COLUMNS)]
         for result in results.of_case(case.name):
             lines.append("| " + " | ".join(_cell(c) for c in _row(result)) + " |")
+        lines += _collision_lines(results.of_case(case.name))
         lines += _prompt_lines(results.of_case(case.name))
         missing = [s for s in case.seeds if (case.name, s) not in results.episodes]
         if missing:

@@ -10,7 +10,7 @@ from typing import Any
 from langtraj.cases import Criteria
 
 STEP_KEYS = ("collision", "at_fault", "offroad", "ttc", "min_distance", "progress", "progress_m", "speed")
-"""The env's step-info figures recorded at every step (`collided_with` is kept too, for the steps with a collision)."""
+"""The env's step-info figures recorded at every step (`collided_with` and `collisions` are kept too)."""
 
 
 @dataclass
@@ -26,6 +26,7 @@ class StepRecord:
     progress_m: list[float | None] = field(default_factory=list)
     speed: list[float | None] = field(default_factory=list)
     collided_with: list[list[int]] = field(default_factory=list)
+    collisions: list[list[dict[str, Any]]] = field(default_factory=list)
 
     def add(self, info: dict[str, Any]) -> None:
         """Record one step's info: its flags must be there (a missing one would pass every safety criterion); a
@@ -35,13 +36,14 @@ class StepRecord:
         for key in ("ttc", "min_distance", "progress", "progress_m", "speed"):
             getattr(self, key).append(_number(info.get(key)))
         self.collided_with.append([int(i) for i in info.get("collided_with", ()) or ()])
+        self.collisions.append([dict(c) for c in info.get("collisions", ()) or ()])
 
     @property
     def steps(self) -> int:
         return len(self.collision)
 
     def to_json(self) -> dict[str, list]:
-        return {key: list(getattr(self, key)) for key in (*STEP_KEYS, "collided_with")}
+        return {key: list(getattr(self, key)) for key in (*STEP_KEYS, "collided_with", "collisions")}
 
 
 def _number(value: Any) -> float | None:
@@ -61,8 +63,20 @@ def _rounded(value: float | None, digits: int = 4) -> float | None:
     return None if value is None else round(value, digits)
 
 
+def contacts(record: StepRecord) -> list[dict[str, Any]]:
+    """Every collision of the episode, whether or not it fails a criterion: the step each contact with a partner
+    began, the partner (`with`), its `kind` and whether the ego was `at_fault` (`env.fault`), in step order."""
+    out, before = [], set()
+    for k, step in enumerate(record.collisions):
+        now = {c["with"]: c for c in step}
+        out += [{"step": k + 1, **now[p]} for p in now if p not in before]
+        before = set(now)
+    return out
+
+
 def episode_figures(record: StepRecord) -> dict[str, Any]:
-    """The episode in figures: `steps`; `first_collision_step` and `collided_with` (the track ids hit then),
+    """The episode in figures: `steps`; `collisions` (`contacts`); `first_collision_step` and `collided_with` (the
+    track ids hit then),
     `first_at_fault_step` and `at_fault_with`, `first_offroad_step` and `offroad_steps` (None / [] / 0 when it
     never happened); `min_ttc` (s) with `min_ttc_step`, `min_distance` (m), `final_progress` (fraction of the
     logged ego's progress), `final_progress_m`, `mean_speed` and `max_speed` (m/s); None where no step measured
@@ -76,6 +90,7 @@ def episode_figures(record: StepRecord) -> dict[str, Any]:
     return {
         "steps": record.steps,
         "collision": collision is not None,
+        "collisions": contacts(record),
         "first_collision_step": collision,
         "collided_with": record.collided_with[collision - 1] if collision else [],
         "at_fault_collision": at_fault is not None,

@@ -1,0 +1,88 @@
+"""Who caused a collision of the ego, by category after nuPlan's at-fault collisions (docs/testing.md, 'Step info'):
+an ego standing still is never at fault; driving into an agent that stands still, or with its front bumper into
+one ahead in its lane, it is; hit from behind, it is not; a side contact is the fault of whoever left their lane,
+judged on the ego: it is at fault when its box reaches out of the lane it is on (or it is on no lane at all)
+(`left_its_lane`). A contact at the ego's bumper with an agent that is itself out of its lane (a cut-in landing on
+the bumper) is a side contact too."""
+
+from __future__ import annotations
+
+import math
+from enum import StrEnum
+
+import numpy as np
+
+from langtraj.metrics.features import COLLISION_THRESHOLD
+from langtraj.metrics.interaction import pair_signed_distance
+from langtraj.roads import MapIndex
+
+STOPPED_SPEED = 0.5
+"""An agent slower than this (m/s) stands still: an ego that does causes nothing; one that hits such an agent does."""
+REAR_BEARING = math.radians(150.0)
+"""An agent whose centre lies more than this angle off the ego's heading is behind it (nuPlan's rear test)."""
+BUMPER_DEPTH_M = 0.1
+"""The ego's front bumper: a strip this deep across its front edge."""
+LANE_HALF_WIDTH_M = 1.75
+"""Half a lane's width where the map gives none (3.5 m lanes, WOMD's common width)."""
+LANE_TOLERANCE_M = 0.3
+"""How far past its lane's side the ego's box may reach before it counts as out of its lane."""
+LANE_RADIUS_M = 3.0
+"""The ego is on a lane whose centreline is within this distance of its centre (else on none)."""
+
+
+class CollisionKind(StrEnum):
+    """How the ego met the agent it collided with (nuPlan's categories)."""
+
+    STOPPED_EGO = "stopped_ego"  # the ego stood still: not at fault
+    STOPPED_OTHER = "stopped_other"  # the ego drove into an agent standing still: at fault
+    REAR = "rear"  # the other came from behind: not at fault
+    FRONT = "front"  # the ego's front bumper struck it, ahead in its lane: at fault
+    LATERAL = "lateral"  # a side contact: at fault when the ego left its lane
+
+
+def collision_kind(
+    ego: np.ndarray, other: np.ndarray, ego_speed: float, other_speed: float, index: MapIndex | None = None
+) -> CollisionKind:
+    """The kind of a contact between the ego's box and another's (x, y, heading, length, width each); `index`, the
+    map's lanes, tells a bumper contact with an agent out of its lane (lateral) from one with an agent ahead."""
+    if ego_speed < STOPPED_SPEED:
+        return CollisionKind.STOPPED_EGO
+    if other_speed < STOPPED_SPEED:
+        return CollisionKind.STOPPED_OTHER
+    x, y, heading, length, width = (float(v) for v in ego)
+    along = (other[0] - x) * math.cos(heading) + (other[1] - y) * math.sin(heading)
+    bearing = math.atan2(other[1] - y, other[0] - x) - heading
+    if abs(math.remainder(bearing, 2 * math.pi)) > REAR_BEARING:
+        return CollisionKind.REAR
+    ahead = length / 2 - BUMPER_DEPTH_M / 2
+    bumper = pair_signed_distance(
+        np.array(x + ahead * math.cos(heading)), np.array(y + ahead * math.sin(heading)), np.array(heading),
+        np.array(BUMPER_DEPTH_M), np.array(width), *(np.array(float(v)) for v in other),
+    )  # fmt: skip
+    if float(bumper) >= COLLISION_THRESHOLD or along <= length / 2:  # not at the bumper, or its centre alongside
+        return CollisionKind.LATERAL
+    if left_its_lane(index, other) and not left_its_lane(index, ego):  # it came across into the ego's bumper
+        return CollisionKind.LATERAL
+    return CollisionKind.FRONT
+
+
+def left_its_lane(index: MapIndex | None, box: np.ndarray) -> bool | None:
+    """Whether an agent's box (x, y, heading, length, width) reaches out of the lane it is on by more than
+    `LANE_TOLERANCE_M`, or it is on no lane near its heading; None where the map has no lanes (nothing to judge)."""
+    if index is None or not index.has_lanes:
+        return None
+    x, y, heading, _, width = (float(v) for v in box)
+    match = index.match_lanes(
+        np.array([[x, y]]), np.array([heading]), radius=LANE_RADIUS_M, max_heading_diff=math.pi / 3
+    )
+    if not match.matched[0]:
+        return True
+    return bool(abs(match.lateral[0]) + width / 2 > LANE_HALF_WIDTH_M + LANE_TOLERANCE_M)
+
+
+def at_fault(kind: CollisionKind, left_lane: bool | None) -> bool:
+    """Whether the ego caused a contact of `kind` (`left_lane`: `left_its_lane`; a side contact where the map has no
+    lanes is not the ego's)."""
+    if kind in (CollisionKind.STOPPED_OTHER, CollisionKind.FRONT):
+        return True
+    return kind is CollisionKind.LATERAL and bool(left_lane)
