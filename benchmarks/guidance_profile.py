@@ -91,6 +91,7 @@ def main() -> None:
     from langtraj.model.checkpoint import load_model
     from langtraj.scenario.io import read_scenario
     from langtraj.sim.checkpoints import shipped_checkpoint
+    from langtraj.sim.config import SimRequest
     from langtraj.sim.engine import SimConfig, simulate
     from langtraj.sim.policies import LangTrajPolicy
 
@@ -98,9 +99,7 @@ def main() -> None:
     scene = read_scenario(args.scene)
     model, data = load_model(shipped_checkpoint())
     options = {"on_road": 0.0, "no_collision": 0.0, "selector": "min_collision"} if args.paper else {}
-    if args.guided_steps is not None:
-        options["guided_steps"] = args.guided_steps
-    policy = LangTrajPolicy(model, data, **options)
+    policy = LangTrajPolicy(model, data, SimRequest(guided_steps=args.guided_steps, **options))
     profiler = cProfile.Profile()
     begin = time.perf_counter()
     profiler.enable()

@@ -45,6 +45,7 @@ def main() -> None:
     from langtraj.model.checkpoint import load_model
     from langtraj.scenario.io import read_scenario
     from langtraj.sim.checkpoints import shipped_checkpoint
+    from langtraj.sim.config import SimRequest
     from langtraj.sim.engine import SimConfig, simulate
     from langtraj.sim.policies import LangTrajPolicy
 
@@ -65,7 +66,7 @@ def main() -> None:
     if args.compile:
         model.compile_steps(training=False)
     name, scene = next(scenes(read_scenario(SCENE), [args.agents]))
-    policy = LangTrajPolicy(model, data, candidates=4, steps=5)
+    policy = LangTrajPolicy(model, data, SimRequest(candidates=4, steps=5))
     if args.compile:  # the first simulation compiles; the profiled one runs the compiled denoiser
         simulate(scene, policy, SimConfig(rollouts=args.rollouts, seed=0))
     with torch.profiler.profile() as profile:

@@ -172,8 +172,9 @@ def main() -> None:
     from langtraj.model.checkpoint import load_model
     from langtraj.scenario.io import read_scenario
     from langtraj.sim.checkpoints import shipped_checkpoint
+    from langtraj.sim.config import SimRequest
     from langtraj.sim.engine import SimConfig, simulate
-    from langtraj.sim.policies import DEFAULT_HOLD_PARKED, LangTrajPolicy, hard_constraints, model_agents
+    from langtraj.sim.policies import LangTrajPolicy, hard_constraints, model_agents
     from langtraj.sim.prompts import merged_prompt
 
     device = "cuda" if torch.cuda.is_available() else "cpu"
@@ -182,7 +183,21 @@ def main() -> None:
     model.to(device)
     if args.compile:
         model.compile_steps(training=False)
-    guided = LangTrajPolicy(model, data, steps=5, guided_steps=args.guided_steps).guided_steps
+    base = SimRequest(
+        candidates=args.candidates,
+        steps=5,
+        dense_attention=args.dense_attention,
+        warm_steps=args.warm_steps,
+        refresh_map=args.refresh_map,
+        rolling=args.rolling,
+    )
+    paper = replace(
+        base, on_road=0.0, no_collision=0.0, selector="min_collision", hard_constraints=0, hold_parked=False
+    )
+    defaults = replace(
+        base, guided_steps=args.guided_steps, hard_constraints=args.hard_constraints, hold_parked=args.hold_parked
+    )
+    resolved = LangTrajPolicy(model, data, defaults).request  # checked, with simulate's defaults
     print(
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, torch threads "
         f"{torch.get_num_threads()}, device {device}; checkpoint {Path(checkpoint).name} "
@@ -191,24 +206,18 @@ def main() -> None:
         f"{'dense' if args.dense_attention else 'local'} attention, "
         f"denoiser {'compiled' if args.compile else 'eager'}, warm steps {args.warm_steps}, rolling {args.rolling}, "
         f"map {'each replan' if args.refresh_map else 'of the start'}; defaults guided at the last "
-        f"{guided} of 5 denoising steps, hard constraints {hard_constraints(args.hard_constraints, 5)}, hold parked "
-        f"{DEFAULT_HOLD_PARKED if args.hold_parked is None else args.hold_parked}; medians of {args.repeats} runs"
+        f"{resolved.guided_steps} of 5 denoising steps, hard constraints {hard_constraints(args.hard_constraints, 5)}, "
+        f"hold parked {resolved.hold_parked}; medians of {args.repeats} runs"
     )
 
     def policy(setting: str, scene) -> LangTrajPolicy:
-        options = {"candidates": args.candidates, "steps": 5, "local_attention": not args.dense_attention}
-        options |= {"warm_steps": args.warm_steps, "refresh_map": args.refresh_map, "rolling": args.rolling}
         if setting == "paper":
-            options |= {"on_road": 0.0, "no_collision": 0.0, "selector": "min_collision"}
-            options |= {"hard_constraints": None, "hold_parked": False}
-        else:
-            options["guided_steps"] = guided
-            options["hard_constraints"] = hard_constraints(args.hard_constraints, 5)
-            options["hold_parked"] = DEFAULT_HOLD_PARKED if args.hold_parked is None else args.hold_parked
+            return LangTrajPolicy(model, data, paper)
+        prompt = None
         if setting == "prompt":
             first = int(scene.agents.ids[model_agents(scene)[0]])
-            options["prompt"] = merged_prompt(scene, [args.prompt.format(id=first)])
-        return LangTrajPolicy(model, data, **options)
+            prompt = merged_prompt(scene, [args.prompt.format(id=first)])
+        return LangTrajPolicy(model, data, defaults, prompt=prompt)
 
     rows = []
     for name, scene in scenes(read_scenario(SCENE), args.scenes):

@@ -119,18 +119,22 @@ def test_baseline_policies_need_no_checkpoint(tiny_run, tmp_path):
         (["--guidance", "goal=1"], "'goal' cannot be given here"),
         (["--guidance", "on_road=-1"], "must be finite and >= 0"),
         (["--guidance", "on_road"], "expected NAME=WEIGHT"),
-        (["--policy", "constant_velocity", "--prompt", "@7 stops"], "need a model policy"),
-        (["--policy", "constant_velocity", "--max-driven", "2"], "need a model policy"),
+        (["--policy", "constant_velocity", "--prompt", "@7 stops"], "--prompt needs a model policy"),
+        (
+            ["--policy", "constant_velocity", "--max-driven", "2", "--rolling"],
+            "--rolling and --max-driven need a model",
+        ),
         (["--max-driven", "0"], "must be >= 1"),
         (["--on-road", "-1"], "must be finite and >= 0"),
         (["--guided-steps", "6"], "--guided-steps: must be in [1, 5]"),
-        (["--policy", "constant_velocity", "--guided-steps", "1"], "need a model policy"),
+        (["--policy", "constant_velocity", "--guided-steps", "1"], "--guided-steps needs a model policy"),
         (["--warm-steps", "6"], "--warm-steps: must be in [1, 5]"),
         (["--temperature", "0"], "--temperature: must be in"),
-        (["--policy", "constant_velocity", "--warm-steps", "1"], "need a model policy"),
+        (["--policy", "constant_velocity", "--warm-steps", "1"], "--warm-steps needs a model policy"),
         (["--selector", "best"], "best"),
-        (["--policy", "constant_velocity", "--selector", "per_agent"], "need a model policy"),
-        (["--policy", "constant_velocity", "--dense-attention"], "need a model policy"),
+        (["--policy", "constant_velocity", "--selector", "per_agent"], "--selector needs a model policy"),
+        (["--policy", "constant_velocity", "--dense-attention"], "--dense-attention needs a model policy"),
+        (["--policy", "constant_velocity", "--no-prompt-text"], "--no-prompt-text needs a model policy"),
         (["--policy", "teleport"], "unknown policy"),
         (["--replan-s", "0.25"], "replan_s"),
     ],
@@ -160,15 +164,14 @@ def test_a_checkpoint_of_another_model_version_is_refused(tiny_run, tmp_path, ca
 def test_collision_guidance_pulls_the_adversary_to_its_target(tiny_run):
     from langtraj.guidance import CollisionCost, GuidanceTerm
     from langtraj.model.checkpoint import load_model
-    from langtraj.sim import LangTrajPolicy, SimConfig, simulate
+    from langtraj.sim import LangTrajPolicy, SimConfig, SimRequest, simulate
 
     checkpoint, scenes = tiny_run
     model, data = load_model(checkpoint)
     scenario = read_scenario(scenes)
     distances = []
     for terms in ((), (GuidanceTerm(CollisionCost(2, 0), 1.0),)):  # slots: 7 -> 0, 37 -> 2 (see summary test)
-        policy = LangTrajPolicy(model, data, terms=terms, candidates=2, steps=3,
-                                guidance_scale=5.0)  # fmt: skip
+        policy = LangTrajPolicy(model, data, SimRequest(candidates=2, steps=3, guidance_scale=5.0), terms=terms)
         r = simulate(scenario, policy, SimConfig(rollouts=2, replan_s=2.0)).rollouts
         ids = list(r.object_id)
         a, t = ids.index(37), ids.index(7)

@@ -12,7 +12,15 @@ from langtraj.guidance.projection import HardConstraints
 from langtraj.model.checkpoint import load_model
 from langtraj.rollouts.baselines import generate_baseline
 from langtraj.scenario.types import StateField
-from langtraj.sim import ConstantVelocityPolicy, LangTrajPolicy, LogReplayPolicy, Policy, SimConfig, simulate
+from langtraj.sim import (
+    ConstantVelocityPolicy,
+    LangTrajPolicy,
+    LogReplayPolicy,
+    Policy,
+    SimConfig,
+    SimRequest,
+    simulate,
+)
 from langtraj.sim.engine import replan_schedule
 from langtraj.sim.world import SimWorld
 
@@ -115,9 +123,8 @@ def test_batched_rollouts_equal_sequential_ones(tiny_run):
     scenario = make_scenario(5)
     runs = []
     for batch in (0, 1):  # the default hard constraints: projected candidates, choice and polish
-        policy = LangTrajPolicy(
-            model, data, candidates=3, steps=2, rollout_batch=batch, hard_constraints=HardConstraints()
-        )
+        request = SimRequest(candidates=3, steps=2)
+        policy = LangTrajPolicy(model, data, request, rollout_batch=batch, constraints=HardConstraints())
         runs.append(simulate(scenario, policy, SimConfig(rollouts=4, replan_s=2.0, seed=5)).rollouts)
     # Within a centimetre: float32 sums round a little differently at another batch size (more so with several torch
     # threads), the projection's refit and polish carry that over the replans (measured: 1.7 mm with 2 threads);

@@ -53,7 +53,7 @@ def test_a_car_guided_off_the_road_stays_on_it_with_the_hard_constraints(shipped
     off_road = (GuidanceTerm(GoalCost(0, (60.0, -8.0)), weight=20.0),)  # pulls the first car off the road
     runs = {}
     for name, constraints in (("free", None), ("projected", HardConstraints())):
-        policy = LangTrajPolicy(model, data, terms=off_road, hard_constraints=constraints)
+        policy = LangTrajPolicy(model, data, SimRequest(hard_constraints=0), terms=off_road, constraints=constraints)
         runs[name] = worst_offroad(scenario, simulate(scenario, policy, SimConfig(rollouts=2, seed=0)), 0)
     assert runs["free"] > 0.5  # the guidance drives its box half a metre and more past the edge ...
     assert runs["projected"] < 0.0  # ... and the projection keeps all of it on the road
@@ -64,7 +64,9 @@ def test_a_parked_car_stands_still_when_held(shipped):
     parked = parked_in_history(scenario)
     assert parked.tolist() == [False, False, False, True]
     model, data = shipped
-    result = simulate(scenario, LangTrajPolicy(model, data, hold_parked=True), SimConfig(rollouts=2, seed=0))
+    result = simulate(
+        scenario, LangTrajPolicy(model, data, SimRequest(hold_parked=True)), SimConfig(rollouts=2, seed=0)
+    )
     track = result.world.states[:, 3, scenario.current_index :]
     assert np.allclose(track[..., :2], track[:, :1, :2], atol=1e-4)
     assert np.all(track[:, 1:, 4:6] == 0)  # no velocity
@@ -87,7 +89,7 @@ def test_a_kept_plan_offered_again_is_projected_like_a_fresh_candidate(shipped):
 
     scenario = straight_road(parked=False)
     model, data = shipped
-    policy = LangTrajPolicy(model, data, hard_constraints=HardConstraints())
+    policy = LangTrajPolicy(model, data, constraints=HardConstraints())
     world = SimWorld(scenario, policy.drives(scenario, np.arange(3)), 1)
     state = policy.reset(world, 0)
     batch = collate_scenes([policy._sample(world, state, world.start, 0)])
@@ -121,7 +123,7 @@ def test_a_plan_assembled_from_two_candidates_is_projected_apart(shipped, monkey
     first car does the same). With `on_choice` the executed plan is projected again and the second car is held back."""
     scenario = straight_road(parked=False)
     model, data = shipped
-    policy = LangTrajPolicy(model, data, candidates=2, hard_constraints=HardConstraints(on_choice=on_choice))
+    policy = LangTrajPolicy(model, data, SimRequest(candidates=2), constraints=HardConstraints(on_choice=on_choice))
     world = SimWorld(scenario, policy.drives(scenario, np.arange(3)), 1)
     state = policy.reset(world, 0)
     first, second = (int(np.flatnonzero(world.driven == row)[0]) for row in (0, 1))  # model slots of the two cars

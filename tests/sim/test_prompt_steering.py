@@ -21,7 +21,7 @@ from langtraj.model.checkpoint import load_model
 from langtraj.scenario import AgentType
 from langtraj.sim import prompts
 from langtraj.sim.checkpoints import shipped_checkpoint
-from langtraj.sim.config import ALL_LEVERS, PromptLevers
+from langtraj.sim.config import ALL_LEVERS, PromptLevers, SimRequest
 from langtraj.sim.policies import GUIDANCE_ONLY, GuidanceBaselinePolicy
 from langtraj.sim.prompts import prompt_steering, read_prompts
 from langtraj.sim.world import SimWorld
@@ -109,13 +109,16 @@ def _baseline_state(policy, s):
 def test_the_guidance_baseline_reads_a_typed_prompt_once_and_takes_no_other_levers(loaded, monkeypatch):
     model, data = loaded
     typed = _typed("@2 stops")
-    for levers in (ALL_LEVERS, PromptLevers(guidance=False)):
+    for levers in (PromptLevers(selection=False), PromptLevers(guidance=False)):
         with pytest.raises(InputError, match=r"levers.*takes no other levers"):
-            GuidanceBaselinePolicy(model, data, prompt=typed, levers=levers)
+            GuidanceBaselinePolicy(model, data, SimRequest(levers=levers), prompt=typed)
+    assert (
+        GuidanceBaselinePolicy(model, data, SimRequest(levers=ALL_LEVERS), prompt=typed).request.levers == GUIDANCE_ONLY
+    )
     read = prompts.read_prompt
     texts: list[str] = []
     monkeypatch.setattr(prompts, "read_prompt", lambda text: texts.append(text) or read(text))
-    policy = GuidanceBaselinePolicy(model, data, prompt=typed, levers=GUIDANCE_ONLY)
+    policy = GuidanceBaselinePolicy(model, data, SimRequest(levers=GUIDANCE_ONLY), prompt=typed)
     state = _baseline_state(policy, _crossing_scene())
     assert texts == ["@2 stops"]  # read once: the refusal check, the steering and the warnings take that reading
     assert [s.slot for s in state.prompt.steering.steerings] == [1]

@@ -1,9 +1,11 @@
-"""How a replan samples (docs/simulation.md). Warm starts (`LangTrajPolicy(warm_steps=N)`): the first plan is
+"""How a replan samples (docs/simulation.md). Warm starts (`SimRequest(warm_steps=N)`): the first plan is
 the cold one, later replans start from the executed plan and call the network N times instead of `steps`; a
 replan between two actions falls back to fresh noise. The temperature scales the noise. With `refresh_map` a
 replan reads the map around where the agents are then. Bad settings are one-line errors."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -12,15 +14,15 @@ from scenario_builders import make_scenario
 
 from langtraj.errors import InputError
 from langtraj.model.checkpoint import load_model
-from langtraj.sim import LangTrajPolicy, SimConfig, simulate
+from langtraj.sim import LangTrajPolicy, SimConfig, SimRequest, simulate
 
 
 def _run(model, data, monkeypatch, replan_s: float = 1.0, **kwargs):
     calls = []
     forward = model.denoiser.forward
     monkeypatch.setattr(model.denoiser, "forward", lambda *a, **k: calls.append(1) or forward(*a, **k))
-    policy = LangTrajPolicy(model, data, candidates=3, steps=4, selector="min_collision", on_road=0.0,
-                            no_collision=0.0, **kwargs)  # fmt: skip
+    request = SimRequest(candidates=3, steps=4, selector="min_collision", on_road=0.0, no_collision=0.0, **kwargs)
+    policy = LangTrajPolicy(model, data, request)
     rollouts = simulate(make_scenario(5), policy, SimConfig(rollouts=2, replan_s=replan_s, seed=3)).rollouts
     monkeypatch.undo()
     return rollouts, len(calls)
@@ -51,7 +53,7 @@ def test_bad_warm_steps_are_refused(tiny_run):
     model, data = load_model(tiny_run[0])
     for bad in (0, 5):
         with pytest.raises(InputError, match="warm-steps"):
-            LangTrajPolicy(model, data, steps=4, warm_steps=bad)
+            LangTrajPolicy(model, data, SimRequest(steps=4, warm_steps=bad))
 
 
 def test_the_temperature_scales_the_noise(tiny_run, monkeypatch):
@@ -62,14 +64,14 @@ def test_the_temperature_scales_the_noise(tiny_run, monkeypatch):
     seen = []
     sample = model.sample
     monkeypatch.setattr(model, "sample", lambda *a, **k: seen.append(k["noise"]((6, 8, 16, 2))) or sample(*a, **k))
-    policy = LangTrajPolicy(model, data, candidates=3, steps=4, temperature=0.5)
+    policy = LangTrajPolicy(model, data, SimRequest(candidates=3, steps=4, temperature=0.5))
     simulate(make_scenario(5), policy, SimConfig(rollouts=2, replan_s=8.0, seed=3))
-    policy.temperature = 1.0
+    policy.request = replace(policy.request, temperature=1.0)
     simulate(make_scenario(5), policy, SimConfig(rollouts=2, replan_s=8.0, seed=3))
     torch.testing.assert_close(seen[0], 0.5 * seen[1])
     for bad in (0.0, -1.0, 3.0, float("nan")):
         with pytest.raises(InputError, match="temperature"):
-            LangTrajPolicy(model, data, temperature=bad)
+            LangTrajPolicy(model, data, SimRequest(temperature=bad))
 
 
 def test_a_refreshed_map_follows_the_agents(tiny_run, monkeypatch):
@@ -79,9 +81,9 @@ def test_a_refreshed_map_follows_the_agents(tiny_run, monkeypatch):
     monkeypatch.setattr(
         model.encoder, "forward", lambda b, *a, **k: maps.append(b.map_points.clone()) or encode(b, *a, **k)
     )
-    policy = LangTrajPolicy(model, data, candidates=2, steps=2, refresh_map=True)
+    policy = LangTrajPolicy(model, data, SimRequest(candidates=2, steps=2, refresh_map=True))
     scenario = make_scenario(5)
-    kept = LangTrajPolicy(model, data, candidates=2, steps=2)
+    kept = LangTrajPolicy(model, data, SimRequest(candidates=2, steps=2))
     plain = simulate(scenario, kept, SimConfig(rollouts=2, replan_s=4.0, seed=3)).rollouts
     maps.clear()
     fresh = simulate(scenario, policy, SimConfig(rollouts=2, replan_s=4.0, seed=3)).rollouts

@@ -17,7 +17,7 @@ from langtraj.model import LangTraj
 from langtraj.model.checkpoint import load_model
 from langtraj.scenario.types import StateField
 from langtraj.sim.checkpoints import shipped_checkpoint
-from langtraj.sim.config import PromptLevers, SimConfig
+from langtraj.sim.config import PromptLevers, SimConfig, SimRequest
 from langtraj.sim.engine import simulate
 from langtraj.sim.policies import LangTrajPolicy
 
@@ -38,7 +38,7 @@ def _run(loaded, s, text: str | None, levers: PromptLevers = GUIDANCE_ONLY) -> n
     """States [R, A, T, 9] of the simulated 8 s."""
     model, data = loaded
     prompt = None if text is None else PromptEntry.of(parse_user_prompt(text, [1, 2]))
-    policy = LangTrajPolicy(model, data, prompt=prompt, candidates=2, levers=levers, selector="first")
+    policy = LangTrajPolicy(model, data, SimRequest(candidates=2, levers=levers, selector="first"), prompt=prompt)
     result = simulate(s, policy, SimConfig(rollouts=2, replan_s=2.0, seed=0))
     return result.world.states[:, :, s.current_index :]
 
@@ -68,7 +68,7 @@ def test_without_the_text_lever_the_model_sees_no_sentence(loaded, junction):
     model, data = loaded
     prompt = PromptEntry.of(parse_user_prompt("@1 stops", [1, 2]))
     for levers, seen in ((PromptLevers(), True), (GUIDANCE_ONLY, False)):
-        policy = LangTrajPolicy(model, data, prompt=prompt, levers=levers)
+        policy = LangTrajPolicy(model, data, SimRequest(levers=levers), prompt=prompt)
         world = SimWorld(junction, policy.drives(junction, np.arange(2)), 1)
         sample = policy._sample(world, policy.reset(world, 0), world.start, 0)
         assert (sample["text"][0] is not None) is seen
@@ -93,7 +93,7 @@ def test_a_prompted_run_warm_starts_with_its_kept_plan_on_offer(loaded, junction
     so whichever a prompted agent keeps, the next replan starts from what it executed."""
     model, data = loaded
     prompt = PromptEntry.of(parse_user_prompt("@1 stops", [1, 2]))
-    policy = LangTrajPolicy(model, data, prompt=prompt, candidates=2, warm_steps=2)
+    policy = LangTrajPolicy(model, data, SimRequest(candidates=2, warm_steps=2), prompt=prompt)
     starts = []
     sample = model.sample
     monkeypatch.setattr(model, "sample", lambda *a, **k: starts.append(k["start"]) or sample(*a, **k))

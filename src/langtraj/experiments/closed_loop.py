@@ -40,7 +40,7 @@ from langtraj.metrics.features import SceneMap
 from langtraj.model.checkpoint import load_model
 from langtraj.scenario.model import Scenario
 from langtraj.sim.checkpoints import checkpoint_path
-from langtraj.sim.config import SimConfig
+from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.engine import simulate
 from langtraj.sim.policies import (
     ConstantVelocityPolicy,
@@ -100,23 +100,23 @@ def cases(spec: DatasetSpec, max_windows: int | None) -> tuple[list[Case], int]:
 def _policies(loaded: LoadedModel, case: Case, candidates: int, steps: int) -> dict[str, Callable[[], Policy]]:
     model, data = loaded
     prompt = case.prompt
-    common = {"candidates": candidates, "steps": steps}
+    request = SimRequest(candidates=candidates, steps=steps)
     makers: dict[str, Callable[[], Policy]] = {
         "constant velocity": ConstantVelocityPolicy,
         "log replay": LogReplayPolicy,
-        "LangTraj, no text": lambda: LangTrajPolicy(model, data, **common),
-        "LangTraj, text": lambda: LangTrajPolicy(model, data, prompt=prompt, **common),
+        "LangTraj, no text": lambda: LangTrajPolicy(model, data, request),
+        "LangTraj, text": lambda: LangTrajPolicy(model, data, request, prompt=prompt),
         "LangTraj, guidance baseline (CTG++ style)": lambda: GuidanceBaselinePolicy(
-            model, data, prompt=prompt, **common
+            model, data, request, prompt=prompt
         ),
     }
     if len(prompt.mentions) >= 2:
         slots = slots_of(case.scenario, model_agents(case.scenario))
         target, adversary = slots[prompt.mentions[0]], slots[prompt.mentions[1]]
         collide = [GuidanceTerm(CollisionCost(adversary, target), 1.0)]
-        makers["LangTraj, collision guidance"] = lambda: LangTrajPolicy(model, data, terms=collide, **common)
+        makers["LangTraj, collision guidance"] = lambda: LangTrajPolicy(model, data, request, terms=collide)
         makers["LangTraj, collision guidance + text"] = lambda: LangTrajPolicy(
-            model, data, prompt=prompt, terms=collide, **common
+            model, data, request, prompt=prompt, terms=collide
         )
     return makers
 

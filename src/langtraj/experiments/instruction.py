@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -51,7 +51,7 @@ from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
 from langtraj.sim.checkpoints import checkpoint_path
-from langtraj.sim.config import ALL_LEVERS, PromptLevers, SimConfig
+from langtraj.sim.config import ALL_LEVERS, PromptLevers, SimConfig, SimRequest
 from langtraj.sim.engine import simulate
 from langtraj.sim.policies import (
     DEFAULT_NO_COLLISION,
@@ -175,17 +175,17 @@ def _policy(loaded: LoadedModel, settings: IFRSettings, prompt: Alternative | No
     """The policy of `condition` for `prompt` (None: no prompt), as `langtraj simulate` builds it."""
     model, data = loaded
     levers = CONDITIONS[condition]
-    options: dict = {
-        "candidates": settings.candidates,
-        "steps": settings.steps,
-        "on_road": settings.on_road,
-        "no_collision": settings.no_collision,
-    }
+    request = SimRequest(
+        candidates=settings.candidates,
+        steps=settings.steps,
+        on_road=settings.on_road,
+        no_collision=settings.no_collision,
+    )
     if prompt is None or levers is None:
-        return LangTrajPolicy(model, data, **options)
+        return LangTrajPolicy(model, data, request)
     if levers == GUIDANCE_ONLY:
-        return GuidanceBaselinePolicy(model, data, prompt=prompt.prompt, **options)
-    return LangTrajPolicy(model, data, prompt=prompt.prompt, guidance_weight=settings.cfg, levers=levers, **options)
+        return GuidanceBaselinePolicy(model, data, request, prompt=prompt.prompt)
+    return LangTrajPolicy(model, data, replace(request, cfg=settings.cfg, levers=levers), prompt=prompt.prompt)
 
 
 def in_free_text(prompt: Alternative, free_text: Sequence[FreeTextPrompt], pick: int) -> Alternative | None:

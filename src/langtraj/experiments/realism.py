@@ -33,6 +33,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -57,13 +58,22 @@ from langtraj.rollouts.baselines import generate_baseline
 from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.model import Scenario
 from langtraj.sim.checkpoints import checkpoint_path
-from langtraj.sim.config import SimConfig
+from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.engine import simulate
 from langtraj.sim.failures import BREAKDOWN_KEYS, OFFROAD_CAUSES, FailureScene, classify_failures
 from langtraj.sim.policies import DEFAULT_HARD_CONSTRAINTS, POLICIES, LangTrajPolicy, LoadedModel
 from langtraj.sim.terms import scene_wide_terms
 
 COLUMNS = ("meta", "kinematic", "interactive", "map", "offroad", "collision")
+PAPER: dict[str, Any] = {
+    "selector": "min_collision",
+    "on_road": 0.0,
+    "no_collision": 0.0,
+    "hard_constraints": 0,
+    "hold_parked": False,
+}
+"""A checkpoint row's settings unless `|defaults` asks for `langtraj simulate`'s: the paper's (no realism
+guidance, no hard constraints, `min_collision` selection)."""
 BASELINE_POLICIES = ("constant_velocity", "log_replay")
 ROLLOUT_BASELINES = ("stationary",)
 
@@ -159,48 +169,43 @@ class Method:
         else:
             assert loaded is not None
             model, data = loaded
-            paper = (
-                {}
-                if self.defaults
-                else {
-                    "selector": "min_collision",
-                    "on_road": 0.0,
-                    "no_collision": 0.0,
-                    "hard_constraints": None,
-                    "hold_parked": False,
-                }
-            )
+            options: dict[str, Any] = {} if self.defaults else dict(PAPER)
             if self.selector:
-                paper["selector"] = self.selector
+                options["selector"] = self.selector
             if self.guided_steps is not None:
-                paper["guided_steps"] = self.guided_steps
+                options["guided_steps"] = self.guided_steps
             if self.warm_steps is not None:
-                paper["warm_steps"] = self.warm_steps
+                options["warm_steps"] = self.warm_steps
             if self.temperature != 1.0:
-                paper["temperature"] = self.temperature
+                options["temperature"] = self.temperature
             if self.refresh_map:
-                paper["refresh_map"] = True
+                options["refresh_map"] = True
             if self.hold_parked:
-                paper["hold_parked"] = True
+                options["hold_parked"] = True
             if self.rolling:
-                paper["rolling"] = True
+                options["rolling"] = True
             if self.project is not None:
-                paper["hard_constraints"] = HardConstraints(steps=self.project) if self.project else None
-            constraints = paper.get("hard_constraints", DEFAULT_HARD_CONSTRAINTS)
-            if constraints is not None:
-                polish = constraints.polish if self.polish is None else self.polish
-                on_choice = self.project_choice and constraints.on_choice
-                paper["hard_constraints"] = replace(constraints, on_choice=on_choice, polish=polish)
-            policy = LangTrajPolicy(
-                model,
-                data,
-                terms=scene_wide_terms(self.guidance),
+                options["hard_constraints"] = self.project
+            request = SimRequest(
+                guidance=self.guidance,
                 candidates=candidates,
                 steps=min(steps, model.schedule.num_steps),
-                local_attention=not self.dense,
-                **paper,
+                dense_attention=self.dense,
+                **options,
             )
+            policy = LangTrajPolicy(model, data, request, constraints=self.constraints(request.hard_constraints))
         return simulate(scenario, policy, config).rollouts
+
+    def constraints(self, project: int | None) -> HardConstraints | None:
+        """The hard constraints of a row that asks for them at the last `project` denoising steps (None: the
+        default's), with its `polish` and `project_choice`; None when `project` is 0 (off)."""
+        if project == 0:
+            return None
+        constraints = DEFAULT_HARD_CONSTRAINTS if project is None else HardConstraints(steps=project)
+        if constraints is None:
+            return None
+        polish = constraints.polish if self.polish is None else self.polish
+        return replace(constraints, on_choice=self.project_choice and constraints.on_choice, polish=polish)
 
 
 def _int_option(settings: dict[str, str], key: str) -> int | None:

@@ -32,7 +32,7 @@ from langtraj.model.features import MapArrays, collate_scenes, sample_map, scene
 from langtraj.model.langtraj import LangTraj
 from langtraj.model.scene_encoder import MapContext
 from langtraj.scenario.model import STEP_SECONDS
-from langtraj.sim.config import PromptLevers
+from langtraj.sim.config import SimRequest
 from langtraj.sim.external import CLEARANCE_ITERATIONS, accelerations_only, external_acceleration, pin_external
 from langtraj.sim.prompt_replan import Guidance, GuidanceOf, PromptReplans, shifted_plan, with_prompt_guidance
 from langtraj.sim.selection import CandidateSelector, chosen_states
@@ -82,33 +82,24 @@ class LangTrajRun:
     held: tuple[int, ...] = ()  # slots of the agents parked in the log, held where they stand (`hold_parked`)
     executed: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
     """Per rollout: the step and the actions [A, N, 2] (physical) of the plan executed from it, which the next
-    replan warm-starts from (`LangTrajPolicy.warm_steps`)."""
+    replan warm-starts from (`SimRequest.warm_steps`)."""
     rolling: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
     """Per rollout: the step the next replan is due and its candidates' rolling plans [M, A, N, 2] (network units,
-    `LangTrajPolicy.rolling`)."""
+    `SimRequest.rolling`)."""
 
 
 class CandidatePlanning:
-    """How a `LangTrajPolicy` plans at each replan (`plan`): the settings it reads are the policy's own (declared here,
-    set by `LangTrajPolicy.__init__`; docs/simulation.md)."""
+    """How a `LangTrajPolicy` plans at each replan (`plan`): what it reads is the policy's (declared here, set by
+    `LangTrajPolicy.__init__`: its request's settings and what the constructor takes besides; docs/simulation.md)."""
 
     model: LangTraj
     data: SampleConfig
+    request: SimRequest  # the settings, defaults resolved (`sim.policies.resolved`)
     prompt: PromptEntry | None
-    levers: PromptLevers
-    candidates: int
-    steps: int
-    guidance_weight: float
-    guidance_scale: float
     rollout_batch: int
     max_grad_norm: float | None
     free: tuple[int, ...]
-    local_attention: bool
-    warm_steps: int | None
-    rolling: bool
-    temperature: float
-    refresh_map: bool
-    hard_constraints: HardConstraints | None
+    constraints: HardConstraints | None  # the hard constraints, if any
 
     def plan(self, world: SimWorld, state: LangTrajRun, step: int, horizon: int) -> np.ndarray:
         every = self.roll_steps
@@ -130,10 +121,10 @@ class CandidatePlanning:
         map or (`refresh_map`) the map around where its agents are now."""
         scenario = world.scenario_at(rollout, step)
         map_arrays = state.map_arrays
-        if self.refresh_map and step != world.start:
+        if self.request.refresh_map and step != world.start:
             map_arrays = sample_map(scenario, world.driven, state.origin, state.data)
         sample = scene_sample(scenario, state.data, agents=world.driven, origin=state.origin, map_arrays=map_arrays)
-        if self.prompt is not None and self.levers.text:
+        if self.prompt is not None and self.request.levers.text:
             for slot, sentence in self.prompt.sentences(sample["agent_id"][: len(world.driven)].tolist()).items():
                 sample["text"][slot] = sentence
             sample["interaction_labelled"] = np.bool_(self.prompt.subtype is not None)
@@ -142,13 +133,13 @@ class CandidatePlanning:
     def _plan_rollouts(self, world: SimWorld, state: LangTrajRun, step: int, rollouts: list[int]) -> np.ndarray:
         device = next(self.model.parameters()).device
         batch = collate_scenes([self._sample(world, state, step, r) for r in rollouts]).to(device)
-        m = self.candidates
+        m = self.request.candidates
         generators = [state.generators[r] for r in rollouts]
 
         def noise(shape: tuple[int, ...]) -> Tensor:  # sample-major rows: [M * R, ...]
             per_rollout = [torch.randn((m, *shape[1:]), generator=g) for g in generators]
             drawn = torch.stack(per_rollout, dim=1).reshape(shape).to(device)
-            return drawn if self.temperature == 1.0 else drawn * self.temperature
+            return drawn if self.request.temperature == 1.0 else drawn * self.request.temperature
 
         elapsed, horizon = step - world.start, self.model.horizon_steps  # what the model plans
         steered = state.prompt.terms(elapsed, horizon)
@@ -165,7 +156,7 @@ class CandidatePlanning:
                         chosen,
                         state.scene,
                         rollout,
-                        scale=self.guidance_scale,
+                        scale=self.request.guidance_scale,
                         num_steps=self.model.schedule.num_steps,
                         max_grad_norm=norm,
                         iterations=iterations,
@@ -178,26 +169,26 @@ class CandidatePlanning:
             hook = with_prompt_guidance(hook, prompt_terms, guidance)  # its own, larger step after the scene's
             clear = by(lambda x: integrate(accelerations_only(x)))  # the others make room by braking, not swerving
             hook = with_prompt_guidance(hook, state.clearance, clear, iterations=CLEARANCE_ITERATIONS)
-        exempt = None if self.hard_constraints is None else self._exempt(state, batch.current_state)  # once a replan
+        exempt = None if self.constraints is None else self._exempt(state, batch.current_state)  # once a replan
         if exempt is not None:
             hook = self._projection(state, batch, exempt, m, integrate, then=hook)
         start = self._warm_start(state, step, rollouts)
         common = {
-            "guidance_weight": self.guidance_weight,
+            "guidance_weight": self.request.cfg,
             "guidance": hook,
             "noise": noise,
-            "map_context": None if self.refresh_map and step != world.start else state.map_context,
-            "local": self.data.local_attention() if self.local_attention else None,
+            "map_context": None if self.request.refresh_map and step != world.start else state.map_context,
+            "local": None if self.request.dense_attention else self.data.local_attention(),
         }
-        if self.rolling:
+        if self.request.rolling:
             states, actions = self._roll(state, step, rollouts, batch, **common)
         else:
             states, actions = self.model.sample(
                 batch,
                 m,
-                steps=self.steps,
+                steps=self.request.steps,
                 start=start,
-                start_steps=None if start is None else self.warm_steps,
+                start_steps=None if start is None else self.request.warm_steps,
                 **common,
             )
         states = hold(pin_external(states, batch.current_state, state.external, accel), batch.current_state, state.held)
@@ -212,13 +203,13 @@ class CandidatePlanning:
         first = state.prompt.adherence(world, state.origin, state.scene, step, rollouts, states, steered)
         choice = state.selector.select(states, state.scene, terms, first)  # states [M, R, A, T, 4], scene frame
         executed, chosen_actions = chosen_states(states, choice), chosen_states(actions, choice)
-        config = self.hard_constraints
+        config = self.constraints
         if config is not None and config.on_choice and choice.dim() == 2:  # assembled from different candidates
             fixed = state.prompt.judged_slots()  # what a prompted agent chose to do what it is asked is kept
             realise = self._realiser(state, batch, accel, exempt, fixed=fixed, as_given=False)
             executed, chosen_actions = (made[0] for made in realise(chosen_actions))
         state.prompt.keep(step, rollouts, chosen_actions)
-        if self.warm_steps is not None:
+        if self.request.warm_steps is not None:
             state.executed.update({r: (step, chosen_actions[n].detach()) for n, r in enumerate(rollouts)})
         chosen = executed[:, : len(world.driven)].double().cpu().numpy()
         return poses_to_world(chosen, state.origin)
@@ -259,9 +250,9 @@ class CandidatePlanning:
             given = self.model.to_units(actions)
             plans = [given] if as_given or exempt is None else []
             if exempt is not None:
-                assert self.hard_constraints is not None
+                assert self.constraints is not None
                 agents, initial, invert, drive = self._constraints(state, batch, exempt, 1, fixed)
-                config, scene = self.hard_constraints, state.scene
+                config, scene = self.constraints, state.scene
                 plans.insert(0, project_plans(config, scene, agents, initial, integrate, invert, given, drive))
             return torch.stack([integrate(x) for x in plans]), torch.stack([self.model.from_units(x) for x in plans])
 
@@ -270,8 +261,8 @@ class CandidatePlanning:
     def _exempt(self, state: LangTrajRun, current: Tensor) -> Tensor:
         """bool [R, A, A]: the pairs the hard constraints never push apart in each rollout, `current` [R, A, 4] being
         its current state: those that overlap now, and an adversary with its target."""
-        assert self.hard_constraints is not None
-        exempt = current_overlaps(current, state.scene, self.hard_constraints)
+        assert self.constraints is not None
+        exempt = current_overlaps(current, state.scene, self.constraints)
         if len(self.free) == 2:
             exempt[:, self.free[0], self.free[1]] = exempt[:, self.free[1], self.free[0]] = True
         return exempt
@@ -285,7 +276,7 @@ class CandidatePlanning:
         to their states, movable agents only). The `exempt` pairs (`_exempt`) are never pushed apart; external and
         held agents and the `fixed` slots never move (nor are the fixed kept on the road); a pull-over's box may reach
         the road edge itself."""
-        config = self.hard_constraints
+        config = self.constraints
         assert config is not None and state.kept_on_road is not None
         movable = torch.ones_like(state.kept_on_road)
         movable[list(state.external) + list(state.held) + list(fixed)] = False
@@ -331,17 +322,17 @@ class CandidatePlanning:
     ) -> Guidance:
         """The hard constraints' hook (`guidance.projection`) after `then` over `copies` candidates of each rollout
         (`_constraints`), integrated by `integrate`."""
-        assert self.hard_constraints is not None
+        assert self.constraints is not None
         agents, initial, invert, drive = self._constraints(state, batch, exempt, copies)
         return projection_hook(
-            self.hard_constraints,
+            self.constraints,
             state.scene,
             agents,
             initial,
             integrate,
             invert,
             num_steps=self.model.schedule.num_steps,
-            sampler_steps=self.steps,
+            sampler_steps=self.request.steps,
             then=then,
             drive=drive,
         )
@@ -358,8 +349,8 @@ class CandidatePlanning:
             due = [state.rolling[r] for r in rollouts]
             assert all(when == step for when, _ in due), f"rolling plans due at {[w for w, _ in due]}, not {step}"
             plan = torch.stack([p for _, p in due], dim=1).flatten(0, 1)  # sample-major rows
-        states, actions, nxt = self.model.roll(batch, self.candidates, plan, steps=self.steps, **common)
-        per_rollout = nxt.reshape(self.candidates, len(rollouts), *nxt.shape[1:])
+        states, actions, nxt = self.model.roll(batch, self.request.candidates, plan, steps=self.request.steps, **common)
+        per_rollout = nxt.reshape(self.request.candidates, len(rollouts), *nxt.shape[1:])
         state.rolling.update({r: (step + every, per_rollout[:, n]) for n, r in enumerate(rollouts)})
         return states, actions
 
@@ -367,14 +358,14 @@ class CandidatePlanning:
     def roll_steps(self) -> int | None:
         """Scenario steps a rolling plan moves on by at each replan (its replan interval); None without `rolling`."""
         rolls = self.model.rolling
-        if not self.rolling or rolls is None:
+        if not self.request.rolling or rolls is None:
             return None
         return rolls.group * self.model.dynamics.steps_per_action
 
     def _warm_start(self, state: LangTrajRun, step: int, rollouts: list[int]) -> Tensor | None:
         """Each rollout's executed actions [R, A, N, 2] shifted to `step` (zero actions after their end), or None:
         no warm start asked, a rollout without a plan yet, or a replan between two actions."""
-        if self.warm_steps is None or any(r not in state.executed for r in rollouts):
+        if self.request.warm_steps is None or any(r not in state.executed for r in rollouts):
             return None
         per_action = self.model.dynamics.steps_per_action
         shifted = []

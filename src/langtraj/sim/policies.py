@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -52,7 +52,7 @@ from langtraj.scenario.types import AgentType
 from langtraj.sim.adherence import CandidateJudge
 from langtraj.sim.candidates import CandidatePlanning, LangTrajRun, on_road_vehicles
 from langtraj.sim.checkpoints import shipped_checkpoint
-from langtraj.sim.config import ALL_LEVERS, PromptLevers, SimRequest
+from langtraj.sim.config import ALL_LEVERS, PromptLevers, SimRequest, flag_of
 from langtraj.sim.parked import parked_in_history
 from langtraj.sim.prompt_replan import PromptReplans
 from langtraj.sim.prompts import PromptSteering, check_prompt_driven, merged_prompt, prompt_steering, read_prompts
@@ -109,12 +109,10 @@ class Policy(ABC):
         """The policy `request` asks for on `scenario` (`loaded`: a model already in memory, for policies
         that use one). Raises InputError for what this policy cannot do. Model-free policies take no
         prompts and no guidance."""
-        if request.needs_model:
+        if asked := request.model_options():
             model_policies = ", ".join(c.name for c in POLICIES.classes() if c.uses_model)
-            raise InputError(
-                "prompts, guidance, --selector, --on-road, --no-collision, --guided-steps, --dense-attention, "
-                f"--compile, --max-driven and --undriven need a model policy ({model_policies}), not {cls.name}"
-            )
+            listed, verb = (f"{', '.join(asked[:-1])} and {asked[-1]}", "need") if asked[1:] else (asked[0], "needs")
+            raise InputError(f"{listed} {verb} a model policy ({model_policies}), not {cls.name}")
         return cls()
 
     uses_model: ClassVar[bool] = False
@@ -196,6 +194,52 @@ def hard_constraints(steps: int | None, sampler_steps: int) -> HardConstraints |
     return HardConstraints(steps=steps)
 
 
+def resolved(request: SimRequest) -> SimRequest:
+    """`request` with a LangTraj simulation's defaults for the settings it leaves to the policy (None): the one
+    place they are chosen (`DEFAULT_ON_ROAD`, `DEFAULT_NO_COLLISION`, `DEFAULT_GUIDED_STEPS` capped at the
+    `steps`, `DEFAULT_EXTERNAL_CLEARANCE`, `DEFAULT_HOLD_PARKED`). The hard constraints' default is
+    `hard_constraints`'; the selector's depends on the guidance (`LangTrajPolicy.default_selector`)."""
+    guided = request.guided_steps
+    if guided is None:
+        guided = min(DEFAULT_GUIDED_STEPS or request.steps, request.steps)
+    return replace(
+        request,
+        on_road=DEFAULT_ON_ROAD if request.on_road is None else request.on_road,
+        no_collision=DEFAULT_NO_COLLISION if request.no_collision is None else request.no_collision,
+        guided_steps=guided,
+        external_clearance=(
+            DEFAULT_EXTERNAL_CLEARANCE if request.external_clearance is None else request.external_clearance
+        ),
+        hold_parked=DEFAULT_HOLD_PARKED if request.hold_parked is None else request.hold_parked,
+    )
+
+
+def _check_request(model: LangTraj, request: SimRequest) -> None:
+    """Raises InputError, naming the option, for a setting of the `resolved` request that `model` cannot sample with."""
+
+    def check(ok: bool, name: str, message: str) -> None:
+        if not ok:
+            raise InputError(message, where=flag_of(SimRequest, name))
+
+    steps = request.steps
+    for name in ("on_road", "no_collision"):
+        weight = getattr(request, name)
+        check(math.isfinite(weight) and weight >= 0, name, f"must be finite and >= 0, got {weight}")
+    for name in ("guided_steps", "warm_steps"):
+        n = getattr(request, name)
+        check(n is None or 1 <= n <= steps, name, f"must be in [1, {steps}] (the DDIM steps), got {n}")
+    rolling = "this checkpoint was not trained to roll its plans (model.rolling_group is 0)"
+    check(not request.rolling or model.rolling is not None, "rolling", rolling)
+    both = "a rolling plan is its own warm start; give --rolling or --warm-steps"
+    check(not request.rolling or request.warm_steps is None, "rolling", both)
+    temperature = request.temperature
+    check(math.isfinite(temperature) and 0 < temperature <= 2, "temperature", f"must be in (0, 2], got {temperature}")
+    clearance = request.external_clearance
+    check(
+        math.isfinite(clearance) and clearance >= 0, "external_clearance", f"must be finite and >= 0, got {clearance}"
+    )
+
+
 def slots_of(scenario: Scenario, driven: np.ndarray) -> dict[int, int]:
     """Track id -> model slot of every driven agent (what guidance terms and prompts refer to)."""
     return {int(scenario.agents.ids[row]): slot for slot, row in enumerate(driven)}
@@ -206,17 +250,26 @@ class LangTrajPolicy(CandidatePlanning, Policy):
     """Samples `candidates` joint futures per rollout from a LangTraj model at each replan and executes
     the one `selector` picks.
 
+    Its settings are its `request` (`SimRequest`: what `langtraj simulate` states, with the defaults of `resolved`
+    for what it leaves at None; the names below are its fields). The constructor takes besides what no option
+    states: the model and its `data`, the `prompt` entry (`from_request` merges the request's prompts into one; an
+    experiment may pass an InterDrive entry with its labels), guidance `terms` in model slots (`from_request`'s
+    collision term for an adversary; the request's scene-wide `guidance` is added to them), the `free` slots the
+    no-collision guidance leaves out (an adversary and its target), the `checkpoint` it reports, `constraints`
+    (a `HardConstraints` to apply instead of the request's `hard_constraints`, for a polish or choice projection
+    of its own), `rollout_batch` and `max_grad_norm`.
+
     The model drives every sim agent (or the `max_driven` most important, `model_agents` at the start;
     the others move as `undriven` says), however many agents it was trained with: samples are sized for
     the driven agents and the map covers each of them (`SampleConfig.for_agents`). Every replan uses the
-    scene frame and map of the start. `prompt` conditions the agents it mentions; `terms`
+    scene frame and map of the start. `prompt` conditions the agents it mentions (with the `levers` on); `terms`
     (agent slots = positions among the driven agents) add reconstruction guidance, scaled by
-    `guidance_scale`; `guidance_weight` is classifier-free guidance (-1: ignore text). Each rollout draws
+    `guidance_scale`; `cfg` is classifier-free guidance (-1: ignore text). Each rollout draws
     its noise from its own generator seeded by (seed, rollout), so rollouts batched `rollout_batch` at a
-    time give what they give one by one. With `local_attention`, in a scene larger than the model's
+    time give what they give one by one. Without `dense_attention`, in a scene larger than the model's
     training scenes each agent attends to as many nearest agents and map pieces as those scenes held
-    (`SampleConfig.local_attention`); otherwise to all of them. The realism guidance (`on_road`,
-    `no_collision`) applies at the last `guided_steps` of the `steps` denoising steps (None: the default,
+    (`SampleConfig.local_attention`); with it, to all of them. The realism guidance (`on_road`,
+    `no_collision`) applies at the last `guided_steps` of the `steps` denoising steps (by default
     `DEFAULT_GUIDED_STEPS`), on a road field built once per simulation (`GuidanceScene.with_road_field`).
     With `warm_steps` n, a replan starts from what is left of the plan each agent executed (its actions shifted
     by the steps since, the freed end held at zero acceleration and yaw rate), noised to the n-th last of the
@@ -239,91 +292,46 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         self,
         model: LangTraj,
         data: SampleConfig,
+        request: SimRequest | None = None,
         *,
         prompt: PromptEntry | None = None,
         terms: Sequence[GuidanceTerm] = (),
-        candidates: int = 4,
-        steps: int = 5,
-        guidance_weight: float = 0.0,
-        guidance_scale: float = 1.0,
-        selector: str | None = None,
+        free: Sequence[int] = (),
+        checkpoint: Path | None = None,
+        constraints: HardConstraints | None = None,
         rollout_batch: int = 0,
         max_grad_norm: float | None = 0.5,
-        checkpoint: Path | None = None,
-        max_driven: int | None = None,
-        undriven: str = "constant_velocity",
-        on_road: float = DEFAULT_ON_ROAD,
-        no_collision: float = DEFAULT_NO_COLLISION,
-        free: Sequence[int] = (),
-        local_attention: bool = True,
-        guided_steps: int | None = None,
-        levers: PromptLevers = ALL_LEVERS,
-        prompt_texts: Sequence[str] | None = None,
-        warm_steps: int | None = None,
-        rolling: bool = False,
-        temperature: float = 1.0,
-        refresh_map: bool = False,
-        external_clearance: float = DEFAULT_EXTERNAL_CLEARANCE,
-        hard_constraints: HardConstraints | None = DEFAULT_HARD_CONSTRAINTS,
-        hold_parked: bool = DEFAULT_HOLD_PARKED,
     ):
-        if candidates < 1 or steps < 1 or rollout_batch < 0:
+        request = resolved(request or SimRequest())
+        terms = (*terms, *scene_wide_terms(request.guidance))
+        if constraints is None:
+            constraints = hard_constraints(request.hard_constraints, request.steps)
+        if request.candidates < 1 or request.steps < 1 or rollout_batch < 0:
             raise InputError(
-                f"candidates and steps must be >= 1 and rollout_batch >= 0 (got {candidates}, {steps}, {rollout_batch})"
+                "candidates and steps must be >= 1 and rollout_batch >= 0 "
+                f"(got {request.candidates}, {request.steps}, {rollout_batch})"
             )
-        if prompt is not None and levers.text and model.text_encoder is None:
+        if prompt is not None and request.levers.text and model.text_encoder is None:
             raise InputError(
                 "this checkpoint has no text branch (a stage-1 model); it cannot condition on a prompt's text "
                 "(switch the text lever off to steer by guidance and selection alone)",
                 where="prompt",
             )
+        if request.selector is not None:
+            SELECTORS.get(request.selector, where="selector")
+        _check_request(model, request)
         self.model = model.eval()
-        self.levers = levers
-        self.data = data.for_inference(text=prompt is not None and levers.text)
+        self.request = request
+        self.data = data.for_inference(text=prompt is not None and request.levers.text)
         self.prompt = prompt
-        self.prompt_texts = tuple(prompt_texts) if prompt_texts is not None else (prompt.text,) if prompt else ()
+        self.prompt_texts = request.prompts or ((prompt.text,) if prompt else ())
         self.readings = read_prompts(self.prompt_texts)  # the one reading of each prompt (`sim.prompts`)
-        self.terms = tuple(terms)
-        self.candidates, self.steps = candidates, steps
-        self.guidance_weight, self.guidance_scale = guidance_weight, guidance_scale
-        self.selector_name = selector
-        if selector is not None:
-            SELECTORS.get(selector, where="selector")
+        self.terms = terms
+        self.free = tuple(int(slot) for slot in free)
+        self.checkpoint = checkpoint
+        self.constraints = constraints
         self.rollout_batch = rollout_batch
         self.max_grad_norm = max_grad_norm
-        self.checkpoint = checkpoint
-        self.max_driven = max_driven
-        self.undriven = undriven
-        if not (math.isfinite(on_road) and on_road >= 0):
-            raise InputError(f"must be finite and >= 0, got {on_road}", where="--on-road")
-        self.on_road = float(on_road)
-        if not (math.isfinite(no_collision) and no_collision >= 0):
-            raise InputError(f"must be finite and >= 0, got {no_collision}", where="--no-collision")
-        self.no_collision = float(no_collision)
-        self.free = tuple(int(slot) for slot in free)
-        self.local_attention = local_attention
-        if guided_steps is not None and not 1 <= guided_steps <= steps:
-            raise InputError(f"must be in [1, {steps}] (the DDIM steps), got {guided_steps}", where="--guided-steps")
-        self.guided_steps = guided_steps or min(DEFAULT_GUIDED_STEPS or steps, steps)
-        if warm_steps is not None and not 1 <= warm_steps <= steps:
-            raise InputError(f"must be in [1, {steps}] (the DDIM steps), got {warm_steps}", where="--warm-steps")
-        self.warm_steps = warm_steps
-        if rolling and model.rolling is None:
-            raise InputError(
-                "this checkpoint was not trained to roll its plans (model.rolling_group is 0)", where="--rolling"
-            )
-        if rolling and warm_steps is not None:
-            raise InputError("a rolling plan is its own warm start; give --rolling or --warm-steps", where="--rolling")
-        self.rolling = bool(rolling)
-        if not (math.isfinite(temperature) and 0 < temperature <= 2):
-            raise InputError(f"must be in (0, 2], got {temperature}", where="--temperature")
-        self.temperature = float(temperature)
-        self.refresh_map = bool(refresh_map)
-        if not (math.isfinite(external_clearance) and external_clearance >= 0):
-            raise InputError(f"must be finite and >= 0, got {external_clearance}", where="external_clearance")
-        self.external_clearance = float(external_clearance)
-        self.hard_constraints = hard_constraints
-        self.hold_parked = bool(hold_parked)
 
     @classmethod
     def from_request(cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None) -> LangTrajPolicy:
@@ -332,67 +340,42 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         if request.compile and not model.compiled:
             model.compile_steps(training=False)
         slots = slots_of(scenario, model_agents(scenario, request.max_driven))
-        terms = collision_terms(scenario, slots, request) + scene_wide_terms(request.guidance)
+        terms = collision_terms(scenario, slots, request)
         free = [slots[t] for t in (request.adversary, request.target) if t is not None]  # the collision's pair
-        return cls(
-            model, data, terms=terms, checkpoint=checkpoint, free=free, **cls._request_options(scenario, request)
-        )
+        prompt = merged_prompt(scenario, request.prompts)
+        return cls(model, data, request, prompt=prompt, terms=terms, checkpoint=checkpoint, free=free)
 
-    @staticmethod
-    def _request_options(scenario: Scenario, request: SimRequest) -> dict[str, Any]:
-        """Constructor options `request` sets besides the model and the terms."""
-        return {
-            "prompt": merged_prompt(scenario, request.prompts),
-            "candidates": request.candidates,
-            "steps": request.steps,
-            "guidance_weight": request.cfg,
-            "guidance_scale": request.guidance_scale,
-            "max_driven": request.max_driven,
-            "undriven": request.undriven,
-            "selector": request.selector,
-            "on_road": DEFAULT_ON_ROAD if request.on_road is None else request.on_road,
-            "no_collision": DEFAULT_NO_COLLISION if request.no_collision is None else request.no_collision,
-            "local_attention": not request.dense_attention,
-            "guided_steps": request.guided_steps,
-            "levers": request.levers,
-            "prompt_texts": request.prompts,
-            "warm_steps": request.warm_steps,
-            "rolling": request.rolling,
-            "temperature": request.temperature,
-            "refresh_map": request.refresh_map,
-            "external_clearance": (
-                DEFAULT_EXTERNAL_CLEARANCE if request.external_clearance is None else request.external_clearance
-            ),
-            "hard_constraints": hard_constraints(request.hard_constraints, request.steps),
-            "hold_parked": DEFAULT_HOLD_PARKED if request.hold_parked is None else request.hold_parked,
-        }
+    @property
+    def undriven(self) -> str:  # type: ignore[override]
+        return self.request.undriven
 
     # ------------------------------------------------------------------ which agents
     def drives(self, scenario: Scenario, sim_agents: np.ndarray) -> np.ndarray:
-        return model_agents(scenario, self.max_driven)  # valid at the current step: sim agents
+        return model_agents(scenario, self.request.max_driven)  # valid at the current step: sim agents
 
     def describe(self) -> dict[str, Any]:
+        request = self.request
         return {
             "checkpoint": None if self.checkpoint is None else str(self.checkpoint),
             "prompted_ids": list(self.prompt.mentions) if self.prompt else [],
             "guidance": [f"{t.cost.name}={t.weight:g}" for t in self.terms],
-            "candidates": self.candidates,
-            "ddim_steps": self.steps,
-            "cfg": self.guidance_weight,
-            "max_driven": self.max_driven,
+            "candidates": request.candidates,
+            "ddim_steps": request.steps,
+            "cfg": request.cfg,
+            "max_driven": request.max_driven,
             "map_selection": self.data.map_selection,
-            "on_road": self.on_road,
-            "no_collision": self.no_collision,
-            "guided_steps": self.guided_steps,
-            "selector": self.selector_name or self.default_selector(),
-            "attention": "local" if self.local_attention else "dense",
-            "prompt_levers": self.levers.names() if self.prompt is not None else [],
-            "warm_steps": self.warm_steps,
-            "rolling": self.rolling,
-            "temperature": self.temperature,
-            "refresh_map": self.refresh_map,
-            "hard_constraints": None if self.hard_constraints is None else asdict(self.hard_constraints),
-            "hold_parked": self.hold_parked,
+            "on_road": request.on_road,
+            "no_collision": request.no_collision,
+            "guided_steps": request.guided_steps,
+            "selector": request.selector or self.default_selector(),
+            "attention": "dense" if request.dense_attention else "local",
+            "prompt_levers": request.levers.names() if self.prompt is not None else [],
+            "warm_steps": request.warm_steps,
+            "rolling": request.rolling,
+            "temperature": request.temperature,
+            "refresh_map": request.refresh_map,
+            "hard_constraints": None if self.constraints is None else asdict(self.constraints),
+            "hold_parked": request.hold_parked,
         }
 
     # ------------------------------------------------------------------ simulation
@@ -400,14 +383,14 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         start = world.scenario_at(0, world.start)
         slots = slots_of(start, world.driven)
         if self.prompt is not None:
-            check_prompt_driven(self.prompt, list(slots), self.max_driven)
+            check_prompt_driven(self.prompt, list(slots), self.request.max_driven)
         data = self.data.for_agents(len(world.driven))
         origin = scene_frame(start)
         device = next(self.model.parameters()).device
         scene = GuidanceScene.from_scenario(start, origin, world.driven, num_agents=data.max_agents)
         index = MapIndex.build(start.road_map) if self.prompt_texts else None
         steering = (
-            prompt_steering(start, self.readings, world.driven, origin, self.levers, index)
+            prompt_steering(start, self.readings, world.driven, origin, self.request.levers, index)
             if self.prompt_texts
             else PromptSteering()
         )
@@ -415,13 +398,13 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         terms += self.realism_terms(len(world.driven))
         external = tuple(int(slot) for slot in np.flatnonzero(np.isin(world.driven, world.external)))
         judge = CandidateJudge(world, list(steering.asks), index) if index is not None and steering.asks else None
-        selector = SELECTORS.create(self.selector_name or self.default_selector(), where="selector")
+        selector = SELECTORS.create(self.request.selector or self.default_selector(), where="selector")
         here = torch.as_tensor(poses_to_frame(world.current(world.start)[0], origin)[:, :2])
         roads = selector.uses_road or any(isinstance(term.cost, OnRoadCost) for term in terms)
-        if roads or self.hard_constraints is not None:
+        if roads or self.constraints is not None:
             scene = scene.with_road_field(cover=here)  # built once: every replan's costs sample it
         kept_on_road = None
-        if self.hard_constraints is not None:
+        if self.constraints is not None:
             vehicles = start.agents.types[world.driven] == int(AgentType.VEHICLE)
             kept_on_road = on_road_vehicles(scene, here.float(), torch.as_tensor(vehicles), external)
         map_arrays = sample_map(start, world.driven, origin, data)
@@ -448,7 +431,7 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         """With `hold_parked`, the slots of the driven agents parked in the log (`sim.parked.parked_in_history`:
         judged from the history, never the future) that no prompt names and that are no adversary or target:
         they stand where they are, as the model sees them; otherwise none."""
-        if not self.hold_parked:
+        if not self.request.hold_parked:
             return ()
         parked = parked_in_history(start)[world.driven]
         named = set(self.prompt.mentions) if self.prompt is not None else set()
@@ -467,7 +450,7 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         compares a prompted agent's adherence first when the selection lever is on."""
         if self.terms or self.steers_by_prompt:
             return "min_guidance"
-        if self.prompt is not None and not self.levers.selection and self.levers.guidance:
+        if self.prompt is not None and not self.request.levers.selection and self.request.levers.guidance:
             return "min_guidance"
         return DEFAULT_SELECTOR
 
@@ -476,14 +459,14 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         the agents in `free` (an adversary and its target). The no-collision cost sums its pairs (its "sum"
         reduction, not the paper's mean over the square of the agents involved), so `no_collision` is a fixed
         weight per pair, whatever the scene's size. Both apply at the last `guided_steps` denoising steps."""
-        when = "all" if self.guided_steps == self.steps else FinalSteps(self.guided_steps, self.steps)
+        request, when = self.request, self.guided_when
         terms = []
-        if self.on_road > 0:
-            terms.append(GuidanceTerm(OnRoadCost(), self.on_road, when))
+        if request.on_road > 0:
+            terms.append(GuidanceTerm(OnRoadCost(), request.on_road, when))
         kept = [slot for slot in range(num_driven) if slot not in self.free]
-        if self.no_collision > 0 and len(kept) > 1:
+        if request.no_collision > 0 and len(kept) > 1:
             cost = NoCollisionCost(kept, others=kept, reduction="sum")
-            terms.append(GuidanceTerm(cost, self.no_collision, when))
+            terms.append(GuidanceTerm(cost, request.no_collision, when))
         return tuple(terms)
 
     def external_terms(self, num_driven: int, external: tuple[int, ...]) -> tuple[GuidanceTerm, ...]:
@@ -493,13 +476,19 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         (`sim.external.CLEARANCE_ITERATIONS`). Without it the model's agents drive into a braking ego (docs/testing.md,
         'How the other agents react')."""
         others = [slot for slot in range(num_driven) if slot not in external and slot not in self.free]
-        if not external or not others or self.external_clearance <= 0:
+        weight = self.request.external_clearance
+        if not external or not others or weight <= 0:
             return ()
-        when = "all" if self.guided_steps == self.steps else FinalSteps(self.guided_steps, self.steps)
         return tuple(
-            GuidanceTerm(HeadwayCost(others, leader, gap=EXTERNAL_BUFFER_M), self.external_clearance, when)
+            GuidanceTerm(HeadwayCost(others, leader, gap=EXTERNAL_BUFFER_M), weight, self.guided_when)
             for leader in external
         )
+
+    @property
+    def guided_when(self) -> str | FinalSteps:
+        """The denoising steps the realism and clearance guidance apply at: the last `guided_steps` of the `steps`."""
+        guided, steps = self.request.guided_steps, self.request.steps
+        return "all" if guided == steps else FinalSteps(guided, steps)
 
     def report(self, world: SimWorld, state: LangTrajRun) -> dict[str, Any]:
         """Map coverage: the share of driven agents with a lane point of the model's map within 5 m
@@ -534,28 +523,27 @@ class GuidanceBaselinePolicy(LangTrajPolicy):
     subtype or single-agent labels) whose reading gives no target, by the label library's terms for its subtype and
     labels (`guidance.library`). A typed prompt is only read: one the reader cannot read is refused, and one whose
     target the map does not give steers by nothing but the realism guidance. Selection keeps what guidance asks
-    (`min_guidance`), without judging adherence. Its levers are `GUIDANCE_ONLY`; it takes no others."""
+    (`min_guidance`), without judging adherence. Its levers are `GUIDANCE_ONLY`, which it also takes for a request's
+    default levers (every lever on, which it cannot honour); it takes no others."""
 
     name = "guidance_baseline"
     steers_by_prompt = True
 
     def __init__(
-        self,
-        model: LangTraj,
-        data: SampleConfig,
-        *,
-        prompt: PromptEntry,
-        levers: PromptLevers = GUIDANCE_ONLY,
-        **kwargs,
+        self, model: LangTraj, data: SampleConfig, request: SimRequest | None = None, *, prompt: PromptEntry, **kwargs
     ):
-        if levers != GUIDANCE_ONLY:
+        request = request or SimRequest()
+        if request.levers == ALL_LEVERS:  # the default levers, which the baseline cannot honour: its own instead
+            request = replace(request, levers=GUIDANCE_ONLY)
+        if request.levers != GUIDANCE_ONLY:
             raise InputError(
                 f"the guidance baseline steers by guidance alone (levers {GUIDANCE_ONLY.names()}); it takes no other "
-                f"levers, got {levers.names()}",
+                f"levers, got {request.levers.names()}",
                 where="levers",
             )
-        texts = tuple(kwargs.pop("prompt_texts", None) or (prompt.text,))
-        super().__init__(model, data, levers=GUIDANCE_ONLY, prompt_texts=texts, **kwargs)
+        # The model runs without the prompt entry (no text; `labelled` keeps it); its text is what the reader reads.
+        request = replace(request, prompts=request.prompts or (prompt.text,))
+        super().__init__(model, data, request, **kwargs)
         if not any(reading.read for reading in self.readings) and not _labelled(prompt):
             raise InputError(
                 "the guidance baseline needs a prompt whose behaviour it can read, or a labelled one (an InterDrive "
@@ -564,18 +552,17 @@ class GuidanceBaselinePolicy(LangTrajPolicy):
             )
         self.labelled = prompt
 
-    @staticmethod
-    def _request_options(scenario: Scenario, request: SimRequest) -> dict[str, Any]:
-        """`LangTrajPolicy`'s, with the baseline's own levers for the default ones (every lever on, which the
-        baseline cannot honour); levers switched off otherwise reach `__init__`, which refuses all but its own."""
+    @classmethod
+    def from_request(
+        cls, scenario: Scenario, request: SimRequest, loaded: LoadedModel | None = None
+    ) -> GuidanceBaselinePolicy:
         if len(request.prompts) != 1:
             raise InputError(
                 f"the guidance baseline takes exactly one prompt, got {len(request.prompts)}", where="--prompt"
             )
-        options = LangTrajPolicy._request_options(scenario, request)
-        if request.levers == ALL_LEVERS:
-            options["levers"] = GUIDANCE_ONLY
-        return options
+        policy = super().from_request(scenario, request, loaded)
+        assert isinstance(policy, GuidanceBaselinePolicy)
+        return policy
 
     def describe(self) -> dict[str, Any]:
         """`prompt_read_as`: the behaviour read (None when not read), and the interaction subtype and labels that
