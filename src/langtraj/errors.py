@@ -37,3 +37,7 @@ class ScenarioValidationError(InputError):
     def located(self, *, path: str | Path | None = None, where: str | None = None) -> ScenarioValidationError:
         joined_where = ", ".join(w for w in (where, self.where) if w) or None
         return ScenarioValidationError(self.detail, path=self.path or path, where=joined_where)
+
+
+class DataWarning(UserWarning):
+    """Input data LangTraj repaired as it read it (a box wider than long, ...): names the file and what was done."""

@@ -9,7 +9,7 @@ from typing import Any
 
 from langtraj.errors import InputError
 from langtraj.rollouts.agents import sim_agent_indices
-from langtraj.scenario.model import Scenario
+from langtraj.scenario.model import HISTORY_STEPS, Scenario
 from langtraj.sim.config import SimRequest
 from langtraj.sim.policies import POLICIES, LoadedModel, Policy
 
@@ -22,6 +22,12 @@ def build_policy(
     already loaded checkpoint (it must be `request.checkpoint`, or the shipped one). Raises InputError on
     bad input."""
     cls = POLICIES.get(request.policy, where="--policy")
+    if cls.uses_model and scenario.current_index < HISTORY_STEPS - 1:
+        raise InputError(
+            f"scenario {scenario.scenario_id} has {scenario.current_index} step(s) before its current step; the model "
+            f"reads {HISTORY_STEPS - 1} (a {HISTORY_STEPS}-step history): choose a later current step or window",
+            where="scenario",
+        )
     sim_agents = sim_agent_indices(scenario)
     if not len(sim_agents):
         raise InputError(f"scenario {scenario.scenario_id} has no agent valid at its current step", where="agents")

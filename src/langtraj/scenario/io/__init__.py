@@ -12,6 +12,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from langtraj.fileio import ZSTD_SUFFIX
+from langtraj.scenario.boxes import fix_box_sizes
 from langtraj.scenario.io.base import (
     ScenarioFormat,
     available_formats,
@@ -32,15 +33,16 @@ for _module in ("womd", "scenarionet"):
 
 
 def read_scenarios(path: str | Path) -> Iterator[Scenario]:
-    """Every scenario in `path`, streamed; the format is recognised from the file's content."""
+    """Every scenario in `path`, streamed; the format is recognised from the file's content; boxes checked
+    (`scenario.boxes.fix_box_sizes`)."""
     path = Path(path)
-    return detect_format(path).read(path)
+    return (fix_box_sizes(scenario, str(path)) for scenario in detect_format(path).read(path))
 
 
 def read_scenario(path: str | Path, index: int = 0) -> Scenario:
-    """The scenario at position `index` of `path`."""
+    """The scenario at position `index` of `path`, its boxes checked (`scenario.boxes.fix_box_sizes`)."""
     path = Path(path)
-    return detect_format(path).read_one(path, index)
+    return fix_box_sizes(detect_format(path).read_one(path, index), str(path))
 
 
 def write_scenarios(
