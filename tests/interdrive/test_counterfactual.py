@@ -251,7 +251,9 @@ def test_inside_a_junction_the_branch_taken_decides_until_its_turn_is_done(stati
 
 def test_without_lane_connectivity_turns_are_undecided_but_the_logged_one_is_kept():
     s = scene(four_way(connectivity=False), drive(LEFT_LANE_STRAIGHT))
-    index = MapIndex.build(s.road_map)
+    linked = behaviour_feasibility(s, 1, MapIndex.build(s.road_map))  # the lanes meet end to start: linked
+    assert linked[Behaviour.TURN_LEFT].status == "feasible"
+    index = MapIndex.build(s.road_map, infer_links=False)
     verdicts = behaviour_feasibility(s, 1, index)
     assert {verdicts[b].status for b in TURNS} == {"undecided"}
     assert "lane connectivity" in verdicts[Behaviour.TURN_LEFT].reason

@@ -344,9 +344,10 @@ def test_car_stopped_before_a_junction_approaches_it_along_the_lane_graph():
 
 def test_approach_without_connectivity_is_undecided_unless_the_path_enters():
     xy, heading = along(APPROACH, np.full(T, 45.0))
-    labels, undecided = label_agents(
-        scene(junction_map(connectivity=False), (AgentType.VEHICLE, xy, heading), junction_drive(LEFT_PATH))
-    )
+    s = scene(junction_map(connectivity=False), (AgentType.VEHICLE, xy, heading), junction_drive(LEFT_PATH))
+    linked, _ = label_agents(s)  # its lanes meet end to start: linked by geometry, the approach is decided
+    assert "approaching_intersection" in keys_of(linked, 1)
+    labels, undecided = label_agents(s, map_index=MapIndex.build(s.road_map, infer_links=False))
     assert "approaching_intersection" in undecided_keys(undecided, 1)
     assert "connectivity" in next(u.reason for u in undecided if u.key == "approaching_intersection")
     assert "approaching_intersection" in keys_of(labels, 2)  # its path enters the junction

@@ -272,9 +272,10 @@ def test_distance_to_junction_follows_exit_lanes():
     assert index.distance_to_junction(approach, 40.0) == pytest.approx(30.0, abs=0.5)
     assert index.distance_to_junction(lane_index(index, 11), 3.0) == 0.0
     assert math.isinf(index.distance_to_junction(lane_index(index, 22), 0.0))
-    unlinked = MapIndex.build(junction_map(connectivity=False))
-    assert not unlinked.has_connectivity
-    assert math.isinf(unlinked.distance_to_junction(lane_index(unlinked, 1), 40.0))
+    unlinked = MapIndex.build(junction_map(connectivity=False))  # linked from geometry: lanes meet end to start
+    assert unlinked.connectivity_source == "geometry" and index.connectivity_source == "map"
+    assert unlinked.exits == index.exits
+    assert unlinked.distance_to_junction(lane_index(unlinked, 1), 40.0) == pytest.approx(30.0, abs=0.5)
 
 
 # ---------------------------------------------------------------------------------------------- areas and edges

@@ -14,6 +14,7 @@ from langtraj.angles import wrap_angle
 from langtraj.roads.lane_graph import (
     _ending_lanes,
     _geometric_junctions,
+    _geometric_links,
     _junction_distances,
     _neighbor_spans,
     _NeighborSpan,
@@ -49,6 +50,7 @@ class MapIndex:
     junction_source: Literal["map", "geometry", "none"]
     neighbor_source: Literal["map", "geometry", "none"]
     has_connectivity: bool
+    connectivity_source: Literal["map", "geometry", "none"]
     exits: tuple[tuple[int, ...], ...]
     entries: tuple[tuple[int, ...], ...]
     left_spans: tuple[tuple[_NeighborSpan, ...], ...]
@@ -57,14 +59,20 @@ class MapIndex:
     is_ending: np.ndarray  # bool [L], a lane that ends beside a neighbour that goes on (see `_ending_lanes`)
 
     @classmethod
-    def build(cls, road_map: RoadMap, infer_neighbors: bool = False) -> MapIndex:
-        """Index `road_map`; with `infer_neighbors`, a map without neighbour lists gets them from geometry."""
+    def build(cls, road_map: RoadMap, infer_neighbors: bool = False, infer_links: bool = True) -> MapIndex:
+        """Index `road_map`; with `infer_neighbors`, a map without neighbour lists gets them from geometry; with
+        `infer_links` (the default), a map that links no lanes gets its exits and entries from geometry
+        (`lane_graph._geometric_links`)."""
         lane_feats = road_map.lanes
         index = {f.id: i for i, f in enumerate(lane_feats)}
         lanes = SegmentSet.build([f.points for f in lane_feats])
         lengths = np.array([arc_lengths(f.points)[-1] if len(f.points) > 1 else 0.0 for f in lane_feats])
         exits = tuple(tuple(index[e] for e in f.exit_lanes if e in index) for f in lane_feats)
         entries = tuple(tuple(index[e] for e in f.entry_lanes if e in index) for f in lane_feats)
+        connectivity_source = "map" if any(exits) or any(entries) else "none"
+        if infer_links and connectivity_source == "none" and lane_feats:  # a map that links no lanes: by geometry
+            exits, entries = _geometric_links(lane_feats), tuple(() for _ in lane_feats)
+            connectivity_source = "geometry" if any(exits) else "none"
         exits, entries = _symmetric_links(exits, entries)
         has_connectivity = any(exits)
         if any(f.interpolating for f in lane_feats):
@@ -90,6 +98,7 @@ class MapIndex:
             junction_source=junction_source,
             neighbor_source=neighbor_source,
             has_connectivity=has_connectivity,
+            connectivity_source=connectivity_source,
             exits=exits,
             entries=entries,
             left_spans=left,

@@ -1,5 +1,6 @@
-"""What `MapIndex.build` derives from the map's lanes: symmetric lane links, neighbour spans, ending lanes, junction
-lanes from geometry and distances to the next junction (docs/interdrive.md, 'Single-agent labels')."""
+"""What `MapIndex.build` derives from the map's lanes: symmetric lane links (from geometry where the map gives none),
+neighbour spans, ending lanes, junction lanes from geometry and distances to the next junction (docs/interdrive.md,
+'Single-agent labels')."""
 
 from __future__ import annotations
 
@@ -19,6 +20,10 @@ JUNCTION_END_MARGIN_M = 1.5
 JUNCTION_TURN_ANGLE = math.radians(60.0)
 JUNCTION_TURN_MAX_LENGTH_M = 40.0
 JUNCTION_DISTANCE_CAP_M = 500.0
+LINK_GAP_M = 1.0
+"""A lane whose start lies within this distance of another's end continues it, in a map that links no lanes."""
+LINK_MAX_ANGLE = math.radians(45.0)
+"""... and only when their headings there agree within this angle."""
 
 
 @dataclass(frozen=True)
@@ -43,6 +48,28 @@ def _symmetric_links(
         for prev in ins:
             ex[prev].add(lane)
     return tuple(tuple(sorted(e)) for e in ex), tuple(tuple(sorted(e)) for e in en)
+
+
+def _geometric_links(lanes: list[MapFeature]) -> tuple[tuple[int, ...], ...]:
+    """Each lane's exits from geometry (nuScenes maps as ScenarioNet converts them link no lanes): the lanes that
+    start within `LINK_GAP_M` of its end, heading within `LINK_MAX_ANGLE` of its end's heading."""
+    usable = [len(f.points) >= 2 for f in lanes]
+    if not any(usable):
+        return tuple(() for _ in lanes)
+    ends = np.array([f.points[-1, :2] if ok else (np.nan, np.nan) for f, ok in zip(lanes, usable, strict=True)])
+    starts = np.array([f.points[0, :2] if ok else (np.nan, np.nan) for f, ok in zip(lanes, usable, strict=True)])
+
+    def heading(points: np.ndarray, at_end: bool) -> float:
+        a, b = (points[-2], points[-1]) if at_end else (points[0], points[1])
+        return math.atan2(b[1] - a[1], b[0] - a[0])
+
+    end_heading = np.array([heading(f.points, True) if ok else np.nan for f, ok in zip(lanes, usable, strict=True)])
+    start_heading = np.array([heading(f.points, False) if ok else np.nan for f, ok in zip(lanes, usable, strict=True)])
+    gap = np.linalg.norm(ends[:, None] - starts[None], axis=-1)  # [from, to]
+    turn = np.abs(wrap_angle(end_heading[:, None] - start_heading[None]))
+    linked = (gap <= LINK_GAP_M) & (turn <= LINK_MAX_ANGLE)
+    np.fill_diagonal(linked, False)
+    return tuple(tuple(int(j) for j in np.flatnonzero(row)) for row in linked)
 
 
 def _neighbor_spans(
