@@ -23,17 +23,19 @@ from langtraj.scenario.types import StateField
 LENGTH, WIDTH, EDGE = 4.5, 2.0, -1.75
 
 
-def judged(cars: list[tuple[float, float, float]], *, heading: float = 0.0):
-    """The ego's (the first car's) events among `cars` (x, y, speed; every car heading `heading`) and a car parked
-    far ahead in the other lane, at the current step of a two-lane road, judged against its road edges."""
+def judged(cars: list[tuple[float, ...]], *, heading: float = 0.0):
+    """The ego's (the first car's) events among `cars` (x, y, speed and optionally its own heading; else every car
+    heading `heading`) and a car parked far ahead in the other lane, at the current step of a two-lane road, judged
+    against its road edges and lanes."""
     cars = [*cars, (250.0, 3.5, 0.0)]
-    scenario = two_lane_road(cars)
+    scenario = two_lane_road([car[:3] for car in cars])
     edges = road_edge_index([f.points for f in measured_road_edges(scenario)])  # as the environment builds it
     states = scenario.agents.states[:, scenario.current_index].copy()
-    for row, (x, y, speed) in enumerate(cars):
+    for row, (x, y, speed, *turned) in enumerate(cars):
+        h = turned[0] if turned else heading
         states[row, StateField.X], states[row, StateField.Y] = x, y
-        states[row, StateField.HEADING] = heading
-        states[row, StateField.VX], states[row, StateField.VY] = speed * math.cos(heading), speed * math.sin(heading)
+        states[row, StateField.HEADING] = h
+        states[row, StateField.VX], states[row, StateField.VY] = speed * math.cos(h), speed * math.sin(h)
     index = MapIndex.build(scenario.road_map)
     return EventJudge(scenario, 0, edges, index).judge(states, np.ones(len(cars), bool))
 
@@ -77,8 +79,10 @@ def test_a_side_contact_is_the_fault_of_whoever_left_their_lane():
     assert _kinds(judged([(0.0, 1.6, 10.0), (1.0, 3.5, 10.0)])) == [(2, "lateral", True)]
     # a little off its centre, its box 0.3 m past its lane's side at most: still in its lane
     assert _kinds(judged([(0.0, 0.3, 10.0), (1.0, 2.2, 10.0)])) == [(2, "lateral", False)]
-    # a cut-in landing on the ego's bumper, the other still across both lanes: its doing, not the ego's
-    assert _kinds(judged([(0.0, 0.0, 10.0), (4.0, 1.5, 9.0)])) == [(2, "lateral", False)]
+    # a cut-in landing on the ego's bumper, the other across both lanes and coming across: its doing
+    assert _kinds(judged([(0.0, 0.0, 10.0), (3.5, 1.2, 9.0, -0.3)])) == [(2, "lateral", False)]
+    # the same car drifting away out of the ego's lane as the ego runs into it: the ego's to avoid
+    assert _kinds(judged([(0.0, 0.0, 10.0), (3.5, 1.2, 9.0, 0.3)])) == [(2, "front", True)]
     # the same car once in the ego's lane: the ego drove into it
     assert _kinds(judged([(0.0, 0.0, 10.0), (4.3, 0.2, 9.0)])) == [(2, "front", True)]
 

@@ -83,10 +83,10 @@ class EventJudge:
         gap = pair_signed_distance(x[e], y[e], heading[e], length[e], width[e],
                                    x[others], y[others], heading[others], length[others], width[others])  # fmt: skip
         hit = others[gap < COLLISION_THRESHOLD]
-        boxes = np.stack([x, y, heading, length, width], axis=1)
+        boxes = np.stack([x, y, heading, length, width, s[:, StateField.VX], s[:, StateField.VY]], axis=1)
         contacts, left_lane = [], None
         for row in hit:
-            kind = collision_kind(boxes[e], boxes[row], float(speed[e]), float(speed[row]), self.index)
+            kind = collision_kind(boxes[e], boxes[row], self.index)
             if kind is CollisionKind.LATERAL and left_lane is None:
                 left_lane = left_its_lane(self.index, boxes[e])
             contacts.append(Contact(int(self.ids[row]), kind, at_fault(kind, left_lane)))

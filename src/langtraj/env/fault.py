@@ -2,8 +2,8 @@
 an ego standing still is never at fault; driving into an agent that stands still, or with its front bumper into
 one ahead in its lane, it is; hit from behind, it is not; a side contact is the fault of whoever left their lane,
 judged on the ego: it is at fault when its box reaches out of the lane it is on (or it is on no lane at all)
-(`left_its_lane`). A contact at the ego's bumper with an agent that is itself out of its lane (a cut-in landing on
-the bumper) is a side contact too."""
+(`left_its_lane`). A contact at the ego's bumper with an agent that is itself out of its lane and coming across toward
+the ego (a cut-in landing on the bumper) is a side contact too; one drifting away is still the ego's to avoid."""
 
 from __future__ import annotations
 
@@ -28,6 +28,8 @@ LANE_TOLERANCE_M = 0.3
 """How far past its lane's side the ego's box may reach before it counts as out of its lane."""
 LANE_RADIUS_M = 3.0
 """The ego is on a lane whose centreline is within this distance of its centre (else on none)."""
+CROSSING_SPEED = 0.2
+"""An agent moving sideways toward the ego's centreline faster than this (m/s, relative to the ego) comes across."""
 
 
 class CollisionKind(StrEnum):
@@ -40,38 +42,41 @@ class CollisionKind(StrEnum):
     LATERAL = "lateral"  # a side contact: at fault when the ego left its lane
 
 
-def collision_kind(
-    ego: np.ndarray, other: np.ndarray, ego_speed: float, other_speed: float, index: MapIndex | None = None
-) -> CollisionKind:
-    """The kind of a contact between the ego's box and another's (x, y, heading, length, width each); `index`, the
-    map's lanes, tells a bumper contact with an agent out of its lane (lateral) from one with an agent ahead."""
-    if ego_speed < STOPPED_SPEED:
+def collision_kind(ego: np.ndarray, other: np.ndarray, index: MapIndex | None = None) -> CollisionKind:
+    """The kind of a contact between the ego's box and another's (x, y, heading, length, width, vx, vy each);
+    `index`, the map's lanes, tells a bumper contact with an agent cutting in (lateral) from one with an agent
+    ahead."""
+    if math.hypot(ego[5], ego[6]) < STOPPED_SPEED:
         return CollisionKind.STOPPED_EGO
-    if other_speed < STOPPED_SPEED:
+    if math.hypot(other[5], other[6]) < STOPPED_SPEED:
         return CollisionKind.STOPPED_OTHER
-    x, y, heading, length, width = (float(v) for v in ego)
-    along = (other[0] - x) * math.cos(heading) + (other[1] - y) * math.sin(heading)
+    x, y, heading, length, width = (float(v) for v in ego[:5])
+    cos, sin = math.cos(heading), math.sin(heading)
+    along = (other[0] - x) * cos + (other[1] - y) * sin
+    beside = -(other[0] - x) * sin + (other[1] - y) * cos  # left positive
+    sideways = -(other[5] - ego[5]) * sin + (other[6] - ego[6]) * cos  # its velocity across the ego's heading
     bearing = math.atan2(other[1] - y, other[0] - x) - heading
     if abs(math.remainder(bearing, 2 * math.pi)) > REAR_BEARING:
         return CollisionKind.REAR
     ahead = length / 2 - BUMPER_DEPTH_M / 2
     bumper = pair_signed_distance(
         np.array(x + ahead * math.cos(heading)), np.array(y + ahead * math.sin(heading)), np.array(heading),
-        np.array(BUMPER_DEPTH_M), np.array(width), *(np.array(float(v)) for v in other),
+        np.array(BUMPER_DEPTH_M), np.array(width), *(np.array(float(v)) for v in other[:5]),
     )  # fmt: skip
     if float(bumper) >= COLLISION_THRESHOLD or along <= length / 2:  # not at the bumper, or its centre alongside
         return CollisionKind.LATERAL
-    if left_its_lane(index, other) and not left_its_lane(index, ego):  # it came across into the ego's bumper
+    coming = beside * sideways < 0 and abs(sideways) > CROSSING_SPEED
+    if coming and left_its_lane(index, other) and not left_its_lane(index, ego):  # it cut in onto the bumper
         return CollisionKind.LATERAL
     return CollisionKind.FRONT
 
 
 def left_its_lane(index: MapIndex | None, box: np.ndarray) -> bool | None:
-    """Whether an agent's box (x, y, heading, length, width) reaches out of the lane it is on by more than
+    """Whether an agent's box (x, y, heading, length, width, ...) reaches out of the lane it is on by more than
     `LANE_TOLERANCE_M`, or it is on no lane near its heading; None where the map has no lanes (nothing to judge)."""
     if index is None or not index.has_lanes:
         return None
-    x, y, heading, _, width = (float(v) for v in box)
+    x, y, heading, _, width = (float(v) for v in box[:5])
     match = index.match_lanes(
         np.array([[x, y]]), np.array([heading]), radius=LANE_RADIUS_M, max_heading_diff=math.pi / 3
     )
