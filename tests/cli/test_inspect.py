@@ -65,3 +65,14 @@ def test_a_reader_that_leaves_early_is_not_an_error(toy_file: Path) -> None:
     job.stdout.close()  # the reader is gone before the first write
     _, err = job.communicate(timeout=120)
     assert job.returncode == 0 and err == b""
+
+
+def test_a_box_repaired_on_read_is_one_warning_line(real_data_dir: Path, capsys) -> None:
+    """nuScenes' ego is wider than long in the files: read turned round, and said so in one line on stderr."""
+    path = real_data_dir / "sd_nuscenes_v1.0-mini_scene-0061.pkl"
+    code, out, err = run_cli(["inspect", path, "--json"], capsys)
+    assert code == 0 and json.loads(out)[0]["scenario_id"] == "scene-0061"
+    assert err.splitlines() == [
+        f"langtraj inspect: warning: {path}: scenario scene-0061: vehicle @62 (1.73 m long, 4.08 m wide) wider than "
+        "long: length and width swapped"
+    ]

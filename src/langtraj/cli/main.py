@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Callable, Sequence
 
 from langtraj import __version__
 from langtraj.cli import (
@@ -28,7 +29,7 @@ from langtraj.cli import (
     test,
     train,
 )
-from langtraj.errors import LangTrajError
+from langtraj.errors import DataWarning, LangTrajError
 
 VERBS = (
     inspect,
@@ -69,7 +70,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     read or write, 130 on Ctrl-C."""
     args = build_parser().parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        with warnings.catch_warnings():  # restores the warning display on the way out (in-process callers)
+            warnings.showwarning = _data_warnings_as_lines(args.verb, warnings.showwarning)
+            return int(args.func(args) or 0)
     except LangTrajError as exc:
         print(f"langtraj {args.verb}: error: {exc}", file=sys.stderr)
         return 2
@@ -82,6 +85,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"langtraj {args.verb}: interrupted", file=sys.stderr)
         return 130
+
+
+def _data_warnings_as_lines(verb: str, shown: Callable) -> Callable:
+    """A warning display printing a `DataWarning` (input LangTraj repaired as it read it) as one line naming the
+    verb, as errors are printed; other warnings go to `shown`, Python's own format."""
+
+    def show(message, category, filename, lineno, file=None, line=None):  # type: ignore[no-untyped-def]
+        if issubclass(category, DataWarning):
+            print(f"langtraj {verb}: warning: {message}", file=sys.stderr)
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    return show
 
 
 def _silence_stdout() -> None:
