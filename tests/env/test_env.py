@@ -135,3 +135,24 @@ def test_a_long_ego_turns_as_wide_as_the_models_long_vehicles():
     assert ego_curvature(scenario, row) == pytest.approx(1 / (ModelConfig().turn_radius_per_length * 12.0))
     scenario.agents.types[row] = AgentType.PEDESTRIAN
     assert ego_curvature(scenario, row) == float("inf")
+
+
+def test_the_others_last_second_is_in_the_observation():
+    """`agents_history`: each listed agent's positions at the 10 steps before now, in the ego frame of now, oldest
+    first: the log's history at reset, the played steps after (checked against `played()` in world coordinates)."""
+    env = LangTrajEnv(follower_scene(speed=8.0), policy="log_replay")
+    obs, _ = env.reset(seed=0)
+    for step in range(4):
+        if step:
+            obs, *_ = env.step(np.array([2.0, 0.0]))  # the ego speeds up: the frame moves against the others
+        played = env.played()
+        x, y, heading = (float(v) for v in obs["ego"][[EgoColumn.X, EgoColumn.Y, EgoColumn.HEADING]])
+        c, s = np.cos(heading), np.sin(heading)
+        listed = np.flatnonzero(obs["agents_valid"])
+        assert len(listed) == 3 and obs["agents_history_valid"][listed].all()
+        for k in listed:
+            row = played.agents.index_of(int(obs["agents_id"][k]))
+            world = played.agents.xy[row, -11:-1] - (x, y)  # the 10 steps before now
+            expected = np.stack([c * world[:, 0] + s * world[:, 1], -s * world[:, 0] + c * world[:, 1]], axis=1)
+            assert obs["agents_history"][k] == pytest.approx(expected, abs=1e-3)
+        assert not obs["agents_history_valid"][len(listed) :].any() and observation_space().contains(obs)

@@ -326,8 +326,11 @@ class LangTrajEnv(gym.Env):
     def _observe(self, frame: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[dict[str, np.ndarray], float]:
         assert self._sim is not None
         states, valid = self._frame() if frame is None else frame
-        elapsed = (self._sim.step - self._sim.world.start) * STEP_SECONDS
-        return self._observer.observe(states, valid, elapsed, self._control)
+        world, step = self._sim.world, self._sim.step
+        elapsed = (step - world.start) * STEP_SECONDS
+        first = max(step - spaces.HISTORY_STEPS, 0)
+        history = world.states[0, :, first:step], world.valid[0, :, first:step]  # the log's history, then played
+        return self._observer.observe(states, valid, elapsed, self._control, history)
 
     def _control_of(self, action: Any, pose: np.ndarray) -> np.ndarray:
         try:

@@ -69,10 +69,17 @@ class Observer:
             self.light_states = states[keep].astype(np.int64)
 
     def observe(
-        self, states: np.ndarray, valid: np.ndarray, time: float, control: np.ndarray
+        self,
+        states: np.ndarray,
+        valid: np.ndarray,
+        time: float,
+        control: np.ndarray,
+        history: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> tuple[dict[str, np.ndarray], float]:
-        """The observation from every agent's state [A, 9] and validity [A] at one step, the time since the start
-        and the control the ego executed last; and the ego's station along its route."""
+        """The observation from every agent's state [A, 9] and validity [A] at one step, the time since the start,
+        the control the ego executed last and `history`, every agent's states [A, H, 9] and validity [A, H] at the
+        steps before (the last `spaces.HISTORY_STEPS` used; None: none seen); and the ego's station along its
+        route."""
         me = states[self.ego].astype(np.float64)
         speed = float(np.hypot(me[StateField.VX], me[StateField.VY]))
         pose = me[[StateField.X, StateField.Y, StateField.HEADING]]
@@ -89,12 +96,14 @@ class Observer:
             "route_valid": route_valid.astype(np.int8),
             "route_speed_limit": np.nan_to_num(limits, nan=0.0).astype(np.float32),
         }
-        obs |= self._agents(states, valid, pose)
+        obs |= self._agents(states, valid, pose, history)
         obs |= self._map(pose)
         obs |= self._lights(pose)
         return obs, station
 
-    def _agents(self, states: np.ndarray, valid: np.ndarray, pose: np.ndarray) -> dict[str, np.ndarray]:
+    def _agents(
+        self, states: np.ndarray, valid: np.ndarray, pose: np.ndarray, history: tuple[np.ndarray, np.ndarray] | None
+    ) -> dict[str, np.ndarray]:
         k = spaces.NUM_AGENTS
         rows = np.flatnonzero(valid)
         rows = rows[rows != self.ego]
@@ -114,7 +123,22 @@ class Observer:
         table[:n, AgentColumn.LENGTH], table[:n, AgentColumn.WIDTH] = s[:, StateField.LENGTH], s[:, StateField.WIDTH]
         ids, types, mask = np.full(k, -1, np.int64), np.zeros(k, np.int64), np.zeros(k, np.int8)
         ids[: len(rows)], types[: len(rows)], mask[: len(rows)] = self.ids[rows], self.types[rows], 1
-        return {"agents": table, "agents_id": ids, "agents_type": types, "agents_valid": mask}
+        h = spaces.HISTORY_STEPS
+        past, seen = np.zeros((k, h, 2), np.float32), np.zeros((k, h), np.int8)
+        if history is not None and n:
+            old, old_valid = history[0][rows, -h:], history[1][rows, -h:].astype(bool)  # [n, <=H, 9], [n, <=H]
+            steps = old.shape[1]
+            xy = to_ego_frame(old[..., [StateField.X, StateField.Y]].reshape(-1, 2).astype(np.float64), pose)
+            past[:n, h - steps :] = np.where(old_valid[..., None], xy.reshape(n, steps, 2), 0.0)
+            seen[:n, h - steps :] = old_valid
+        return {
+            "agents": table,
+            "agents_id": ids,
+            "agents_type": types,
+            "agents_valid": mask,
+            "agents_history": past,
+            "agents_history_valid": seen,
+        }
 
     def _map(self, pose: np.ndarray) -> dict[str, np.ndarray]:
         n, p = spaces.NUM_POLYLINES, spaces.POLYLINE_POINTS

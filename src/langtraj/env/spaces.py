@@ -32,6 +32,9 @@ MAP_RADIUS_M = 60.0
 `NUM_POLYLINES` nearest, each cut to the points within the radius and resampled to `POLYLINE_POINTS` points."""
 NUM_LIGHTS = 16
 """The nearest traffic-light stop points."""
+HISTORY_STEPS = 10
+"""The others' last second: `agents_history` holds each listed agent's positions at the 10 steps before this one
+(ego frame of now, oldest first; `agents_history_valid` where it was seen)."""
 
 
 class EgoColumn(IntEnum):
@@ -94,6 +97,8 @@ def observation_space() -> spaces.Dict:
             "agents_id": spaces.Box(-1, _MAX_ID, shape=(NUM_AGENTS,), dtype=np.int64),
             "agents_type": spaces.Box(0, 4, shape=(NUM_AGENTS,), dtype=np.int64),
             "agents_valid": spaces.MultiBinary(NUM_AGENTS),
+            "agents_history": _box(NUM_AGENTS, HISTORY_STEPS, 2),
+            "agents_history_valid": spaces.MultiBinary((NUM_AGENTS, HISTORY_STEPS)),
             "map": _box(NUM_POLYLINES, POLYLINE_POINTS, 2),
             "map_type": spaces.Box(0, 255, shape=(NUM_POLYLINES,), dtype=np.int64),
             "map_valid": spaces.MultiBinary((NUM_POLYLINES, POLYLINE_POINTS)),
