@@ -105,6 +105,7 @@ def test_a_real_job_end_to_end(catalog: Catalog, womd_key: str, tmp_path: Path) 
     assert client.post(f"/api/jobs/{job_id}/case", json={"suite": "../up", "name": "x"}).status_code == 400
 
 
+@pytest.mark.slow  # 40 s; test_server_stop's ctrl-c case stops a real job mid-run and checks its files by default
 def test_a_job_stopped_mid_run_leaves_only_complete_files(catalog: Catalog, womd_key: str, tmp_path: Path) -> None:
     real = JobRunner(catalog)
 
