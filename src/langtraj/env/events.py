@@ -84,11 +84,10 @@ class EventJudge:
                                    x[others], y[others], heading[others], length[others], width[others])  # fmt: skip
         hit = others[gap < COLLISION_THRESHOLD]
         boxes = np.stack([x, y, heading, length, width, s[:, StateField.VX], s[:, StateField.VY]], axis=1)
-        contacts, left_lane = [], None
-        for row in hit:
+        contacts = []
+        for row in hit:  # one or two at a step, and only at a contact: nothing cached
             kind = collision_kind(boxes[e], boxes[row], self.index)
-            if kind is CollisionKind.LATERAL and left_lane is None:
-                left_lane = left_its_lane(self.index, boxes[e])
+            left_lane = left_its_lane(self.index, boxes[e]) if kind is CollisionKind.LATERAL else None
             contacts.append(Contact(int(self.ids[row]), kind, at_fault(kind, left_lane)))
         offroad = False
         if self.edges is not None:

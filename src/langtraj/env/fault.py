@@ -15,6 +15,8 @@ import numpy as np
 from langtraj.metrics.features import COLLISION_THRESHOLD
 from langtraj.metrics.interaction import pair_signed_distance
 from langtraj.roads import MapIndex
+from langtraj.roads.position import LANE_MATCH_MAX_HEADING, LANE_MATCH_RADIUS
+from langtraj.scenario.drivable import DEFAULT_LANE_WIDTH_M
 
 STOPPED_SPEED = 0.5
 """An agent slower than this (m/s) stands still: an ego that does causes nothing; one that hits such an agent does."""
@@ -22,12 +24,8 @@ REAR_BEARING = math.radians(150.0)
 """An agent whose centre lies more than this angle off the ego's heading is behind it (nuPlan's rear test)."""
 BUMPER_DEPTH_M = 0.1
 """The ego's front bumper: a strip this deep across its front edge."""
-LANE_HALF_WIDTH_M = 1.75
-"""Half a lane's width where the map gives none (3.5 m lanes, WOMD's common width)."""
 LANE_TOLERANCE_M = 0.3
 """How far past its lane's side the ego's box may reach before it counts as out of its lane."""
-LANE_RADIUS_M = 3.0
-"""The ego is on a lane whose centreline is within this distance of its centre (else on none)."""
 CROSSING_SPEED = 0.2
 """An agent moving sideways toward the ego's centreline faster than this (m/s, relative to the ego) comes across."""
 
@@ -77,12 +75,12 @@ def left_its_lane(index: MapIndex | None, box: np.ndarray) -> bool | None:
     if index is None or not index.has_lanes:
         return None
     x, y, heading, _, width = (float(v) for v in box[:5])
-    match = index.match_lanes(
-        np.array([[x, y]]), np.array([heading]), radius=LANE_RADIUS_M, max_heading_diff=math.pi / 3
+    match = index.match_lanes(  # the lane the labelers would put it on
+        np.array([[x, y]]), np.array([heading]), radius=LANE_MATCH_RADIUS, max_heading_diff=LANE_MATCH_MAX_HEADING
     )
     if not match.matched[0]:
         return True
-    return bool(abs(match.lateral[0]) + width / 2 > LANE_HALF_WIDTH_M + LANE_TOLERANCE_M)
+    return bool(abs(match.lateral[0]) + width / 2 > DEFAULT_LANE_WIDTH_M / 2 + LANE_TOLERANCE_M)
 
 
 def at_fault(kind: CollisionKind, left_lane: bool | None) -> bool:

@@ -45,7 +45,7 @@ def judge_prompts(
     """Per prompt: its text, agents and behaviour, and whether each rollout follows it (the labelers run once
     per rollout)."""
     present = {int(i) for i in rollouts.object_id}
-    judged = [r.read and r.agent in present and (r.other is None or r.other in present) for r in readings]
+    judged = [r.unjudged(present) is None for r in readings]
     found = []
     if any(judged):
         if checker is None:
@@ -59,9 +59,7 @@ def judge_prompts(
                 "agent": reading.agent,
                 "other": reading.other,
                 "behaviour": None if reading.behaviour is None else reading.behaviour.value,
-                "followed": [reading.followed(f) if judge else None for f in found]
-                if judge
-                else [None] * rollouts.num_rollouts,
+                "followed": [reading.followed(f) for f in found] if judge else [None] * rollouts.num_rollouts,
             }
         )
     return out

@@ -46,23 +46,13 @@ def judge_prompts(played: Scenario, texts: Sequence[str]) -> list[PromptVerdict]
     simulated steps: `LangTrajEnv.played()`); the labelers run once, and only when some prompt can be judged."""
     readings = read_prompts(texts)
     present = {int(i) for i in played.agents.ids}
-    why = []
-    for reading in readings:
-        named = [t for t in (reading.agent, reading.other) if t is not None]
-        if not reading.read:
-            why.append(f"not read ({reading.reason})")
-        elif missing := [f"@{t}" for t in named if t not in present]:
-            why.append(f"{', '.join(missing)} not in the scene")
-        else:
-            why.append(None)
+    why = [reading.unjudged(present) for reading in readings]
     found = frozenset()
     if any(w is None for w in why):
         found = AdherenceChecker.build(played, logged=False).facts(played)
     out = []
     for text, reading, reason in zip(texts, readings, why, strict=True):
         verdict = reading.followed(found) if reason is None else None
-        if reason is None and verdict is None:
-            reason = "a pair behaviour without its other agent"
         out.append(
             PromptVerdict(
                 text=text,

@@ -10,7 +10,7 @@ See docs/interdrive.md ('Reading a prompt').
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass
 
 from langtraj.interdrive.adherence import Fact
@@ -88,6 +88,18 @@ class PromptReading:
             and SUBTYPES_BY_ID[str(fact[3])].type is spec.interaction
             for fact in found
         )
+
+    def unjudged(self, present: Collection[int]) -> str | None:
+        """Why this reading cannot be judged on a scene holding the tracks `present` (nothing read, an agent it names
+        absent, a pair behaviour without its other agent), or None when `followed` can judge it."""
+        if not self.read:
+            return f"not read ({self.reason})"
+        missing = [f"@{t}" for t in (self.agent, self.other) if t is not None and t not in present]
+        if missing:
+            return f"{', '.join(missing)} not in the scene"
+        if self.agent is None or (BEHAVIOURS[self.behaviour].is_pair and self.other is None):
+            return "a pair behaviour without its other agent"
+        return None
 
     def describe(self) -> str:
         """One line: `read as: @12 turn_left ("hang a left")`, `read as: @12 yield @7 ("gives way to @7")` or
