@@ -19,20 +19,22 @@ SHOWN = 5
 
 
 def median_sizes(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
-    """Each agent's median length and width over its valid steps (NaN for a track never valid)."""
+    """Each agent's median length and width over its valid steps up to the current one: the history alone, so no
+    simulation's input depends on the logged future (NaN for a track not seen by then)."""
     agents = scenario.agents
+    seen = agents.valid.copy()
+    seen[:, scenario.current_index + 1 :] = False
     states = agents.states.astype(np.float64)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # a track never valid: an all-NaN median
         return tuple(  # type: ignore[return-value]
-            np.nanmedian(np.where(agents.valid, states[..., f], np.nan), axis=1)
-            for f in (StateField.LENGTH, StateField.WIDTH)
+            np.nanmedian(np.where(seen, states[..., f], np.nan), axis=1) for f in (StateField.LENGTH, StateField.WIDTH)
         )
 
 
 def fix_box_sizes(scenario: Scenario, where: str) -> Scenario:
     """`scenario` with the length and width swapped at every step of each vehicle whose median width exceeds its
-    median length (one `DataWarning` naming `where`, the file), or as it is when none does."""
+    median length in the history (one `DataWarning` naming `where`, the file), or as it is when none does."""
     length, width = median_sizes(scenario)
     rows = np.flatnonzero((width > length) & (scenario.agents.types == AgentType.VEHICLE))
     if not len(rows):
