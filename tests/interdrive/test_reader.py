@@ -10,7 +10,7 @@ import pytest
 from langtraj.interdrive.adherence import lane_change_side
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.prompts.phrases import OTHER_SLOT, interaction_phrases, label_phrases, label_variants
-from langtraj.interdrive.reader import PromptReading, file_figures, main, read_prompt
+from langtraj.interdrive.reader import PromptReading, file_figures, main, read_clauses, read_prompt
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 FREE_TEXT = DATA / "free_text_prompts.yaml"
@@ -165,13 +165,18 @@ def test_describe_to_json_and_the_words_of_the_typed_text():
     assert reading.describe() == 'read as: @12 turn_left ("Hang A Left")'
     pair = read_prompt("@12 gives way to @7")
     assert pair.describe() == 'read as: @12 yield @7 ("gives way to @7")'
-    assert pair.to_json() == {"behaviour": "yield", "agent": 12, "other": 7, "words": "gives way to @7", "reason": ""}
+    assert pair.to_json() == {
+        "behaviour": "yield", "agent": 12, "other": 7, "words": "gives way to @7", "reason": "", "also": [],
+        "clause": "",
+    }  # fmt: skip
     assert read_prompt("@12 hums").to_json() == {
         "behaviour": None,
         "agent": 12,
         "other": None,
         "words": "",
         "reason": "no behaviour phrase found",
+        "also": [],
+        "clause": "",
     }
     assert read_prompt("@12 hums").describe() == (
         "not read: no behaviour phrase found; the prompt steers by text alone"
@@ -244,3 +249,33 @@ def test_the_command_names_a_bad_file_in_one_line(tmp_path, capsys):
     bad.write_text("prompts: [{text: '{agent} flies', behaviour: fly}]")
     assert main([str(bad)]) == 2
     assert "unknown behaviour 'fly'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("@693 slows down. @625 turns left.",
+         [(693, B.SLOW_DOWN, "@693 slows down"), (625, B.TURN_LEFT, "@625 turns left")]),
+        ("@693 @625 @635 stop", [(693, B.STOP, "@693 stop"), (625, B.STOP, "@625 stop"), (635, B.STOP, "@635 stop")]),
+        ("@12 and @7 yield to @3", [(12, B.YIELD, "@12 yield to @3"), (7, B.YIELD, "@7 yield to @3")]),
+        ("@12 turns left, @7 yields to @12", [(12, B.TURN_LEFT, "@12 turns left"), (7, B.YIELD, "@7 yields to @12")]),
+        ("@12 turns left and @7 goes straight",
+         [(12, B.TURN_LEFT, "@12 turns left"), (7, B.GO_STRAIGHT, "@7 goes straight")]),
+        # one clause: a subordinate clause stays with its main one, a bare "and" after a mention joins objects
+        ("after @7 turns left, @12 goes straight", [(12, B.GO_STRAIGHT, "after @7 turns left, @12 goes straight")]),
+        ("@12 yields to @7 while @7 turns left", [(12, B.YIELD, "@12 yields to @7 while @7 turns left")]),
+        ("@12 slows to 10.5 m/s.", [(12, B.SLOW_DOWN, "@12 slows to 10.5 m/s.")]),
+        ("@20 pulls over and comes to a stop", [(20, B.PULL_OVER, "@20 pulls over and comes to a stop")]),
+    ],
+)  # fmt: skip
+def test_a_prompt_is_read_clause_by_clause(text, expected):
+    readings = read_clauses(text)
+    assert [(r.agent, r.behaviour, r.clause) for r in readings] == expected
+    assert all(r.describe().startswith("read as:") for r in readings)
+
+
+def test_a_kind_asked_with_the_one_read_is_kept_as_its_fallback():
+    assert read_prompt("@20 pulls over and comes to a stop").also == (B.STOP,)
+    assert read_prompt("@20 slows down and pulls over").also == (B.SLOW_DOWN,)
+    assert read_prompt("@20 pulls over").also == ()
+    assert read_clauses("@12 lets @7 and @9 go first")[0].clause == "@12 lets @7 and @9 go first"  # one clause

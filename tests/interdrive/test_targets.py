@@ -76,6 +76,20 @@ def test_a_pull_over_shifts_to_the_kerb_side_and_stops_ahead():
     assert abs(start[0] - HALF) < 0.1  # the shift starts from the lane centre
 
 
+def test_a_pull_over_too_near_a_junction_moves_to_the_kerb_past_it():
+    s = scene(four_way(), drive(RIGHT_LANE_STRAIGHT, speed=8.0, start=58.0))  # 4 m before the junction at 8 m/s
+    target = _target(s, 1, Behaviour.PULL_OVER)
+    assert "past the junction 4 m ahead" in target.reason and target.stop
+    goal = target.goal_point
+    assert goal[1] == pytest.approx(10.0 + 12.0, abs=0.5)  # 12 m past the junction's exit (y = 10), on lane 23
+    assert goal[0] > HALF + 0.75  # shifted toward the kerb side there
+    in_junction = target.path[(target.path[:, 1] > -10.0) & (target.path[:, 1] < 10.0)]
+    assert np.allclose(in_junction[:, 0], HALF, atol=0.05)  # through the junction on its lane, not across it
+    fast = scene(four_way(), drive(RIGHT_LANE_STRAIGHT, speed=18.0, start=48.0))  # the kerb past it is out of reach
+    with pytest.raises(TargetUnavailable, match=r"too close to stop at the kerb before it, and the kerb past it"):
+        _target(fast, 1, Behaviour.PULL_OVER)
+
+
 def _with_kerb(road: RoadMap, x: float) -> RoadMap:
     """`road` with a road edge along x, beside the northbound approach lanes (y = -100 ... -10)."""
     return RoadMap((*road.features, MapFeature(99, MapFeatureType.ROAD_EDGE_BOUNDARY, line(x, -100.0, x, -10.0))))

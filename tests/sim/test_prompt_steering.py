@@ -92,6 +92,56 @@ def test_the_warnings_come_from_the_same_reading():
     assert not prompt_steering(_crossing_scene(), read_prompts(["@2 stops"]), np.arange(3), ORIGIN, ALL_LEVERS).warnings
 
 
+def test_a_prompt_of_two_clauses_steers_both_agents():
+    s = _crossing_scene()
+    readings = read_prompts(["@2 stops, and @3 speeds up"])
+    assert [(r.agent, r.behaviour) for r in readings] == [(2, Behaviour.STOP), (3, Behaviour.SPEED_UP)]
+    steering = prompt_steering(s, readings, np.arange(3), ORIGIN, ALL_LEVERS)
+    assert [(x.slot, x.target.behaviour) for x in steering.steerings] == [(1, Behaviour.STOP), (2, Behaviour.SPEED_UP)]
+    assert [a.track_id for a in steering.asks] == [2, 3] and len(steering.notes) == 2
+    together = read_prompts(["@1 and @2 stop"])  # a coordinated subject: each agent its own stop
+    assert [(r.agent, r.behaviour, r.clause) for r in together] == [
+        (1, Behaviour.STOP, "@1 stop"), (2, Behaviour.STOP, "@2 stop")
+    ]  # fmt: skip
+
+
+def test_a_yield_leaves_the_other_agent_to_its_own_clause():
+    s = _crossing_scene()
+    steering = prompt_steering(s, read_prompts(["@1 yields to @3; @3 stops"]), np.arange(3), ORIGIN, ALL_LEVERS)
+    assert [(x.slot, x.target.behaviour) for x in steering.steerings] == [(0, Behaviour.YIELD), (2, Behaviour.STOP)]
+
+
+@pytest.mark.parametrize(
+    ("text", "error"),
+    [
+        ("@1 stops and @2 does a little dance", r"clause '@2 does a little dance' of .* cannot be read"),
+        ("@1 stops. @1 turns left", r"@1 is asked twice \('@1 stops' and '@1 turns left'\)"),
+    ],
+)
+def test_a_clause_that_cannot_be_read_or_asks_an_agent_again_is_one_line_error(text, error):
+    with pytest.raises(InputError, match=error):
+        read_prompts([text])
+    assert len(read_prompts([text], strict=False)) == 2  # a dataset prompt's sentence is never refused
+    alone = read_prompts(["@1 does a little dance"])  # one clause not read: it steers by its text alone
+    assert len(alone) == 1 and not alone[0].read
+
+
+def test_a_stop_asked_with_a_pull_over_the_map_refuses_is_kept_on_its_own():
+    s = _crossing_scene()  # @1 drives the left lane: a lane lies on its right, so it cannot pull over
+    (reading,) = read_prompts(["@1 pulls over and comes to a stop"])
+    assert reading.behaviour is Behaviour.PULL_OVER and reading.also == (Behaviour.STOP,)
+    steering = prompt_steering(s, (reading,), np.arange(3), ORIGIN, ALL_LEVERS)
+    ((steer,), (ask,)) = steering.steerings, steering.asks
+    assert steer.target.behaviour is Behaviour.STOP and ask.behaviour is Behaviour.STOP
+    (warning,) = steering.warnings
+    assert warning.startswith("@1 cannot pull over: a lane lies on its right") and warning.endswith(
+        "its stop is kept on its own"
+    )
+    assert "so its stop alone" in steering.notes[0]
+    plain = prompt_steering(s, read_prompts(["@1 pulls over"]), np.arange(3), ORIGIN, ALL_LEVERS)
+    assert not plain.steerings and not plain.warnings[0].endswith("kept on its own")  # nothing else was asked
+
+
 @pytest.fixture(scope="module")
 def loaded():
     return load_model(shipped_checkpoint())
@@ -115,9 +165,9 @@ def test_the_guidance_baseline_reads_a_typed_prompt_once_and_takes_no_other_leve
     assert (
         GuidanceBaselinePolicy(model, data, SimRequest(levers=ALL_LEVERS), prompt=typed).request.levers == GUIDANCE_ONLY
     )
-    read = prompts.read_prompt
+    read = prompts.read_clauses
     texts: list[str] = []
-    monkeypatch.setattr(prompts, "read_prompt", lambda text: texts.append(text) or read(text))
+    monkeypatch.setattr(prompts, "read_clauses", lambda text: texts.append(text) or read(text))
     policy = GuidanceBaselinePolicy(model, data, SimRequest(levers=GUIDANCE_ONLY), prompt=typed)
     state = _baseline_state(policy, _crossing_scene())
     assert texts == ["@2 stops"]  # read once: the refusal check, the steering and the warnings take that reading

@@ -325,7 +325,8 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         self.data = data.for_inference(text=prompt is not None and request.levers.text)
         self.prompt = prompt
         self.prompt_texts = request.prompts or ((prompt.text,) if prompt else ())
-        self.readings = read_prompts(self.prompt_texts)  # the one reading of each prompt (`sim.prompts`)
+        # Each prompt read once, clause by clause (`sim.prompts`); a dataset prompt's sentence is never refused.
+        self.readings = read_prompts(self.prompt_texts, strict=prompt is None or not _labelled(prompt))
         self.terms = terms
         self.free = tuple(int(slot) for slot in free)
         self.checkpoint = checkpoint

@@ -1,8 +1,9 @@
 """Typed `@id` prompts in a simulation: parsed against the scene, merged into one prompt entry (each driven agent's
-sentence), checked against the agents the model drives, and read once each (`read_prompts`, `interdrive.reader`).
-That one reading is what the map is asked about (a behaviour it does not allow where the agent is is warned about,
-`PromptSteering.warnings`) and what steers the simulation: the behaviour's target and the criteria selection judges by
-(`prompt_steering`; docs/simulation.md, 'Prompts that steer'). What the steering does at each replan is
+sentence), checked against the agents the model drives, and read once each, clause by clause (`read_prompts`,
+`interdrive.reader`). Those readings are what the map is asked about (a behaviour it does not allow where the agent is
+is warned about, `PromptSteering.warnings`; a stop the prompt also asks for is kept on its own) and what steers the
+simulation: each behaviour's target and the criteria selection judges by (`prompt_steering`; docs/simulation.md,
+'Prompts that steer'). What the steering does at each replan is
 `sim.prompt_replan`'s."""
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from langtraj.guidance.steering import Steering
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
-from langtraj.interdrive.reader import PromptReading, read_prompt
+from langtraj.interdrive.reader import PromptReading, read_clauses
 from langtraj.interdrive.targets import BehaviourTarget, Feasibility, TargetUnavailable, derive_target, feasibility
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
@@ -74,10 +75,34 @@ def check_prompt_driven(prompt: PromptEntry, driven_ids: Sequence[int], max_driv
         )
 
 
-def read_prompts(texts: Sequence[str]) -> tuple[PromptReading, ...]:
-    """Each typed prompt read once (`interdrive.reader.read_prompt`): the one reading its warnings, its guidance
-    and its selection take."""
-    return tuple(read_prompt(text) for text in texts)
+def read_prompts(texts: Sequence[str], *, strict: bool = True) -> tuple[PromptReading, ...]:
+    """Each typed prompt read once, clause by clause (`interdrive.reader.read_clauses`): the readings its warnings,
+    its guidance and its selection take. With `strict` (typed prompts), a clause of a prompt of several that cannot
+    be read, or an agent asked by two clauses, is an InputError naming the clause; a prompt of one clause that cannot
+    be read steers by its text alone. Without it (a dataset prompt's sentence), nothing is refused."""
+    readings: list[PromptReading] = []
+    asked: dict[int, PromptReading] = {}
+    for text in texts:
+        clauses = read_clauses(text)
+        for reading in clauses:
+            if not strict:
+                continue
+            if len(clauses) > 1 and not reading.read:
+                raise InputError(
+                    f"clause {reading.clause!r} of {text!r} cannot be read ({reading.reason}); write each agent's "
+                    "behaviour in words the reader knows (docs/interdrive.md, 'Reading a prompt')",
+                    where="prompt",
+                )
+            if reading.read and reading.agent is not None:
+                if reading.agent in asked:
+                    raise InputError(
+                        f"@{reading.agent} is asked twice ({asked[reading.agent].clause!r} and {reading.clause!r}); "
+                        "ask each agent one behaviour",
+                        where="prompt",
+                    )
+                asked[reading.agent] = reading
+        readings += clauses
+    return tuple(readings)
 
 
 def _verdict(scenario: Scenario, reading: PromptReading, index: MapIndex) -> Feasibility | None:
@@ -89,14 +114,28 @@ def _verdict(scenario: Scenario, reading: PromptReading, index: MapIndex) -> Fea
     return feasibility(scenario, reading.agent, reading.behaviour, index, other_id=reading.other)
 
 
-def _warning(reading: PromptReading, verdict: Feasibility | None) -> str | None:
+def _fallback(scenario: Scenario, reading: PromptReading, verdict: Feasibility | None, index: MapIndex) -> Feasibility:
+    """Where the map gives a read behaviour no target, the first kind the prompt also asks for that it allows
+    ("pulls over and comes to a stop" where no kerb is in reach: the stop, kept on its own); else `verdict`."""
+    if verdict is None or verdict.target is not None or reading.agent is None:
+        return verdict  # type: ignore[return-value]
+    for kind in reading.also:
+        kept = feasibility(scenario, reading.agent, kind, index)
+        if kept.target is not None:
+            return kept
+    return verdict
+
+
+def _warning(reading: PromptReading, verdict: Feasibility | None, kept: Feasibility | None = None) -> str | None:
     """The warning about a reading: one line when it asks of its agent a single-agent behaviour the map does not
     allow from where it is (a turn or lane change with no lane for it, a pull-over away from the kerb lane or too
     near a junction, slowing down while stopped): "@12 cannot turn left: no left turn from its lane at the next
-    junction ...". Where the map cannot tell (undecided), for a pair behaviour and for a prompt not read, None. A
-    warning does not stop a simulation: the model is conditioned on the prompt as typed."""
+    junction ...", saying what is `kept` instead. Where the map cannot tell (undecided), for a pair behaviour and for
+    a prompt not read, None. A warning does not stop a simulation: the model is conditioned on the prompt as typed."""
     if verdict is None or BEHAVIOURS[verdict.behaviour].is_pair or verdict.status != "infeasible":
         return None
+    if kept is not None and kept is not verdict:
+        return f"{verdict.message}; its {BEHAVIOURS[kept.behaviour].manoeuvre} is kept on its own"
     return verdict.message
 
 
@@ -153,9 +192,11 @@ def prompt_steering(
     readings = tuple(readings)
     index = index if index is not None else MapIndex.build(scenario.road_map)
     steerings, asks, notes, targets, warnings = [], [], [], [], []
+    asked = {r.agent for r in readings if r.read}
     for reading in readings:
         verdict = _verdict(scenario, reading, index)
-        if (warning := _warning(reading, verdict)) is not None:
+        steered = _fallback(scenario, reading, verdict, index)
+        if (warning := _warning(reading, verdict, steered)) is not None:
             warnings.append(warning)
         if reading.behaviour is None or reading.agent is None:
             alone = "it steers by its text alone" if levers.text else "nothing steers it (the text lever is off)"
@@ -168,21 +209,23 @@ def prompt_steering(
             reading.agent,
             scenario.agents.index_of(reading.agent),
             slots[reading.agent],
-            reading.behaviour,
+            reading.behaviour if steered is None else steered.behaviour,
             reading.other,
             other_row,
             None if reading.other is None else slots.get(reading.other),
         )
         used = ["text"] if levers.text else []
-        if levers.guidance and verdict is not None:
-            target = verdict.target
+        if levers.guidance and steered is not None:
+            target = steered.target
             if target is None:
-                notes.append(f"{reading.describe()}; no target: {verdict.message}")
+                notes.append(f"{reading.describe()}; no target: {steered.message}")
             else:
                 targets.append(target)
                 steerings.append(Steering.of(target, origin, slots))
+                if steered is not verdict:
+                    used.append(f"no target for it ({verdict.reason}), so its {target.behaviour.value} alone")
                 used.append(f"guidance toward {target.reason}")
-                counterpart, why = _counterpart(scenario, reading, slots, index)
+                counterpart, why = _counterpart(scenario, reading, slots, index, asked)
                 if counterpart is not None:
                     steerings.append(Steering.of(counterpart, origin, slots))
                     used.append(f"@{counterpart.track_id} toward {counterpart.reason}")
@@ -199,13 +242,15 @@ _OPPOSITE = {Behaviour.YIELD: Behaviour.GO_FIRST, Behaviour.GO_FIRST: Behaviour.
 
 
 def _counterpart(
-    scenario: Scenario, reading: PromptReading, slots: dict[int, int], index: MapIndex
+    scenario: Scenario, reading: PromptReading, slots: dict[int, int], index: MapIndex, asked: set[int | None]
 ) -> tuple[BehaviourTarget | None, str]:
     """For yielding or going first, the other agent's side of it (going first, or yielding) when the model drives
-    it and the map gives its target (a yield happens only if the other agent goes); else None and why (empty for
-    a behaviour without a side for the other agent)."""
+    it, no clause of its own asks it something (`asked`) and the map gives its target (a yield happens only if the
+    other agent goes); else None and why (empty for a behaviour without a side for the other agent)."""
     opposite = _OPPOSITE.get(reading.behaviour)  # type: ignore[arg-type]
     if opposite is None or reading.agent is None:
+        return None, ""
+    if reading.other in asked:
         return None, ""
     if reading.other not in slots:
         return None, "the model does not drive it"

@@ -29,33 +29,37 @@ _WORLD: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 @dataclass(frozen=True)
 class PromptCheck:
-    """One prompt: `error` says why it cannot be run (None: it can); `reading` what the reader made of it (None
-    when it was refused before reading); `feasible` whether the map gives the read behaviour a target (None: not
-    read); `warning` the line `langtraj simulate` would warn with; `target` where the behaviour steers."""
+    """One prompt: `error` says why it cannot be run (None: it can); `readings` what the reader made of each clause
+    (empty when it was refused before reading); `feasible` whether the map gives every read behaviour a target (None:
+    not read); `warning` the lines `langtraj simulate` would warn with; `targets` where the behaviours steer."""
 
     text: str
     error: str | None = None
-    reading: PromptReading | None = None
+    readings: tuple[PromptReading, ...] = ()
     feasible: bool | None = None
     warning: str | None = None
-    target: BehaviourTarget | None = None
+    targets: tuple[BehaviourTarget, ...] = ()
 
     @property
     def ok(self) -> bool:
         return self.error is None
 
     def to_json(self) -> dict[str, Any]:
+        """`reading` is the first clause read (every clause's line in its `describe`), `readings` each clause's."""
         reading = None
-        if self.reading is not None:
-            reading = self.reading.to_json() | {"describe": self.reading.describe()}
+        if self.readings:
+            first = next((r for r in self.readings if r.read), self.readings[0])
+            reading = first.to_json() | {"describe": "; ".join(r.describe() for r in self.readings)}
         return {
             "text": self.text,
             "ok": self.ok,
             "error": self.error,
             "reading": reading,
+            "readings": [r.to_json() | {"describe": r.describe()} for r in self.readings],
             "feasible": self.feasible,
             "warning": self.warning,
-            "target": None if self.target is None else target_json(self.target),
+            "target": target_json(self.targets[0]) if self.targets else None,
+            "targets": [target_json(t) for t in self.targets],
         }
 
 
@@ -141,13 +145,18 @@ def _check(
         return PromptCheck(text, f"@{m} is named by prompt {named[m] + 1} too; describe each agent in one prompt")
     for m in entry.mentions:
         named[m] = number
-    (reading,) = read_prompts([text])
-    if not reading.read:
-        return PromptCheck(text, None, reading)
-    steering = prompt_steering(scenario, (reading,), rows, _WORLD, ALL_LEVERS, index)
-    own = [t for t in steering.targets if t.track_id == reading.agent]
-    warning = steering.warnings[0] if steering.warnings else None
-    return PromptCheck(text, warning, reading, bool(own), warning, own[0] if own else None)
+    try:
+        readings = read_prompts([text])
+    except InputError as exc:
+        return PromptCheck(text, str(exc))
+    if not any(r.read for r in readings):
+        return PromptCheck(text, None, readings)
+    steering = prompt_steering(scenario, readings, rows, _WORLD, ALL_LEVERS, index)
+    own = tuple(t for t in steering.targets if t.track_id in {r.agent for r in readings})
+    warning = "; ".join(steering.warnings) or None
+    feasible = {t.track_id for t in own} >= {r.agent for r in readings if r.read}
+    error = None if feasible else warning  # a behaviour the map refuses, unless a stop it also asks for is kept
+    return PromptCheck(text, error, readings, feasible, warning, own)
 
 
 def _pair_error(adversary: int | None, target: int | None, sim_ids: list[int]) -> str | None:

@@ -95,7 +95,7 @@ class JobRunner:
         config = SimConfig(rollouts=spec.rollouts, seed=spec.seed)
         per_run = len(replan_schedule(scenario.current_index, config.replan_steps))
         total = per_run * len(runs)
-        readings = read_prompts(case.prompts)
+        read = [(text, reading) for text in case.prompts for reading in read_prompts([text])]  # clause by clause
         checker = AdherenceChecker.build(scenario, map_index=scene.map_index) if case.prompts else None
         out: dict[str, Any] = {}
         done = 0
@@ -121,8 +121,8 @@ class JobRunner:
             out[name] = run_json(
                 scenario,
                 result.rollouts,
-                case.prompts,
-                readings,
+                [text for text, _ in read],
+                [reading for _, reading in read],
                 checker,
                 result.report,
                 result.seconds,

@@ -17,9 +17,10 @@ from langtraj.sim.prompts import read_prompts
 
 @dataclass(frozen=True)
 class PromptVerdict:
-    """One prompt of an episode: its `text`, how it was read (`reading`: `PromptReading.describe()`; `behaviour`,
-    `agent`, `other`), and `followed`: True or False as the labelers judge the played episode, None where it cannot
-    be judged (`why`: nothing was read, or an agent it names is not in the scene)."""
+    """One clause of a prompt of an episode: the prompt's `text`, how the clause was read (`reading`:
+    `PromptReading.describe()`; `behaviour`, `agent`, `other`), and `followed`: True or False as the labelers judge
+    the played episode, None where it cannot be judged (`why`: nothing was read, or an agent it names is not in the
+    scene)."""
 
     text: str
     reading: str
@@ -42,16 +43,16 @@ class PromptVerdict:
 
 
 def judge_prompts(played: Scenario, texts: Sequence[str]) -> list[PromptVerdict]:
-    """Each of `texts` (the prompts as the env ran them, `@ego` replaced) judged on `played` (the history and the
-    simulated steps: `LangTrajEnv.played()`); the labelers run once, and only when some prompt can be judged."""
-    readings = read_prompts(texts)
+    """Each clause of `texts` (the prompts as the env ran them, `@ego` replaced) judged on `played` (the history and
+    the simulated steps: `LangTrajEnv.played()`); the labelers run once, and only when some clause can be judged."""
+    read = [(text, reading) for text in texts for reading in read_prompts([text], strict=False)]
     present = {int(i) for i in played.agents.ids}
-    why = [reading.unjudged(present) for reading in readings]
+    why = [reading.unjudged(present) for _, reading in read]
     found = frozenset()
     if any(w is None for w in why):
         found = AdherenceChecker.build(played, logged=False).facts(played)
     out = []
-    for text, reading, reason in zip(texts, readings, why, strict=True):
+    for (text, reading), reason in zip(read, why, strict=True):
         verdict = reading.followed(found) if reason is None else None
         out.append(
             PromptVerdict(

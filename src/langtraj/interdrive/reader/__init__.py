@@ -8,12 +8,23 @@ reason), so that a prompt it cannot read steers by its text alone rather than by
 `python -m langtraj.interdrive.reader FILE...` prints how it reads free-text prompt files.
 
 The package holds `rules.py` (verb forms and the regular-expression rule tables), `read.py` (normalisation,
-matching, subject finding and `read_prompt`) and `figures.py` (reading figures and the command line).
+matching, subject finding and `read_prompt`, one clause), `clauses.py` (`read_clauses`: a prompt cut into its
+clauses and agents, each read) and `figures.py` (reading figures and the command line).
 
 See docs/interdrive.md ('Reading a prompt').
 """
 
+from langtraj.interdrive.reader.clauses import clauses, read_clauses
 from langtraj.interdrive.reader.figures import ReadingFigures, file_figures, main, reading_figures
 from langtraj.interdrive.reader.read import PromptReading, read_prompt
 
-__all__ = ["PromptReading", "ReadingFigures", "file_figures", "main", "read_prompt", "reading_figures"]
+__all__ = [
+    "PromptReading",
+    "ReadingFigures",
+    "clauses",
+    "file_figures",
+    "main",
+    "read_clauses",
+    "read_prompt",
+    "reading_figures",
+]

@@ -65,6 +65,11 @@ class PromptReading:
     other: int | None = None
     words: str = ""
     reason: str = ""
+    also: tuple[Behaviour, ...] = ()
+    """Kinds asked with `behaviour` that it subsumes ("pulls over and comes to a stop": stop), the fallback a
+    simulation steers by where the map gives `behaviour` no target (`sim.prompts`)."""
+    clause: str = ""
+    """The part of the typed prompt read (`clauses.read_clauses`; the whole text for a prompt of one clause)."""
 
     @property
     def read(self) -> bool:
@@ -116,6 +121,8 @@ class PromptReading:
             "other": self.other,
             "words": self.words,
             "reason": self.reason,
+            "also": [b.value for b in self.also],
+            "clause": self.clause,
         }
 
 
@@ -278,8 +285,8 @@ def read_prompt(text: str) -> PromptReading:
     if subject_slot is None:
         return _not_read("cannot tell which agent is asked", agent)
     matches = [m for m, s in zip(matches, subjects, strict=True) if not isinstance(s, int) or s == subject_slot]
-    kinds = {m.behaviour for m in matches}
-    kinds -= {k for kind in kinds for k in SUBSUMES.get(kind, ())}
+    asked = {m.behaviour for m in matches}
+    kinds = asked - {k for kind in asked for k in SUBSUMES.get(kind, ())}
     if not kinds:
         return _not_read("no behaviour phrase found", agent)
     if len(kinds) > 1:
@@ -289,7 +296,8 @@ def read_prompt(text: str) -> PromptReading:
     decided = [m for m in matches if m.behaviour is kind]
     if not BEHAVIOURS[kind].is_pair:
         best = max(decided, key=lambda m: (m.end - m.start, -m.start))
-        return PromptReading(kind, agent, None, norm.span(text, best.start, best.end))
+        also = tuple(b for b in Behaviour if b in asked and b in SUBSUMES.get(kind, ()))
+        return PromptReading(kind, agent, None, norm.span(text, best.start, best.end), also=also)
     return _pair_reading(text, norm, kind, decided, subject_slot)
 
 

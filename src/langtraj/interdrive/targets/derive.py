@@ -12,8 +12,8 @@ the lane graph (`lanes_ahead`) and returns either a `BehaviourTarget` in world c
   its next junction for the change to settle;
 - a stop: the agent's lane ahead (off lanes, the line along its heading) and a stop station that comfortable braking
   reaches (a stop line or crosswalk when one lies a little beyond);
-- pulling over: the agent moves in the lane next to the kerb with room before the next junction; the lane ahead
-  shifted toward the kerb, and a stop station;
+- pulling over: the agent moves in the lane next to the kerb with room before the next junction (where the
+  junction is too near, the kerb lane past it); the lane ahead shifted toward the kerb, and a stop station;
 - speeding up or slowing down (the agent moves): the lane ahead and a target speed;
 - going first or yielding: both agents' ways ahead, the conflict point where they cross, and the order; going first
   needs a crossing the agent can reach first;
@@ -55,6 +55,9 @@ Status = Literal["feasible", "infeasible", "undecided"]
 COMFORT_DECELERATION = 2.0
 """Comfortable braking (m/s^2): a stop lies where it brings the agent to rest, and a pull-over needs room to stop
 this way before the next junction."""
+KERB_PAST_JUNCTION_M = 12.0
+"""How far past a junction's exit a pull-over stops when the kerb before the junction is too near (m): room to move
+across after leaving the junction lane."""
 PULL_OVER_DECELERATION = 1.5
 """Braking a pull-over is planned with (m/s^2): gentler, as it also moves sideways."""
 SPEED_CHANGE = 3.0
@@ -459,12 +462,17 @@ def _pull_over(ctx: TargetContext, agent: _Agent) -> BehaviourTarget:
     v = agent.here.speed
     room = v**2 / (2 * COMFORT_DECELERATION) + ctx.config.heuristics.pull_over_junction_distance
     junction = index.distance_to_junction(agent.here.lane, agent.here.station) if index.has_connectivity else math.inf
-    if junction < room:
-        reason = f"the next junction is {junction:.0f} m ahead, too close to stop at the kerb before it"
-        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
-    lane_path = ctx.ahead(agent)
-    stop = max(v * v / (2 * PULL_OVER_DECELERATION), 2.0 * v, 8.0)
-    stop = min(stop, max(0.5 * v * 5.5, 8.0))
+    if junction >= room:
+        lane_path = ctx.ahead(agent)
+        stop = max(v * v / (2 * PULL_OVER_DECELERATION), 2.0 * v, 8.0)
+        stop = min(stop, max(0.5 * v * 5.5, 8.0))
+        begin, where = min(max(0.3 * stop, 3.0), stop), ""
+    else:
+        near = f"the next junction is {junction:.0f} m ahead, too close to stop at the kerb before it"
+        lane_path, stop, begin, why_not = _kerb_past_junction(ctx, agent)
+        if why_not:
+            raise TargetUnavailable(agent.track_id, behaviour, "infeasible", f"{near}, and {why_not}")
+        where = f" past the junction {junction:.0f} m ahead"
     point = point_at(lane_path, stop)
     offset, reason = 1.2, "half a lane to its right (the map has no road edges)"
     if index.has_road_edges:
@@ -481,7 +489,6 @@ def _pull_over(ctx: TargetContext, agent: _Agent) -> BehaviourTarget:
                 raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
             reason = f"the kerb {kerb:.1f} m to its right"
     arc = arc_lengths(lane_path)
-    begin = min(max(0.3 * stop, 3.0), stop)
     shift = offset * np.clip((arc - begin) / max(stop - begin, 1.0), 0.0, 1.0)
     tangent = np.gradient(lane_path, axis=0)
     tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-9)
@@ -490,11 +497,40 @@ def _pull_over(ctx: TargetContext, agent: _Agent) -> BehaviourTarget:
         agent.track_id,
         behaviour,
         lane_path + shift[:, None] * right,
-        f"a stop {stop:.0f} m ahead, {reason}",
+        f"a stop {stop:.0f} m ahead{where}, {reason}",
         station_of_goal=float(stop),
         speed=0.0,
         current_speed=v,
     )
+
+
+def _kerb_past_junction(ctx: TargetContext, agent: _Agent) -> tuple[np.ndarray, float, float, str]:
+    """The next kerb a driver would use when the one before the junction is too near: through the junction on its
+    straightest branch into a kerb lane (the rightmost or only one) and `KERB_PAST_JUNCTION_M` past its exit, with
+    room before the lane's own next junction, reached braking at no more than `COMFORT_DECELERATION` and within the
+    horizon (driving on at its speed, then braking at `PULL_OVER_DECELERATION`). Gives the path, the stop station,
+    where the move toward the kerb begins, and why there is no such kerb (empty when there is)."""
+    index, v = ctx.index, agent.here.speed
+    branches = ctx.junction(agent).branches
+    if not branches:
+        return np.zeros((0, 2)), 0.0, 0.0, "no way through it on the map"
+    branch = min(branches, key=lambda b: (abs(b.turn), b.exit_at))
+    exits = [e for e in index.exits[branch.lanes[-1]] if not index.is_junction[e]]
+    if not exits:
+        return np.zeros((0, 2)), 0.0, 0.0, "its way through the junction leads into no road lane"
+    lane = exits[0]
+    if index.lane_position(lane, 0.0) not in ("rightmost", "single"):
+        return np.zeros((0, 2)), 0.0, 0.0, "its lane past the junction has a lane on its right"
+    stop = max(branch.exit_at + KERB_PAST_JUNCTION_M, v * v / (2 * COMFORT_DECELERATION))
+    braking = min(v * v / (2 * PULL_OVER_DECELERATION), stop)
+    if (stop - braking) / max(v, 0.1) + 2 * braking / max(v, 0.1) > HORIZON_S:
+        why = f"the kerb past it ({stop:.0f} m ahead) is beyond its reach in {HORIZON_S:g} s"
+        return np.zeros((0, 2)), 0.0, 0.0, why
+    beyond = index.distance_to_junction(lane, 0.0) - (stop - branch.exit_at)
+    if beyond < ctx.config.heuristics.pull_over_junction_distance:
+        return np.zeros((0, 2)), 0.0, 0.0, "the road past it reaches another junction too soon"
+    path = route(index, (*branch.lanes, lane), agent.here.station, max(agent.reach, stop + 20.0))
+    return path, stop, branch.exit_at + 2.0, ""
 
 
 def kerb_distance(index: MapIndex, point: np.ndarray, direction: np.ndarray) -> float | None:
