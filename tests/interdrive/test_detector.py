@@ -12,6 +12,7 @@ from langtraj.interdrive.detector import (
     DetectorConfig,
     InteractionRule,
     SceneGeometry,
+    cut_in_runs,
     detect_interactions,
     following_runs,
     pair_rows,
@@ -171,6 +172,17 @@ def test_lane_change_leader_on_the_target_lane_far_ahead_and_not_the_one_left_be
     }
     labels = detect_interactions(scene(tracks, features=_two_lanes()))
     assert pairs(labels, "lane_change") == {(1, 3)}
+
+
+def test_a_lane_change_just_ahead_of_a_vehicle_in_the_target_lane_cuts_in_front_of_it():
+    mover = straight(20, 0, 0, 10.0)
+    ramp = np.clip((np.arange(T) - 10) / 15.0, 0.0, 1.0)
+    mover[:, 1] = 3.5 * (3 * ramp**2 - 2 * ramp**3)
+    tracks = {1: (VEH, mover), 2: (VEH, straight(8, 3.5, 0, 10.0)), 3: (VEH, straight(-60, 3.5, 0, 10.0))}
+    labels = detect_interactions(scene(tracks, features=_two_lanes()))
+    cut_ins = {(lab.track_id, lab.other_id) for lab in labels if lab.subtype.id == "lane_change/cut_in"}
+    assert cut_ins == {(1, 2)}  # 2 is 7.5 m behind in the target lane; 3 is 75 m behind, beyond `cut_in_range`
+    assert cut_in_runs(SceneGeometry(scene(tracks, features=_two_lanes()), (), DetectorConfig()), 0, 1)
 
 
 def _ramp_lanes() -> list[MapFeature]:

@@ -86,7 +86,7 @@ def test_the_issue_cases(text, expected):
         ("@3 goes before @4", (B.GO_FIRST, 3, 4)),
         ("@3 takes the right of way over @4", (B.GO_FIRST, 3, 4)),
         ("@3 doesn't wait for @4", (B.GO_FIRST, 3, 4)),
-        ("@3 cuts in front of @4", (B.GO_FIRST, 3, 4)),
+        ("@3 cuts in front of @4", (B.CUT_IN, 3, 4)),  # issue 47: a cut-in, no longer going first
         ("@3 goes first, @4 waits", (B.GO_FIRST, 3, 4)),
         ("@3 gives way to @4", (B.YIELD, 3, 4)),
         ("@3 lets @4 go first", (B.YIELD, 3, 4)),  # "go first" is @4's, the yield @3's
@@ -167,7 +167,7 @@ def test_describe_to_json_and_the_words_of_the_typed_text():
     assert pair.describe() == 'read as: @12 yield @7 ("gives way to @7")'
     assert pair.to_json() == {
         "behaviour": "yield", "agent": 12, "other": 7, "words": "gives way to @7", "reason": "", "also": [],
-        "clause": "",
+        "clause": "", "metres": None,
     }  # fmt: skip
     assert read_prompt("@12 hums").to_json() == {
         "behaviour": None,
@@ -177,6 +177,7 @@ def test_describe_to_json_and_the_words_of_the_typed_text():
         "reason": "no behaviour phrase found",
         "also": [],
         "clause": "",
+        "metres": None,
     }
     assert read_prompt("@12 hums").describe() == (
         "not read: no behaviour phrase found; the prompt steers by text alone"
@@ -279,3 +280,17 @@ def test_a_kind_asked_with_the_one_read_is_kept_as_its_fallback():
     assert read_prompt("@20 slows down and pulls over").also == (B.SLOW_DOWN,)
     assert read_prompt("@20 pulls over").also == ()
     assert read_clauses("@12 lets @7 and @9 go first")[0].clause == "@12 lets @7 and @9 go first"  # one clause
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["@52 cuts in front of @56", "@52 cuts in ahead of @56 with a 10 m gap", "@52 cuts @56 off", "@52 cuts off @56",
+     "@52 merges in front of @56", "@52 changes lanes right in front of @56",
+     "@52 moves into @56's lane in front of it"],
+)  # fmt: skip
+def test_the_cut_in_vocabulary_reads_as_a_cut_in(text):
+    reading = read_prompt(text)
+    assert (reading.behaviour, reading.agent, reading.other) == (B.CUT_IN, 52, 56)
+    assert reading.metres == (10.0 if "10 m" in text else None)
+    assert read_prompt("@52 pulls out in front of @56").behaviour is B.GO_FIRST  # from a side road: going first
+    assert read_prompt("@52 cuts in front of @56 at 10 m/s").metres is None  # a speed is no gap

@@ -11,7 +11,7 @@ from roads.test_mapindex import line
 
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.targets import TargetUnavailable, behaviour_feasibility, derive_target, feasibility
-from langtraj.interdrive.targets.derive import KERB_CLEARANCE, KERB_MIN_CLEARANCE, kerb_distance
+from langtraj.interdrive.targets.derive import CUT_IN_S, KERB_CLEARANCE, KERB_MIN_CLEARANCE, kerb_distance
 from langtraj.polylines import point_at
 from langtraj.roads import MapIndex
 from langtraj.scenario import AgentType, MapFeature, MapFeatureType, RoadMap
@@ -117,6 +117,20 @@ def test_a_pull_over_with_no_room_beside_the_lane_is_infeasible():
     s = scene(_with_kerb(four_way(), HALF + 1.3), drive(RIGHT_LANE_STRAIGHT, speed=6.0, start=0.0))
     with pytest.raises(TargetUnavailable, match="no room beside its lane to pull over"):
         _target(s, 1, Behaviour.PULL_OVER)
+
+
+def test_a_cut_in_targets_the_other_agents_lane_beside_it_at_the_speed_that_leaves_the_gap():
+    s = scene(two_lane_road(), _eastbound(y=3.5), _eastbound(y=0.0, speed=10.0))  # 1 left lane, 2 right, level
+    for gap in (5.0, 15.0):
+        target = derive_target(s, 1, Behaviour.CUT_IN, MapIndex.build(s.road_map), other_id=2, gap=gap)
+        assert np.allclose(target.path[-1, 1], 0.0, atol=0.05) and "@2's lane on its right" in target.reason
+        # level at 10 m/s: 4 s later its rear is `gap` m ahead of 2's front, 2 keeping its speed
+        assert target.speed == pytest.approx(10.0 + (gap + 4.5) / CUT_IN_S, abs=0.05)
+    with pytest.raises(TargetUnavailable, match="cannot get 40 m ahead of @2"):
+        derive_target(s, 1, Behaviour.CUT_IN, MapIndex.build(s.road_map), other_id=2, gap=40.0)
+    alone = scene(two_lane_road(), _eastbound(y=3.5), _eastbound(y=3.5 + 20.0))  # 2 in no lane beside it
+    with pytest.raises(TargetUnavailable):
+        _target(alone, 1, Behaviour.CUT_IN, 2)
 
 
 def test_yielding_and_going_first_meet_at_the_conflict_point_of_crossing_lanes():

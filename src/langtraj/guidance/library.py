@@ -214,6 +214,7 @@ INTERACTION_GUIDANCE: Mapping[str, Builder] = MappingProxyType(
         "lane_change/avoiding_slower_traffic": _all(_lane("second"), _avoid(1.0), _speed(_faster(2.0), "second")),
         "lane_change/for_merging": _all(_lane("second"), _avoid(1.5), _speed(_other)),
         "lane_change/with_lead_or_trail": _all(_lane("second"), _avoid(2.0)),
+        "lane_change/cut_in": _all(_lane("second"), _avoid(1.0), _speed(_other)),
         # Following: stay in lane a gap behind the lead, at its speed (or stopping).
         "following/with_lead": _all(_lane(), _avoid(2.0), _speed(_other)),
         "following/slow_lead": _all(_lane(), _avoid(2.0), _speed(_slower)),

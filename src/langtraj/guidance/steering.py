@@ -24,7 +24,7 @@ from langtraj.guidance.costs import NoCollisionCost, TargetSpeedCost
 from langtraj.guidance.library import AVOID_WEIGHT, SPEED_WEIGHT
 from langtraj.guidance.route import RouteCost, RoutePath, StationCost
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
-from langtraj.interdrive.targets import BehaviourTarget
+from langtraj.interdrive.targets import CUT_IN_S, BehaviourTarget
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS
 
 ROUTE_WEIGHT = 1.0  # per m^2 off the route
@@ -197,6 +197,18 @@ def _follow(s: Steering, clock: _Clock) -> list:
     return _route(s, clock, weight=0.5) + _speed(s, clock, other_speed, 1) + _avoid(s, 2.0)
 
 
+def _cut_in(s: Steering, clock: _Clock) -> list:
+    """At the target's speed until the change has settled (`CUT_IN_S`), then the other agent's; in its lane from
+    then on."""
+    t, settled = s.target, _steps(CUT_IN_S)
+    other_speed = t.other_speed if t.other_speed is not None else t.current_speed
+    return (
+        _speed(s, clock, float(t.speed or 0.0), 1, settled)
+        + _speed(s, clock, other_speed, settled)
+        + _route(s, clock, first=settled)
+    )
+
+
 _BUILDERS = {
     Behaviour.TURN_LEFT: _turn,
     Behaviour.TURN_RIGHT: _turn,
@@ -210,5 +222,6 @@ _BUILDERS = {
     Behaviour.GO_FIRST: _go_first,
     Behaviour.YIELD: _yield,
     Behaviour.FOLLOW: _follow,
+    Behaviour.CUT_IN: _cut_in,
 }
 assert set(_BUILDERS) == set(BEHAVIOURS), "every behaviour kind needs a builder"

@@ -38,6 +38,7 @@ class Behaviour(StrEnum):
     GO_FIRST = "go_first"
     YIELD = "yield"
     FOLLOW = "follow"
+    CUT_IN = "cut_in"
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,9 @@ class BehaviourSpec:
     also: tuple[str, ...] = ()
     subtype: str | None = None
     """The interaction subtype judging a pair behaviour unless another is given (`behaviour_facts`)."""
+    exact: bool = False
+    """Whether a typed prompt's pair behaviour is judged by `subtype` itself, not by any subtype of its type (a cut-in
+    is one kind of lane change toward another agent; `PromptReading.followed`)."""
 
     @property
     def is_pair(self) -> bool:
@@ -157,6 +161,14 @@ BEHAVIOURS: Mapping[Behaviour, BehaviourSpec] = {
             "follow",
             interaction=InteractionType.FOLLOWING,
             subtype="following/with_lead",
+        ),
+        BehaviourSpec(
+            Behaviour.CUT_IN,
+            "@{agent} cuts in front of @{other}",
+            "cut in front of",
+            interaction=InteractionType.LANE_CHANGE,
+            subtype="lane_change/cut_in",
+            exact=True,
         ),
     )
 }

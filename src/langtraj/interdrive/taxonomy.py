@@ -85,6 +85,12 @@ SUBTYPES: tuple[Subtype, ...] = (
             "Performing a lane change with another vehicle directly ahead (lead) or behind (trail), requiring extra "
             "caution.",
         ),
+        (
+            "cut_in",
+            "Cutting in",
+            "Changing into another vehicle's lane just ahead of it, so that it must make room (Euro NCAP's cut-in; "
+            "LangTraj's addition to the paper's subtypes, for safety-critical tests).",
+        ),
     ),
     *_subtypes(
         InteractionType.FOLLOWING,

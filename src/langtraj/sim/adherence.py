@@ -6,13 +6,14 @@ past followed by the candidate, up to the end of the simulated 8 s, exactly what
 (`metrics.instruction_following`). Single-agent behaviours are judged by the heuristic labelers themselves, on
 one scene holding a copy of the agent per candidate and rollout (one labelling per replan). Pair behaviours are
 judged by the interaction detector's own rule for one ordered pair (`interdrive.detector.yielding_runs`,
-`passing_runs`, `following_runs`, with the judge's `DetectorConfig`), the one `detect_interactions` runs over every
-pair, on each candidate's scene: every agent's past up to the replan, the driven agents' candidates after it, the
-undriven agents' simulated tracks, speeds from positions as the judge reads a rollout
+`passing_runs`, `following_runs`, `cut_in_runs`, with the judge's `DetectorConfig`), the one `detect_interactions`
+runs over every pair, on each candidate's scene: every agent's past up to the replan, the driven agents' candidates
+after it, the undriven agents' simulated tracks, speeds from positions as the judge reads a rollout
 (`metrics.instruction_following.rollout_scenario`), cut to the agents the rule reads (`pair_rows`: the two, the
 vehicles near either that may lead it, and the pedestrians where one of them walks). Yielding: the prompted agent
 yields to the other; going first: the other yields to it (the passing side of that yield); following: it follows
-the other. Each is judged by its interaction type, whatever the subtype (a prompt read from text names none; the
+the other; cutting in: it changes into the other's lane just ahead of it. Each is judged by its interaction type,
+whatever the subtype (a prompt read from text names none; the
 judge of an experiment's prompt asks for the subtype the log shows).
 
 Only simulated states are read: the executed past, the candidates and the undriven agents' simulated tracks
@@ -32,6 +33,7 @@ from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour, behaviour_facts
 from langtraj.interdrive.detector import (
     DetectorConfig,
     SceneGeometry,
+    cut_in_runs,
     following_runs,
     pair_rows,
     passing_runs,
@@ -49,6 +51,7 @@ PAIR_RUNS: dict[InteractionType, Callable[[SceneGeometry, int, int], list[Pair]]
     InteractionType.YIELDING: yielding_runs,
     InteractionType.PASSING: passing_runs,
     InteractionType.FOLLOWING: following_runs,
+    InteractionType.LANE_CHANGE: cut_in_runs,
 }
 """The detector's per-pair rule judging each pair behaviour's interaction type (`BehaviourSpec.interaction`)."""
 

@@ -111,7 +111,7 @@ def _verdict(scenario: Scenario, reading: PromptReading, index: MapIndex) -> Fea
         return None
     if BEHAVIOURS[reading.behaviour].is_pair and reading.other is None:
         return None
-    return feasibility(scenario, reading.agent, reading.behaviour, index, other_id=reading.other)
+    return feasibility(scenario, reading.agent, reading.behaviour, index, other_id=reading.other, gap=reading.metres)
 
 
 def _fallback(scenario: Scenario, reading: PromptReading, verdict: Feasibility | None, index: MapIndex) -> Feasibility:

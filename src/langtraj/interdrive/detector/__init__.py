@@ -75,6 +75,7 @@ from langtraj.interdrive.detector.config import DetectorConfig
 from langtraj.interdrive.detector.rules import (
     INTERACTION_RULES,
     InteractionRule,
+    cut_in_runs,
     detect_interactions,
     following_runs,
     pair_rows,
@@ -88,6 +89,7 @@ __all__ = [
     "DetectorConfig",
     "InteractionRule",
     "SceneGeometry",
+    "cut_in_runs",
     "detect_interactions",
     "following_runs",
     "pair_rows",

@@ -152,6 +152,23 @@ class LaneChangeGeometry(ScenePart):
         """The leader on the target lane right after the switch (agent index, -1 when none)."""
         return self.lanes.leader(change.agent, min(change.switch + 1, self.num_steps - 1), change.to_lane)
 
+    def follower_after(self, change: LaneChange) -> int:
+        """The nearest vehicle or cyclist behind the changer right after the switch, on the target lane or a lane
+        leading into it and at most `cut_in_range` from bumper to bumper (agent index, -1 when none): the one a cut-in
+        lands in front of."""
+        a, t = change.agent, min(change.switch + 1, self.num_steps - 1)
+        lane = self.scenario.road_map.by_id.get(change.to_lane)
+        if lane is None or not self.valid[a, t]:
+            return -1
+        others = np.flatnonzero(self.movers & self.valid[:, t])
+        others = others[(others != a) & np.isin(self.lanes.per_step[others, t], [lane.id, *lane.entry_lanes])]
+        head = self.heading[a, t]
+        rel = self.xy[others, t] - self.xy[a, t]
+        behind = -(rel[:, 0] * math.cos(head) + rel[:, 1] * math.sin(head))
+        gap = behind - 0.5 * (self.length[others, t] + self.length[a, t])
+        keep = (behind > 0) & (gap <= self.config.cut_in_range)
+        return int(others[keep][np.argmin(behind[keep])]) if keep.any() else -1
+
     def former_leader(self, change: LaneChange) -> int:
         """The leader on the lane left right before the switch (agent index, -1 when none)."""
         return self.lanes.leader(change.agent, max(change.switch - 1, 0), change.from_lane)

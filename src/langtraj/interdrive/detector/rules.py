@@ -63,7 +63,8 @@ def _pair_labels(
 
 @INTERACTION_RULES.register
 class LaneChangeRule(InteractionRule):
-    """A switch to a neighbour lane, with the leader on the target lane (or the overtaken agent)."""
+    """A switch to a neighbour lane, with the leader on the target lane (or the overtaken agent); and, where a
+    vehicle follows within `cut_in_range` in the target lane right after the switch, a cut-in in front of it."""
 
     name = "lane_change"
     type = InteractionType.LANE_CHANGE
@@ -82,6 +83,7 @@ class LaneChangeRule(InteractionRule):
                 continue
             other = changes.leader_after(change)
             labels.append(_label(scene, change.agent, other, self._subtype(scene, change), change.start, change.end))
+        labels += [_label(scene, p.agent, p.other, "lane_change/cut_in", p.start, p.end) for p in _cut_ins(scene)]
         return labels
 
     @staticmethod
@@ -273,6 +275,27 @@ def passing_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
     "passing/..." labels of agent toward other that `detect_interactions` gives on `scene`'s scenario (any
     subtype), computed for the pair alone."""
     return _kept(scene, [p for _, p in _pair_yields(scene, other, agent)], "passing/intersection_with_yielding")
+
+
+def _cut_ins(scene: SceneGeometry, agent: int | None = None) -> list[Pair]:
+    """The cut-ins of `scene` (of row `agent` only, when given): lane changes and merges (a merge just ahead of a
+    vehicle cuts in front of it too), overtakes left out, with the vehicle that then follows in the target lane
+    within `cut_in_range` (`LaneChangeGeometry.follower_after`)."""
+    changes = scene.changes
+    out = []
+    for change in changes.lane_changes:
+        if (agent is not None and change.agent != agent) or change in changes.overtakes:
+            continue
+        trail = changes.follower_after(change)
+        if trail >= 0:
+            out.append(Pair(change.agent, trail, change.start, change.end))
+    return out
+
+
+def cut_in_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
+    """The steps over which agent row `agent` cuts in front of row `other`: the "lane_change/cut_in" labels of agent
+    toward other that `detect_interactions` gives on `scene`'s scenario, computed for the pair alone."""
+    return _kept(scene, [p for p in _cut_ins(scene, agent) if p.other == other], "lane_change/cut_in")
 
 
 def pair_rows(

@@ -190,6 +190,13 @@ _SUBTYPE_TEMPLATES: dict[str, tuple[str, ...]] = {
         " {with <other> directly ahead or behind|with <other> right in front or behind"
         "|while <other> is close ahead or behind}",
     ),
+    "lane_change/cut_in": (
+        "{cuts in front of|cuts in ahead of|cuts in on|changes lanes right in front of|merges in front of"
+        "|pulls into the lane right in front of|swerves in front of|nips in front of|squeezes in front of"
+        "|slots in just ahead of|dives in front of|barges in front of} <other>",
+        "{cuts off|cuts up} <other>[ {sharply|suddenly|with a lane change}]",
+        "{moves|changes lanes|swerves|merges} into the lane of <other>[ {just|right}] {in front of|ahead of} it",
+    ),
     # -- following / stopping behind
     "following/with_lead": (
         "{follows|is following|drives behind|is driving behind|trails|stays behind|travels behind|is travelling behind}"

@@ -70,6 +70,8 @@ class PromptReading:
     simulation steers by where the map gives `behaviour` no target (`sim.prompts`)."""
     clause: str = ""
     """The part of the typed prompt read (`clauses.read_clauses`; the whole text for a prompt of one clause)."""
+    metres: float | None = None
+    """A distance the text gives ("with a 10 m gap", "8 metres ahead of @7"): a cut-in's gap (None: none given)."""
 
     @property
     def read(self) -> bool:
@@ -79,7 +81,7 @@ class PromptReading:
         """Whether the facts the labelers `found` in a rollout follow this reading (None: nothing read, or a pair
         behaviour without its other agent): the one rule of the studio, the suites and instruction following. A
         typed prompt names no interaction subtype, so a pair behaviour is followed when the detector finds the
-        interaction of its type between the two agents, whatever the subtype."""
+        interaction of its type between the two agents, whatever the subtype (a cut-in: its own subtype)."""
         if self.behaviour is None or self.agent is None:
             return None
         spec = BEHAVIOURS[self.behaviour]
@@ -90,7 +92,7 @@ class PromptReading:
         return any(
             fact[0] == "interaction"
             and fact[1:3] == (self.agent, self.other)
-            and SUBTYPES_BY_ID[str(fact[3])].type is spec.interaction
+            and (fact[3] == spec.subtype if spec.exact else SUBTYPES_BY_ID[str(fact[3])].type is spec.interaction)
             for fact in found
         )
 
@@ -123,6 +125,7 @@ class PromptReading:
             "reason": self.reason,
             "also": [b.value for b in self.also],
             "clause": self.clause,
+            "metres": self.metres,
         }
 
 
@@ -172,6 +175,10 @@ def _normalise(typed: str) -> _Text:
             origin.extend([mention.start()] * (len(slot) - 1) + [mention.end() - 1])
             pos = mention.end()
     return _Text("".join(chars), tuple(origin), ids)
+
+
+_METRES = re.compile(r"\b(\d+(?:\.\d+)?)\s*(?:m|metres?|meters?)\b(?!/)")
+"""A distance in metres ("10 m", "8.5 metres"; not a speed, "10 m/s")."""
 
 
 def _slot(placeholder: str | None) -> int | None:
@@ -315,4 +322,6 @@ def _pair_reading(text: str, norm: _Text, kind: Behaviour, decided: Sequence[_Ma
     if other == subject:
         return _not_read(f"{kind.value} names one agent only; cannot tell which one is asked", agent)
     best = max(decided, key=lambda m: (m.other is not None, m.end - m.start, -m.start))
-    return PromptReading(kind, agent, norm.ids[other], norm.span(text, best.start, best.end))
+    distance = _METRES.search(norm.text)
+    metres = float(distance.group(1)) if distance else None
+    return PromptReading(kind, agent, norm.ids[other], norm.span(text, best.start, best.end), metres=metres)

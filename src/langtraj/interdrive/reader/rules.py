@@ -300,8 +300,8 @@ _GO_FIRST = [
     rf"\b{_GO_FIRST_VERBS}{_gap(5)}\s+(?:before|sooner\s+than|earlier\s+than)\s+{_OTHER}",
     rf"\b{_AHEAD_VERBS}"
     rf"{_gap(5)}\s+ahead\s+of\s+{_OTHER}",
-    rf"\b{verb('cut', 'cross', 'pull out', 'nip', 'dart', 'jump', 'squeeze', 'slip', 'shoot', 'pass', 'go', 'turn')}"
-    rf"(?:\s+(?:in|out|across))?\s+in\s+front\s+of\s+{_OTHER}",
+    rf"\b{verb('cross', 'pull out', 'dart', 'shoot', 'pass', 'go', 'turn')}"
+    rf"(?:\s+(?:out|across))?\s+in\s+front\s+of\s+{_OTHER}",
     rf"\b{verb('take', 'have', 'claim', 'keep', 'assert', 'use', 'exercise', 'get', 'seize')}"
     rf"\s+(?:{_POSSESSIVE}\s+)?(?:right\s+of\s+way|right-of-way|priority|precedence)"
     rf"(?:\s+(?:over|from|ahead\s+of|before|against)\s+{_OTHER})?",
@@ -315,6 +315,23 @@ _GO_FIRST = [
     rf"{verb('yield', 'give way', 'wait', 'hold back')}(?:\s+(?:to|for)\s+(?:it|them|him|her))?\b",
     rf"\b{verb('have', 'take', 'get')}\s+(?:its|your|their|his|her|the)\s+turn\s+(?:before|ahead\s+of)\s+{_OTHER}",
 ]
+
+_CUT_IN_VERBS = verb(
+    "cut", "nip", "dive", "swerve", "squeeze", "slot", "tuck", "merge", "slip", "jump", "weave", "change lanes",
+    "switch lanes", "move over", "pull in", "pull over", "barge", "force its way", "push in",
+)  # fmt: skip
+_CUT_IN = [
+    rf"\b{_CUT_IN_VERBS}(?:\s+(?:in|over|back|across|sharply|suddenly|right|just|closely|dangerously|abruptly|tightly"
+    rf"|aggressively))*\s+(?:in\s+front\s+of|ahead\s+of|just\s+ahead\s+of)\s+{_OTHER}",
+    rf"\b{verb('cut', 'push', 'barge')}\s+in\s+on\s+{_OTHER}",
+    rf"\b{verb('cut')}\s+(?:off|up)\s+{_OTHER}",
+    rf"\b{verb('cut')}\s+{_OTHER}\s+(?:off|up)\b",
+    rf"\b{verb('change lanes', 'switch lanes', 'move', 'merge', 'cut', 'pull', 'swerve', 'squeeze')}"
+    rf"(?:\s+(?:over|across))?\s+(?:in)?to\s+{_OTHER}'s\s+lane\b"
+    r"(?:\s+(?:right\s+|just\s+)?(?:in\s+front\s+of|ahead\s+of)\s+(?:it|them|him|her))?",
+]
+"""Changing into the other's lane just ahead of it (Euro NCAP's cut-in); "pulls out in front of @7" stays going first
+(from a side road, not a lane beside it)."""
 
 _YIELD = [
     rf"\b{verb('yield', 'give way', 'defer', 'cede', 'submit')}"
@@ -368,6 +385,7 @@ def _build_rules() -> tuple[_Rule, ...]:
         (Behaviour.PULL_OVER, _PULL_OVER),
         (Behaviour.SPEED_UP, _SPEED_UP),
         (Behaviour.SLOW_DOWN, _SLOW_DOWN),
+        (Behaviour.CUT_IN, _CUT_IN),  # before going first: "cuts in ahead of @7" is a cut-in
         (Behaviour.GO_FIRST, _GO_FIRST),
         (Behaviour.YIELD, _YIELD),
         (Behaviour.FOLLOW, _FOLLOW),
@@ -384,6 +402,9 @@ SUBSUMES: dict[Behaviour, frozenset[Behaviour]] = {
     Behaviour.YIELD: frozenset({Behaviour.STOP, Behaviour.SLOW_DOWN}),
     Behaviour.GO_FIRST: frozenset({Behaviour.SPEED_UP}),
     Behaviour.FOLLOW: frozenset({Behaviour.SLOW_DOWN, Behaviour.SPEED_UP}),
+    Behaviour.CUT_IN: frozenset(
+        {Behaviour.LANE_CHANGE_LEFT, Behaviour.LANE_CHANGE_RIGHT, Behaviour.SPEED_UP, Behaviour.SLOW_DOWN}
+    ),
 }
 """A kind that, asked with another, is part of it: "pulls over and stops", "brakes to let @7 pass"."""
 

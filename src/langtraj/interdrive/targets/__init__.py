@@ -8,11 +8,19 @@ Modules, in the order they build on each other: `config` (`CounterfactualConfig`
 """
 
 from langtraj.interdrive.targets.config import CounterfactualConfig
-from langtraj.interdrive.targets.derive import SPEED_CHANGE, BehaviourTarget, Status, TargetUnavailable, derive_target
+from langtraj.interdrive.targets.derive import (
+    CUT_IN_S,
+    SPEED_CHANGE,
+    BehaviourTarget,
+    Status,
+    TargetUnavailable,
+    derive_target,
+)
 from langtraj.interdrive.targets.feasibility import Feasibility, behaviour_feasibility, feasibility
 from langtraj.roads.position import AgentOnLane
 
 __all__ = [
+    "CUT_IN_S",
     "SPEED_CHANGE",
     "AgentOnLane",
     "BehaviourTarget",

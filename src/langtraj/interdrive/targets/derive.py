@@ -17,7 +17,9 @@ the lane graph (`lanes_ahead`) and returns either a `BehaviourTarget` in world c
 - speeding up or slowing down (the agent moves): the lane ahead and a target speed;
 - going first or yielding: both agents' ways ahead, the conflict point where they cross, and the order; going first
   needs a crossing the agent can reach first;
-- following: the other agent's lane ahead.
+- following: the other agent's lane ahead;
+- cutting in front of another agent: the other's lane, beside the agent's, from where a change can begin, and the
+  average speed that puts the agent the asked gap ahead of the other when the change settles.
 
 Only the current step and the past are read (never the logged future), so a simulation may use the target.
 See docs/interdrive.md ('Targets and feasibility').
@@ -82,6 +84,10 @@ CROSSING_ANGLE = math.radians(20.0)
 GO_FIRST_ACCELERATION = 2.5
 """The most an agent asked to go first is assumed to speed up by (m/s^2), up to `GO_FIRST_TOP_SPEED`."""
 GO_FIRST_TOP_SPEED = 15.0
+CUT_IN_GAP_M = 10.0
+"""The gap (bumper to bumper, m) a cut-in leaves in front of the other agent unless the prompt gives one."""
+CUT_IN_S = 1.0 + LANE_CHANGE_S
+"""When a cut-in has settled in the other's lane (s): begun within 1 s, settled `LANE_CHANGE_S` later."""
 GO_FIRST_MARGIN_S = 0.5
 """Going first must get the agent to the crossing this much earlier than the other agent at its speed (s)."""
 
@@ -230,10 +236,12 @@ class TargetContext:
             self._stations[agent.track_id] = stations_ahead(self.index, agent.here, agent.search, self.config)
         return self._stations[agent.track_id]
 
-    def target(self, track_id: int, behaviour: Behaviour, other_id: int | None = None) -> BehaviourTarget:
-        """The target of `behaviour` for `track_id` (toward `other_id` for a pair behaviour), or
-        `TargetUnavailable` (see the module docstring)."""
-        return _target(self, track_id, behaviour, other_id)
+    def target(
+        self, track_id: int, behaviour: Behaviour, other_id: int | None = None, gap: float | None = None
+    ) -> BehaviourTarget:
+        """The target of `behaviour` for `track_id` (toward `other_id` for a pair behaviour; a cut-in `gap` m ahead
+        of it), or `TargetUnavailable` (see the module docstring)."""
+        return _target(self, track_id, behaviour, other_id, gap)
 
     def moving(self, agent: _Agent) -> bool:
         """Faster than the labelers' standing speed by their least speed change."""
@@ -277,14 +285,17 @@ def derive_target(
     *,
     other_id: int | None = None,
     config: CounterfactualConfig | None = None,
+    gap: float | None = None,
 ) -> BehaviourTarget:
     """The target of `behaviour` for `track_id` at the scenario's current step (see the module docstring;
     `TargetContext.target`). Raises `TargetUnavailable` (an InputError) naming the agent, the behaviour and the
     reason where the map gives none: then the behaviour is not feasible there (`feasibility`)."""
-    return TargetContext(scenario, index, config).target(track_id, behaviour, other_id)
+    return TargetContext(scenario, index, config).target(track_id, behaviour, other_id, gap)
 
 
-def _target(ctx: TargetContext, track_id: int, behaviour: Behaviour, other_id: int | None) -> BehaviourTarget:
+def _target(
+    ctx: TargetContext, track_id: int, behaviour: Behaviour, other_id: int | None, gap: float | None = None
+) -> BehaviourTarget:
     """`TargetContext.target`."""
     spec = BEHAVIOURS[behaviour]
     if spec.is_pair and other_id is None:
@@ -310,7 +321,64 @@ def _target(ctx: TargetContext, track_id: int, behaviour: Behaviour, other_id: i
             track_id, behaviour, path, f"behind @{other_id} along its lane", other_id=other.track_id,
             current_speed=agent.here.speed, other_speed=other.here.speed,
         )  # fmt: skip
+    if behaviour is Behaviour.CUT_IN:
+        return _cut_in(ctx, agent, other, CUT_IN_GAP_M if gap is None else gap)
     return _order(ctx, agent, other, behaviour)
+
+
+def _cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: float) -> BehaviourTarget:
+    """Into the other's lane when it lies beside the agent's (`MapIndex.neighbour_lane`, either side) at the agent or
+    at a station of its road ahead, from where a change can begin (1 s or 4 m ahead); the `speed` is the average
+    that puts the agent's rear `gap` m ahead of the other's front at `CUT_IN_S`, the other keeping its speed.
+    Infeasible where that needs more than `GO_FIRST_ACCELERATION` could add, or less than standing still."""
+    index, behaviour = ctx.index, Behaviour.CUT_IN
+    ctx.need_lane(agent, behaviour, "neighbour lanes")
+    if not other.on_lane:
+        raise TargetUnavailable(agent.track_id, behaviour, "undecided", f"@{other.track_id} is on no lane")
+    if index.neighbor_source == "none":
+        raise TargetUnavailable(agent.track_id, behaviour, "undecided", "the map has no lane neighbour information")
+    begin = max(4.0, 1.0 * agent.here.speed)
+    ahead = [(0.0, agent.here.lane, agent.here.station)]
+    ahead += [(p.distance, p.lane, p.station) for p in ctx.stations(agent) if p.distance <= begin + 20.0]
+    # where the agent is, and the stations of its road just ahead, each asked for the other's lane beside it
+    theirs = _lane_pieces(index, other.here.lane)
+    found = None
+    for _, lane, station in ahead:
+        for side in ("left", "right"):
+            beside = index.neighbour_lane(lane, station, side)  # type: ignore[arg-type]
+            if beside is not None and beside[0] in theirs:
+                found = (side, beside[0], beside[1])
+                break
+        if found:
+            break
+    if found is None:
+        reason = f"@{other.track_id} is not in a lane beside its own"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    side, lane, level = found
+    v, v_other = agent.here.speed, other.here.speed
+    lengths = 0.5 * (agent.length + other.length)
+    heading = np.array([math.cos(other.heading), math.sin(other.heading)])
+    lead = float((agent.xy - other.xy) @ heading)  # how far the agent's centre is ahead of the other's
+    speed = (v_other * CUT_IN_S + gap + lengths - lead) / CUT_IN_S
+    most = v + 0.5 * GO_FIRST_ACCELERATION * CUT_IN_S
+    if speed > most:
+        reason = f"it cannot get {gap:g} m ahead of @{other.track_id} in {CUT_IN_S:g} s ({speed:.1f} m/s on average)"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    if speed < 0.0:
+        reason = f"it is {lead:.0f} m ahead of @{other.track_id}: too far to cut in {gap:g} m ahead of it"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    path = route(index, [lane], level + begin, agent.reach)
+    lead_in = resample(np.stack([agent.xy, path[0]]), ROUTE_SPACING)
+    return BehaviourTarget(
+        agent.track_id,
+        behaviour,
+        np.concatenate([lead_in[:-1], path]),
+        f"@{other.track_id}'s lane on its {side}, {gap:g} m ahead of it, at {speed:.1f} m/s",
+        speed=float(speed),
+        other_id=other.track_id,
+        current_speed=v,
+        other_speed=v_other,
+    )
 
 
 def _turn(ctx: TargetContext, agent: _Agent, behaviour: Behaviour) -> BehaviourTarget:
@@ -560,6 +628,16 @@ def _speed_change(ctx: TargetContext, agent: _Agent, behaviour: Behaviour) -> Be
         agent.track_id, behaviour, ctx.ahead(agent), f"its way ahead at {speed:.1f} m/s", speed=speed,
         current_speed=v,
     )  # fmt: skip
+
+
+def _lane_pieces(index: MapIndex, lane: int, hops: int = 3) -> set[int]:
+    """`lane` and the non-junction lanes up to `hops` before and after it: the pieces of one lane of a road."""
+    found, frontier = {lane}, {lane}
+    for _ in range(hops):
+        frontier = {n for x in frontier for n in (*index.exits[x], *index.entries[x]) if not index.is_junction[n]}
+        frontier -= found
+        found |= frontier
+    return found
 
 
 def _crossing(mine: np.ndarray, theirs: np.ndarray) -> tuple[int, float] | None:

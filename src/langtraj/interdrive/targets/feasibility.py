@@ -40,10 +40,11 @@ def feasibility(
     *,
     other_id: int | None = None,
     config: CounterfactualConfig | None = None,
+    gap: float | None = None,
 ) -> Feasibility:
-    """Whether `track_id` can do `behaviour` (toward `other_id` for a pair behaviour) at the current step: feasible
-    with its target, or infeasible / undecided with the reason the map gives no target."""
-    return _verdict(TargetContext(scenario, index, config), track_id, behaviour, other_id)
+    """Whether `track_id` can do `behaviour` (toward `other_id` for a pair behaviour; a cut-in `gap` m ahead of it) at
+    the current step: feasible with its target, or infeasible / undecided with the reason the map gives no target."""
+    return _verdict(TargetContext(scenario, index, config), track_id, behaviour, other_id, gap)
 
 
 def behaviour_feasibility(
@@ -56,10 +57,12 @@ def behaviour_feasibility(
     return {b: _verdict(context, track_id, b, None) for b, spec in BEHAVIOURS.items() if not spec.is_pair}
 
 
-def _verdict(context: TargetContext, track_id: int, behaviour: Behaviour, other_id: int | None) -> Feasibility:
+def _verdict(
+    context: TargetContext, track_id: int, behaviour: Behaviour, other_id: int | None, gap: float | None = None
+) -> Feasibility:
     """The target `context` gives, as a verdict."""
     try:
-        target = context.target(track_id, behaviour, other_id)
+        target = context.target(track_id, behaviour, other_id, gap)
     except TargetUnavailable as exc:
         return Feasibility(track_id, behaviour, exc.status, exc.reason)
     return Feasibility(track_id, behaviour, "feasible", target=target)
