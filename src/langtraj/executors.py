@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import sys
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -20,12 +21,20 @@ from langtraj.registry import Registry
 
 
 class ShardExecutor(ABC):
-    """Runs `fn` over `items` with at most `workers` at a time; yields results in completion order."""
+    """Runs `fn` over `items` with at most `workers` at a time; yields results in completion order. Where an engine
+    can tell which item a dead worker was running, it yields `on_lost(item, error)` for it and goes on (when given);
+    else the error ends the map, and the caller counts what did not finish as lost."""
 
     name: ClassVar[str]
 
     @abstractmethod
-    def map(self, fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> Iterator[Any]: ...
+    def map(
+        self,
+        fn: Callable[[Any], Any],
+        items: Sequence[Any],
+        workers: int,
+        on_lost: Callable[[Any, BaseException], Any] | None = None,
+    ) -> Iterator[Any]: ...
 
 
 EXECUTORS: Registry[ShardExecutor] = Registry("executor")
@@ -37,7 +46,14 @@ class ProcessExecutor(ShardExecutor):
 
     name = "process"
 
-    def map(self, fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> Iterator[Any]:
+    def map(
+        self,
+        fn: Callable[[Any], Any],
+        items: Sequence[Any],
+        workers: int,
+        on_lost: Callable[[Any, BaseException], Any] | None = None,
+    ) -> Iterator[Any]:
+        """A dead process breaks the whole pool (`BrokenProcessPool`): the error ends the map, whatever `on_lost`."""
         if workers <= 1 or len(items) <= 1:
             yield from (fn(item) for item in items)
             return
@@ -55,22 +71,40 @@ class RayExecutor(ShardExecutor):
     """Tasks on a Ray cluster: the one at `RAY_ADDRESS` when set, else a local one with `workers` CPUs.
 
     Every node needs LangTraj installed (SUMO comes with it from PyPI). Each task asks for one CPU, so
-    Ray runs as many shards at once as the cluster has CPUs.
+    Ray runs as many shards at once as the cluster has CPUs. A local cluster's workers get this process's import
+    path (a planner module found in the working directory, `suites.config.load_planner`). A task whose worker dies
+    is lost alone (`on_lost`); the others run on.
     """
 
     name = "ray"
 
-    def map(self, fn: Callable[[Any], Any], items: Sequence[Any], workers: int) -> Iterator[Any]:
+    def map(
+        self,
+        fn: Callable[[Any], Any],
+        items: Sequence[Any],
+        workers: int,
+        on_lost: Callable[[Any, BaseException], Any] | None = None,
+    ) -> Iterator[Any]:
         try:
             import ray
         except ImportError:
             raise LangTrajError("the ray executor needs Ray: pip install 'langtraj[ray]'") from None
         if not ray.is_initialized():
             address = os.environ.get("RAY_ADDRESS")
-            local = {} if address else {"num_cpus": workers}
+            local: dict[str, Any] = {}
+            if not address:
+                path = os.pathsep.join(p for p in sys.path if p and os.path.isdir(p))
+                local = {"num_cpus": workers, "runtime_env": {"env_vars": {"PYTHONPATH": path}}}
             ray.init(address=address, include_dashboard=False, log_to_driver=False, **local)
         remote = ray.remote(num_cpus=1, max_retries=0)(fn)
-        pending = [remote.remote(item) for item in items]
+        pending = {remote.remote(item): item for item in items}
         while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            yield ray.get(done[0])
+            done, _ = ray.wait(list(pending), num_returns=1)
+            item = pending.pop(done[0])
+            try:
+                result = ray.get(done[0])
+            except ray.exceptions.RayError as error:  # the worker died (or fn raised): this item alone is lost
+                if on_lost is None:
+                    raise
+                result = on_lost(item, error)
+            yield result

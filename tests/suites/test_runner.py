@@ -143,6 +143,32 @@ def test_a_dead_worker_leaves_errors_not_a_crash(tmp_path):
     assert saved["complete"] and len(saved["episodes"]) == 2
 
 
+def test_on_a_local_ray_cluster_a_case_that_kills_its_worker_is_lost_alone(tmp_path):
+    ray = pytest.importorskip("ray", reason="Ray is optional: pip install 'langtraj[ray]' (CI installs it)")
+    write_scene(tmp_path, "good")
+    write_scene(tmp_path, "deadly", exit_at=2)
+    write_scene(tmp_path, "crash", collide_at=5, at_fault=True)
+    path = write_suite(
+        tmp_path,
+        [
+            {"name": "deadly", "scenario": "deadly.json"},
+            {"name": "ok", "scenario": "good.json", "seeds": 2},
+            {"name": "crash", "scenario": "crash.json"},
+        ],
+    )
+    options = _options(tmp_path, executor="ray", workers=2)  # workers import suites.fakes from this test's path
+    try:
+        results = run_suite(load_suite(path), options)
+    finally:
+        ray.shutdown()
+    assert results.complete
+    assert results.case_statuses() == {"deadly": "error", "ok": "pass", "crash": "fail"}
+    (reason,) = results.episodes[("deadly", 0)].reasons
+    assert reason.startswith("the worker was lost (") and "WorkerCrashedError" in reason
+    saved = json.loads((options.out / "results.json").read_text())
+    assert saved["complete"] and saved["summary"]["passed"] == 2 and saved["summary"]["errors"] == 1
+
+
 @pytest.mark.parametrize(
     ("options", "message"),
     [

@@ -108,7 +108,7 @@ def run_suite(
     results.write()
     executor = EXECUTORS.create(options.executor)
     try:
-        for result in executor.map(run_episode, tasks, options.workers):
+        for result in executor.map(run_episode, tasks, options.workers, on_lost=_lost):
             results.add(result)
             results.write()
             if on_result is not None:
