@@ -198,14 +198,16 @@ def _follow(s: Steering, clock: _Clock) -> list:
 
 
 def _cut_in(s: Steering, clock: _Clock) -> list:
-    """At the target's speed until the change has settled (`CUT_IN_S`), then the other agent's; in its lane from
-    then on."""
+    """At the goal station (the gap ahead of the other agent) when the change has settled (`CUT_IN_S`), not past it
+    before; in the other's lane from 2 s on; at the other agent's speed after."""
     t, settled = s.target, _steps(CUT_IN_S)
     other_speed = t.other_speed if t.other_speed is not None else t.current_speed
+    goal = float(t.station_of_goal or 0.0)
     return (
-        _speed(s, clock, float(t.speed or 0.0), 1, settled)
+        _station(s, clock, goal, "reach", settled, settled + 5, REACH_WEIGHT)
+        + _station(s, clock, goal, "hold", 1, settled, HOLD_WEIGHT)
         + _speed(s, clock, other_speed, settled)
-        + _route(s, clock, first=settled)
+        + _route(s, clock, first=_steps(2.0))
     )
 
 

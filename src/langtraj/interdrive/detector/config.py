@@ -57,7 +57,8 @@ class DetectorConfig:
     lane_change_min_lateral: float = 1.5  # m: least sideways move across the target lane that confirms a switch
     lane_change_lateral_steps: int = 30  # steps either side of a switch between which the sideways move is taken
     lane_change_max_lateral: float = 8.0  # m: a larger sideways move is no change to a neighbour lane
-    cut_in_range: float = 25.0  # m: the most a vehicle in the target lane is behind a lane change for a cut-in
+    cut_in_range: float = 10.0  # m: a vehicle in the target lane this near behind a lane change is cut in on ...
+    cut_in_headway_s: float = 2.0  # s: ... or within this time gap at its speed (the two-second rule)
     lane_runs_on: float = 5.0  # m: a target lane without successors must run on this far past the lane left
     overtake_lookback: int = 15  # steps before a switch at which the former leader is looked up
     high_speed: float = 20.0  # m/s: an overtake at or above this top speed is high-speed

@@ -329,7 +329,8 @@ def _target(
 def _cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: float) -> BehaviourTarget:
     """Into the other's lane when it lies beside the agent's (`MapIndex.neighbour_lane`, either side) at the agent or
     at a station of its road ahead, from where a change can begin (1 s or 4 m ahead); the `speed` is the average
-    that puts the agent's rear `gap` m ahead of the other's front at `CUT_IN_S`, the other keeping its speed.
+    that puts the agent's rear `gap` m ahead of the other's front at `CUT_IN_S`, the other keeping its speed, and
+    `station_of_goal` where along the path that average takes it by then.
     Infeasible where that needs more than `GO_FIRST_ACCELERATION` could add, or less than standing still."""
     index, behaviour = ctx.index, Behaviour.CUT_IN
     ctx.need_lane(agent, behaviour, "neighbour lanes")
@@ -374,6 +375,7 @@ def _cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: float) -> Beh
         behaviour,
         np.concatenate([lead_in[:-1], path]),
         f"@{other.track_id}'s lane on its {side}, {gap:g} m ahead of it, at {speed:.1f} m/s",
+        station_of_goal=float(speed * CUT_IN_S),
         speed=float(speed),
         other_id=other.track_id,
         current_speed=v,
