@@ -11,6 +11,7 @@ from gymnasium.utils.env_checker import check_env
 from scenes import EGO_ID, FOLLOWER_ID, follower_scene
 
 from langtraj.env import ENV_ID, LangTrajEnv
+from langtraj.env.dynamics import step_unicycle
 from langtraj.env.spaces import AgentColumn, EgoColumn, action_space, observation_space
 from langtraj.errors import InputError
 
@@ -66,14 +67,31 @@ def test_the_follower_brakes_for_a_braking_ego_where_log_replay_runs_into_it():
     assert hit["collided_with"] == [FOLLOWER_ID] and not hit["at_fault"]  # rear-ended: not the ego's fault
 
 
-def test_a_trajectory_action_is_tracked_and_a_bad_action_fails_in_one_line():
+def _braking(speed: float, accel: float, turn: float = 0.0) -> np.ndarray:
+    """The 10 poses (ego frame) of the unicycle held at `accel` and yaw rate `turn` from `speed`."""
+    pose, poses = np.array([0.0, 0.0, 0.0, speed]), []
+    for _ in range(10):
+        pose = step_unicycle(pose, np.array([accel, turn]))
+        poses.append(pose[:3])
+    return np.array(poses, np.float32)
+
+
+def test_a_trajectory_action_is_tracked_over_its_horizon_and_a_bad_action_fails_in_one_line():
     env = LangTrajEnv(follower_scene(), action="trajectory")
-    env.reset(seed=0)
-    path = np.zeros((10, 3), np.float32)
-    path[:, 0] = 0.95 * np.arange(1, 11)  # 9.5 m/s straight ahead (a reachable -5 m/s^2)
-    _, _, _, _, info = env.step(path)
-    assert info["speed"] == pytest.approx(9.5, abs=1e-4) and info["progress_m"] == pytest.approx(0.95, abs=1e-3)
+    obs, _ = env.reset(seed=0)
+    speed = float(obs["ego"][EgoColumn.SPEED])
+    _, _, _, _, info = env.step(_braking(speed, -2.0))  # a profile the unicycle drives is followed exactly
+    assert info["speed"] == pytest.approx(speed - 0.2, abs=1e-4)
+    moved = {}
+    for late, turn in ((-2.0, 0.0), (3.0, 0.4)):  # the same first pose, other later ones: the ego moves otherwise
+        start, _ = env.reset(seed=0)
+        path = _braking(speed, late, turn)
+        path[0] = _braking(speed, -2.0)[0]
+        obs, _, _, _, info = env.step(path)
+        moved[late] = (info["speed"], float(obs["ego"][EgoColumn.HEADING] - start["ego"][EgoColumn.HEADING]))
+    assert moved[3.0][0] > moved[-2.0][0] + 0.2 and moved[3.0][1] > moved[-2.0][1] + 0.02
     for bad, what in ((np.zeros(2), "shape"), (np.full((10, 3), np.nan), "non-finite")):
+        env.reset(seed=0)
         with pytest.raises(InputError, match=f"action: .*{what}") as err:
             env.step(bad)
         assert "\n" not in str(err.value)

@@ -1,5 +1,7 @@
 """How the ego moves (docs/testing.md, 'Actions'): a control action through the model's unicycle for one 0.1-s
-step; a trajectory action through a tracker that aims the unicycle at the trajectory's first pose."""
+step; a trajectory action through a tracker over its whole 1-s horizon (`track`): the acceleration that best fits
+its speed profile and pure pursuit of a pose ahead, as a planner's trajectory is followed in nuPlan's closed loop
+(there by an LQR tracker)."""
 
 from __future__ import annotations
 
@@ -25,14 +27,37 @@ def step_unicycle(pose: np.ndarray, control: np.ndarray, max_curvature: float = 
     return _UNICYCLE(initial, action, limit)[0, 0].numpy()
 
 
+LOOKAHEAD_S = 0.5
+"""Pure pursuit aims at the first pose at least this far ahead in time at the ego's speed ..."""
+LOOKAHEAD_MIN_M = 2.0
+"""... and at least this far away (m); the last pose when none is."""
+
+
 def track(pose: np.ndarray, trajectory: np.ndarray) -> np.ndarray:
-    """The control that takes the unicycle at `pose` (x, y, heading, speed; world) to the first pose of
-    `trajectory` [N, 3] (x, y, heading in the ego frame): the speed and heading that cover the displacement in one
-    step (the unicycle's semi-implicit update moves along the new heading at the new speed), so a trajectory the
-    unicycle can drive is followed exactly; where it stays put, it turns toward the pose's heading."""
-    dx, dy, heading = (float(v) for v in trajectory[0])
-    distance = math.hypot(dx, dy)
-    speed = distance / STEP_SECONDS
-    turn = math.atan2(dy, dx) if distance > 1e-3 else heading
-    accel = (speed - float(pose[3])) / STEP_SECONDS
-    return np.array([accel, float(wrap_angle(turn)) / STEP_SECONDS], np.float64)
+    """The control (acceleration, yaw rate) that follows `trajectory` [N, 3] (x, y, heading in the ego frame, poses
+    every 0.1 s from the next step) from the unicycle at `pose` (x, y, heading, speed; world), over the whole horizon:
+
+    - the acceleration is the least-squares fit of the poses' distances along the trajectory by the unicycle held at
+      one acceleration (its semi-implicit update: after k steps it has covered k v dt + a dt^2 k (k + 1) / 2), so a
+      profile of constant acceleration is followed exactly and later poses weigh in;
+    - the yaw rate is pure pursuit of the pose `LOOKAHEAD_S` (at least `LOOKAHEAD_MIN_M`) ahead, pose k: the unicycle
+      held at yaw rate w reaches it along a chord at (k + 1) w dt / 2 to its heading, so w = 2 atan2(y, x) /
+      ((k + 1) dt), exact for arcs the unicycle drives and steering back onto a trajectory it is beside; where the
+      trajectory stays within a few centimetres, the ego turns toward its last pose's heading.
+
+    The unicycle's bounds clip both (`step_unicycle`)."""
+    poses = np.asarray(trajectory, np.float64)
+    v, dt = float(pose[3]), STEP_SECONDS
+    k = np.arange(1, len(poses) + 1, dtype=np.float64)
+    along = np.cumsum(np.hypot(*np.diff(np.vstack([np.zeros(2), poses[:, :2]]), axis=0).T))
+    gain = dt * dt * k * (k + 1) / 2
+    accel = float(gain @ (along - k * v * dt) / (gain @ gain))
+    speed = max(v + accel * dt, 0.0)
+    distance = np.hypot(poses[:, 0], poses[:, 1])
+    if along[-1] < 0.05:  # standing: turn toward the last pose's heading over the horizon
+        return np.array([accel, float(wrap_angle(poses[-1, 2])) / (len(poses) * dt)], np.float64)
+    reach = max(LOOKAHEAD_S * speed, LOOKAHEAD_MIN_M)
+    ahead = np.flatnonzero(distance >= reach)
+    at = int(ahead[0]) if ahead.size else len(poses) - 1
+    x, y = poses[at, :2]
+    return np.array([accel, 2.0 * math.atan2(y, x) / ((at + 2) * dt)], np.float64)
