@@ -61,6 +61,9 @@ class BehaviourSpec:
     exact: bool = False
     """Whether a typed prompt's pair behaviour is judged by `subtype` itself, not by any subtype of its type (a cut-in
     is one kind of lane change toward another agent; `PromptReading.followed`)."""
+    conditioned_as_lane_change: bool = False
+    """Whether the model, which never saw this kind in training, is conditioned on the sentence of the lane change
+    its target makes instead of the typed words (`sim.prompts.PromptSteering.sentences`)."""
 
     @property
     def is_pair(self) -> bool:
@@ -169,6 +172,7 @@ BEHAVIOURS: Mapping[Behaviour, BehaviourSpec] = {
             interaction=InteractionType.LANE_CHANGE,
             subtype="lane_change/cut_in",
             exact=True,
+            conditioned_as_lane_change=True,
         ),
     )
 }

@@ -125,8 +125,9 @@ class CandidatePlanning:
             map_arrays = sample_map(scenario, world.driven, state.origin, state.data)
         sample = scene_sample(scenario, state.data, agents=world.driven, origin=state.origin, map_arrays=map_arrays)
         if self.prompt is not None and self.request.levers.text:
-            for slot, sentence in self.prompt.sentences(sample["agent_id"][: len(world.driven)].tolist()).items():
-                sample["text"][slot] = sentence
+            ids = sample["agent_id"][: len(world.driven)].tolist()
+            for slot, sentence in self.prompt.sentences(ids).items():
+                sample["text"][slot] = state.prompt.steering.sentences.get(int(ids[slot]), sentence)
             sample["interaction_labelled"] = np.bool_(self.prompt.subtype is not None)
         return sample
 

@@ -9,7 +9,7 @@ simulation: each behaviour's target and the criteria selection judges by (`promp
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -153,6 +153,9 @@ class PromptSteering:
     notes: tuple[str, ...] = ()
     targets: tuple[BehaviourTarget, ...] = ()
     warnings: tuple[str, ...] = ()
+    sentences: dict[int, str] = field(default_factory=dict)
+    """Track id -> the sentence the model is conditioned on in place of the typed words, for a read behaviour it never
+    saw in training (a cut-in: the lane change its target makes, `BehaviourSpec.conditioned_as_lane_change`)."""
 
     @property
     def kerb_slots(self) -> tuple[int, ...]:
@@ -192,6 +195,7 @@ def prompt_steering(
     readings = tuple(readings)
     index = index if index is not None else MapIndex.build(scenario.road_map)
     steerings, asks, notes, targets, warnings = [], [], [], [], []
+    sentences: dict[int, str] = {}
     asked = {r.agent for r in readings if r.read}
     for reading in readings:
         verdict = _verdict(scenario, reading, index)
@@ -222,6 +226,10 @@ def prompt_steering(
             else:
                 targets.append(target)
                 steerings.append(Steering.of(target, origin, slots))
+                if levers.text and BEHAVIOURS[target.behaviour].conditioned_as_lane_change and target.side:
+                    change = Behaviour.LANE_CHANGE_LEFT if target.side == "left" else Behaviour.LANE_CHANGE_RIGHT
+                    sentences[target.track_id] = BEHAVIOURS[change].text(target.track_id)
+                    used.append(f"the model conditioned on {sentences[target.track_id]!r}")
                 if steered is not verdict:
                     used.append(f"no target for it ({verdict.reason}), so its {target.behaviour.value} alone")
                 used.append(f"guidance toward {target.reason}")
@@ -235,7 +243,9 @@ def prompt_steering(
             asks.append(ask)
             used.append("adherence-first selection")
         notes.append(f"{reading.describe()}; steered by {', '.join(used) or 'nothing'}")
-    return PromptSteering(readings, tuple(steerings), tuple(asks), tuple(notes), tuple(targets), tuple(warnings))
+    return PromptSteering(
+        readings, tuple(steerings), tuple(asks), tuple(notes), tuple(targets), tuple(warnings), sentences
+    )
 
 
 _OPPOSITE = {Behaviour.YIELD: Behaviour.GO_FIRST, Behaviour.GO_FIRST: Behaviour.YIELD}

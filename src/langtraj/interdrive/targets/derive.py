@@ -114,6 +114,8 @@ class BehaviourTarget:
     other_eta: float | None = None
     current_speed: float = 0.0
     other_speed: float | None = None
+    side: Side | None = None
+    """The side it moves across to (a lane change, a cut-in), where there is one."""
 
     @property
     def stop(self) -> bool:
@@ -380,6 +382,7 @@ def _cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: float) -> Beh
         other_id=other.track_id,
         current_speed=v,
         other_speed=v_other,
+        side=side,  # type: ignore[arg-type]
     )
 
 
@@ -462,6 +465,7 @@ def _lane_change(ctx: TargetContext, agent: _Agent, behaviour: Behaviour, side: 
             np.concatenate([lead_in[:-1], path]),
             f"the lane on its {side}, from {point.distance:.0f} m ahead",
             current_speed=agent.here.speed,
+            side=side,
         )
     reason = f"no lane on its {side} along its road (within {agent.search:.0f} m)"
     if cramped:
