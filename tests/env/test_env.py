@@ -98,6 +98,8 @@ def test_a_trajectory_action_is_tracked_over_its_horizon_and_a_bad_action_fails_
 
 
 def test_bad_episodes_are_refused():
+    with pytest.raises(InputError, match="lights: must be one of log, held, got 'frozen'"):
+        LangTrajEnv(follower_scene(), lights="frozen")
     with pytest.raises(InputError, match="no agent @99"):
         LangTrajEnv(follower_scene(), ego=99).reset(seed=0)
     with pytest.raises(InputError, match="asks something of the ego"):

@@ -36,6 +36,13 @@ class Criteria:
         checked).
     min_progress: fail when the ego's final progress, as a fraction of the logged ego's progress over the episode,
         stays below this (null: not checked).
+    no_red_light: fail when the ego crosses the stop point of a lane whose light shows stop (nuPlan's and WOSAC's
+        traffic-light compliance).
+    no_wrong_way: fail when the ego drives against its lane (nuPlan's driving-direction compliance).
+    max_over_speed_limit: fail when the ego's speed exceeds its route's speed limit by more than this (m/s; null:
+        not checked; nuPlan's speed-limit compliance).
+    comfortable: fail when the ego's acceleration, jerk, yaw rate or lateral acceleration leave nuPlan's comfort
+        bounds (`suites.verdict.COMFORT_BOUNDS`).
     terminate_on_collision: end the episode at the ego's first collision (the verdict is then known).
     """
 
@@ -44,6 +51,10 @@ class Criteria:
     no_offroad: bool = True
     min_ttc: float | None = None
     min_progress: float | None = None
+    no_red_light: bool = False
+    no_wrong_way: bool = False
+    max_over_speed_limit: float | None = None
+    comfortable: bool = False
     terminate_on_collision: bool = True
 
 

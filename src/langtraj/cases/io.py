@@ -190,7 +190,7 @@ def _criteria(value: Any, where: str, case: Case, paths: dict) -> Criteria:
         return value
     require(isinstance(value, Mapping), where, f"expected a mapping, got {type(value).__name__}")
     criteria = build_dataclass(Criteria, {**dataclasses.asdict(case.criteria), **value}, where)
-    for key in ("min_ttc", "min_progress"):
+    for key in ("min_ttc", "min_progress", "max_over_speed_limit"):
         number = getattr(criteria, key)
         require(number is None or number >= 0, f"{where}.{key}", f"must be >= 0, got {number}")
     return criteria

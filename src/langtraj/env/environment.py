@@ -27,6 +27,7 @@ from langtraj.env.events import EventJudge
 from langtraj.env.observe import MapPieces, Observer
 from langtraj.env.reward import RewardConfig
 from langtraj.env.route import ego_route
+from langtraj.env.rules import LIGHT_MODES, RuleJudge
 from langtraj.errors import InputError
 from langtraj.metrics.road import RoadEdgeIndex, road_edge_index
 from langtraj.model.config import ModelConfig
@@ -106,12 +107,16 @@ class LangTrajEnv(gym.Env):
         render_mode: str | None = None,
         simulation: dict[str, Any] | None = None,
         device: str | None = None,
+        lights: str = "log",
     ):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise InputError(
                 f"must be one of {self.metadata['render_modes']} or None, got {render_mode!r}", where="render_mode"
             )
         POLICIES.get(policy, where="policy")
+        if lights not in LIGHT_MODES:
+            raise InputError(f"must be one of {', '.join(LIGHT_MODES)}, got {lights!r}", where="lights")
+        self.lights = lights
         given = {
             "scenario": scenario,
             "index": index,
@@ -186,8 +191,9 @@ class LangTrajEnv(gym.Env):
         start = AgentOnLane.of(scenario, ego, scene.index)
         seen = logged[np.isfinite(logged[:, 0]), :2]
         self._route = ego_route(scene.index, start, pose[:2], float(pose[2]), seen)
-        self._observer = Observer(scenario, ego, self._route, scene.pieces)
+        self._observer = Observer(scenario, ego, self._route, scene.pieces, self.lights)
         self._judge = EventJudge(scenario, ego, scene.edges, scene.index)
+        self._rules = RuleJudge(scenario, ego, scene.index, self._route, self.lights)
         self._curvature = ego_curvature(scenario, ego)
         self._control = np.zeros(2)
         obs, station = self._observe()
@@ -226,11 +232,13 @@ class LangTrajEnv(gym.Env):
         pose = self._pose()
         control = self._control_of(action, pose)
         nxt = step_unicycle(pose, control, self._curvature)
+        before = self._frame()[0][self._ego].copy()
         self._control = np.array([nxt[3] - pose[3], wrap_angle(nxt[2] - pose[2])]) / STEP_SECONDS  # as executed
         self._sim.advance(nxt[None, None])
         frame = self._frame()
         obs, station = self._observe(frame)
         events = self._judge.judge(*frame)
+        rules = self._rules.judge(before, frame[0][self._ego], self._sim.step, station)
         gained = station - self._last_station
         self._last_station = station
         reward = self.reward_config.reward(gained, events.collision, events.at_fault, events.offroad)
@@ -251,6 +259,11 @@ class LangTrajEnv(gym.Env):
             "progress_m": progress_m,
             "progress": progress_m / self._reference_m if math.isfinite(self._reference_m) else math.nan,
             "speed": float(nxt[3]),
+            "acceleration": float(self._control[0]),
+            "yaw_rate": float(self._control[1]),
+            "red_light": rules.red_light,
+            "wrong_way": rules.wrong_way,
+            "over_speed_limit": rules.over_limit,
         }
         return obs, float(reward), bool(terminated), bool(self._sim.done), info
 
@@ -330,7 +343,7 @@ class LangTrajEnv(gym.Env):
         elapsed = (step - world.start) * STEP_SECONDS
         first = max(step - spaces.HISTORY_STEPS, 0)
         history = world.states[0, :, first:step], world.valid[0, :, first:step]  # the log's history, then played
-        return self._observer.observe(states, valid, elapsed, self._control, history)
+        return self._observer.observe(states, valid, elapsed, self._control, history, step)
 
     def _control_of(self, action: Any, pose: np.ndarray) -> np.ndarray:
         try:

@@ -2,9 +2,9 @@
 nearest agents, the map and the traffic lights around it, in the fixed shapes of `env.spaces`.
 
 The map is cut once per episode into pieces of `POLYLINE_POINTS` points as the model's map is cut
-(`model.features.feature_pieces`), so each step only picks the nearest pieces. Traffic lights keep their state at
-the start of the episode (the log's later states are its future, which nothing simulated reads,
-docs/simulation.md)."""
+(`model.features.feature_pieces`), so each step only picks the nearest pieces. Traffic lights are those of the step,
+replayed from the log as Waymax and nuPlan replay them (`lights="log"`, the default: a signal is the environment's,
+not an agent's future), or held at their state at the start (`lights="held"`; `env.rules.LIGHT_MODES`)."""
 
 from __future__ import annotations
 
@@ -54,19 +54,18 @@ class MapPieces:
 class Observer:
     """Builds the observation of the ego (scenario row `ego`) from the world's states at a step."""
 
-    def __init__(self, scenario: Scenario, ego: int, route: Route, pieces: MapPieces | None = None):
+    def __init__(
+        self, scenario: Scenario, ego: int, route: Route, pieces: MapPieces | None = None, lights: str = "log"
+    ):
         self.ego = ego
         self.route = route
         self.pieces = MapPieces.of(scenario) if pieces is None else pieces
         self.ids = scenario.agents.ids.astype(np.int64)
         self.types = scenario.agents.types.astype(np.int64)
-        lights = scenario.traffic_lights
-        if lights is None or not len(lights.lane_ids):
-            self.light_points, self.light_states = np.zeros((0, 2)), np.zeros(0, np.int64)
-        else:
-            states, keep = lights.held_at(scenario.current_index)
-            self.light_points = np.asarray(lights.stop_points[keep, :2], np.float64)
-            self.light_states = states[keep].astype(np.int64)
+        self.start, self.replay = scenario.current_index, lights == "log"
+        self.lights = scenario.traffic_lights if scenario.traffic_lights is not None else None
+        if self.lights is not None and not len(self.lights.lane_ids):
+            self.lights = None
 
     def observe(
         self,
@@ -75,6 +74,7 @@ class Observer:
         time: float,
         control: np.ndarray,
         history: tuple[np.ndarray, np.ndarray] | None = None,
+        step: int | None = None,
     ) -> tuple[dict[str, np.ndarray], float]:
         """The observation from every agent's state [A, 9] and validity [A] at one step, the time since the start,
         the control the ego executed last and `history`, every agent's states [A, H, 9] and validity [A, H] at the
@@ -98,7 +98,7 @@ class Observer:
         }
         obs |= self._agents(states, valid, pose, history)
         obs |= self._map(pose)
-        obs |= self._lights(pose)
+        obs |= self._lights(pose, self.start if step is None or not self.replay else step)
         return obs, station
 
     def _agents(
@@ -159,16 +159,21 @@ class Observer:
         out["map_valid"][:m] = mask
         return out
 
-    def _lights(self, pose: np.ndarray) -> dict[str, np.ndarray]:
+    def _lights(self, pose: np.ndarray, step: int) -> dict[str, np.ndarray]:
+        """The nearest lights and their states at `step` (`TrafficLights.held_at`: never past it)."""
         k = spaces.NUM_LIGHTS
         out = {"lights": np.zeros((k, 2), np.float32), "lights_state": np.zeros(k, np.int64)}
         out["lights_valid"] = np.zeros(k, np.int8)
-        if not len(self.light_states):
+        if self.lights is None:
             return out
-        dist = np.hypot(*(self.light_points - pose[:2]).T)
+        states, keep = self.lights.held_at(step)
+        points, states = np.asarray(self.lights.stop_points[keep, :2], np.float64), states[keep].astype(np.int64)
+        if not len(states):
+            return out
+        dist = np.hypot(*(points - pose[:2]).T)
         order = np.argsort(dist, kind="stable")[:k]
         order = order[dist[order] <= spaces.MAP_RADIUS_M]
-        out["lights"][: len(order)] = to_ego_frame(self.light_points[order], pose)
-        out["lights_state"][: len(order)] = self.light_states[order]
+        out["lights"][: len(order)] = to_ego_frame(points[order], pose)
+        out["lights_state"][: len(order)] = states[order]
         out["lights_valid"][: len(order)] = 1
         return out

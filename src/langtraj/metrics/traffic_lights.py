@@ -15,7 +15,8 @@ import numpy as np
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import MapFeatureType, TrafficLightState
 
-_STOP = (TrafficLightState.STOP, TrafficLightState.ARROW_STOP)
+STOP_STATES = (TrafficLightState.STOP, TrafficLightState.ARROW_STOP)
+"""The signal states that stop a lane's traffic (red, and a red arrow)."""
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,7 @@ class SignalLanes:
         for i, feature in enumerate(lanes):
             points[i, : len(feature.points)] = feature.points[:, :2]
             point_valid[i, : len(feature.points)] = True
-        is_stop = np.isin(lights.states, [int(s) for s in _STOP]) & lights.valid
+        is_stop = np.isin(lights.states, [int(s) for s in STOP_STATES]) & lights.valid
         return cls(
             np.array([f.id for f in lanes], np.int64),
             points,

@@ -3,14 +3,31 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 from typing import Any
 
 from langtraj.cases import Criteria
 
-STEP_KEYS = ("collision", "at_fault", "offroad", "ttc", "min_distance", "progress", "progress_m", "speed")
+STEP_KEYS = (
+    "collision", "at_fault", "offroad", "ttc", "min_distance", "progress", "progress_m", "speed", "acceleration",
+    "yaw_rate", "red_light", "wrong_way", "over_speed_limit",
+)  # fmt: skip
 """The env's step-info figures recorded at every step (`collided_with` and `collisions` are kept too)."""
+_RULE_FLAGS = ("red_light", "wrong_way")
+"""Flags an env may not report (None where missing: a criterion on them then says it was not measured)."""
+_FIGURES = ("ttc", "min_distance", "progress", "progress_m", "speed", "acceleration", "yaw_rate", "over_speed_limit")
+
+COMFORT_BOUNDS = {
+    "min_acceleration": -4.05,
+    "max_acceleration": 2.40,
+    "max_abs_jerk": 4.13,
+    "max_abs_yaw_rate": 0.95,
+    "max_abs_lateral_acceleration": 4.89,
+}
+"""nuPlan's `ego_is_comfortable` bounds (m/s^2, m/s^3, rad/s); here on the executed controls, without nuPlan's
+smoothing: the jerk is the change of acceleration between successive 0.1-s steps."""
 
 
 @dataclass
@@ -25,6 +42,11 @@ class StepRecord:
     progress: list[float | None] = field(default_factory=list)
     progress_m: list[float | None] = field(default_factory=list)
     speed: list[float | None] = field(default_factory=list)
+    acceleration: list[float | None] = field(default_factory=list)
+    yaw_rate: list[float | None] = field(default_factory=list)
+    red_light: list[bool | None] = field(default_factory=list)
+    wrong_way: list[bool | None] = field(default_factory=list)
+    over_speed_limit: list[float | None] = field(default_factory=list)
     collided_with: list[list[int]] = field(default_factory=list)
     collisions: list[list[dict[str, Any]]] = field(default_factory=list)
 
@@ -33,7 +55,9 @@ class StepRecord:
         missing or non-finite figure is recorded as None."""
         for key in ("collision", "at_fault", "offroad"):
             getattr(self, key).append(bool(info[key]))
-        for key in ("ttc", "min_distance", "progress", "progress_m", "speed"):
+        for key in _RULE_FLAGS:
+            getattr(self, key).append(None if info.get(key) is None else bool(info[key]))
+        for key in _FIGURES:
             getattr(self, key).append(_number(info.get(key)))
         self.collided_with.append([int(i) for i in info.get("collided_with", ()) or ()])
         self.collisions.append([dict(c) for c in info.get("collisions", ()) or ()])
@@ -106,7 +130,48 @@ def episode_figures(record: StepRecord) -> dict[str, Any]:
         "final_progress_m": _rounded(record.progress_m[-1] if record.progress_m else None),
         "mean_speed": _rounded(sum(speeds) / len(speeds) if speeds else None),
         "max_speed": _rounded(max(speeds, default=None)),
+        **_rule_figures(record),
+        **comfort_figures(record),
     }
+
+
+def _rule_figures(record: StepRecord) -> dict[str, Any]:
+    """Red lights, driving direction and speed limit (None where the env did not report them)."""
+    out: dict[str, Any] = {}
+    for key in _RULE_FLAGS:
+        flags = getattr(record, key)
+        known = [f for f in flags if f is not None]
+        out[f"first_{key}_step"] = _first([bool(f) for f in flags]) if known else None
+        out[f"{key}_steps"] = sum(known) if known else None
+    over = [v for v in record.over_speed_limit if v is not None]
+    out["max_over_speed_limit"] = _rounded(max(over, default=None))
+    return out
+
+
+def comfort_figures(record: StepRecord) -> dict[str, Any]:
+    """The extremes of the ego's executed acceleration, jerk, yaw rate and lateral acceleration, and whether all lie
+    within `COMFORT_BOUNDS` (`comfortable`; None without steps)."""
+    accel = [a for a in record.acceleration if a is not None]
+    yaw = [w for w in record.yaw_rate if w is not None]
+    lateral = [
+        abs(w * v) for w, v in zip(record.yaw_rate, record.speed, strict=True) if w is not None and v is not None
+    ]
+    jerk = [abs(b - a) / 0.1 for a, b in itertools.pairwise(accel)]
+    out = {
+        "min_acceleration": min(accel, default=None),
+        "max_acceleration": max(accel, default=None),
+        "max_abs_jerk": max(jerk, default=None),
+        "max_abs_yaw_rate": max((abs(w) for w in yaw), default=None),
+        "max_abs_lateral_acceleration": max(lateral, default=None),
+    }
+    if not accel:
+        return {k: None for k in out} | {"comfortable": None}
+    within = all(
+        value is None or (value >= bound if key.startswith("min_") else value <= bound)
+        for key, bound in COMFORT_BOUNDS.items()
+        for value in [out[key]]
+    )
+    return {k: _rounded(v) for k, v in out.items()} | {"comfortable": within}
 
 
 @dataclass(frozen=True)
@@ -164,4 +229,26 @@ def judge(criteria: Criteria, figures: dict[str, Any]) -> list[CriterionResult]:
         else:
             reason = f"progress {value:.2f} < {criteria.min_progress:g} of the logged ego's"
         results.append(CriterionResult("min_progress", passed, value, criteria.min_progress, reason))
+    for key, words in (("red_light", "ran a red light"), ("wrong_way", "drove against its lane")):
+        if getattr(criteria, f"no_{key}"):
+            steps, first = figures[f"{key}_steps"], figures[f"first_{key}_step"]
+            if steps is None:
+                reason = f"{key.replace('_', ' ')} not measured (the env did not report it)"
+            else:
+                reason = f"{words} at step {first} ({steps} steps in all)" if first else None
+            results.append(CriterionResult(f"no_{key}", steps == 0, steps, reason=reason))
+    if criteria.max_over_speed_limit is not None:
+        value, limit = figures["max_over_speed_limit"], criteria.max_over_speed_limit
+        passed = value is None or value <= limit  # no limit known along the way: nothing to break
+        reason = None if passed else f"{value:.1f} m/s over the speed limit (allowed {limit:g})"
+        results.append(CriterionResult("max_over_speed_limit", passed, value, limit, reason))
+    if criteria.comfortable:
+        passed = figures["comfortable"] is True
+        outside = [
+            f"{key} {figures[key]:g} (bound {bound:g})"
+            for key, bound in COMFORT_BOUNDS.items()
+            if figures[key] is not None and (figures[key] < bound if key.startswith("min_") else figures[key] > bound)
+        ]
+        reason = None if passed else ("uncomfortable: " + ", ".join(outside) if outside else "comfort not measured")
+        results.append(CriterionResult("comfortable", passed, figures["comfortable"], reason=reason))
     return results

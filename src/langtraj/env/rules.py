@@ -1,0 +1,83 @@
+"""The ego against the rules of the road at one step, after nuPlan's closed-loop metrics (docs/testing.md, 'What an
+episode measures'): whether it ran a red light (crossed the stop point of a lane whose signal shows stop, as the
+WOSAC metric defines it, `metrics.traffic_lights`), whether it drives against its lane, and how far it is over the
+speed limit of its route. The lights are those of the step: replayed from the log, or held at the start
+(`LIGHT_MODES`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from langtraj.angles import wrap_angle
+from langtraj.env.route import Route
+from langtraj.metrics.traffic_lights import STOP_STATES, SignalLanes, red_light_violations
+from langtraj.roads import MapIndex
+from langtraj.roads.position import LANE_MATCH_RADIUS
+from langtraj.scenario.model import Scenario
+from langtraj.scenario.types import StateField
+
+LIGHT_MODES = ("log", "held")
+"""`log`: each step's lights as the log has them (up to that step), as Waymax and nuPlan replay them; `held`: the
+lights at the start, frozen."""
+WRONG_WAY_ANGLE = math.radians(150.0)
+"""Driving at more than this to the lane it is on, with no lane within reach running its way, is driving against it."""
+WRONG_WAY_MIN_SPEED = 1.0
+"""Below this (m/s) the ego is turning or standing, not driving against its lane."""
+
+
+@dataclass(frozen=True)
+class RuleEvents:
+    """The ego at one step: `red_light` it crossed a red light's stop point since the last step; `wrong_way` it
+    drives against its lane; `over_limit` its speed above the route's speed limit here (m/s; None: no limit known,
+    0 at or under it)."""
+
+    red_light: bool
+    wrong_way: bool
+    over_limit: float | None
+
+
+class RuleJudge:
+    """Judges the ego (scenario row `ego`) of `scenario` on its map (`index`) and `route`, with the lights of each
+    step replayed from the log or held at the start (`lights`, one of `LIGHT_MODES`)."""
+
+    def __init__(self, scenario: Scenario, ego: int, index: MapIndex, route: Route, lights: str = "log"):
+        self.ego, self.index, self.route, self.lights = ego, index, route, lights
+        self.start = scenario.current_index
+        self._log = scenario.traffic_lights
+        self.signals = SignalLanes.from_scenario(scenario) if self._log is not None else None
+
+    def stop_at(self, step: int) -> np.ndarray:
+        """bool [S]: which signals show stop at `step` (under `held`, at the start); never reads past `step`."""
+        assert self._log is not None
+        states, seen = self._log.held_at(step if self.lights == "log" else self.start)
+        return seen & np.isin(states, [int(s) for s in STOP_STATES])
+
+    def judge(self, before: np.ndarray, now: np.ndarray, step: int, station: float) -> RuleEvents:
+        """The ego's state before [9] and now [9] (at `step` of the scenario), at `station` along its route."""
+        red = False
+        if self.signals is not None:
+            stop = self.stop_at(step)
+            if stop.any():
+                signals = replace(self.signals, signal_is_stop=np.stack([stop, stop]))
+                x = np.array([before[StateField.X], now[StateField.X]], np.float64)
+                y = np.array([before[StateField.Y], now[StateField.Y]], np.float64)
+                red = bool(red_light_violations(signals, x, y, np.ones(2, bool))[1])
+        speed = float(np.hypot(now[StateField.VX], now[StateField.VY]))
+        _, on_route, limits = self.route.ahead(station, 1, 1.0)
+        limit = float(limits[0]) if on_route[0] else math.nan
+        over = None if not math.isfinite(limit) else max(speed - limit, 0.0)
+        return RuleEvents(red, self._wrong_way(now, speed), over)
+
+    def _wrong_way(self, state: np.ndarray, speed: float) -> bool:
+        if speed < WRONG_WAY_MIN_SPEED or not self.index.has_lanes:
+            return False
+        xy = state[[StateField.X, StateField.Y]].astype(np.float64)
+        heading = np.array([state[StateField.HEADING]], np.float64)
+        nearest = self.index.match_lanes(xy, radius=LANE_MATCH_RADIUS, exclude_junctions=True)
+        if nearest.lane[0] < 0 or abs(float(wrap_angle(heading[0] - nearest.heading[0]))) < WRONG_WAY_ANGLE:
+            return False
+        ours = self.index.match_lanes(xy, heading, radius=LANE_MATCH_RADIUS, max_heading_diff=math.pi / 2)
+        return bool(ours.lane[0] < 0)
