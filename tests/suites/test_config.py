@@ -12,6 +12,7 @@ from langtraj.cases import Criteria
 from langtraj.errors import InputError
 from langtraj.suites import load_suite
 from langtraj.suites.config import real_data_folder
+from suites.conftest import write_suite
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -158,3 +159,34 @@ def test_a_case_names_a_window_of_a_longer_scene(tmp_path):
         load_suite(_suite(tmp_path, "name: s\ncases:\n  - {name: a, scenario: scene.tfrecord}\n")).cases[0].window
         is None
     )
+
+
+def test_a_sweep_expands_a_case_into_one_per_combination_of_its_parameters(tmp_path):
+    (tmp_path / "scene.pkl").write_bytes(b"x")
+    path = write_suite(
+        tmp_path,
+        [
+            {
+                "name": "cut-in",
+                "scenario": "scene.pkl",
+                "prompts": ["@52 cuts in front of @ego with a ${gap_m} m gap"],
+                "criteria": {"min_ttc": "${ttc}"},
+                "sweep": {"gap_m": [5, 10], "ttc": [1.0, 1.5]},
+            },
+            {"name": "plain", "scenario": "scene.pkl"},
+        ],
+    )
+    cases = load_suite(path).cases
+    assert [c.name for c in cases] == [
+        "cut-in.gap_m-5.ttc-1.0", "cut-in.gap_m-5.ttc-1.5", "cut-in.gap_m-10.ttc-1.0", "cut-in.gap_m-10.ttc-1.5",
+        "plain",
+    ]  # fmt: skip
+    assert cases[2].prompts == ("@52 cuts in front of @ego with a 10 m gap",) and cases[3].criteria.min_ttc == 1.5
+    for sweep, message in (
+        ({"gap_m": []}, "cases[0].sweep.gap_m: expected a non-empty list"),
+        ({"gap-m": [1]}, "cases[0].sweep.gap-m: expected a parameter name"),
+        ({"gap_m": [5, 5]}, "cases[0].sweep.gap_m: the same value twice"),
+    ):
+        bad = write_suite(tmp_path, [{"name": "c", "scenario": "scene.pkl", "sweep": sweep}])
+        with pytest.raises(InputError, match=re.escape(message)):
+            load_suite(bad)

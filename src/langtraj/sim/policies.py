@@ -301,7 +301,10 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         constraints: HardConstraints | None = None,
         rollout_batch: int = 0,
         max_grad_norm: float | None = 0.5,
+        typed: bool | None = None,
     ):
+        """`typed`: whether the prompts' texts are typed, so read strictly (`sim.prompts.read_prompts`); by default
+        they are unless `prompt` is a dataset's labelled entry."""
         request = resolved(request or SimRequest())
         terms = (*terms, *scene_wide_terms(request.guidance))
         if constraints is None:
@@ -326,7 +329,8 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         self.prompt = prompt
         self.prompt_texts = request.prompts or ((prompt.text,) if prompt else ())
         # Each prompt read once, clause by clause (`sim.prompts`); a dataset prompt's sentence is never refused.
-        self.readings = read_prompts(self.prompt_texts, strict=prompt is None or not _labelled(prompt))
+        strict = typed if typed is not None else prompt is None or not _labelled(prompt)
+        self.readings = read_prompts(self.prompt_texts, strict=strict)
         self.terms = terms
         self.free = tuple(int(slot) for slot in free)
         self.checkpoint = checkpoint
@@ -543,8 +547,9 @@ class GuidanceBaselinePolicy(LangTrajPolicy):
                 where="levers",
             )
         # The model runs without the prompt entry (no text; `labelled` keeps it); its text is what the reader reads.
+        typed = bool(request.prompts) or not _labelled(prompt)
         request = replace(request, prompts=request.prompts or (prompt.text,))
-        super().__init__(model, data, request, **kwargs)
+        super().__init__(model, data, request, typed=typed, **kwargs)
         if not any(reading.read for reading in self.readings) and not _labelled(prompt):
             raise InputError(
                 "the guidance baseline needs a prompt whose behaviour it can read, or a labelled one (an InterDrive "

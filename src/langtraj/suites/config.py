@@ -20,6 +20,10 @@ cases:
     target: ego                  # a track id or `ego`
     seeds: [0, 3]
     criteria: {no_collision: true}
+  - name: cut-in                 # a parameter sweep: one case per value, named cut-in.gap_m-5, ...
+    scenario: scenes/synth-onramp.tfrecord.zst
+    prompts: ["@52 cuts in front of @ego with a ${gap_m} m gap"]
+    sweep: {gap_m: [5, 10, 15]}  # several parameters: every combination
 ```
 
 Scenario and checkpoint paths are relative to the suite file's folder (or absolute); `${NAME}` is replaced by the
@@ -27,13 +31,17 @@ environment variable NAME; `${LANGTRAJ_REAL_DATA}` is the folder `load_suite` is
 else the variable, else `../shared/data/real` under the working directory (where the README's commands run). In
 prompts, `@adv` is the case's adversary and `@ego` the ego's track id (the env replaces it at reset, when the ego is
 known). A case is a `langtraj.cases.Case`, read by `read_case` (every key a `Case` has; `defaults` holds those of
-`DEFAULT_KEYS`).
+`DEFAULT_KEYS`). A case's `sweep` maps parameter names to lists of values, as OpenSCENARIO's parameter sets do: the
+case is expanded into one case per combination, `${NAME}` replaced by the value in every text of the case (a text
+that is only `${NAME}` takes the value itself, a number staying a number).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -92,6 +100,46 @@ def real_data_folder(given: str | Path | None = None) -> Path:
     return (Path.cwd() / DEFAULT_REAL_DATA).resolve()
 
 
+_PARAMETER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def swept(raw: Any, where: str) -> list[Any]:
+    """The cases a suite case stands for: itself, or with a `sweep` one per combination of its parameters' values,
+    named `NAME.PARAM-VALUE...` (see the module docstring)."""
+    if not isinstance(raw, dict) or "sweep" not in raw:
+        return [raw]
+    sweep, case = raw["sweep"], {k: v for k, v in raw.items() if k != "sweep"}
+    require(isinstance(sweep, dict) and bool(sweep), f"{where}.sweep", "expected a mapping of parameters to values")
+    for name, values in sweep.items():
+        at = f"{where}.sweep.{name}"
+        require(isinstance(name, str) and bool(_PARAMETER.fullmatch(name)), at, "expected a parameter name")
+        ok = isinstance(values, list) and bool(values) and all(isinstance(v, int | float | str) for v in values)
+        require(ok, at, f"expected a non-empty list of numbers or texts, got {values!r}")
+        require(len(set(map(str, values))) == len(values), at, "the same value twice")
+    out = []
+    for combination in itertools.product(*sweep.values()):
+        given = dict(zip(sweep, combination, strict=True))
+        one = _substituted(case, given)
+        if isinstance(one.get("name"), str):
+            one["name"] += "".join(f".{k}-{v}" for k, v in given.items())
+        out.append(one)
+    return out
+
+
+def _substituted(value: Any, given: dict[str, Any]) -> Any:
+    """`value` with `${NAME}` replaced by `given[NAME]` in every text (a whole `${NAME}` by the value itself)."""
+    if isinstance(value, dict):
+        return {k: _substituted(v, given) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_substituted(v, given) for v in value]
+    if isinstance(value, str):
+        whole = re.fullmatch(r"\$\{(\w+)\}", value)
+        if whole and whole.group(1) in given:
+            return given[whole.group(1)]
+        return re.sub(r"\$\{(\w+)\}", lambda m: str(given.get(m.group(1), m.group(0))), value)
+    return value
+
+
 def _parse_suite(data: dict[str, Any], path: Path, variables: dict[str, str]) -> Suite:
     unknown = sorted(set(data) - {"name", "defaults", "cases"})
     require(not unknown, "", f"unknown keys {', '.join(map(str, unknown))}; known: name, defaults, cases")
@@ -104,8 +152,9 @@ def _parse_suite(data: dict[str, Any], path: Path, variables: dict[str, str]) ->
     raw_cases = data.get("cases")
     require(isinstance(raw_cases, list) and bool(raw_cases), "cases", "expected a non-empty list of cases")
     cases = [
-        read_case(raw, where=f"cases[{i}]", defaults=defaults, required=("name", "scenario"), **paths)
+        read_case(one, where=f"cases[{i}]", defaults=defaults, required=("name", "scenario"), **paths)
         for i, raw in enumerate(raw_cases)
+        for one in swept(raw, f"cases[{i}]")
     ]
     seen: dict[str, int] = {}
     for i, case in enumerate(cases):
