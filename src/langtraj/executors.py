@@ -19,6 +19,9 @@ from typing import Any, ClassVar
 from langtraj.errors import LangTrajError
 from langtraj.registry import Registry
 
+OnLost = Callable[[Any, BaseException], Any] | None
+"""What an item whose worker died yields instead of its result (`ShardExecutor.map`)."""
+
 
 class ShardExecutor(ABC):
     """Runs `fn` over `items` with at most `workers` at a time; yields results in completion order. Where an engine
@@ -33,7 +36,7 @@ class ShardExecutor(ABC):
         fn: Callable[[Any], Any],
         items: Sequence[Any],
         workers: int,
-        on_lost: Callable[[Any, BaseException], Any] | None = None,
+        on_lost: OnLost = None,
     ) -> Iterator[Any]: ...
 
 
@@ -51,7 +54,7 @@ class ProcessExecutor(ShardExecutor):
         fn: Callable[[Any], Any],
         items: Sequence[Any],
         workers: int,
-        on_lost: Callable[[Any, BaseException], Any] | None = None,
+        on_lost: OnLost = None,
     ) -> Iterator[Any]:
         """A dead process breaks the whole pool (`BrokenProcessPool`): the error ends the map, whatever `on_lost`."""
         if workers <= 1 or len(items) <= 1:
@@ -83,7 +86,7 @@ class RayExecutor(ShardExecutor):
         fn: Callable[[Any], Any],
         items: Sequence[Any],
         workers: int,
-        on_lost: Callable[[Any, BaseException], Any] | None = None,
+        on_lost: OnLost = None,
     ) -> Iterator[Any]:
         try:
             import ray

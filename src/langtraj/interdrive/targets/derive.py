@@ -370,12 +370,10 @@ def _cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: float) -> Beh
     if speed < 0.0:
         reason = f"it is {lead:.0f} m ahead of @{other.track_id}: too far to cut in {gap:g} m ahead of it"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
-    path = route(index, [lane], level + begin, agent.reach)
-    lead_in = resample(np.stack([agent.xy, path[0]]), ROUTE_SPACING)
     return BehaviourTarget(
         agent.track_id,
         behaviour,
-        np.concatenate([lead_in[:-1], path]),
+        _into_lane(index, agent, lane, level + begin),
         f"@{other.track_id}'s lane on its {side}, {gap:g} m ahead of it, at {speed:.1f} m/s",
         station_of_goal=float(speed * CUT_IN_S),
         speed=float(speed),
@@ -457,12 +455,10 @@ def _lane_change(ctx: TargetContext, agent: _Agent, behaviour: Behaviour, side: 
         if round(point.distance + room - begin, 2) < round(room_needed, 2):  # to the centimetre
             cramped = True  # the lane beside it runs into a junction before a change could settle in it
             continue
-        path = route(index, [lane], station, agent.reach)
-        lead_in = resample(np.stack([agent.xy, path[0]]), ROUTE_SPACING)
         return BehaviourTarget(
             agent.track_id,
             behaviour,
-            np.concatenate([lead_in[:-1], path]),
+            _into_lane(index, agent, lane, station),
             f"the lane on its {side}, from {point.distance:.0f} m ahead",
             current_speed=agent.here.speed,
             side=side,
@@ -471,6 +467,14 @@ def _lane_change(ctx: TargetContext, agent: _Agent, behaviour: Behaviour, side: 
     if cramped:
         reason = f"the lane on its {side} runs into a junction before a change could settle in it"
     raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+
+
+def _into_lane(index: MapIndex, agent: _Agent, lane: int, station: float) -> np.ndarray:
+    """The agent's way into `lane` at `station` (a lane change, a cut-in): a straight lead-in from where it is, then
+    the lane on."""
+    path = route(index, [lane], station, agent.reach)
+    lead_in = resample(np.stack([agent.xy, path[0]]), ROUTE_SPACING)
+    return np.concatenate([lead_in[:-1], path])
 
 
 def _stop(ctx: TargetContext, agent: _Agent) -> BehaviourTarget:
