@@ -114,11 +114,13 @@ def _verdict(scenario: Scenario, reading: PromptReading, index: MapIndex) -> Fea
     return feasibility(scenario, reading.agent, reading.behaviour, index, other_id=reading.other, gap=reading.metres)
 
 
-def _fallback(scenario: Scenario, reading: PromptReading, verdict: Feasibility | None, index: MapIndex) -> Feasibility:
+def _fallback(
+    scenario: Scenario, reading: PromptReading, verdict: Feasibility | None, index: MapIndex
+) -> Feasibility | None:
     """Where the map gives a read behaviour no target, the first kind the prompt also asks for that it allows
     ("pulls over and comes to a stop" where no kerb is in reach: the stop, kept on its own); else `verdict`."""
     if verdict is None or verdict.target is not None or reading.agent is None:
-        return verdict  # type: ignore[return-value]
+        return verdict
     for kind in reading.also:
         kept = feasibility(scenario, reading.agent, kind, index)
         if kept.target is not None:
