@@ -87,7 +87,8 @@ class EventJudge:
         contacts = []
         for row in hit:  # one or two at a step, and only at a contact: nothing cached
             kind = collision_kind(boxes[e], boxes[row], self.index)
-            left_lane = left_its_lane(self.index, boxes[e]) if kind is CollisionKind.LATERAL else None
+            side = kind in (CollisionKind.LATERAL, CollisionKind.CROSSED)
+            left_lane = left_its_lane(self.index, boxes[e]) if side else None
             contacts.append(Contact(int(self.ids[row]), kind, at_fault(kind, left_lane)))
         offroad = False
         if self.edges is not None:

@@ -3,7 +3,9 @@ an ego standing still is never at fault; driving into an agent that stands still
 one ahead in its lane, it is; hit from behind, it is not; a side contact is the fault of whoever left their lane,
 judged on the ego: it is at fault when its box reaches out of the lane it is on (or it is on no lane at all)
 (`left_its_lane`). A contact at the ego's bumper with an agent that is itself out of its lane and coming across toward
-the ego (a cut-in landing on the bumper) is a side contact too; one drifting away is still the ego's to avoid."""
+the ego (a cut-in landing on the bumper) is a side contact too; one drifting away is still the ego's to avoid. Right
+of way, beyond nuPlan: an agent crossing the ego's path that had to give way to it (turning across the road the ego
+keeps, or coming off the road) is not the ego's fault unless the ego left its lane (`CollisionKind.CROSSED`)."""
 
 from __future__ import annotations
 
@@ -28,6 +30,10 @@ LANE_TOLERANCE_M = 0.3
 """How far past its lane's side the ego's box may reach before it counts as out of its lane."""
 CROSSING_SPEED = 0.2
 """An agent moving sideways toward the ego's centreline faster than this (m/s, relative to the ego) comes across."""
+CROSSING_ANGLE = math.radians(45.0)
+"""An agent heading more than this off the ego's heading crosses its path rather than drives ahead of it."""
+TURNING_LANE_ANGLE = math.radians(30.0)
+"""A lane whose heading turns by more than this from its start to its end is a turn (a junction's turning lane)."""
 
 
 class CollisionKind(StrEnum):
@@ -38,6 +44,7 @@ class CollisionKind(StrEnum):
     REAR = "rear"  # the other came from behind: not at fault
     FRONT = "front"  # the ego's front bumper struck it, ahead in its lane: at fault
     LATERAL = "lateral"  # a side contact: at fault when the ego left its lane
+    CROSSED = "crossed"  # it crossed the ego's path owing it the right of way: at fault when the ego left its lane
 
 
 def collision_kind(ego: np.ndarray, other: np.ndarray, index: MapIndex | None = None) -> CollisionKind:
@@ -66,7 +73,41 @@ def collision_kind(ego: np.ndarray, other: np.ndarray, index: MapIndex | None = 
     coming = beside * sideways < 0 and abs(sideways) > CROSSING_SPEED
     if coming and left_its_lane(index, other) and not left_its_lane(index, ego):  # it cut in onto the bumper
         return CollisionKind.LATERAL
+    if gives_way_to_ego(index, ego, other):
+        return CollisionKind.CROSSED
     return CollisionKind.FRONT
+
+
+def gives_way_to_ego(index: MapIndex | None, ego: np.ndarray, other: np.ndarray) -> bool:
+    """Whether the other, crossing the ego's path (heading more than `CROSSING_ANGLE` off the ego's), had to give way
+    to it: the ego keeps its road (on a lane that does not turn) while the other turns across it (on a turning lane)
+    or comes from off the road (on no lane: a driveway, the kerb). Signals and signs are not read (a red light is its
+    own criterion), and two roads crossing straight stay the ego's to avoid, as nuPlan's front collisions."""
+    if index is None or not index.has_lanes:
+        return False
+    if abs(math.remainder(float(other[2]) - float(ego[2]), 2 * math.pi)) <= CROSSING_ANGLE:
+        return False
+    mine = _lane_of(index, ego)
+    if mine is None or _turns(index, mine):
+        return False
+    theirs = _lane_of(index, other)
+    return theirs is None or _turns(index, theirs)
+
+
+def _lane_of(index: MapIndex, box: np.ndarray) -> int | None:
+    """The lane the labelers would put an agent's box on (within 3 m and 45 degrees), or None."""
+    match = index.match_lanes(
+        np.array([[float(box[0]), float(box[1])]]),
+        np.array([float(box[2])]),
+        radius=LANE_MATCH_RADIUS,
+        max_heading_diff=LANE_MATCH_MAX_HEADING,
+    )
+    return int(match.lane[0]) if match.matched[0] else None
+
+
+def _turns(index: MapIndex, lane: int) -> bool:
+    end = index.heading_at(lane, float(index.lane_lengths[lane]))
+    return abs(math.remainder(end - index.heading_at(lane, 0.0), 2 * math.pi)) > TURNING_LANE_ANGLE
 
 
 def left_its_lane(index: MapIndex | None, box: np.ndarray) -> bool | None:
@@ -88,4 +129,4 @@ def at_fault(kind: CollisionKind, left_lane: bool | None) -> bool:
     lanes is not the ego's)."""
     if kind in (CollisionKind.STOPPED_OTHER, CollisionKind.FRONT):
         return True
-    return kind is CollisionKind.LATERAL and bool(left_lane)
+    return kind in (CollisionKind.LATERAL, CollisionKind.CROSSED) and bool(left_lane)
