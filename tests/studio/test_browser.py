@@ -361,6 +361,7 @@ def test_bad_prompts_show_a_message_and_start_no_job(site: Site, browser: Browse
     page.context.close()
 
 
+@pytest.mark.slow  # about 40 s: two real jobs
 def test_two_tabs_each_start_a_job_and_reload_shows_them(site: Site, browser: Browser) -> None:
     key = site.scene_key(SMALL_SCENE_ID)
     scene = site.get(f"/api/scenes/{key}")

@@ -39,6 +39,7 @@ def _wait(client: TestClient, job_id: str, seconds: float = 300) -> dict:
     raise AssertionError(f"job {job_id} did not finish in {seconds} s")
 
 
+@pytest.mark.slow  # about 70 s; the browser test runs a real job through the same API by default
 def test_a_real_job_end_to_end(catalog: Catalog, womd_key: str, tmp_path: Path) -> None:
     app = create_app(StudioConfig((), data=tmp_path), catalog)
     client = TestClient(app)
