@@ -12,7 +12,7 @@ import torch
 from langtraj.errors import InputError
 from langtraj.guidance import GuidanceTerm, NoCollisionCost, RouteCost, StationCost, TargetSpeedCost
 from langtraj.guidance.route import RoutePath
-from langtraj.guidance.steering import ClearOfOthersCost, Steering
+from langtraj.guidance.steering import KEEP_LANE_WEIGHT, ClearOfOthersCost, Steering
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.targets import BehaviourTarget
 
@@ -123,4 +123,32 @@ def test_every_term_toward_a_target_is_weighted_in_the_common_range():
         fields = {"other_id": 2, "other_eta": 3.0, "other_speed": 8.0} if pair else {}
         steering = _steering(behaviour, station_of_goal=30.0, speed=5.0, **fields)
         terms = steering.terms(0, 80)
-        assert terms and all(isinstance(t, GuidanceTerm) and 0 < t.weight <= 4.0 for t in terms), behaviour
+        # a braking lead's lane is held harder (`KEEP_LANE_WEIGHT`): the model, conditioned on a stop, moves aside
+        bound = [
+            KEEP_LANE_WEIGHT if isinstance(t.cost, RouteCost) and behaviour is Behaviour.BRAKE_HARD else 4.0
+            for t in terms
+        ]
+        assert terms and all(
+            isinstance(t, GuidanceTerm) and 0 < t.weight <= b for t, b in zip(terms, bound, strict=True)
+        ), behaviour
+
+
+def test_a_braking_lead_keeps_its_speed_then_stands_from_when_its_braking_brings_it_to_rest_in_its_lane():
+    lead = _steering(Behaviour.BRAKE_HARD, station_of_goal=22.5, speed=0.0, other_id=2, settled_s=3.5, deceleration=4.0)
+    terms = lead.terms(0, 80)
+    speeds = sorted((t.cost.start, t.cost.end, t.cost.speeds) for t in terms if isinstance(t.cost, TargetSpeedCost))
+    assert speeds == [(0, 10, (10.0,)), (34, 80, (0.0,))]  # its speed for the first second; at rest from 3.5 s
+    (hold,) = [t.cost for t in terms if isinstance(t.cost, StationCost)]
+    assert (hold.station, hold.mode) == (22.5, "hold")
+    (lane,) = [t for t in terms if isinstance(t.cost, RouteCost)]
+    assert (lane.cost.start, lane.cost.end) == (0, 80) and lane.weight > 1.0  # in its lane throughout, held hard
+
+
+def test_a_tailgater_reaches_its_station_when_the_target_says_and_keeps_the_others_speed_after():
+    tail = _steering(Behaviour.TAILGATE, station_of_goal=50.0, speed=10.0, other_id=2, other_speed=10.0, settled_s=3.0)
+    stations = sorted(
+        (t.cost.mode, t.cost.start, t.cost.end) for t in tail.terms(0, 80) if isinstance(t.cost, StationCost)
+    )
+    assert stations == [("hold", 0, 30), ("reach", 29, 35)]
+    speed = next(t.cost for t in tail.terms(0, 80) if isinstance(t.cost, TargetSpeedCost))
+    assert (speed.speeds, speed.start) == ((10.0,), 29)

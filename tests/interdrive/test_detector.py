@@ -12,11 +12,13 @@ from langtraj.interdrive.detector import (
     DetectorConfig,
     InteractionRule,
     SceneGeometry,
+    braking_lead_runs,
     cut_in_runs,
     detect_interactions,
     following_runs,
     pair_rows,
     passing_runs,
+    tailgating_runs,
     yielding_runs,
 )
 from langtraj.interdrive.evaluation import TypeCounts, add_counts, macro_f1, match_interactions
@@ -494,3 +496,30 @@ def test_per_agent_quantities_equal_those_of_every_agent_at_once():
         np.testing.assert_array_equal(fresh.paths.leaders_at(a, steps), whole.paths.leaders[a, steps])
         np.testing.assert_array_equal(alone.paths.leaders_of(a), whole.paths.leaders[a])
         assert fresh.arrays.is_parked(a) == whole.parked[a] and fresh.arrays.is_static(a) == whole.static[a]
+
+
+def test_a_lead_braking_hard_in_front_of_its_follower_is_a_braking_lead():
+    steps = np.arange(T)
+    braking = np.where(steps < 30, 12.0, np.maximum(12.0 - 5.0 * (steps - 30) * 0.1, 0.0))  # 5 m/s^2 from 3 s
+    gentle = np.where(steps < 30, 12.0, np.maximum(12.0 - 1.0 * (steps - 30) * 0.1, 0.0))  # 1 m/s^2
+    follower = np.where(steps < 30, 12.0, np.maximum(12.0 - 4.0 * (steps - 32) * 0.1, 0.0).clip(max=12.0))
+    hard = {1: (VEH, straight(40, 0, 0, braking)), 2: (VEH, straight(0, 0, 0, follower))}
+    labels = detect_interactions(scene(hard))
+    leads = [lab for lab in labels if lab.subtype.id == "passing/braking_lead"]
+    assert [(lab.track_id, lab.other_id) for lab in leads] == [(1, 2)]
+    assert 28 <= leads[0].start <= 31  # from when the braking starts
+    geometry = SceneGeometry(scene(hard), (), DetectorConfig())
+    assert braking_lead_runs(geometry, 0, 1) and not braking_lead_runs(geometry, 1, 0)
+    soft = {1: (VEH, straight(40, 0, 0, gentle)), 2: (VEH, straight(0, 0, 0, follower))}
+    assert not any(lab.subtype.id == "passing/braking_lead" for lab in detect_interactions(scene(soft)))
+    alone = {1: (VEH, straight(40, 0, 0, braking)), 2: (VEH, straight(0, 8, 0, 12.0))}  # 2 in another lane
+    assert not any(lab.subtype.id == "passing/braking_lead" for lab in detect_interactions(scene(alone)))
+
+
+def test_tailgating_runs_are_the_tailgating_labels_of_the_pair():
+    close = {1: (VEH, straight(0, 0, 0, 12.0)), 2: (VEH, straight(9, 0, 0, 12.0))}  # 4.5 m at 12 m/s: 0.4 s
+    far = {1: (VEH, straight(0, 0, 0, 12.0)), 2: (VEH, straight(25, 0, 0, 12.0))}  # 1.7 s
+    for tracks, tailgating in ((close, True), (far, False)):
+        labels = detect_interactions(scene(tracks))
+        assert any(lab.subtype.id == "following/tailgating" for lab in labels) is tailgating
+        assert bool(tailgating_runs(SceneGeometry(scene(tracks), (), DetectorConfig()), 0, 1)) is tailgating

@@ -167,7 +167,7 @@ def test_describe_to_json_and_the_words_of_the_typed_text():
     assert pair.describe() == 'read as: @12 yield @7 ("gives way to @7")'
     assert pair.to_json() == {
         "behaviour": "yield", "agent": 12, "other": 7, "words": "gives way to @7", "reason": "", "also": [],
-        "clause": "", "metres": None,
+        "clause": "", "metres": None, "deceleration": None,
     }  # fmt: skip
     assert read_prompt("@12 hums").to_json() == {
         "behaviour": None,
@@ -178,6 +178,7 @@ def test_describe_to_json_and_the_words_of_the_typed_text():
         "also": [],
         "clause": "",
         "metres": None,
+        "deceleration": None,
     }
     assert read_prompt("@12 hums").describe() == (
         "not read: no behaviour phrase found; the prompt steers by text alone"
@@ -294,3 +295,28 @@ def test_the_cut_in_vocabulary_reads_as_a_cut_in(text):
     assert reading.metres == (10.0 if "10 m" in text else None)
     assert read_prompt("@52 pulls out in front of @56").behaviour is B.GO_FIRST  # from a side road: going first
     assert read_prompt("@52 cuts in front of @56 at 10 m/s").metres is None  # a speed is no gap
+
+
+@pytest.mark.parametrize(
+    ("text", "deceleration"),
+    [("@52 brakes hard in front of @56", None), ("@52 slams on the brakes in front of @56", None),
+     ("@52 brakes suddenly right ahead of @56", None), ("@52 does an emergency stop in front of @56", None),
+     ("@52 brake-checks @56", None), ("@52 forces @56 to brake", None),
+     ("@52 brakes hard at 6 m/s2 in front of @56", 6.0), ("@52 brakes at 0.5 g in front of @56", 0.5 * 9.80665)],
+)  # fmt: skip
+def test_the_braking_lead_vocabulary_reads_as_braking_hard_in_front(text, deceleration):
+    reading = read_prompt(text)
+    assert (reading.behaviour, reading.agent, reading.other) == (B.BRAKE_HARD, 52, 56)
+    assert reading.deceleration == (None if deceleration is None else pytest.approx(deceleration))
+    assert read_prompt("@52 brakes hard").behaviour is B.SLOW_DOWN  # nobody behind named: slowing down
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["@52 tailgates @56", "@52 follows @56 too closely", "@52 drives dangerously close behind @56",
+     "@52 rides @56's bumper", "@52 sits on the bumper of @56"],
+)  # fmt: skip
+def test_the_tailgating_vocabulary_reads_as_tailgating(text):
+    reading = read_prompt(text)
+    assert (reading.behaviour, reading.agent, reading.other) == (B.TAILGATE, 52, 56)
+    assert read_prompt("@52 follows closely behind @56").behaviour is B.FOLLOW  # close, not too close

@@ -258,3 +258,44 @@ def test_feasible_exactly_when_a_target_exists_on_the_real_scenes(real_files):
         vehicles = s.agents.types == AgentType.VEHICLE
         tracks = s.agents.ids[valid & vehicles][:4].tolist() + s.agents.ids[valid & ~vehicles][:1].tolist()
         _assert_feasible_iff_target(_all_verdicts(s, MapIndex.build(s.road_map), tracks))
+
+
+def _eastbound_from(x: float, y: float = 0.0, speed: float = 10.0):
+    vehicle, xy, heading = _eastbound(y, speed)
+    return vehicle, xy + [x, 0.0], heading
+
+
+def test_a_braking_lead_stops_in_its_lane_where_the_asked_deceleration_brings_it_to_rest():
+    s = scene(two_lane_road(), _eastbound_from(30.0), _eastbound_from(0.0))  # 2 follows 1 by 25.5 m, both 10 m/s
+    index = MapIndex.build(s.road_map)
+    for deceleration, rest in ((None, 1.0 + 10.0 / 4.0), (6.0, 1.0 + 10.0 / 6.0)):
+        target = derive_target(s, 1, Behaviour.BRAKE_HARD, index, other_id=2, deceleration=deceleration)
+        d = 4.0 if deceleration is None else deceleration
+        assert target.stop and target.station_of_goal == pytest.approx(10.0 + 100.0 / (2 * d))
+        assert target.settled_s == pytest.approx(rest) and target.deceleration == d
+        assert np.allclose(target.path[:, 1], 0.0, atol=0.05) and "@2 26 m behind" in target.reason
+    with pytest.raises(TargetUnavailable, match="@1 is not behind it in its lane"):
+        derive_target(s, 2, Behaviour.BRAKE_HARD, index, other_id=1)  # 1 is ahead of 2, not behind it
+    with pytest.raises(TargetUnavailable, match="outside 3 to 10 m/s"):
+        derive_target(s, 1, Behaviour.BRAKE_HARD, index, other_id=2, deceleration=15.0)
+    beside = scene(two_lane_road(), _eastbound_from(30.0), _eastbound_from(0.0, y=3.5))
+    with pytest.raises(TargetUnavailable, match="not behind it in its lane"):
+        _target(beside, 1, Behaviour.BRAKE_HARD, 2)
+    slow = scene(two_lane_road(), _eastbound_from(30.0, speed=2.0), _eastbound_from(0.0, speed=2.0))
+    with pytest.raises(TargetUnavailable, match="too slow to brake hard"):
+        _target(slow, 1, Behaviour.BRAKE_HARD, 2)
+
+
+def test_a_tailgater_closes_to_the_short_headway_behind_the_other_in_its_lane():
+    s = scene(two_lane_road(), _eastbound_from(0.0), _eastbound_from(20.0))  # 1 is 15.5 m behind 2, both 10 m/s
+    target = _target(s, 1, Behaviour.TAILGATE, 2)
+    want = 0.4 * 10.0
+    within = (15.5 - want) / 3.0
+    assert target.settled_s == pytest.approx(within, abs=0.01) and target.speed == pytest.approx(10.0)
+    # where 2 will be, less the headway: its travel, plus the gap closed
+    assert target.station_of_goal == pytest.approx(10.0 * within + 15.5 - want, abs=0.05)
+    far = scene(two_lane_road(), _eastbound_from(0.0), _eastbound_from(30.0))  # 25.5 m: more than 6 s to close
+    with pytest.raises(TargetUnavailable, match="26 m ahead: too far to close to 4 m in 6 s"):
+        _target(far, 1, Behaviour.TAILGATE, 2)
+    with pytest.raises(TargetUnavailable, match="not ahead of it in its lane"):
+        _target(s, 2, Behaviour.TAILGATE, 1)

@@ -17,13 +17,14 @@ from langtraj.guidance import RouteCost
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
+from langtraj.interdrive.targets import BehaviourTarget
 from langtraj.model.checkpoint import load_model
 from langtraj.scenario import AgentType
 from langtraj.sim import prompts
 from langtraj.sim.checkpoints import shipped_checkpoint
 from langtraj.sim.config import ALL_LEVERS, PromptLevers, SimRequest
 from langtraj.sim.policies import GUIDANCE_ONLY, GuidanceBaselinePolicy
-from langtraj.sim.prompts import prompt_steering, read_prompts
+from langtraj.sim.prompts import conditioning_sentence, prompt_steering, read_prompts
 from langtraj.sim.world import SimWorld
 
 ORIGIN = (0.0, 0.0, 0.0)
@@ -187,3 +188,13 @@ def test_the_guidance_baseline_falls_back_to_the_label_library_for_a_labelled_pr
     no_target = GuidanceBaselinePolicy(model, data, prompt=_typed("@2 turns left"))
     state = _baseline_state(no_target, _crossing_scene())
     assert not state.prompt.steering.steerings and len(state.terms) == len(realism)  # typed: its reading alone
+
+
+def test_kinds_the_model_never_saw_are_conditioned_on_the_sentence_of_what_their_target_does():
+    path = np.zeros((2, 2))
+    cut_in = BehaviourTarget(12, Behaviour.CUT_IN, path, "", other_id=7, side="right")
+    brake = BehaviourTarget(12, Behaviour.BRAKE_HARD, path, "", other_id=7, speed=0.0)
+    assert conditioning_sentence(cut_in) == "@12 changes lanes to the right"
+    assert conditioning_sentence(brake) == "@12 comes to a stop and stands still"
+    assert conditioning_sentence(BehaviourTarget(12, Behaviour.TAILGATE, path, "", other_id=7)) is None  # seen
+    assert conditioning_sentence(BehaviourTarget(12, Behaviour.STOP, path, "", speed=0.0)) is None

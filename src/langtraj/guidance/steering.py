@@ -24,12 +24,16 @@ from langtraj.guidance.costs import NoCollisionCost, TargetSpeedCost
 from langtraj.guidance.library import AVOID_WEIGHT, SPEED_WEIGHT
 from langtraj.guidance.route import RouteCost, RoutePath, StationCost
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
-from langtraj.interdrive.targets import CUT_IN_S, BehaviourTarget
+from langtraj.interdrive.targets import BRAKE_HARD_AFTER_S, CUT_IN_S, BehaviourTarget
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS
 
 ROUTE_WEIGHT = 1.0  # per m^2 off the route
 REACH_WEIGHT = 1 / 5.0**2  # per m^2 short of a goal station
 HOLD_WEIGHT = 1 / 2.0**2  # per m^2 past a stop or conflict point
+KEEP_LANE_WEIGHT = 16.0 * ROUTE_WEIGHT
+"""Per m^2 off the lane, for a braking lead, which must not swerve: above the common range, as the model, conditioned
+on a stop, moves aside by 1.5-3 m at 1x; chosen on validation maps (docs/testing.md, 'The safety-critical
+vocabulary')."""
 CLEAR_WEIGHT = AVOID_WEIGHT  # per unit of summed disk overlap with the other agents (as the library keeps clear)
 CLEAR_BUFFER = 0.5  # m kept beyond touching
 
@@ -197,17 +201,42 @@ def _follow(s: Steering, clock: _Clock) -> list:
     return _route(s, clock, weight=0.5) + _speed(s, clock, other_speed, 1) + _avoid(s, 2.0)
 
 
-def _cut_in(s: Steering, clock: _Clock) -> list:
-    """At the goal station (the gap ahead of the other agent) when the change has settled (`CUT_IN_S`), not past it
-    before; in the other's lane from 2 s on; at the other agent's speed after."""
-    t, settled = s.target, _steps(CUT_IN_S)
+def _at_station_then_speed(s: Steering, clock: _Clock) -> list:
+    """At the goal station when the target says (`settled_s`), not past it before; at the other agent's speed
+    after."""
+    t, settled = s.target, _steps(s.target.settled_s or CUT_IN_S)
     other_speed = t.other_speed if t.other_speed is not None else t.current_speed
     goal = float(t.station_of_goal or 0.0)
     return (
         _station(s, clock, goal, "reach", settled, settled + 5, REACH_WEIGHT)
         + _station(s, clock, goal, "hold", 1, settled, HOLD_WEIGHT)
         + _speed(s, clock, other_speed, settled)
-        + _route(s, clock, first=_steps(2.0))
+    )
+
+
+def _cut_in(s: Steering, clock: _Clock) -> list:
+    """At the goal station (the gap ahead of the other agent) when the change has settled (`CUT_IN_S`), not past it
+    before; in the other's lane from 2 s on; at the other agent's speed after."""
+    return _at_station_then_speed(s, clock) + _route(s, clock, first=_steps(2.0))
+
+
+def _tailgate(s: Steering, clock: _Clock) -> list:
+    """At the station that closes the gap behind the other agent when the target says, not past it before; at the
+    other's speed after; in its lane throughout."""
+    return _at_station_then_speed(s, clock) + _route(s, clock)
+
+
+def _brake_hard(s: Steering, clock: _Clock) -> list:
+    """At its speed until braking starts, never past the stop point, standing still from when braking at the asked
+    deceleration gets there (`settled_s`); in its lane throughout (a braking lead does not swerve)."""
+    t = s.target
+    rest = _steps(t.settled_s) if t.settled_s is not None else _stop_step(s)
+    start = _steps(BRAKE_HARD_AFTER_S)
+    return (
+        _speed(s, clock, t.current_speed, 1, start)
+        + _station(s, clock, float(t.station_of_goal or 0.0), "hold", 1, FUTURE_STEPS, HOLD_WEIGHT)
+        + _speed(s, clock, 0.0, rest)
+        + _route(s, clock, weight=KEEP_LANE_WEIGHT)
     )
 
 
@@ -225,5 +254,7 @@ _BUILDERS = {
     Behaviour.YIELD: _yield,
     Behaviour.FOLLOW: _follow,
     Behaviour.CUT_IN: _cut_in,
+    Behaviour.BRAKE_HARD: _brake_hard,
+    Behaviour.TAILGATE: _tailgate,
 }
 assert set(_BUILDERS) == set(BEHAVIOURS), "every behaviour kind needs a builder"

@@ -39,6 +39,8 @@ class Behaviour(StrEnum):
     YIELD = "yield"
     FOLLOW = "follow"
     CUT_IN = "cut_in"
+    BRAKE_HARD = "brake_hard"
+    TAILGATE = "tailgate"
 
 
 @dataclass(frozen=True)
@@ -64,6 +66,9 @@ class BehaviourSpec:
     conditioned_as_lane_change: bool = False
     """Whether the model, which never saw this kind in training, is conditioned on the sentence of the lane change
     its target makes instead of the typed words (`sim.prompts.PromptSteering.sentences`)."""
+    conditioned_as: Behaviour | None = None
+    """The kind whose sentence the model, which never saw this kind in training, is conditioned on instead of the
+    typed words (braking hard in front of another agent: a stop; `sim.prompts.PromptSteering.sentences`)."""
 
     @property
     def is_pair(self) -> bool:
@@ -173,6 +178,23 @@ BEHAVIOURS: Mapping[Behaviour, BehaviourSpec] = {
             subtype="lane_change/cut_in",
             exact=True,
             conditioned_as_lane_change=True,
+        ),
+        BehaviourSpec(
+            Behaviour.BRAKE_HARD,
+            "@{agent} brakes hard in front of @{other}",
+            "brake hard in front of",
+            interaction=InteractionType.PASSING,
+            subtype="passing/braking_lead",
+            exact=True,
+            conditioned_as=Behaviour.STOP,
+        ),
+        BehaviourSpec(
+            Behaviour.TAILGATE,
+            "@{agent} tailgates @{other}",
+            "tailgate",
+            interaction=InteractionType.FOLLOWING,
+            subtype="following/tailgating",
+            exact=True,
         ),
     )
 }

@@ -170,6 +170,12 @@ SUBTYPES: tuple[Subtype, ...] = (
         ),
         ("as_leading_vehicle", "Passing as a leading vehicle", "Passing with other vehicles following."),
         (
+            "braking_lead",
+            "Braking hard as a leading vehicle",
+            "Braking hard in its lane with a vehicle following close behind, which must brake in turn (Euro NCAP's "
+            "braking lead vehicle; LangTraj's addition to the paper's subtypes, for safety-critical tests).",
+        ),
+        (
             "vru_crossing",
             "Pedestrian or cyclist crossing the road",
             "Pedestrians or cyclists crossing the road, usually with vehicles yielding.",

@@ -1,24 +1,25 @@
 """Adherence of candidates: whether the future a candidate would give a prompted agent does what it was asked.
 
 At each replan the policy samples several candidates per rollout; for a prompted agent, selection prefers the
-candidates that follow its prompt (`sim.selection`, `first`). A candidate's future is the rollout's executed
-past followed by the candidate, up to the end of the simulated 8 s, exactly what the judge will read at the end
-(`metrics.instruction_following`). Single-agent behaviours are judged by the heuristic labelers themselves, on
-one scene holding a copy of the agent per candidate and rollout (one labelling per replan). Pair behaviours are
-judged by the interaction detector's own rule for one ordered pair (`interdrive.detector.yielding_runs`,
-`passing_runs`, `following_runs`, `cut_in_runs`, with the judge's `DetectorConfig`), the one `detect_interactions`
-runs over every pair, on each candidate's scene: every agent's past up to the replan, the driven agents' candidates
-after it, the undriven agents' simulated tracks, speeds from positions as the judge reads a rollout
-(`metrics.instruction_following.rollout_scenario`), cut to the agents the rule reads (`pair_rows`: the two, the
-vehicles near either that may lead it, and the pedestrians where one of them walks). Yielding: the prompted agent
-yields to the other; going first: the other yields to it (the passing side of that yield); following: it follows
-the other; cutting in: it changes into the other's lane just ahead of it. Each is judged by its interaction type,
-whatever the subtype (a prompt read from text names none; the
-judge of an experiment's prompt asks for the subtype the log shows).
+candidates that follow its prompt (`sim.selection`, `first`). A candidate's future is the rollout's executed past
+followed by the candidate, up to the end of the simulated 8 s, exactly what the judge will read at the end
+(`metrics.instruction_following`). Single-agent behaviours are judged by the heuristic labelers themselves, on one
+scene holding a copy of the agent per candidate and rollout (one labelling per replan). Pair behaviours are judged by
+the interaction detector's own rule for one ordered pair (`PAIR_RUNS`: `interdrive.detector.yielding_runs`,
+`passing_runs`, `following_runs`, `cut_in_runs`, `braking_lead_runs`, `tailgating_runs`, with the judge's
+`DetectorConfig`), the one `detect_interactions` runs over every pair, on each candidate's scene: every agent's past
+up to the replan, the driven agents' candidates after it, the undriven agents' simulated tracks, speeds from
+positions as the judge reads a rollout (`metrics.instruction_following.rollout_scenario`), cut to the agents the rule
+reads (`pair_rows`: the two, the vehicles near either that may lead it, and the pedestrians where one of them walks).
+Yielding: the prompted agent yields to the other; going first: the other yields to it (the passing side of that
+yield); following: it follows the other; cutting in: it changes into the other's lane just ahead of it; braking hard:
+it brakes hard while the other follows it; tailgating: it follows the other too closely. Each is judged by its
+interaction type, whatever the subtype (a prompt read from text names none; the judge of an experiment's prompt asks
+for the subtype the log shows), except the last three, judged by their own subtype (`BehaviourSpec.exact`).
 
-Only simulated states are read: the executed past, the candidates and the undriven agents' simulated tracks
-(never the logged future); traffic lights are held at their state at the start of the simulation.
-See docs/simulation.md ('Prompts that steer').
+Only simulated states are read: the executed past, the candidates and the undriven agents' simulated tracks (never
+the logged future); traffic lights are held at their state at the start of the simulation. See docs/simulation.md
+('Prompts that steer').
 """
 
 from __future__ import annotations
@@ -33,27 +34,31 @@ from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour, behaviour_facts
 from langtraj.interdrive.detector import (
     DetectorConfig,
     SceneGeometry,
+    braking_lead_runs,
     cut_in_runs,
     following_runs,
     pair_rows,
     passing_runs,
+    tailgating_runs,
     yielding_runs,
 )
 from langtraj.interdrive.detector.parts import Pair
 from langtraj.interdrive.heuristics import HeuristicConfig, label_agents
-from langtraj.interdrive.taxonomy import InteractionType
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import Agents, Scenario, TrafficLights
 from langtraj.scenario.types import StateField
 from langtraj.sim.world import SimWorld
 
-PAIR_RUNS: dict[InteractionType, Callable[[SceneGeometry, int, int], list[Pair]]] = {
-    InteractionType.YIELDING: yielding_runs,
-    InteractionType.PASSING: passing_runs,
-    InteractionType.FOLLOWING: following_runs,
-    InteractionType.LANE_CHANGE: cut_in_runs,
+PAIR_RUNS: dict[Behaviour, Callable[[SceneGeometry, int, int], list[Pair]]] = {
+    Behaviour.YIELD: yielding_runs,
+    Behaviour.GO_FIRST: passing_runs,
+    Behaviour.FOLLOW: following_runs,
+    Behaviour.CUT_IN: cut_in_runs,
+    Behaviour.BRAKE_HARD: braking_lead_runs,
+    Behaviour.TAILGATE: tailgating_runs,
 }
-"""The detector's per-pair rule judging each pair behaviour's interaction type (`BehaviourSpec.interaction`)."""
+"""The detector's per-pair rule judging each pair behaviour: the runs of its interaction type toward the other agent
+(`BehaviourSpec.interaction`), or of its own subtype where the spec is `exact`."""
 
 
 @dataclass(frozen=True)
@@ -165,7 +170,7 @@ class CandidateJudge:
                 scene = SceneGeometry(scenario, (), self.detector, self.index)
                 at = {int(row): k for k, row in enumerate(rows)}
                 for k, ask in enumerate(asks):
-                    rule = PAIR_RUNS[BEHAVIOURS[ask.behaviour].interaction]  # type: ignore[index]
+                    rule = PAIR_RUNS[ask.behaviour]
                     out[k, i, r] = not rule(scene, at[ask.row], at[ask.other_row])  # type: ignore[index]
         return out
 

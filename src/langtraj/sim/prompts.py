@@ -111,7 +111,15 @@ def _verdict(scenario: Scenario, reading: PromptReading, index: MapIndex) -> Fea
         return None
     if BEHAVIOURS[reading.behaviour].is_pair and reading.other is None:
         return None
-    return feasibility(scenario, reading.agent, reading.behaviour, index, other_id=reading.other, gap=reading.metres)
+    return feasibility(
+        scenario,
+        reading.agent,
+        reading.behaviour,
+        index,
+        other_id=reading.other,
+        gap=reading.metres,
+        deceleration=reading.deceleration,
+    )
 
 
 def _fallback(
@@ -157,7 +165,7 @@ class PromptSteering:
     warnings: tuple[str, ...] = ()
     sentences: dict[int, str] = field(default_factory=dict)
     """Track id -> the sentence the model is conditioned on in place of the typed words, for a read behaviour it never
-    saw in training (a cut-in: the lane change its target makes, `BehaviourSpec.conditioned_as_lane_change`)."""
+    saw in training (`conditioning_sentence`)."""
 
     @property
     def kerb_slots(self) -> tuple[int, ...]:
@@ -228,10 +236,10 @@ def prompt_steering(
             else:
                 targets.append(target)
                 steerings.append(Steering.of(target, origin, slots))
-                if levers.text and BEHAVIOURS[target.behaviour].conditioned_as_lane_change and target.side:
-                    change = Behaviour.LANE_CHANGE_LEFT if target.side == "left" else Behaviour.LANE_CHANGE_RIGHT
-                    sentences[target.track_id] = BEHAVIOURS[change].text(target.track_id)
-                    used.append(f"the model conditioned on {sentences[target.track_id]!r}")
+                sentence = conditioning_sentence(target) if levers.text else None
+                if sentence is not None:
+                    sentences[target.track_id] = sentence
+                    used.append(f"the model conditioned on {sentence!r}")
                 if steered is not verdict:
                     used.append(f"no target for it ({verdict.reason}), so its {target.behaviour.value} alone")
                 used.append(f"guidance toward {target.reason}")
@@ -248,6 +256,18 @@ def prompt_steering(
     return PromptSteering(
         readings, tuple(steerings), tuple(asks), tuple(notes), tuple(targets), tuple(warnings), sentences
     )
+
+
+def conditioning_sentence(target: BehaviourTarget) -> str | None:
+    """The sentence the model is conditioned on for a target of a kind it never saw in training: the lane change a
+    cut-in makes, or the kind the spec names (a braking lead: a stop); None for a kind it knows."""
+    spec = BEHAVIOURS[target.behaviour]
+    if spec.conditioned_as_lane_change and target.side:
+        change = Behaviour.LANE_CHANGE_LEFT if target.side == "left" else Behaviour.LANE_CHANGE_RIGHT
+        return BEHAVIOURS[change].text(target.track_id)
+    if spec.conditioned_as is not None:
+        return BEHAVIOURS[spec.conditioned_as].text(target.track_id)
+    return None
 
 
 _OPPOSITE = {Behaviour.YIELD: Behaviour.GO_FIRST, Behaviour.GO_FIRST: Behaviour.YIELD}

@@ -9,12 +9,13 @@ registered in `INTERACTION_RULES`; `detect_interactions` runs them all over one 
 merges, overtakes), `yields` (held vehicles, conflict points), `crosswalks` (pedestrians), `rules` (the rules); each
 part imports only the parts it reads, so no module imports one that imports it back. Lane primitives shared
 with the heuristic labeler (`LaneChange`, neighbour lanes, the road-side test of parked cars) are in `mapindex`.
-One ordered pair can be judged alone by the rules' own definitions: `yielding_runs`, `passing_runs` and
-`following_runs` give the runs of the pair's labels of that type that `detect_interactions` keeps, computing only
-what the pair needs (the two agents' paths, held steps, red lights and standing, and the leaders of the one that
-waits, per agent and only at the steps that decide); `pair_rows` names the agents they read, so a scene may be cut
-to those. The rules over all pairs run the same per-pair definitions (`YieldGeometry.pair_yields`,
-`CrosswalkGeometry.pedestrian_yield_runs` and `pedestrian_wait_runs`, `PathGeometry.following`) over every pair.
+One ordered pair can be judged alone by the rules' own definitions: `yielding_runs`, `passing_runs`,
+`following_runs`, `cut_in_runs`, `braking_lead_runs` and `tailgating_runs` give the runs of the pair's labels of that
+type that `detect_interactions` keeps, computing only what the pair needs (the two agents' paths, held steps, red
+lights and standing, and the leaders of the one that waits, per agent and only at the steps that decide); `pair_rows`
+names the agents they read, so a scene may be cut to those. The rules over all pairs run the same per-pair
+definitions (`YieldGeometry.pair_yields`, `CrosswalkGeometry.pedestrian_yield_runs` and `pedestrian_wait_runs`,
+`PathGeometry.following`) over every pair.
 Candidate selection in simulation judges pair prompts with them (`sim.adherence`).
 The rules mirror how `ground_truth.py` defines each type from SUMO's events, so the two can be compared with
 `evaluation.match_interactions`:
@@ -63,7 +64,9 @@ The rules mirror how `ground_truth.py` defines each type from SUMO's events, so 
   that is on that crosswalk while it stands.
 - passing: the reverse of every yield: B -> A at junctions (at roundabout when the map holds a round ring of
   curving lanes, see `LaneGeometry.has_roundabout`; `vru_crossing` for a cyclist B), pedestrian -> vehicle
-  `vru_crossing`, vehicle -> waiting pedestrian `pedestrian`.
+  `vru_crossing`, vehicle -> waiting pedestrian `pedestrian`; and a lead braking hard in front of its follower,
+  L -> F `braking_lead` (its speed, at least `hard_braking_speed`, drops by `hard_braking` on average over
+  `hard_braking_steps` while F follows it; the label runs `braking_response_s` past the braking).
 
 Only trajectories and the map are read (no simulator ids, events or window kind), so the rules run on real
 scenes too. Single-agent labels are optional inputs: `changing_lanes` spans are used when the map has no lanes.
@@ -75,11 +78,13 @@ from langtraj.interdrive.detector.config import DetectorConfig
 from langtraj.interdrive.detector.rules import (
     INTERACTION_RULES,
     InteractionRule,
+    braking_lead_runs,
     cut_in_runs,
     detect_interactions,
     following_runs,
     pair_rows,
     passing_runs,
+    tailgating_runs,
     yielding_runs,
 )
 from langtraj.interdrive.detector.scene import SceneGeometry
@@ -89,10 +94,12 @@ __all__ = [
     "DetectorConfig",
     "InteractionRule",
     "SceneGeometry",
+    "braking_lead_runs",
     "cut_in_runs",
     "detect_interactions",
     "following_runs",
     "pair_rows",
     "passing_runs",
+    "tailgating_runs",
     "yielding_runs",
 ]

@@ -64,5 +64,9 @@ class DetectorConfig:
     high_speed: float = 20.0  # m/s: an overtake at or above this top speed is high-speed
     tailgating_headway_s: float = 0.6  # s: following with a time headway below this at speed is tailgating
     tailgating_speed: float = 5.0  # m/s
+    hard_braking: float = 3.0  # m/s^2: a lead slowing this hard on average over `hard_braking_steps` brakes hard
+    hard_braking_steps: int = 5  # steps (0.5 s) over which hard braking is averaged
+    hard_braking_speed: float = 3.0  # m/s: hard braking starts at least this fast
+    braking_response_s: float = 2.0  # s after a lead's hard braking that its label covers (the follower's response)
     slow_lead_ratio: float = 0.6  # a leader at most this share of the follower's earlier top speed is slow
     min_window_s: float = 1.0  # a label must overlap the current and future steps by this long

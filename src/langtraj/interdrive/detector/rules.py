@@ -21,6 +21,7 @@ from langtraj.interdrive.labels import AgentLabel, InteractionLabel, LabelSource
 from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID, InteractionType
 from langtraj.registry import Registry
 from langtraj.roads import LaneChange, MapIndex
+from langtraj.runs import true_runs
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.types import AgentType
 
@@ -105,10 +106,11 @@ class FollowingRule(InteractionRule):
     type = InteractionType.FOLLOWING
 
     def detect(self, scene: SceneGeometry) -> list[InteractionLabel]:
-        return [_label(scene, p.agent, p.other, self._subtype(scene, p), p.start, p.end) for p in scene.paths.follows]
+        return [_label(scene, p.agent, p.other, self.subtype(scene, p), p.start, p.end) for p in scene.paths.follows]
 
     @staticmethod
-    def _subtype(scene: SceneGeometry, pair: Pair) -> str:
+    def subtype(scene: SceneGeometry, pair: Pair) -> str:
+        """The following subtype of one following run (stopping behind, tailgating, a slow lead, or plain)."""
         cfg = scene.config
         s = slice(pair.start, pair.end)
         speed = scene.speed[pair.agent, s]
@@ -169,7 +171,31 @@ class PassingRule(InteractionRule):
         crossings = scene.crossings
         labels += _pair_labels(scene, crossings.pedestrian_yields, "passing/vru_crossing", reverse=True)
         labels += _pair_labels(scene, [v for _, v in crossings.pedestrian_waits], "passing/pedestrian")
+        labels += _pair_labels(scene, _braking_leads(scene, scene.paths.follows), "passing/braking_lead")
         return labels
+
+
+def _braking_leads(scene: SceneGeometry, follows: Sequence[Pair]) -> list[Pair]:
+    """Lead-to-follower pairs over the steps a lead brakes hard while followed: for each following run (follower,
+    lead), the runs of steps from which the lead's speed, at least `hard_braking_speed`, drops by `hard_braking`
+    m/s^2 or more on average over the next `hard_braking_steps`, both valid throughout (Euro NCAP's braking lead);
+    each with the follower's `braking_response_s` after it (while it still follows), the time it has to brake in
+    turn."""
+    cfg, k = scene.config, scene.config.hard_braking_steps
+    response = round(cfg.braking_response_s / STEP_SECONDS)
+    out = []
+    for p in follows:
+        steps = np.arange(p.start, max(p.end - k, p.start))
+        if steps.size == 0:
+            continue
+        v, both = scene.speed[p.other], scene.valid[p.other] & scene.valid[p.agent]
+        drop = (v[steps] - v[steps + k]) / (k * STEP_SECONDS)
+        hard = both[steps] & both[steps + k] & (v[steps] >= cfg.hard_braking_speed) & (drop >= cfg.hard_braking)
+        out += [
+            Pair(p.other, p.agent, int(steps[a]), min(int(steps[b - 1]) + k + 1 + response, p.end))
+            for a, b in true_runs(hard)
+        ]
+    return out
 
 
 @INTERACTION_RULES.register
@@ -296,6 +322,20 @@ def cut_in_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
     """The steps over which agent row `agent` cuts in front of row `other`: the "lane_change/cut_in" labels of agent
     toward other that `detect_interactions` gives on `scene`'s scenario, computed for the pair alone."""
     return _kept(scene, [p for p in _cut_ins(scene, agent) if p.other == other], "lane_change/cut_in")
+
+
+def braking_lead_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
+    """The steps over which agent row `agent` brakes hard in front of row `other`, which follows it: the
+    "passing/braking_lead" labels of agent toward other that `detect_interactions` gives on `scene`'s scenario,
+    computed for the pair alone."""
+    return _kept(scene, _braking_leads(scene, scene.paths.following(other, agent)), "passing/braking_lead")
+
+
+def tailgating_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
+    """The steps over which agent row `agent` tailgates row `other`: its "following/tailgating" labels toward other
+    that `detect_interactions` gives on `scene`'s scenario, computed for the pair alone."""
+    runs = [p for p in scene.paths.following(agent, other) if FollowingRule.subtype(scene, p) == "following/tailgating"]
+    return _kept(scene, runs, "following/tailgating")
 
 
 def pair_rows(

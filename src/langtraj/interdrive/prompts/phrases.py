@@ -289,6 +289,11 @@ _SUBTYPE_TEMPLATES: dict[str, tuple[str, ...]] = {
         "|stays ahead of|keeps ahead of} <other>[ {which follows behind|which is following|which trails behind}]",
         "{passes through|goes ahead|drives on} with <other> following[ behind]",
     ),
+    "passing/braking_lead": (
+        "{brakes hard|slams on the brakes|stamps on the brakes|brakes sharply|brakes suddenly|jams on the brakes"
+        "|makes an emergency stop|does an emergency stop} {in front of|right in front of|just ahead of} <other>",
+        "{brake-checks|brake checks} <other>",
+    ),
     "passing/vru_crossing": (
         _CROSS_ROAD + " {while <other> yields|while <other> waits|as <other> gives way|in front of <other>"
         "|ahead of <other>}",

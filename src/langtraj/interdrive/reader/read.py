@@ -72,6 +72,9 @@ class PromptReading:
     """The part of the typed prompt read (`clauses.read_clauses`; the whole text for a prompt of one clause)."""
     metres: float | None = None
     """A distance the text gives ("with a 10 m gap", "8 metres ahead of @7"): a cut-in's gap (None: none given)."""
+    deceleration: float | None = None
+    """A deceleration the text gives in m/s^2 ("at 6 m/s^2", "at 0.5 g"): how hard a braking lead brakes (None:
+    none given)."""
 
     @property
     def read(self) -> bool:
@@ -126,6 +129,7 @@ class PromptReading:
             "also": [b.value for b in self.also],
             "clause": self.clause,
             "metres": self.metres,
+            "deceleration": self.deceleration,
         }
 
 
@@ -179,6 +183,9 @@ def _normalise(typed: str) -> _Text:
 
 _METRES = re.compile(r"\b(\d+(?:\.\d+)?)\s*(?:m|metres?|meters?)\b(?!/)")
 """A distance in metres ("10 m", "8.5 metres"; not a speed, "10 m/s")."""
+_DECELERATION = re.compile(r"\b(\d+(?:\.\d+)?)\s*(m/s\^?2|m/s²|m/s/s|g)(?!\w)")
+"""A deceleration in m/s^2 or in g ("6 m/s^2", "0.5 g")."""
+STANDARD_GRAVITY = 9.80665
 
 
 def _slot(placeholder: str | None) -> int | None:
@@ -324,4 +331,9 @@ def _pair_reading(text: str, norm: _Text, kind: Behaviour, decided: Sequence[_Ma
     best = max(decided, key=lambda m: (m.other is not None, m.end - m.start, -m.start))
     distance = _METRES.search(norm.text)
     metres = float(distance.group(1)) if distance else None
-    return PromptReading(kind, agent, norm.ids[other], norm.span(text, best.start, best.end), metres=metres)
+    braking = _DECELERATION.search(norm.text)
+    deceleration = None
+    if braking:
+        deceleration = float(braking.group(1)) * (STANDARD_GRAVITY if braking.group(2) == "g" else 1.0)
+    words = norm.span(text, best.start, best.end)
+    return PromptReading(kind, agent, norm.ids[other], words, metres=metres, deceleration=deceleration)

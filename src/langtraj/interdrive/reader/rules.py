@@ -60,6 +60,7 @@ _IRREGULAR: dict[str, tuple[str, ...]] = {
     "leave": ("leaves", "leaving"),  # not "left": that is a side
     "grind": ("grinds", "grinding", "ground"),
     "have": ("has", "having", "had"),
+    "do": ("does", "doing", "did", "done"),
     "shed": ("sheds", "shedding"),
     "set": ("sets", "setting"),
     "hit": ("hits", "hitting"),
@@ -333,6 +334,37 @@ _CUT_IN = [
 """Changing into the other's lane just ahead of it (Euro NCAP's cut-in); "pulls out in front of @7" stays going first
 (from a side road, not a lane beside it)."""
 
+_IN_FRONT = r"(?:(?:right|just|directly|immediately)\s+)?(?:in\s+front\s+of|ahead\s+of)"
+_HARD = r"(?:hard|sharply|suddenly|abruptly|heavily|violently|harshly|fiercely|firmly|urgently|all\s+of\s+a\s+sudden)"
+_DECELERATION_WORDS = r"(?:\s+(?:at|with|by)\s+(?:a\s+deceleration\s+of\s+)?[\d.]+\s*(?:m/s\^?2|m/s²|m/s/s|g)(?!\w))"
+"""A deceleration the text gives ("at 6 m/s^2", "at 0.5 g"), read by `read.py`'s `_DECELERATION`."""
+_BRAKE_HARD = [
+    rf"\b{verb('brake', 'stop', 'decelerate')}(?:(?:\s+{_HARD})+(?:\s+and\s+{_HARD})?{_DECELERATION_WORDS}?"
+    rf"|{_DECELERATION_WORDS})\s+{_IN_FRONT}\s+{_OTHER}",
+    rf"\b{verb('slam on', 'stamp on', 'jam on', 'stand on', 'mash', 'hit', 'smash')}\s+(?:the|its|their|his|her)"
+    rf"\s+brakes?{_TIGHT_GAP}\s+{_IN_FRONT}\s+{_OTHER}",
+    rf"\b{verb('do', 'make', 'perform', 'carry out', 'execute')}\s+an?\s+(?:emergency|hard|sudden|panic|abrupt)"
+    rf"\s+(?:stop|brake|braking\s+manoeuvre|braking\s+maneuver|braking){_TIGHT_GAP}\s+{_IN_FRONT}\s+{_OTHER}",
+    rf"\b{verb('brake-check', 'brake check', 'brake test', 'brake-test')}\s+{_OTHER}",
+    rf"\b{verb('force', 'make', 'cause')}\s+{_OTHER}\s+to\s+(?:brake|slow\s+down|stop|slam\s+on\s+the\s+brakes)\b"
+    rf"(?:\s+{_HARD})?",
+]
+"""Braking hard in the other's lane just ahead of it (Euro NCAP's braking lead vehicle): "brakes hard in front of
+@7", "slams on the brakes ahead of @7", "brake-checks @7", "forces @7 to brake"."""
+
+_TAILGATE = [
+    rf"\b{verb('tailgate')}\s+{_OTHER}",
+    rf"\b{verb('follow', 'drive', 'stay', 'sit', 'keep', 'travel', 'ride', 'tail')}"
+    rf"\s+(?:far\s+|way\s+|much\s+)?(?:too|dangerously|aggressively|uncomfortably|very|really|extremely)\s+"
+    rf"close(?:ly)?\s+(?:behind|to|on|after)\s+{_OTHER}",
+    rf"\b{verb('follow', 'tail')}\s+{_OTHER}\s+(?:far\s+|way\s+|much\s+)?(?:too|dangerously|aggressively"
+    r"|uncomfortably|very|really|extremely)\s+close(?:ly)?\b",
+    rf"\b{verb('ride', 'sit on', 'hug', 'crowd')}\s+{_OTHER}'s\s+(?:bumper|tail|rear)\b",
+    rf"\b{verb('ride', 'sit on', 'hug', 'crowd')}\s+the\s+(?:bumper|tail|rear)\s+of\s+{_OTHER}",
+    rf"\b{verb('sit', 'stay', 'drive', 'be')}\s+(?:right\s+)?on\s+{_OTHER}'s\s+(?:bumper|tail)\b",
+]
+"""Following the other too closely (the detector's tailgating: under 0.6 s of headway at speed)."""
+
 _YIELD = [
     rf"\b{verb('yield', 'give way', 'defer', 'cede', 'submit')}"
     rf"(?:\s+(?:the\s+)?(?:right\s+of\s+way|right-of-way|priority|precedence|the\s+junction))?\s+(?:to|for)\s+{_OTHER}",
@@ -386,6 +418,8 @@ def _build_rules() -> tuple[_Rule, ...]:
         (Behaviour.SPEED_UP, _SPEED_UP),
         (Behaviour.SLOW_DOWN, _SLOW_DOWN),
         (Behaviour.CUT_IN, _CUT_IN),  # before going first: "cuts in ahead of @7" is a cut-in
+        (Behaviour.BRAKE_HARD, _BRAKE_HARD),
+        (Behaviour.TAILGATE, _TAILGATE),  # before following
         (Behaviour.GO_FIRST, _GO_FIRST),
         (Behaviour.YIELD, _YIELD),
         (Behaviour.FOLLOW, _FOLLOW),
@@ -405,6 +439,8 @@ SUBSUMES: dict[Behaviour, frozenset[Behaviour]] = {
     Behaviour.CUT_IN: frozenset(
         {Behaviour.LANE_CHANGE_LEFT, Behaviour.LANE_CHANGE_RIGHT, Behaviour.SPEED_UP, Behaviour.SLOW_DOWN}
     ),
+    Behaviour.BRAKE_HARD: frozenset({Behaviour.STOP, Behaviour.SLOW_DOWN}),
+    Behaviour.TAILGATE: frozenset({Behaviour.FOLLOW, Behaviour.SPEED_UP, Behaviour.SLOW_DOWN}),
 }
 """A kind that, asked with another, is part of it: "pulls over and stops", "brakes to let @7 pass"."""
 

@@ -9,6 +9,7 @@ Modules, in the order they build on each other: `config` (`CounterfactualConfig`
 
 from langtraj.interdrive.targets.config import CounterfactualConfig
 from langtraj.interdrive.targets.derive import (
+    BRAKE_HARD_AFTER_S,
     CUT_IN_S,
     SPEED_CHANGE,
     BehaviourTarget,
@@ -20,6 +21,7 @@ from langtraj.interdrive.targets.feasibility import Feasibility, behaviour_feasi
 from langtraj.roads.position import AgentOnLane
 
 __all__ = [
+    "BRAKE_HARD_AFTER_S",
     "CUT_IN_S",
     "SPEED_CHANGE",
     "AgentOnLane",

@@ -19,7 +19,11 @@ the lane graph (`lanes_ahead`) and returns either a `BehaviourTarget` in world c
   needs a crossing the agent can reach first;
 - following: the other agent's lane ahead;
 - cutting in front of another agent: the other's lane, beside the agent's, from where a change can begin, and the
-  average speed that puts the agent the asked gap ahead of the other when the change settles.
+  average speed that puts the agent the asked gap ahead of the other when the change settles;
+- braking hard in front of another agent (which follows it in its lane): the agent's lane ahead and the stop that
+  braking at the asked deceleration from 1 s on brings it to;
+- tailgating another agent (ahead of it in its lane): the agent's lane ahead, the station that closes the gap to
+  0.4 s of headway within a few seconds, and the other's speed after.
 
 Only the current step and the past are read (never the logged future), so a simulation may use the target.
 See docs/interdrive.md ('Targets and feasibility').
@@ -89,6 +93,24 @@ CUT_IN_GAP_M = 10.0
 CUT_IN_S = 1.0 + LANE_CHANGE_S
 """When a cut-in has settled in the other's lane (s): begun within 1 s, settled `LANE_CHANGE_S` later."""
 GO_FIRST_MARGIN_S = 0.5
+BRAKE_HARD_DECELERATION = 4.0
+"""How hard a braking lead brakes unless the prompt says (m/s^2): Euro NCAP's braking-lead tests use 2 to 6."""
+BRAKE_HARD_LIMITS = (3.0, 10.0)
+"""The decelerations a braking lead may be asked for (m/s^2): at least the judge's hard braking
+(`DetectorConfig.hard_braking`), at most what tyres give on dry asphalt (about 1 g)."""
+BRAKE_HARD_AFTER_S = 1.0
+"""When a braking lead starts braking (s): the follower has a second of the scene as it was."""
+BRAKE_HARD_MIN_SPEED = 4.0
+"""The least speed a braking lead must have (m/s): slower, hard braking lasts too short to judge."""
+FOLLOWER_RANGE_M = 40.0
+"""How far (bumper to bumper, m) behind a braking lead, or ahead of a tailgater, the other agent may be."""
+TAILGATE_HEADWAY_S = 0.4
+"""The time gap a tailgater closes to (s): under the judge's 0.6 s (`DetectorConfig.tailgating_headway_s`)."""
+TAILGATE_MIN_SPEED = 6.0
+"""The least speed of the agent tailgated (m/s): the judge's tailgating needs 5 m/s."""
+TAILGATE_CLOSING = 3.0
+"""How much faster than the other a tailgater closes the gap (m/s on average), within `TAILGATE_WITHIN_S`."""
+TAILGATE_WITHIN_S = 6.0
 """Going first must get the agent to the crossing this much earlier than the other agent at its speed (s)."""
 
 
@@ -116,6 +138,11 @@ class BehaviourTarget:
     other_speed: float | None = None
     side: Side | None = None
     """The side it moves across to (a lane change, a cut-in), where there is one."""
+    settled_s: float | None = None
+    """When the agent must be at `station_of_goal` (s), where the target times it (a cut-in, a tailgate, a braking
+    lead at rest)."""
+    deceleration: float | None = None
+    """How hard it brakes (m/s^2), where the target says (a braking lead)."""
 
     @property
     def stop(self) -> bool:
@@ -239,11 +266,16 @@ class TargetContext:
         return self._stations[agent.track_id]
 
     def target(
-        self, track_id: int, behaviour: Behaviour, other_id: int | None = None, gap: float | None = None
+        self,
+        track_id: int,
+        behaviour: Behaviour,
+        other_id: int | None = None,
+        gap: float | None = None,
+        deceleration: float | None = None,
     ) -> BehaviourTarget:
         """The target of `behaviour` for `track_id` (toward `other_id` for a pair behaviour; a cut-in `gap` m ahead
-        of it), or `TargetUnavailable` (see the module docstring)."""
-        return _target(self, track_id, behaviour, other_id, gap)
+        of it; a braking lead at `deceleration` m/s^2), or `TargetUnavailable` (see the module docstring)."""
+        return _target(self, track_id, behaviour, other_id, gap, deceleration)
 
     def moving(self, agent: _Agent) -> bool:
         """Faster than the labelers' standing speed by their least speed change."""
@@ -288,15 +320,21 @@ def derive_target(
     other_id: int | None = None,
     config: CounterfactualConfig | None = None,
     gap: float | None = None,
+    deceleration: float | None = None,
 ) -> BehaviourTarget:
     """The target of `behaviour` for `track_id` at the scenario's current step (see the module docstring;
     `TargetContext.target`). Raises `TargetUnavailable` (an InputError) naming the agent, the behaviour and the
     reason where the map gives none: then the behaviour is not feasible there (`feasibility`)."""
-    return TargetContext(scenario, index, config).target(track_id, behaviour, other_id, gap)
+    return TargetContext(scenario, index, config).target(track_id, behaviour, other_id, gap, deceleration)
 
 
 def _target(
-    ctx: TargetContext, track_id: int, behaviour: Behaviour, other_id: int | None, gap: float | None = None
+    ctx: TargetContext,
+    track_id: int,
+    behaviour: Behaviour,
+    other_id: int | None,
+    gap: float | None = None,
+    deceleration: float | None = None,
 ) -> BehaviourTarget:
     """`TargetContext.target`."""
     spec = BEHAVIOURS[behaviour]
@@ -325,7 +363,94 @@ def _target(
         )  # fmt: skip
     if behaviour is Behaviour.CUT_IN:
         return _cut_in(ctx, agent, other, CUT_IN_GAP_M if gap is None else gap)
+    if behaviour is Behaviour.BRAKE_HARD:
+        return _brake_hard(ctx, agent, other, BRAKE_HARD_DECELERATION if deceleration is None else deceleration)
+    if behaviour is Behaviour.TAILGATE:
+        return _tailgate(ctx, agent, other)
     return _order(ctx, agent, other, behaviour)
+
+
+def _gap_behind(index: MapIndex, lead: _Agent, follower: _Agent) -> float | None:
+    """The bumper gap (m) from `follower`'s front to `lead`'s rear when `follower` is behind `lead` in its lane:
+    heading its way (within 45 degrees), and on one of the pieces of its lane or within 2 m of its line; else None."""
+    h = np.array([math.cos(lead.heading), math.sin(lead.heading)])
+    d = lead.xy - follower.xy
+    along, across = float(d @ h), abs(float(d @ np.array([-h[1], h[0]])))
+    if along <= 0.0 or abs(wrap_angle(lead.heading - follower.heading)) > math.radians(45.0):
+        return None
+    same_lane = lead.on_lane and follower.on_lane and follower.here.lane in _lane_pieces(index, lead.here.lane)
+    if not (same_lane or across <= 2.0):
+        return None
+    return along - 0.5 * (lead.length + follower.length)
+
+
+def _brake_hard(ctx: TargetContext, agent: _Agent, other: _Agent, deceleration: float) -> BehaviourTarget:
+    """The agent's lane ahead and the stop that braking at `deceleration` from `BRAKE_HARD_AFTER_S` brings it to,
+    the other following within `FOLLOWER_RANGE_M` (Euro NCAP's braking lead vehicle). Infeasible for a deceleration
+    outside `BRAKE_HARD_LIMITS`, an agent slower than `BRAKE_HARD_MIN_SPEED`, or no such follower."""
+    behaviour, v = Behaviour.BRAKE_HARD, agent.here.speed
+    low, high = BRAKE_HARD_LIMITS
+    if not low <= deceleration <= high:
+        reason = f"braking at {deceleration:g} m/s^2 is outside {low:g} to {high:g} m/s^2 (hard, and what tyres give)"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    if v < BRAKE_HARD_MIN_SPEED:
+        reason = f"it is too slow to brake hard ({v:.1f} m/s; at least {BRAKE_HARD_MIN_SPEED:g})"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    gap = _gap_behind(ctx.index, agent, other)
+    if gap is None or gap > FOLLOWER_RANGE_M:
+        where = "not behind it in its lane"
+        if gap is not None:
+            where = f"{gap:.0f} m behind it (at most {FOLLOWER_RANGE_M:g})"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", f"@{other.track_id} is {where}")
+    station = v * BRAKE_HARD_AFTER_S + v * v / (2.0 * deceleration)
+    return BehaviourTarget(
+        agent.track_id,
+        behaviour,
+        ctx.ahead(agent),
+        f"braking at {deceleration:g} m/s^2 from {BRAKE_HARD_AFTER_S:g} s to rest {station:.0f} m ahead, "
+        f"@{other.track_id} {gap:.0f} m behind",
+        station_of_goal=float(station),
+        speed=0.0,
+        other_id=other.track_id,
+        current_speed=v,
+        other_speed=other.here.speed,
+        settled_s=BRAKE_HARD_AFTER_S + v / deceleration,
+        deceleration=float(deceleration),
+    )
+
+
+def _tailgate(ctx: TargetContext, agent: _Agent, other: _Agent) -> BehaviourTarget:
+    """The agent's lane ahead and the station where its gap to the other, keeping its speed, is `TAILGATE_HEADWAY_S`
+    of headway, closed `TAILGATE_CLOSING` m/s faster than the other (at least 2 s), then the other's speed.
+    Infeasible where the other is not ahead in its lane within `FOLLOWER_RANGE_M`, is slower than
+    `TAILGATE_MIN_SPEED`, or the gap cannot be closed within `TAILGATE_WITHIN_S`."""
+    behaviour, v_other = Behaviour.TAILGATE, other.here.speed
+    gap = _gap_behind(ctx.index, other, agent)
+    if gap is None or gap > FOLLOWER_RANGE_M:
+        where = "not ahead of it in its lane"
+        if gap is not None:
+            where = f"{gap:.0f} m ahead of it (at most {FOLLOWER_RANGE_M:g})"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", f"@{other.track_id} is {where}")
+    if v_other < TAILGATE_MIN_SPEED:
+        reason = f"@{other.track_id} is too slow to tailgate ({v_other:.1f} m/s; at least {TAILGATE_MIN_SPEED:g})"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    want = TAILGATE_HEADWAY_S * v_other
+    within = max(2.0, (gap - want) / TAILGATE_CLOSING)
+    if within > TAILGATE_WITHIN_S:
+        reason = f"@{other.track_id} is {gap:.0f} m ahead: too far to close to {want:.0f} m in {TAILGATE_WITHIN_S:g} s"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    return BehaviourTarget(
+        agent.track_id,
+        behaviour,
+        ctx.ahead(agent),
+        f"{want:.0f} m behind @{other.track_id} ({TAILGATE_HEADWAY_S:g} s at {v_other:.1f} m/s) within {within:.1f} s",
+        station_of_goal=float(v_other * within + gap - want),
+        speed=float(v_other),
+        other_id=other.track_id,
+        current_speed=agent.here.speed,
+        other_speed=float(v_other),
+        settled_s=float(within),
+    )
 
 
 def _cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: float) -> BehaviourTarget:
@@ -381,6 +506,7 @@ def _cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: float) -> Beh
         current_speed=v,
         other_speed=v_other,
         side=side,  # type: ignore[arg-type]
+        settled_s=CUT_IN_S,
     )
 
 

@@ -41,10 +41,12 @@ def feasibility(
     other_id: int | None = None,
     config: CounterfactualConfig | None = None,
     gap: float | None = None,
+    deceleration: float | None = None,
 ) -> Feasibility:
-    """Whether `track_id` can do `behaviour` (toward `other_id` for a pair behaviour; a cut-in `gap` m ahead of it) at
-    the current step: feasible with its target, or infeasible / undecided with the reason the map gives no target."""
-    return _verdict(TargetContext(scenario, index, config), track_id, behaviour, other_id, gap)
+    """Whether `track_id` can do `behaviour` (toward `other_id` for a pair behaviour; a cut-in `gap` m ahead of it; a
+    braking lead at `deceleration` m/s^2) at the current step: feasible with its target, or infeasible / undecided
+    with the reason the map gives no target."""
+    return _verdict(TargetContext(scenario, index, config), track_id, behaviour, other_id, gap, deceleration)
 
 
 def behaviour_feasibility(
@@ -58,11 +60,16 @@ def behaviour_feasibility(
 
 
 def _verdict(
-    context: TargetContext, track_id: int, behaviour: Behaviour, other_id: int | None, gap: float | None = None
+    context: TargetContext,
+    track_id: int,
+    behaviour: Behaviour,
+    other_id: int | None,
+    gap: float | None = None,
+    deceleration: float | None = None,
 ) -> Feasibility:
     """The target `context` gives, as a verdict."""
     try:
-        target = context.target(track_id, behaviour, other_id, gap)
+        target = context.target(track_id, behaviour, other_id, gap, deceleration)
     except TargetUnavailable as exc:
         return Feasibility(track_id, behaviour, exc.status, exc.reason)
     return Feasibility(track_id, behaviour, "feasible", target=target)
