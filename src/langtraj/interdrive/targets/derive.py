@@ -384,6 +384,20 @@ def _gap_behind(index: MapIndex, lead: _Agent, follower: _Agent) -> float | None
     return along - 0.5 * (lead.length + follower.length)
 
 
+def _pair_gap(
+    ctx: TargetContext, agent: _Agent, other: _Agent, behaviour: Behaviour, lead: _Agent, where: str
+) -> float:
+    """The bumper gap between the two when `lead` (one of them) leads the other in its lane within `FOLLOWER_RANGE_M`
+    (`_gap_behind`); else `TargetUnavailable` (infeasible) saying where `other` is not (`where`: "behind" it,
+    "ahead of" it)."""
+    follower = other if lead is agent else agent
+    gap = _gap_behind(ctx.index, lead, follower)
+    if gap is None or gap > FOLLOWER_RANGE_M:
+        why = f"not {where} it in its lane" if gap is None else f"{gap:.0f} m {where} it (at most {FOLLOWER_RANGE_M:g})"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", f"@{other.track_id} is {why}")
+    return gap
+
+
 def _brake_hard(ctx: TargetContext, agent: _Agent, other: _Agent, deceleration: float) -> BehaviourTarget:
     """The agent's lane ahead and the stop that braking at `deceleration` from `BRAKE_HARD_AFTER_S` brings it to,
     the other following within `FOLLOWER_RANGE_M` (Euro NCAP's braking lead vehicle). Infeasible for a deceleration
@@ -396,12 +410,7 @@ def _brake_hard(ctx: TargetContext, agent: _Agent, other: _Agent, deceleration: 
     if v < BRAKE_HARD_MIN_SPEED:
         reason = f"it is too slow to brake hard ({v:.1f} m/s; at least {BRAKE_HARD_MIN_SPEED:g})"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
-    gap = _gap_behind(ctx.index, agent, other)
-    if gap is None or gap > FOLLOWER_RANGE_M:
-        where = "not behind it in its lane"
-        if gap is not None:
-            where = f"{gap:.0f} m behind it (at most {FOLLOWER_RANGE_M:g})"
-        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", f"@{other.track_id} is {where}")
+    gap = _pair_gap(ctx, agent, other, behaviour, lead=agent, where="behind")
     station = v * BRAKE_HARD_AFTER_S + v * v / (2.0 * deceleration)
     return BehaviourTarget(
         agent.track_id,
@@ -425,12 +434,7 @@ def _tailgate(ctx: TargetContext, agent: _Agent, other: _Agent) -> BehaviourTarg
     Infeasible where the other is not ahead in its lane within `FOLLOWER_RANGE_M`, is slower than
     `TAILGATE_MIN_SPEED`, or the gap cannot be closed within `TAILGATE_WITHIN_S`."""
     behaviour, v_other = Behaviour.TAILGATE, other.here.speed
-    gap = _gap_behind(ctx.index, other, agent)
-    if gap is None or gap > FOLLOWER_RANGE_M:
-        where = "not ahead of it in its lane"
-        if gap is not None:
-            where = f"{gap:.0f} m ahead of it (at most {FOLLOWER_RANGE_M:g})"
-        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", f"@{other.track_id} is {where}")
+    gap = _pair_gap(ctx, agent, other, behaviour, lead=other, where="ahead of")
     if v_other < TAILGATE_MIN_SPEED:
         reason = f"@{other.track_id} is too slow to tailgate ({v_other:.1f} m/s; at least {TAILGATE_MIN_SPEED:g})"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
