@@ -11,7 +11,7 @@ import pytest
 from scenario_builders import two_lane_road
 
 from langtraj.env.route import Route
-from langtraj.env.rules import RuleJudge
+from langtraj.env.rules import EpisodeLights, RuleJudge
 from langtraj.roads import MapIndex
 from langtraj.scenario import TrafficLights
 from langtraj.scenario.types import StateField, TrafficLightState
@@ -39,7 +39,7 @@ def _state(x: float, y: float = 0.0, heading: float = 0.0, speed: float = 10.0) 
 def _judge(scenario, lights: str, limit: float = np.nan) -> RuleJudge:
     points = np.stack([np.linspace(-50, 250, 301), np.zeros(301)], axis=1)
     route = Route.of(points, "lanes", np.array([limit]), np.array([300.0]))
-    return RuleJudge(scenario, 0, MapIndex.build(scenario.road_map), route, lights)
+    return RuleJudge(scenario, 0, MapIndex.build(scenario.road_map), route, EpisodeLights(scenario, lights))
 
 
 @pytest.mark.parametrize(("lights", "red"), [("log", True), ("held", False)])

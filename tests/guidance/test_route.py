@@ -121,7 +121,7 @@ def test_every_term_toward_a_target_is_weighted_in_the_common_range():
     for behaviour in Behaviour:
         pair = behaviour in (Behaviour.GO_FIRST, Behaviour.YIELD, Behaviour.FOLLOW)
         fields = {"other_id": 2, "other_eta": 3.0, "other_speed": 8.0} if pair else {}
-        steering = _steering(behaviour, station_of_goal=30.0, speed=5.0, **fields)
+        steering = _steering(behaviour, station_of_goal=30.0, speed=5.0, settled_s=4.0, **fields)
         terms = steering.terms(0, 80)
         # a braking lead's lane is held harder (`KEEP_LANE_WEIGHT`): the model, conditioned on a stop, moves aside
         bound = [
@@ -152,3 +152,5 @@ def test_a_tailgater_reaches_its_station_when_the_target_says_and_keeps_the_othe
     assert stations == [("hold", 0, 30), ("reach", 29, 35)]
     speed = next(t.cost for t in tail.terms(0, 80) if isinstance(t.cost, TargetSpeedCost))
     assert (speed.speeds, speed.start) == ((10.0,), 29)
+    with pytest.raises(ValueError, match="must say when it is settled"):  # a timed kind's target gives its time
+        _steering(Behaviour.TAILGATE, station_of_goal=50.0, speed=10.0, other_id=2).terms(0, 80)

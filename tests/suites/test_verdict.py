@@ -23,6 +23,11 @@ def _record(n: int = 10, **at) -> StepRecord:
                 "progress": k / n * at.get("progress", 1.0),
                 "progress_m": float(k),
                 "speed": 10.0,
+                "acceleration": at.get("acceleration", {}).get(k, 0.0),
+                "yaw_rate": 0.0,
+                "red_light": k in at.get("red", ()),
+                "wrong_way": k in at.get("wrong", ()),
+                "over_speed_limit": at.get("over", {}).get(k, 0.0),
             }
         )
     return record
@@ -75,3 +80,19 @@ def test_unmeasured_figures():
     empty = episode_figures(StepRecord())
     assert empty["steps"] == 0 and empty["min_ttc"] is None and empty["final_progress"] is None
     assert all(v.passed for v in judge(Criteria(min_ttc=1.0), empty))
+
+
+def test_the_rules_of_the_road_and_comfort():
+    rules = Criteria(no_red_light=True, no_wrong_way=True, max_over_speed_limit=1.0, comfortable=True)
+    assert _reasons(rules, _record()) == {}
+    broken = _record(red=(3,), wrong=(5, 6), over={4: 2.5}, acceleration={7: -6.0})
+    assert _reasons(rules, broken) == {
+        "no_red_light": "ran a red light at step 3 (1 steps in all)",
+        "no_wrong_way": "drove against its lane at step 5 (2 steps in all)",
+        "max_over_speed_limit": "2.5 m/s over the speed limit (allowed 1)",
+        "comfortable": "uncomfortable: min_acceleration -6 (bound -4.05), max_abs_jerk 60 (bound 4.13)",
+    }
+    assert _reasons(Criteria(), broken) == {}  # all off by default
+    unreported = StepRecord()
+    unreported.add({"collision": False, "at_fault": False, "offroad": False, "speed": 10.0})  # an env without rules
+    assert "not measured" in _reasons(Criteria(no_red_light=True), unreported)["no_red_light"]

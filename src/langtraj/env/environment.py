@@ -27,7 +27,7 @@ from langtraj.env.events import EventJudge
 from langtraj.env.observe import MapPieces, Observer
 from langtraj.env.reward import RewardConfig
 from langtraj.env.route import ego_route
-from langtraj.env.rules import LIGHT_MODES, RuleJudge
+from langtraj.env.rules import EpisodeLights, RuleJudge, light_mode
 from langtraj.errors import InputError
 from langtraj.metrics.road import RoadEdgeIndex, road_edge_index
 from langtraj.model.config import ModelConfig
@@ -114,9 +114,7 @@ class LangTrajEnv(gym.Env):
                 f"must be one of {self.metadata['render_modes']} or None, got {render_mode!r}", where="render_mode"
             )
         POLICIES.get(policy, where="policy")
-        if lights not in LIGHT_MODES:
-            raise InputError(f"must be one of {', '.join(LIGHT_MODES)}, got {lights!r}", where="lights")
-        self.lights = lights
+        self.lights = light_mode(lights)
         given = {
             "scenario": scenario,
             "index": index,
@@ -191,9 +189,10 @@ class LangTrajEnv(gym.Env):
         start = AgentOnLane.of(scenario, ego, scene.index)
         seen = logged[np.isfinite(logged[:, 0]), :2]
         self._route = ego_route(scene.index, start, pose[:2], float(pose[2]), seen)
-        self._observer = Observer(scenario, ego, self._route, scene.pieces, self.lights)
+        lights = EpisodeLights(scenario, self.lights)
+        self._observer = Observer(scenario, ego, self._route, scene.pieces, lights)
         self._judge = EventJudge(scenario, ego, scene.edges, scene.index)
-        self._rules = RuleJudge(scenario, ego, scene.index, self._route, self.lights)
+        self._rules = RuleJudge(scenario, ego, scene.index, self._route, lights)
         self._curvature = ego_curvature(scenario, ego)
         self._control = np.zeros(2)
         obs, station = self._observe()

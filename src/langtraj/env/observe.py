@@ -15,6 +15,7 @@ import numpy as np
 from langtraj.angles import wrap_angle
 from langtraj.env import spaces
 from langtraj.env.route import Route
+from langtraj.env.rules import EpisodeLights
 from langtraj.env.spaces import AgentColumn, EgoColumn
 from langtraj.frames import points_to_frame
 from langtraj.model.features import feature_pieces
@@ -55,17 +56,19 @@ class Observer:
     """Builds the observation of the ego (scenario row `ego`) from the world's states at a step."""
 
     def __init__(
-        self, scenario: Scenario, ego: int, route: Route, pieces: MapPieces | None = None, lights: str = "log"
+        self,
+        scenario: Scenario,
+        ego: int,
+        route: Route,
+        pieces: MapPieces | None = None,
+        lights: EpisodeLights | None = None,
     ):
         self.ego = ego
         self.route = route
         self.pieces = MapPieces.of(scenario) if pieces is None else pieces
         self.ids = scenario.agents.ids.astype(np.int64)
         self.types = scenario.agents.types.astype(np.int64)
-        self.start, self.replay = scenario.current_index, lights == "log"
-        self.lights = scenario.traffic_lights if scenario.traffic_lights is not None else None
-        if self.lights is not None and not len(self.lights.lane_ids):
-            self.lights = None
+        self.lights = EpisodeLights(scenario) if lights is None else lights
 
     def observe(
         self,
@@ -98,7 +101,7 @@ class Observer:
         }
         obs |= self._agents(states, valid, pose, history)
         obs |= self._map(pose)
-        obs |= self._lights(pose, self.start if step is None or not self.replay else step)
+        obs |= self._lights(pose, self.lights.start if step is None else step)
         return obs, station
 
     def _agents(
@@ -160,14 +163,14 @@ class Observer:
         return out
 
     def _lights(self, pose: np.ndarray, step: int) -> dict[str, np.ndarray]:
-        """The nearest lights and their states at `step` (`TrafficLights.held_at`: never past it)."""
+        """The nearest lights and their states at `step`, as the episode sees them (`EpisodeLights`)."""
         k = spaces.NUM_LIGHTS
         out = {"lights": np.zeros((k, 2), np.float32), "lights_state": np.zeros(k, np.int64)}
         out["lights_valid"] = np.zeros(k, np.int8)
-        if self.lights is None:
+        if self.lights.log is None:
             return out
-        states, keep = self.lights.held_at(step)
-        points, states = np.asarray(self.lights.stop_points[keep, :2], np.float64), states[keep].astype(np.int64)
+        states, keep = self.lights.at(step)
+        points, states = np.asarray(self.lights.log.stop_points[keep, :2], np.float64), states[keep].astype(np.int64)
         if not len(states):
             return out
         dist = np.hypot(*(points - pose[:2]).T)

@@ -13,6 +13,7 @@ import numpy as np
 
 from langtraj.angles import wrap_angle
 from langtraj.env.route import Route
+from langtraj.errors import InputError
 from langtraj.metrics.traffic_lights import STOP_STATES, SignalLanes, red_light_violations
 from langtraj.roads import MapIndex
 from langtraj.roads.position import LANE_MATCH_RADIUS
@@ -28,6 +29,33 @@ WRONG_WAY_MIN_SPEED = 1.0
 """Below this (m/s) the ego is turning or standing, not driving against its lane."""
 
 
+def light_mode(mode: str) -> str:
+    """`mode` when it is one of `LIGHT_MODES`, else a one-line InputError naming `lights`."""
+    if mode not in LIGHT_MODES:
+        raise InputError(f"must be one of {', '.join(LIGHT_MODES)}, got {mode!r}", where="lights")
+    return mode
+
+
+class EpisodeLights:
+    """The traffic lights an episode sees at each step, in one of `LIGHT_MODES`: the log's up to that step
+    (`TrafficLights.held_at`, never past it) or those at the start; each step's read once for the observation and the
+    rules alike. `log` is None for a scene without signals."""
+
+    def __init__(self, scenario: Scenario, mode: str = "log"):
+        lights = scenario.traffic_lights
+        self.log = lights if lights is not None and len(lights.lane_ids) else None
+        self.mode, self.start = light_mode(mode), scenario.current_index
+        self._read: tuple[int, tuple[np.ndarray, np.ndarray]] | None = None
+
+    def at(self, step: int) -> tuple[np.ndarray, np.ndarray]:
+        """Each signal's state int8 [L] and whether it was ever seen, bool [L], as the episode sees them at `step`."""
+        assert self.log is not None
+        step = step if self.mode == "log" else self.start
+        if self._read is None or self._read[0] != step:
+            self._read = (step, self.log.held_at(step))
+        return self._read[1]
+
+
 @dataclass(frozen=True)
 class RuleEvents:
     """The ego at one step: `red_light` it crossed a red light's stop point since the last step; `wrong_way` it
@@ -40,19 +68,16 @@ class RuleEvents:
 
 
 class RuleJudge:
-    """Judges the ego (scenario row `ego`) of `scenario` on its map (`index`) and `route`, with the lights of each
-    step replayed from the log or held at the start (`lights`, one of `LIGHT_MODES`)."""
+    """Judges the ego (scenario row `ego`) of `scenario` on its map (`index`) and `route`, with the lights the
+    episode sees (`lights`: replayed from the log or held at the start)."""
 
-    def __init__(self, scenario: Scenario, ego: int, index: MapIndex, route: Route, lights: str = "log"):
+    def __init__(self, scenario: Scenario, ego: int, index: MapIndex, route: Route, lights: EpisodeLights):
         self.ego, self.index, self.route, self.lights = ego, index, route, lights
-        self.start = scenario.current_index
-        self._log = scenario.traffic_lights
-        self.signals = SignalLanes.from_scenario(scenario) if self._log is not None else None
+        self.signals = SignalLanes.from_scenario(scenario) if lights.log is not None else None
 
     def stop_at(self, step: int) -> np.ndarray:
-        """bool [S]: which signals show stop at `step` (under `held`, at the start); never reads past `step`."""
-        assert self._log is not None
-        states, seen = self._log.held_at(step if self.lights == "log" else self.start)
+        """bool [S]: which signals show stop at `step` as the episode sees them."""
+        states, seen = self.lights.at(step)
         return seen & np.isin(states, [int(s) for s in STOP_STATES])
 
     def judge(self, before: np.ndarray, now: np.ndarray, step: int, station: float) -> RuleEvents:

@@ -24,7 +24,7 @@ from langtraj.guidance.costs import NoCollisionCost, TargetSpeedCost
 from langtraj.guidance.library import AVOID_WEIGHT, SPEED_WEIGHT
 from langtraj.guidance.route import RouteCost, RoutePath, StationCost
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
-from langtraj.interdrive.targets import BRAKE_HARD_AFTER_S, CUT_IN_S, BehaviourTarget
+from langtraj.interdrive.targets import BRAKE_HARD_AFTER_S, BehaviourTarget
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS
 
 ROUTE_WEIGHT = 1.0  # per m^2 off the route
@@ -201,10 +201,17 @@ def _follow(s: Steering, clock: _Clock) -> list:
     return _route(s, clock, weight=0.5) + _speed(s, clock, other_speed, 1) + _avoid(s, 2.0)
 
 
+def _settled(target: BehaviourTarget) -> int:
+    """The simulated step by which the target times its goal (`settled_s`), which a timed kind's target must give."""
+    if target.settled_s is None:
+        raise ValueError(f"a {target.behaviour.value} target must say when it is settled (settled_s)")
+    return _steps(target.settled_s)
+
+
 def _at_station_then_speed(s: Steering, clock: _Clock) -> list:
     """At the goal station when the target says (`settled_s`), not past it before; at the other agent's speed
     after."""
-    t, settled = s.target, _steps(s.target.settled_s or CUT_IN_S)
+    t, settled = s.target, _settled(s.target)
     other_speed = t.other_speed if t.other_speed is not None else t.current_speed
     goal = float(t.station_of_goal or 0.0)
     return (
@@ -230,7 +237,7 @@ def _brake_hard(s: Steering, clock: _Clock) -> list:
     """At its speed until braking starts, never past the stop point, standing still from when braking at the asked
     deceleration gets there (`settled_s`); in its lane throughout (a braking lead does not swerve)."""
     t = s.target
-    rest = _steps(t.settled_s) if t.settled_s is not None else _stop_step(s)
+    rest = _settled(t)
     start = _steps(BRAKE_HARD_AFTER_S)
     return (
         _speed(s, clock, t.current_speed, 1, start)

@@ -63,12 +63,10 @@ class BehaviourSpec:
     exact: bool = False
     """Whether a typed prompt's pair behaviour is judged by `subtype` itself, not by any subtype of its type (a cut-in
     is one kind of lane change toward another agent; `PromptReading.followed`)."""
-    conditioned_as_lane_change: bool = False
-    """Whether the model, which never saw this kind in training, is conditioned on the sentence of the lane change
-    its target makes instead of the typed words (`sim.prompts.PromptSteering.sentences`)."""
     conditioned_as: Behaviour | None = None
     """The kind whose sentence the model, which never saw this kind in training, is conditioned on instead of the
-    typed words (braking hard in front of another agent: a stop; `sim.prompts.PromptSteering.sentences`)."""
+    typed words (braking hard in front of another agent: a stop; a cut-in: a lane change, to the side its target
+    takes; `sim.prompts.conditioning_sentence`)."""
 
     @property
     def is_pair(self) -> bool:
@@ -177,7 +175,7 @@ BEHAVIOURS: Mapping[Behaviour, BehaviourSpec] = {
             interaction=InteractionType.LANE_CHANGE,
             subtype="lane_change/cut_in",
             exact=True,
-            conditioned_as_lane_change=True,
+            conditioned_as=Behaviour.LANE_CHANGE_LEFT,
         ),
         BehaviourSpec(
             Behaviour.BRAKE_HARD,

@@ -259,15 +259,15 @@ def prompt_steering(
 
 
 def conditioning_sentence(target: BehaviourTarget) -> str | None:
-    """The sentence the model is conditioned on for a target of a kind it never saw in training: the lane change a
-    cut-in makes, or the kind the spec names (a braking lead: a stop); None for a kind it knows."""
-    spec = BEHAVIOURS[target.behaviour]
-    if spec.conditioned_as_lane_change and target.side:
-        change = Behaviour.LANE_CHANGE_LEFT if target.side == "left" else Behaviour.LANE_CHANGE_RIGHT
-        return BEHAVIOURS[change].text(target.track_id)
-    if spec.conditioned_as is not None:
-        return BEHAVIOURS[spec.conditioned_as].text(target.track_id)
-    return None
+    """The sentence the model is conditioned on for a target of a kind it never saw in training: that of the kind its
+    spec names (`BehaviourSpec.conditioned_as`; a lane change to the side the target takes); None for a kind it
+    knows."""
+    kind = BEHAVIOURS[target.behaviour].conditioned_as
+    if kind is None:
+        return None
+    if BEHAVIOURS[kind].is_lane_change and target.side is not None:
+        kind = Behaviour.LANE_CHANGE_LEFT if target.side == "left" else Behaviour.LANE_CHANGE_RIGHT
+    return BEHAVIOURS[kind].text(target.track_id)
 
 
 _OPPOSITE = {Behaviour.YIELD: Behaviour.GO_FIRST, Behaviour.GO_FIRST: Behaviour.YIELD}

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from langtraj.cases import Criteria
+from langtraj.scenario.model import STEP_SECONDS
 
 STEP_KEYS = (
     "collision", "at_fault", "offroad", "ttc", "min_distance", "progress", "progress_m", "speed", "acceleration",
@@ -156,7 +157,7 @@ def comfort_figures(record: StepRecord) -> dict[str, Any]:
     lateral = [
         abs(w * v) for w, v in zip(record.yaw_rate, record.speed, strict=True) if w is not None and v is not None
     ]
-    jerk = [abs(b - a) / 0.1 for a, b in itertools.pairwise(accel)]
+    jerk = [abs(b - a) / STEP_SECONDS for a, b in itertools.pairwise(accel)]
     out = {
         "min_acceleration": min(accel, default=None),
         "max_acceleration": max(accel, default=None),
@@ -166,12 +167,16 @@ def comfort_figures(record: StepRecord) -> dict[str, Any]:
     }
     if not accel:
         return {k: None for k in out} | {"comfortable": None}
-    within = all(
-        value is None or (value >= bound if key.startswith("min_") else value <= bound)
+    return {k: _rounded(v) for k, v in out.items()} | {"comfortable": not comfort_breaches(out)}
+
+
+def comfort_breaches(figures: dict[str, Any]) -> list[str]:
+    """The comfort figures outside `COMFORT_BOUNDS`, one "key value (bound b)" each (none known: none)."""
+    return [
+        f"{key} {figures[key]:g} (bound {bound:g})"
         for key, bound in COMFORT_BOUNDS.items()
-        for value in [out[key]]
-    )
-    return {k: _rounded(v) for k, v in out.items()} | {"comfortable": within}
+        if figures[key] is not None and (figures[key] < bound if key.startswith("min_") else figures[key] > bound)
+    ]
 
 
 @dataclass(frozen=True)
@@ -244,11 +249,7 @@ def judge(criteria: Criteria, figures: dict[str, Any]) -> list[CriterionResult]:
         results.append(CriterionResult("max_over_speed_limit", passed, value, limit, reason))
     if criteria.comfortable:
         passed = figures["comfortable"] is True
-        outside = [
-            f"{key} {figures[key]:g} (bound {bound:g})"
-            for key, bound in COMFORT_BOUNDS.items()
-            if figures[key] is not None and (figures[key] < bound if key.startswith("min_") else figures[key] > bound)
-        ]
+        outside = comfort_breaches(figures)
         reason = None if passed else ("uncomfortable: " + ", ".join(outside) if outside else "comfort not measured")
         results.append(CriterionResult("comfortable", passed, figures["comfortable"], reason=reason))
     return results
