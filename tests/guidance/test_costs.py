@@ -24,9 +24,10 @@ ROAD = [[[-50.0, -2.0], [50.0, -2.0]], [[50.0, 6.0], [-50.0, 6.0]]]
 LANE = [[[-50.0, 0.0], [0.0, 0.0]], [[0.0, 0.0], [50.0, 0.0]]]
 
 
-def test_the_registry_lists_the_nine_costs_and_returns_their_classes():
+def test_the_registry_lists_the_ten_costs_and_returns_their_classes():
     assert GUIDANCE.names() == (
-        "collision", "no_collision", "goal", "target_speed", "on_road", "keep_lane", "headway", "route", "station"
+        "collision", "no_collision", "goal", "target_speed", "on_road", "keep_lane", "headway", "route", "station",
+        "lead",
     )  # fmt: skip
     assert GUIDANCE.get("goal") is GoalCost
     with pytest.raises(InputError, match="unknown guidance cost 'nope'"):

@@ -11,7 +11,7 @@ import torch
 
 from langtraj.errors import InputError
 from langtraj.guidance import GuidanceTerm, NoCollisionCost, RouteCost, StationCost, TargetSpeedCost
-from langtraj.guidance.route import RoutePath
+from langtraj.guidance.route import LeadCost, RoutePath
 from langtraj.guidance.steering import KEEP_LANE_WEIGHT, ClearOfOthersCost, Steering
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.targets import BehaviourTarget
@@ -154,3 +154,32 @@ def test_a_tailgater_reaches_its_station_when_the_target_says_and_keeps_the_othe
     assert (speed.speeds, speed.start) == ((10.0,), 29)
     with pytest.raises(ValueError, match="must say when it is settled"):  # a timed kind's target gives its time
         _steering(Behaviour.TAILGATE, station_of_goal=50.0, speed=10.0, other_id=2).terms(0, 80)
+
+
+def test_lead_cost_keeps_an_agent_ahead_of_another_along_the_path_wherever_the_other_drives():
+    scene = make_scene(2)
+    two = torch.cat([_driving(y=3.5), _driving(speed=1.2)], dim=1)  # 1 in the lane beside gains 0.2 m a step
+    reach = LeadCost(0, 1, PATH, 5.0, mode="reach", start=30)
+    value, grad = cost_gradient(reach, two, scene)
+    assert float(value) > 0 and (grad[0, 0, 30:, 0] < 0).all()  # 0 lags 1: pushed forward along the path
+    assert (grad[0, 0, :30] == 0).all() and (grad[0, 1] == 0).all()  # only in its window, and only 0 is steered
+    moved = _descend(reach, two, scene, rate=2.0, steps=200)
+    assert float(reach(moved, scene)) < 0.05  # 5 m ahead of where 1 drives
+    hold = LeadCost(0, 1, PATH, -10.0, mode="hold")
+    assert float(hold(two, scene)) > 0 and float(LeadCost(0, 1, PATH, 0.0, mode="hold")(two, scene)) == 0.0
+    assert float(reach(two, make_scene(2, valid=[True, False]))) == 0.0  # the other is padding: nothing to keep to
+    with pytest.raises(InputError, match="another agent"):
+        LeadCost(0, 0, PATH, 5.0)
+
+
+def test_an_overtake_keeps_its_gap_to_where_the_other_drives_once_it_can_see_it():
+    fields = {"station_of_goal": 80.0, "speed": 14.0, "other_id": 2, "settled_s": 6.0, "lead_m": 14.5}
+    terms = _steering(Behaviour.OVERTAKE_CUT_IN, **fields).terms(0, 80)
+    leads = sorted((t.cost.mode, t.cost.lead, t.cost.start, t.cost.end) for t in terms if isinstance(t.cost, LeadCost))
+    assert leads == [("hold", 16.5, 0, 80), ("reach", 14.5, 59, 80)]  # never far ahead; the gap from 6 s on
+    speed = next(t.cost for t in terms if isinstance(t.cost, TargetSpeedCost))
+    assert (speed.speeds, speed.start, speed.end) == ((14.0,), 9, 30)  # passing speed from 1 s to the change
+    target = BehaviourTarget(1, Behaviour.OVERTAKE_CUT_IN, _steering(Behaviour.STOP).target.path, "t", **fields)
+    alone = Steering(target, slot=0, other_slot=None)  # the other is not the model's: the station instead
+    assert any(isinstance(t.cost, StationCost) for t in alone.terms(0, 80))
+    assert not any(isinstance(t.cost, LeadCost) for t in alone.terms(0, 80))

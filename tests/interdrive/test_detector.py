@@ -16,6 +16,7 @@ from langtraj.interdrive.detector import (
     cut_in_runs,
     detect_interactions,
     following_runs,
+    overtake_cut_in_runs,
     pair_rows,
     passing_runs,
     tailgating_runs,
@@ -185,6 +186,24 @@ def test_a_lane_change_just_ahead_of_a_vehicle_in_the_target_lane_cuts_in_front_
     cut_ins = {(lab.track_id, lab.other_id) for lab in labels if lab.subtype.id == "lane_change/cut_in"}
     assert cut_ins == {(1, 2)}  # 2 is 7.5 m behind in the target lane; 3 is 75 m behind, beyond `cut_in_range`
     assert cut_in_runs(SceneGeometry(scene(tracks, features=_two_lanes()), (), DetectorConfig()), 0, 1)
+
+
+def test_a_cut_in_by_a_vehicle_that_was_behind_shortly_before_is_an_overtake_and_cut_in():
+    mover = straight(0, 0, 0, 14.0)  # 10 m behind 2 at the start, 4 m/s faster: level at about 2.5 s
+    ramp = np.clip((np.arange(T) - 55) / 15.0, 0.0, 1.0)
+    mover[:, 1] = 3.5 * (3 * ramp**2 - 2 * ramp**3)  # into 2's lane from 5.5 s, about 13 m ahead of it
+    tracks = {1: (VEH, mover), 2: (VEH, straight(10, 3.5, 0, 10.0))}
+    labels = detect_interactions(scene(tracks, features=_two_lanes()))
+    overtakes = [lab for lab in labels if lab.subtype.id == "overtaking/cut_in"]
+    assert [(lab.track_id, lab.other_id) for lab in overtakes] == [(1, 2)]
+    assert overtakes[0].start <= 25  # from when 1 was still behind 2
+    assert {(lab.track_id, lab.other_id) for lab in labels if lab.subtype.id == "lane_change/cut_in"} == {(1, 2)}
+    geometry = SceneGeometry(scene(tracks, features=_two_lanes()), (), DetectorConfig())
+    assert overtake_cut_in_runs(geometry, 0, 1) and not overtake_cut_in_runs(geometry, 1, 0)
+    ahead = straight(20, 0, 0, 10.0)  # the plain cut-in: ahead of 2 throughout
+    ahead[:, 1] = mover[:, 1]
+    plain = {1: (VEH, ahead), 2: (VEH, straight(8, 3.5, 0, 10.0))}
+    assert not overtake_cut_in_runs(SceneGeometry(scene(plain, features=_two_lanes()), (), DetectorConfig()), 0, 1)
 
 
 def _ramp_lanes() -> list[MapFeature]:

@@ -320,3 +320,19 @@ def test_the_tailgating_vocabulary_reads_as_tailgating(text):
     reading = read_prompt(text)
     assert (reading.behaviour, reading.agent, reading.other) == (B.TAILGATE, 52, 56)
     assert read_prompt("@52 follows closely behind @56").behaviour is B.FOLLOW  # close, not too close
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["@52 overtakes @56 and cuts in front of it", "@52 passes @56 and cuts in", "@52 overtakes @56 and cuts it off",
+     "@52 passes @56, then pulls in ahead of it with a 6 m gap", "@52 overtakes and cuts in front of @56",
+     "@52 cuts in front of @56 after overtaking it", "@52 goes past @56 and moves back into its lane",
+     "@52 races past @56 and swerves back in front of it"],
+)  # fmt: skip
+def test_the_overtake_and_cut_in_vocabulary_reads_as_one_kind(text):
+    reading = read_prompt(text)
+    assert (reading.behaviour, reading.agent, reading.other) == (B.OVERTAKE_CUT_IN, 52, 56)
+    assert reading.metres == (6.0 if "6 m" in text else None)
+    # a cut-in in front of another agent than the one passed is that cut-in, not an overtake of either
+    assert read_prompt("@52 overtakes @56 and cuts in front of @9").behaviour is B.CUT_IN
+    assert read_prompt("@52 overtakes @56").behaviour is None  # an overtake alone is not in the vocabulary

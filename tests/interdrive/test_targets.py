@@ -133,6 +133,31 @@ def test_a_cut_in_targets_the_other_agents_lane_beside_it_at_the_speed_that_leav
         _target(alone, 1, Behaviour.CUT_IN, 2)
 
 
+def test_an_overtake_passes_in_its_own_lane_then_cuts_into_the_others_lane_the_gap_ahead_of_it():
+    s = scene(two_lane_road(), _eastbound_from(0.0, y=3.5), _eastbound_from(5.0))  # 1 left lane, 5 m behind 2
+    target = _target(s, 1, Behaviour.OVERTAKE_CUT_IN, 2)
+    # its rear 2 m past 2's front: 11.5 m to gain (4.5 m of half lengths, 5 m behind), 3.2 m of it speeding up to
+    # 14 m/s, the rest 4 m/s faster; then 3 s changing lanes, settled with the 10 m gap
+    change = 1.6 + (11.5 - 3.2) / 4.0
+    assert target.settled_s == pytest.approx(change + 3.0, abs=0.15) and target.speed == pytest.approx(14.0)
+    assert target.station_of_goal == pytest.approx(10.0 * target.settled_s + 19.5)
+    assert target.side == "right" and "past @2 at 14.0 m/s" in target.reason
+    begin = 10.0 * change + 11.5  # where the change begins
+    x0 = s.agents.states[0, s.current_index, 0]
+    passing = target.path[target.path[:, 0] < x0 + begin - 1.0]
+    assert len(passing) > 10 and np.allclose(passing[:, 1], 3.5, atol=0.05)  # its own lane while it passes
+    assert np.allclose(target.path[-1, 1], 0.0, atol=0.05)  # then the other's
+    ahead = scene(two_lane_road(), _eastbound_from(20.0, y=3.5), _eastbound_from(5.0))
+    with pytest.raises(TargetUnavailable, match="already ahead of @2: that is a cut-in"):
+        _target(ahead, 1, Behaviour.OVERTAKE_CUT_IN, 2)
+    far = scene(two_lane_road(), _eastbound_from(0.0, y=3.5), _eastbound_from(35.0))
+    with pytest.raises(TargetUnavailable, match="cannot get 10 m ahead of @2 by 7 s"):
+        _target(far, 1, Behaviour.OVERTAKE_CUT_IN, 2)
+    same_lane = scene(two_lane_road(), _eastbound_from(0.0), _eastbound_from(15.0))
+    with pytest.raises(TargetUnavailable, match="not in a lane beside its own"):
+        _target(same_lane, 1, Behaviour.OVERTAKE_CUT_IN, 2)
+
+
 def test_yielding_and_going_first_meet_at_the_conflict_point_of_crossing_lanes():
     eastbound = _track(line(-80, -HALF, -10, -HALF), 8.0, 40.0)  # on lane 41 at x = -32 (8 m/s)
     s = scene(four_way(), drive(LEFT_LANE_STRAIGHT), eastbound)

@@ -241,6 +241,7 @@ INTERACTION_GUIDANCE: Mapping[str, Builder] = MappingProxyType(
         "overtaking/car_avoidance": _all(_road, _avoid(1.5)),
         "overtaking/standard": _all(_lane("second"), _avoid(1.0), _speed(_faster(3.0))),
         "overtaking/high_speed": _all(_lane("second"), _avoid(1.5), _speed(_faster(5.0))),
+        "overtaking/cut_in": _all(_lane("second"), _avoid(1.0), _speed(_faster(3.0), "first")),
         # Merging: join the other agent's stream at its speed, clear of it.
         "merging/standard": _all(_lane("second"), _avoid(1.5), _speed(_other)),
         "merging/lane_reduction": _all(_road, _lane("second"), _avoid(1.5), _speed(_other)),

@@ -3,7 +3,9 @@
 A route is a polyline in the scene frame (a target's path, `interdrive.targets`): the lanes of a turn's branch,
 the neighbour lane of a lane change, the kerb line of a pull-over. `RouteCost` pulls an agent onto it and
 `StationCost` moves the agent along it (reach a station by a step) or holds it back (stay before a station: a
-stop point, a conflict point). Both are the kind of cost CTG++ writes for an instruction, built from the map.
+stop point, a conflict point); `LeadCost` does the same relative to another agent along it (an overtake's gap ahead
+of the one overtaken, wherever that one drives). They are the kind of cost CTG++ writes for an instruction, built
+from the map.
 
 See docs/simulation.md ('Prompts that steer').
 """
@@ -141,4 +143,47 @@ class StationCost(_RouteCost):
     def _cost(self, xy: Tensor) -> Tensor:
         _, along = self._offset_and_station(xy)
         miss = self.station - along if self.mode == "reach" else along - self.station
+        return (torch.relu(miss) ** 2).mean(-1)
+
+
+@GUIDANCE.register
+class LeadCost(GuidanceCost):
+    """Progress along `path` relative to agent `other`: with `mode` "reach", agent `slot` is at least `lead` m
+    further along it than `other` at every step of [start, end); with "hold", at most. Both are projected on the
+    path (`other` may drive in a lane beside it); only `slot` is steered (`other`'s positions are taken as given). The
+    cost is the mean squared shortfall or overshoot in metres; none where either agent is padding."""
+
+    name = "lead"
+
+    def __init__(
+        self,
+        slot: int,
+        other: int,
+        path: Sequence[Sequence[float]] | Tensor | RoutePath,
+        lead: float,
+        *,
+        mode: Literal["reach", "hold"] = "reach",
+        start: int = 0,
+        end: int | None = None,
+    ):
+        self.slot, self.other = as_slot(self.name, slot), as_slot(self.name, other)
+        if self.other == self.slot:
+            raise InputError(f"{self.name}: other must be another agent than slot {self.slot}")
+        if mode not in ("reach", "hold"):
+            raise InputError(f"{self.name}: mode must be 'reach' or 'hold', got {mode!r}")
+        self.slots = (self.slot,)
+        self.route = path if isinstance(path, RoutePath) else RoutePath(path, cost=self.name)
+        self.start, self.end = window(self.name, start, end)
+        self.mode, self.lead = mode, float(lead)
+
+    def __call__(self, states: Tensor, scene: GuidanceScene) -> Tensor:
+        check_states(self.name, states, scene)
+        check_slots(self.name, (self.slot, self.other), states.shape[1])
+        valid = bool(scene.agent_valid[self.slot]) and bool(scene.agent_valid[self.other])
+        if not valid or self.start >= states.shape[2]:
+            return states.sum(dim=(1, 2, 3)) * 0.0  # padding, or a window past the horizon: no cost, in the graph
+        steps = slice(self.start, self.end)
+        _, mine = offset_and_station(states[:, self.slot, steps, :2], *self.route.like(states))
+        _, theirs = offset_and_station(states[:, self.other, steps, :2].detach(), *self.route.like(states))
+        miss = self.lead - (mine - theirs) if self.mode == "reach" else (mine - theirs) - self.lead
         return (torch.relu(miss) ** 2).mean(-1)

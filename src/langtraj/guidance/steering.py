@@ -22,9 +22,9 @@ from langtraj.frames import Origin, points_to_frame
 from langtraj.guidance.base import GuidanceTerm
 from langtraj.guidance.costs import NoCollisionCost, TargetSpeedCost
 from langtraj.guidance.library import AVOID_WEIGHT, SPEED_WEIGHT
-from langtraj.guidance.route import RouteCost, RoutePath, StationCost
+from langtraj.guidance.route import LeadCost, RouteCost, RoutePath, StationCost
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
-from langtraj.interdrive.targets import BRAKE_HARD_AFTER_S, BehaviourTarget
+from langtraj.interdrive.targets import BRAKE_HARD_AFTER_S, LANE_CHANGE_S, BehaviourTarget
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS
 
 ROUTE_WEIGHT = 1.0  # per m^2 off the route
@@ -34,6 +34,8 @@ KEEP_LANE_WEIGHT = 16.0 * ROUTE_WEIGHT
 """Per m^2 off the lane, for a braking lead, which must not swerve: above the common range, as the model, conditioned
 on a stop, moves aside by 1.5-3 m at 1x; chosen on validation maps (docs/testing.md, 'The safety-critical
 vocabulary')."""
+LEAD_SLACK_M = 2.0
+"""How far beyond its settled lead an overtaking agent may get ahead of the other before it has settled (m)."""
 CLEAR_WEIGHT = AVOID_WEIGHT  # per unit of summed disk overlap with the other agents (as the library keeps clear)
 CLEAR_BUFFER = 0.5  # m kept beyond touching
 
@@ -227,6 +229,32 @@ def _cut_in(s: Steering, clock: _Clock) -> list:
     return _at_station_then_speed(s, clock) + _route(s, clock, first=_steps(2.0))
 
 
+def _overtake_cut_in(s: Steering, clock: _Clock) -> list:
+    """At the passing speed from 1 s until the change begins (`LANE_CHANGE_S` before it settles), on its way
+    throughout (its own lane past the other, then the other's); the gap ahead of the other agent from when the target
+    says it has settled, and never more than `LEAD_SLACK_M` beyond it before, measured against where the other agent
+    drives in the plan (`LeadCost`), so that an overtaken agent that slows down is still cut in on. Where the model
+    does not drive the other agent: at the goal station when settled, not past it before, at the other's speed
+    after."""
+    t, settled = s.target, _settled(s.target)
+    terms = _speed(s, clock, float(t.speed or 0.0), _steps(1.0), settled - _steps(LANE_CHANGE_S)) + _route(s, clock)
+    if s.other_slot is None or t.lead_m is None:
+        return terms + _at_station_then_speed(s, clock)
+    return (
+        terms
+        + _lead(s, clock, t.lead_m, "reach", settled, FUTURE_STEPS, REACH_WEIGHT)
+        + _lead(s, clock, t.lead_m + LEAD_SLACK_M, "hold", 1, FUTURE_STEPS, HOLD_WEIGHT)
+    )
+
+
+def _lead(s: Steering, clock: _Clock, lead: float, mode: str, first: int, last: int, weight: float) -> list:
+    span = clock.window(first, last)
+    if span is None or len(s.target.path) < 2 or s.other_slot is None:
+        return []
+    cost = LeadCost(s.slot, s.other_slot, s.route, lead, mode=mode, start=span[0], end=span[1])  # type: ignore[arg-type]
+    return [GuidanceTerm(cost, weight)]
+
+
 def _tailgate(s: Steering, clock: _Clock) -> list:
     """At the station that closes the gap behind the other agent when the target says, not past it before; at the
     other's speed after; in its lane throughout."""
@@ -261,6 +289,7 @@ _BUILDERS = {
     Behaviour.YIELD: _yield,
     Behaviour.FOLLOW: _follow,
     Behaviour.CUT_IN: _cut_in,
+    Behaviour.OVERTAKE_CUT_IN: _overtake_cut_in,
     Behaviour.BRAKE_HARD: _brake_hard,
     Behaviour.TAILGATE: _tailgate,
 }

@@ -39,6 +39,7 @@ class Behaviour(StrEnum):
     YIELD = "yield"
     FOLLOW = "follow"
     CUT_IN = "cut_in"
+    OVERTAKE_CUT_IN = "overtake_cut_in"
     BRAKE_HARD = "brake_hard"
     TAILGATE = "tailgate"
 
@@ -65,8 +66,8 @@ class BehaviourSpec:
     is one kind of lane change toward another agent; `PromptReading.followed`)."""
     conditioned_as: Behaviour | None = None
     """The kind whose sentence the model, which never saw this kind in training, is conditioned on instead of the
-    typed words (braking hard in front of another agent: a stop; a cut-in: a lane change, to the side its target
-    takes; `sim.prompts.conditioning_sentence`)."""
+    typed words (braking hard in front of another agent: a stop; a cut-in, with or without an overtake first: a
+    lane change, to the side its target takes; `sim.prompts.conditioning_sentence`)."""
 
     @property
     def is_pair(self) -> bool:
@@ -174,6 +175,15 @@ BEHAVIOURS: Mapping[Behaviour, BehaviourSpec] = {
             "cut in front of",
             interaction=InteractionType.LANE_CHANGE,
             subtype="lane_change/cut_in",
+            exact=True,
+            conditioned_as=Behaviour.LANE_CHANGE_LEFT,
+        ),
+        BehaviourSpec(
+            Behaviour.OVERTAKE_CUT_IN,
+            "@{agent} overtakes @{other} and cuts in front of it",
+            "overtake and cut in front of",
+            interaction=InteractionType.OVERTAKING,
+            subtype="overtaking/cut_in",
             exact=True,
             conditioned_as=Behaviour.LANE_CHANGE_LEFT,
         ),

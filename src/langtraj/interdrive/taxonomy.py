@@ -198,6 +198,13 @@ SUBTYPES: tuple[Subtype, ...] = (
             "High-speed overtaking",
             "Passing at higher speeds on highways, requiring careful attention to speed and distance.",
         ),
+        (
+            "cut_in",
+            "Overtaking and cutting in",
+            "Passing another vehicle from behind and changing into its lane just ahead of it, so that it must make "
+            "room (NHTSA's pre-crash lane-change scenarios; LangTraj's addition to the paper's subtypes, for "
+            "safety-critical tests).",
+        ),
     ),
     *_subtypes(
         InteractionType.MERGING,

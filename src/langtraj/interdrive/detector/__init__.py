@@ -10,7 +10,8 @@ merges, overtakes), `yields` (held vehicles, conflict points), `crosswalks` (ped
 part imports only the parts it reads, so no module imports one that imports it back. Lane primitives shared
 with the heuristic labeler (`LaneChange`, neighbour lanes, the road-side test of parked cars) are in `mapindex`.
 One ordered pair can be judged alone by the rules' own definitions: `yielding_runs`, `passing_runs`,
-`following_runs`, `cut_in_runs`, `braking_lead_runs` and `tailgating_runs` give the runs of the pair's labels of that
+`following_runs`, `cut_in_runs`, `overtake_cut_in_runs`, `braking_lead_runs` and `tailgating_runs` give the runs of the
+pair's labels of that
 type that `detect_interactions` keeps, computing only what the pair needs (the two agents' paths, held steps, red
 lights and standing, and the leaders of the one that waits, per agent and only at the steps that decide); `pair_rows`
 names the agents they read, so a scene may be cut to those. The rules over all pairs run the same per-pair
@@ -47,7 +48,9 @@ The rules mirror how `ground_truth.py` defines each type from SUMO's events, so 
   a map without lane connectivity (nuScenes) shows no lane ending, so it has no merges.
   On-ramp subtypes when no lane before the lane left lies beside (or is) a lane before the target lane.
 - overtaking: a lane change of A whose former leader B (the lane leader on the lane left right before the switch)
-  was slower, after which A gets ahead of B along B's heading within the window.
+  was slower, after which A gets ahead of B along B's heading within the window. Overtaking and cutting in: a
+  cut-in by A in front of B (see lane changes) where A's rear was behind B's front (A behind or beside B), along B's
+  heading, at a step within `overtake_cut_in_lookback` before the switch; it runs from that step to the change's end.
 - yielding: (vehicles) the paths of A and B come within `conflict_radius` at a heading difference above
   `conflict_heading` (the conflict point); B reaches it first, and A is held (slower than `held_speed` or
   braking harder than `braking`, not in front of a red light, and not queued behind its own leader that is
@@ -82,6 +85,7 @@ from langtraj.interdrive.detector.rules import (
     cut_in_runs,
     detect_interactions,
     following_runs,
+    overtake_cut_in_runs,
     pair_rows,
     passing_runs,
     tailgating_runs,
@@ -98,6 +102,7 @@ __all__ = [
     "cut_in_runs",
     "detect_interactions",
     "following_runs",
+    "overtake_cut_in_runs",
     "pair_rows",
     "passing_runs",
     "tailgating_runs",

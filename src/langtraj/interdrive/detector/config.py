@@ -62,6 +62,7 @@ class DetectorConfig:
     lane_runs_on: float = 5.0  # m: a target lane without successors must run on this far past the lane left
     overtake_lookback: int = 15  # steps before a switch at which the former leader is looked up
     high_speed: float = 20.0  # m/s: an overtake at or above this top speed is high-speed
+    overtake_cut_in_lookback: int = 80  # steps before a cut-in's switch within which having been behind is an overtake
     tailgating_headway_s: float = 0.6  # s: following with a time headway below this at speed is tailgating
     tailgating_speed: float = 5.0  # m/s
     hard_braking: float = 3.0  # m/s^2: a lead slowing this hard on average over `hard_braking_steps` brakes hard

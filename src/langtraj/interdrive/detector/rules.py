@@ -200,7 +200,8 @@ def _braking_leads(scene: SceneGeometry, follows: Sequence[Pair]) -> list[Pair]:
 
 @INTERACTION_RULES.register
 class OvertakingRule(InteractionRule):
-    """A lane change around a slower leader that ends with the changer ahead of it."""
+    """A lane change around a slower leader that ends with the changer ahead of it; and a cut-in by a vehicle that
+    was behind the one it cuts in on shortly before (`_overtake_cut_ins`)."""
 
     name = "overtaking"
     type = InteractionType.OVERTAKING
@@ -212,6 +213,8 @@ class OvertakingRule(InteractionRule):
             fast = top.size and top.max() >= scene.config.high_speed
             sub = "overtaking/high_speed" if fast else "overtaking/standard"
             labels.append(_label(scene, p.agent, p.other, sub, p.start, p.end))
+        cut_ins = _overtake_cut_ins(scene)
+        labels += [_label(scene, p.agent, p.other, "overtaking/cut_in", p.start, p.end) for p in cut_ins]
         return labels
 
 
@@ -303,10 +306,10 @@ def passing_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
     return _kept(scene, [p for _, p in _pair_yields(scene, other, agent)], "passing/intersection_with_yielding")
 
 
-def _cut_ins(scene: SceneGeometry, agent: int | None = None) -> list[Pair]:
-    """The cut-ins of `scene` (of row `agent` only, when given): lane changes and merges (a merge just ahead of a
-    vehicle cuts in front of it too), overtakes left out, with the vehicle that then follows in the target lane
-    within `cut_in_range` (`LaneChangeGeometry.follower_after`)."""
+def _cut_in_changes(scene: SceneGeometry, agent: int | None = None) -> list[tuple[LaneChange, int]]:
+    """The cut-ins of `scene` (of row `agent` only, when given), each a lane change or merge (a merge just ahead of a
+    vehicle cuts in front of it too; overtakes left out) with the row of the vehicle that then follows in the target
+    lane within `cut_in_range` (`LaneChangeGeometry.follower_after`)."""
     changes = scene.changes
     out = []
     for change in changes.lane_changes:
@@ -314,7 +317,31 @@ def _cut_ins(scene: SceneGeometry, agent: int | None = None) -> list[Pair]:
             continue
         trail = changes.follower_after(change)
         if trail >= 0:
-            out.append(Pair(change.agent, trail, change.start, change.end))
+            out.append((change, trail))
+    return out
+
+
+def _cut_ins(scene: SceneGeometry, agent: int | None = None) -> list[Pair]:
+    """The cut-ins of `scene` (`_cut_in_changes`) as pairs over their changes' steps."""
+    return [Pair(c.agent, trail, c.start, c.end) for c, trail in _cut_in_changes(scene, agent)]
+
+
+def _overtake_cut_ins(scene: SceneGeometry, agent: int | None = None) -> list[Pair]:
+    """The cut-ins (`_cut_in_changes`) whose changer was not yet past the vehicle it cuts in on (its rear behind the
+    other's front, along the other's heading: behind it or beside it) at a step within `overtake_cut_in_lookback`
+    before the switch: it passed it first. Each runs from that step to the change's end."""
+    out = []
+    for change, trail in _cut_in_changes(scene, agent):
+        a = change.agent
+        lo = max(change.switch - scene.config.overtake_cut_in_lookback, 0)
+        span = slice(lo, change.switch + 1)
+        rel = scene.xy[a, span] - scene.xy[trail, span]
+        head = scene.heading[trail, span]
+        along = rel[:, 0] * np.cos(head) + rel[:, 1] * np.sin(head)
+        lengths = 0.5 * (scene.length[a, span] + scene.length[trail, span])
+        behind = np.flatnonzero(scene.valid[a, span] & scene.valid[trail, span] & (along < lengths))
+        if behind.size:
+            out.append(Pair(a, trail, lo + int(behind[0]), change.end))
     return out
 
 
@@ -322,6 +349,13 @@ def cut_in_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
     """The steps over which agent row `agent` cuts in front of row `other`: the "lane_change/cut_in" labels of agent
     toward other that `detect_interactions` gives on `scene`'s scenario, computed for the pair alone."""
     return _kept(scene, [p for p in _cut_ins(scene, agent) if p.other == other], "lane_change/cut_in")
+
+
+def overtake_cut_in_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
+    """The steps over which agent row `agent` overtakes row `other` and cuts in front of it: the
+    "overtaking/cut_in" labels of agent toward other that `detect_interactions` gives on `scene`'s scenario, computed
+    for the pair alone."""
+    return _kept(scene, [p for p in _overtake_cut_ins(scene, agent) if p.other == other], "overtaking/cut_in")
 
 
 def braking_lead_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:

@@ -317,6 +317,11 @@ _SUBTYPE_TEMPLATES: dict[str, tuple[str, ...]] = {
         "|at highway speed|at high speed on the highway|quickly on the highway|on the highway at speed}",
         "{speeds past|races past|zooms past} <other>[ on the highway]",
     ),
+    "overtaking/cut_in": (
+        "{overtakes|passes|gets past|races past} <other> and {cuts in front of it|cuts in ahead of it|cuts it off"
+        "|pulls in just ahead of it|swerves back in front of it|squeezes back in front of it}",
+        "{overtakes and cuts in front of|passes and cuts in ahead of|gets past and cuts in on} <other>",
+    ),
     # -- merging
     "merging/standard": (
         "{merges into|is merging into|enters|joins|slots into|pulls into} {the traffic flow|the flow of traffic"

@@ -334,6 +334,43 @@ _CUT_IN = [
 """Changing into the other's lane just ahead of it (Euro NCAP's cut-in); "pulls out in front of @7" stays going first
 (from a side road, not a lane beside it)."""
 
+_PASS_VERBS = verb(
+    "overtake", "pass", "get past", "go past", "get by", "go by", "get round", "go round", "get around", "go around",
+    "race past", "speed past", "zoom past", "blow past", "shoot past", "drive past", "whizz past", "whiz past",
+    "undertake", "outpace", "overhaul",
+)  # fmt: skip
+_FILLER_WORDS = r"(?:(?:sharply|suddenly|abruptly|quickly|immediately|right\s+away|aggressively)\s+)*"
+_SAME = r"(?:it|them|him|her|(?P=other))"
+"""The other agent named again after a pass ("overtakes @7 and cuts in front of it")."""
+_THEN = r"(?:\s*,)?\s+(?:and\s+then|and|then|before|to)\s+"
+_ITS_LANE = (
+    rf"(?:back\s+)?(?:in)?to\s+(?:its|their|his|her|{_SAME}'s)\s+lane\b"
+    rf"(?:\s+(?:right\s+|just\s+)?(?:in\s+front\s+of|ahead\s+of)\s+{_SAME})?"
+)
+_CUT_BACK = (
+    rf"(?:{_CUT_IN_VERBS}(?:\s+(?:in(?!\s+(?:front|on)\b)|over|back|across|sharply|suddenly|right|just|closely"
+    rf"|dangerously|abruptly|tightly|aggressively))*(?:\s+(?:in\s+front\s+of|ahead\s+of|just\s+ahead\s+of|in\s+on)"
+    rf"\s+{_SAME}|\s+{_ITS_LANE}|\s+(?:in|back)\b)?"
+    rf"|{verb('move', 'pull', 'swing', 'swerve', 'get', 'go', 'steer', 'drift')}\s+{_ITS_LANE}"
+    rf"|{verb('cut')}\s+(?:off\s+{_SAME}|{_SAME}\s+(?:off|up)))\b(?!\s+(?:in\s+)?(?:front|ahead|on|in)\b)"
+)
+"""The cut back in after a pass: "cuts in (front of it)", "pulls in ahead of it", "moves into its lane", "cuts it
+off"."""
+_OVERTAKE_CUT_IN = [
+    rf"\b{_PASS_VERBS}\s+{_OTHER}{_THEN}{_FILLER_WORDS}{_CUT_BACK}",
+    rf"\b{_PASS_VERBS}(?:{_THEN}|\s+){_FILLER_WORDS}"
+    rf"{_CUT_IN_VERBS}(?:\s+(?:in|over|back|sharply|suddenly|right|just|closely|dangerously|abruptly))*"
+    rf"\s+(?:in\s+front\s+of|ahead\s+of|just\s+ahead\s+of|in\s+on)\s+{_OTHER}",
+    rf"\b{_CUT_IN_VERBS}(?:\s+(?:in|over|back|sharply|suddenly|right|just|closely|dangerously|abruptly))*"
+    rf"\s+(?:in\s+front\s+of|ahead\s+of|just\s+ahead\s+of|in\s+on)\s+{_OTHER}"
+    rf"(?:\s*,)?\s+(?:after|once|right\s+after|just\s+after)\s+{verb('overtake', 'pass', 'get past', 'go past')}"
+    rf"\s+{_SAME}",
+    rf"\b{_PASS_VERBS}\s+{_OTHER}\s+and\s+{verb('cut')}\s+{_SAME}\s+(?:off|up)\b",
+]
+"""Passing the other and then changing into its lane just ahead of it: "overtakes @7 and cuts in front of it",
+"passes @7, then pulls in ahead of it", "overtakes and cuts in front of @7", "cuts in front of @7 after passing it"
+(NHTSA's lane-change pre-crash scenarios)."""
+
 _IN_FRONT = r"(?:(?:right|just|directly|immediately)\s+)?(?:in\s+front\s+of|ahead\s+of)"
 _HARD = r"(?:hard|sharply|suddenly|abruptly|heavily|violently|harshly|fiercely|firmly|urgently|all\s+of\s+a\s+sudden)"
 _DECELERATION_WORDS = r"(?:\s+(?:at|with|by)\s+(?:a\s+deceleration\s+of\s+)?[\d.]+\s*(?:m/s\^?2|m/s²|m/s/s|g)(?!\w))"
@@ -417,6 +454,7 @@ def _build_rules() -> tuple[_Rule, ...]:
         (Behaviour.PULL_OVER, _PULL_OVER),
         (Behaviour.SPEED_UP, _SPEED_UP),
         (Behaviour.SLOW_DOWN, _SLOW_DOWN),
+        (Behaviour.OVERTAKE_CUT_IN, _OVERTAKE_CUT_IN),  # before the cut-in it ends with
         (Behaviour.CUT_IN, _CUT_IN),  # before going first: "cuts in ahead of @7" is a cut-in
         (Behaviour.BRAKE_HARD, _BRAKE_HARD),
         (Behaviour.TAILGATE, _TAILGATE),  # before following
@@ -430,15 +468,17 @@ def _build_rules() -> tuple[_Rule, ...]:
 
 RULES = _build_rules()
 
+_CHANGE_AND_SPEED = frozenset(
+    {Behaviour.LANE_CHANGE_LEFT, Behaviour.LANE_CHANGE_RIGHT, Behaviour.SPEED_UP, Behaviour.SLOW_DOWN}
+)
 SUBSUMES: dict[Behaviour, frozenset[Behaviour]] = {
     Behaviour.PULL_OVER: frozenset({Behaviour.STOP, Behaviour.SLOW_DOWN}),
     Behaviour.STOP: frozenset({Behaviour.SLOW_DOWN}),
     Behaviour.YIELD: frozenset({Behaviour.STOP, Behaviour.SLOW_DOWN}),
     Behaviour.GO_FIRST: frozenset({Behaviour.SPEED_UP}),
     Behaviour.FOLLOW: frozenset({Behaviour.SLOW_DOWN, Behaviour.SPEED_UP}),
-    Behaviour.CUT_IN: frozenset(
-        {Behaviour.LANE_CHANGE_LEFT, Behaviour.LANE_CHANGE_RIGHT, Behaviour.SPEED_UP, Behaviour.SLOW_DOWN}
-    ),
+    Behaviour.CUT_IN: _CHANGE_AND_SPEED,
+    Behaviour.OVERTAKE_CUT_IN: frozenset({Behaviour.CUT_IN, Behaviour.GO_FIRST}) | _CHANGE_AND_SPEED,
     Behaviour.BRAKE_HARD: frozenset({Behaviour.STOP, Behaviour.SLOW_DOWN}),
     Behaviour.TAILGATE: frozenset({Behaviour.FOLLOW, Behaviour.SPEED_UP, Behaviour.SLOW_DOWN}),
 }

@@ -11,6 +11,7 @@ from langtraj.interdrive.targets.config import CounterfactualConfig
 from langtraj.interdrive.targets.derive import (
     BRAKE_HARD_AFTER_S,
     CUT_IN_S,
+    LANE_CHANGE_S,
     SPEED_CHANGE,
     BehaviourTarget,
     Status,
@@ -23,6 +24,7 @@ from langtraj.roads.position import AgentOnLane
 __all__ = [
     "BRAKE_HARD_AFTER_S",
     "CUT_IN_S",
+    "LANE_CHANGE_S",
     "SPEED_CHANGE",
     "AgentOnLane",
     "BehaviourTarget",

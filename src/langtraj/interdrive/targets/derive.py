@@ -20,6 +20,8 @@ the lane graph (`lanes_ahead`) and returns either a `BehaviourTarget` in world c
 - following: the other agent's lane ahead;
 - cutting in front of another agent: the other's lane, beside the agent's, from where a change can begin, and the
   average speed that puts the agent the asked gap ahead of the other when the change settles;
+- overtaking another agent and cutting in front of it (the agent behind or beside it, in a lane beside its own):
+  its own lane until its rear is past the other's front, then the other's lane, settled the asked gap ahead of it;
 - braking hard in front of another agent (which follows it in its lane): the agent's lane ahead and the stop that
   braking at the asked deceleration from 1 s on brings it to;
 - tailgating another agent (ahead of it in its lane): the agent's lane ahead, the station that closes the gap to
@@ -92,6 +94,17 @@ CUT_IN_GAP_M = 10.0
 """The gap (bumper to bumper, m) a cut-in leaves in front of the other agent unless the prompt gives one."""
 CUT_IN_S = 1.0 + LANE_CHANGE_S
 """When a cut-in has settled in the other's lane (s): begun within 1 s, settled `LANE_CHANGE_S` later."""
+OVERTAKE_GAIN = 4.0
+"""How much faster than the other agent an overtake passes it (m/s), unless the agent is faster already."""
+OVERTAKE_LATEST_S = HORIZON_S - 1.0
+"""By when an overtake must have settled in the other's lane (s): a second before the horizon, for the judge."""
+OVERTAKE_MIN_SPEED = 5.0
+"""The least speed of the agent overtaken (m/s): slower traffic is queued, not overtaken."""
+OVERTAKE_CLEAR_M = 2.0
+"""How far an overtaking agent's rear is past the other's front when its change into the other's lane begins (m),
+unless the asked gap is smaller."""
+"""The least speed of the agent overtaken (m/s): slower traffic is queued, not overtaken."""
+"""By when an overtake must have settled in the other's lane (s): a second before the horizon, for the judge."""
 GO_FIRST_MARGIN_S = 0.5
 BRAKE_HARD_DECELERATION = 4.0
 """How hard a braking lead brakes unless the prompt says (m/s^2): Euro NCAP's braking-lead tests use 2 to 6."""
@@ -143,6 +156,10 @@ class BehaviourTarget:
     lead at rest)."""
     deceleration: float | None = None
     """How hard it brakes (m/s^2), where the target says (a braking lead)."""
+    lead_m: float | None = None
+    """How far the agent's centre is ahead of the other's along the path once settled (m), where the target says (an
+    overtake and cut-in: the gap and the half lengths), so that steering can keep it relative to where the other
+    actually drives."""
 
     @property
     def stop(self) -> bool:
@@ -363,6 +380,8 @@ def _target(
         )  # fmt: skip
     if behaviour is Behaviour.CUT_IN:
         return _cut_in(ctx, agent, other, CUT_IN_GAP_M if gap is None else gap)
+    if behaviour is Behaviour.OVERTAKE_CUT_IN:
+        return _overtake_cut_in(ctx, agent, other, CUT_IN_GAP_M if gap is None else gap)
     if behaviour is Behaviour.BRAKE_HARD:
         return _brake_hard(ctx, agent, other, BRAKE_HARD_DECELERATION if deceleration is None else deceleration)
     if behaviour is Behaviour.TAILGATE:
@@ -457,40 +476,48 @@ def _tailgate(ctx: TargetContext, agent: _Agent, other: _Agent) -> BehaviourTarg
     )
 
 
-def _cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: float) -> BehaviourTarget:
-    """Into the other's lane when it lies beside the agent's (`MapIndex.neighbour_lane`, either side) at the agent or
-    at a station of its road ahead, from where a change can begin (1 s or 4 m ahead); the `speed` is the average
-    that puts the agent's rear `gap` m ahead of the other's front at `CUT_IN_S`, the other keeping its speed, and
-    `station_of_goal` where along the path that average takes it by then.
-    Infeasible where that needs more than `GO_FIRST_ACCELERATION` could add, or less than standing still."""
-    index, behaviour = ctx.index, Behaviour.CUT_IN
+def _lane_beside(
+    ctx: TargetContext, agent: _Agent, other: _Agent, behaviour: Behaviour, within: float
+) -> tuple[Side, int, float]:
+    """The other's lane where it lies beside the agent's (`MapIndex.neighbour_lane`, either side), at the agent or at
+    a station of its road up to `within` m ahead: (side, lane, station on it beside the agent's). Undecided without
+    lanes or neighbour data; infeasible where the other's lane is not beside its own."""
+    index = ctx.index
     ctx.need_lane(agent, behaviour, "neighbour lanes")
     if not other.on_lane:
         raise TargetUnavailable(agent.track_id, behaviour, "undecided", f"@{other.track_id} is on no lane")
     if index.neighbor_source == "none":
         raise TargetUnavailable(agent.track_id, behaviour, "undecided", "the map has no lane neighbour information")
-    begin = max(4.0, 1.0 * agent.here.speed)
-    ahead = [(0.0, agent.here.lane, agent.here.station)]
-    ahead += [(p.distance, p.lane, p.station) for p in ctx.stations(agent) if p.distance <= begin + 20.0]
-    # where the agent is, and the stations of its road just ahead, each asked for the other's lane beside it
+    ahead = [(agent.here.lane, agent.here.station)]
+    ahead += [(p.lane, p.station) for p in ctx.stations(agent) if p.distance <= within]
     theirs = _lane_pieces(index, other.here.lane)
-    found = None
-    for _, lane, station in ahead:
+    for lane, station in ahead:
         for side in ("left", "right"):
             beside = index.neighbour_lane(lane, station, side)  # type: ignore[arg-type]
             if beside is not None and beside[0] in theirs:
-                found = (side, beside[0], beside[1])
-                break
-        if found:
-            break
-    if found is None:
-        reason = f"@{other.track_id} is not in a lane beside its own"
-        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
-    side, lane, level = found
+                return side, beside[0], beside[1]  # type: ignore[return-value]
+    reason = f"@{other.track_id} is not in a lane beside its own"
+    raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+
+
+def _lead(agent: _Agent, other: _Agent) -> float:
+    """How far the agent's centre is ahead of the other's along the other's heading (m)."""
+    heading = np.array([math.cos(other.heading), math.sin(other.heading)])
+    return float((agent.xy - other.xy) @ heading)
+
+
+def _cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: float) -> BehaviourTarget:
+    """Into the other's lane when it lies beside the agent's (`_lane_beside`) at the agent or at a station of its
+    road ahead, from where a change can begin (1 s or 4 m ahead); the `speed` is the average that puts the agent's
+    rear `gap` m ahead of the other's front at `CUT_IN_S`, the other keeping its speed, and `station_of_goal` where
+    along the path that average takes it by then.
+    Infeasible where that needs more than `GO_FIRST_ACCELERATION` could add, or less than standing still."""
+    behaviour = Behaviour.CUT_IN
+    begin = max(4.0, 1.0 * agent.here.speed)
+    side, lane, level = _lane_beside(ctx, agent, other, behaviour, begin + 20.0)
     v, v_other = agent.here.speed, other.here.speed
     lengths = 0.5 * (agent.length + other.length)
-    heading = np.array([math.cos(other.heading), math.sin(other.heading)])
-    lead = float((agent.xy - other.xy) @ heading)  # how far the agent's centre is ahead of the other's
+    lead = _lead(agent, other)
     speed = (v_other * CUT_IN_S + gap + lengths - lead) / CUT_IN_S
     most = v + 0.5 * GO_FIRST_ACCELERATION * CUT_IN_S
     if speed > most:
@@ -502,16 +529,89 @@ def _cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: float) -> Beh
     return BehaviourTarget(
         agent.track_id,
         behaviour,
-        _into_lane(index, agent, lane, level + begin),
+        _into_lane(ctx.index, agent, lane, level + begin),
         f"@{other.track_id}'s lane on its {side}, {gap:g} m ahead of it, at {speed:.1f} m/s",
         station_of_goal=float(speed * CUT_IN_S),
         speed=float(speed),
         other_id=other.track_id,
         current_speed=v,
         other_speed=v_other,
-        side=side,  # type: ignore[arg-type]
+        side=side,
         settled_s=CUT_IN_S,
     )
+
+
+def _overtake_cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: float) -> BehaviourTarget:
+    """Past the other in the agent's own lane, then into the other's lane beside it (`_lane_beside`), settled `gap` m
+    ahead of it, the other keeping its speed: the agent speeds up at `GO_FIRST_ACCELERATION` to `OVERTAKE_GAIN`
+    faster than the other (or keeps its speed, if faster) until its rear is `OVERTAKE_CLEAR_M` past the other's front
+    (not before 1 s), then changes lanes over `LANE_CHANGE_S`, gaining the rest of the gap on the way.
+    `station_of_goal` is where it settles, `settled_s` when, `speed` the passing speed. Infeasible where the other is
+    slower than `OVERTAKE_MIN_SPEED` (queued traffic is not overtaken), the agent is already ahead of it (a cut-in) or
+    more than `FOLLOWER_RANGE_M` behind, it cannot settle by `OVERTAKE_LATEST_S`, or the other's lane runs into a
+    junction before it would."""
+    behaviour = Behaviour.OVERTAKE_CUT_IN
+    side, lane, level = _lane_beside(ctx, agent, other, behaviour, 10.0)
+    v, v_other = agent.here.speed, other.here.speed
+    if v_other < OVERTAKE_MIN_SPEED:
+        reason = f"@{other.track_id} is too slow to overtake ({v_other:.1f} m/s; at least {OVERTAKE_MIN_SPEED:g})"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    lengths = 0.5 * (agent.length + other.length)
+    lead = _lead(agent, other)
+    if lead - lengths > 0.0:
+        reason = f"it is already ahead of @{other.track_id}: that is a cut-in, with no overtake"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    if -lead - lengths > FOLLOWER_RANGE_M:
+        reason = f"it is {-lead - lengths:.0f} m behind @{other.track_id} (at most {FOLLOWER_RANGE_M:g})"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    need = gap + lengths - lead  # metres to gain on the other by the time it settles
+    top = max(v, v_other + OVERTAKE_GAIN)
+    t = np.arange(1, FUTURE_STEPS + 1) * STEP_SECONDS
+    travelled = np.cumsum(np.minimum(v + GO_FIRST_ACCELERATION * t, top)) * STEP_SECONDS
+    passed = (travelled - v_other * t >= lengths + min(OVERTAKE_CLEAR_M, gap) - lead) & (t >= 1.0 - 1e-9)
+    k = int(np.argmax(passed))
+    settle = float(t[k]) + LANE_CHANGE_S
+    if not passed.any() or settle > OVERTAKE_LATEST_S + 1e-9:
+        reason = (
+            f"it cannot get {gap:g} m ahead of @{other.track_id} by {OVERTAKE_LATEST_S:g} s "
+            f"({need:.0f} m to gain, passing at {top:.1f} m/s)"
+        )
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    begin = float(travelled[k])
+    goal = max(v_other * settle + need, begin)
+    room = ctx.index.distance_to_junction(lane, level) if ctx.index.has_connectivity else math.inf
+    if room < goal:
+        reason = f"@{other.track_id}'s lane runs into a junction {room:.0f} m ahead, before it could settle there"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    return BehaviourTarget(
+        agent.track_id,
+        behaviour,
+        _past_then_into_lane(ctx, agent, lane, level, begin, 0.5 * (goal - begin)),
+        f"past @{other.track_id} at {top:.1f} m/s, then into its lane on its {side} from "
+        f"{settle - LANE_CHANGE_S:.1f} s, {gap:g} m ahead of it by {settle:.1f} s",
+        station_of_goal=float(goal),
+        speed=float(top),
+        other_id=other.track_id,
+        current_speed=v,
+        other_speed=v_other,
+        side=side,
+        settled_s=settle,
+        lead_m=float(gap + lengths),
+    )
+
+
+def _past_then_into_lane(
+    ctx: TargetContext, agent: _Agent, lane: int, level: float, begin: float, across: float
+) -> np.ndarray:
+    """The agent's own lane for `begin` m, then a straight line over `across` m into `lane` (whose station beside
+    the agent is `level`), then that lane on: an overtake's way past and back in."""
+    index = ctx.index
+    own = route(index, [agent.here.lane], agent.here.station, begin + ROUTE_SPACING)[: int(begin / ROUTE_SPACING) + 1]
+    theirs = route(index, [lane], level, begin + across + agent.reach)[int((begin + across) / ROUTE_SPACING) :]
+    if len(theirs) < 2:
+        return own
+    lead_in = resample(np.stack([own[-1], theirs[0]]), ROUTE_SPACING)
+    return np.concatenate([own[:-1], lead_in[:-1], theirs])
 
 
 def _turn(ctx: TargetContext, agent: _Agent, behaviour: Behaviour) -> BehaviourTarget:
