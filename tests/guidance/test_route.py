@@ -183,3 +183,17 @@ def test_an_overtake_keeps_its_gap_to_where_the_other_drives_once_it_can_see_it(
     alone = Steering(target, slot=0, other_slot=None)  # the other is not the model's: the station instead
     assert any(isinstance(t.cost, StationCost) for t in alone.terms(0, 80))
     assert not any(isinstance(t.cost, LeadCost) for t in alone.terms(0, 80))
+
+
+def test_a_cut_in_keeps_its_gap_to_where_the_other_drives_and_to_a_station_where_it_cannot_see_it():
+    fields = {"station_of_goal": 55.0, "speed": 12.0, "other_id": 2, "settled_s": 4.0, "lead_m": 14.5}
+    terms = _steering(Behaviour.CUT_IN, **fields).terms(0, 80)
+    leads = sorted((t.cost.mode, t.cost.lead, t.cost.start, t.cost.end) for t in terms if isinstance(t.cost, LeadCost))
+    assert leads == [("hold", 16.5, 0, 80), ("reach", 14.5, 39, 80)]
+    (lane,) = [t.cost for t in terms if isinstance(t.cost, RouteCost)]
+    assert (lane.start, lane.end) == (19, 80)  # in the other's lane from 2 s on
+    target = BehaviourTarget(1, Behaviour.CUT_IN, _steering(Behaviour.STOP).target.path, "t", **fields)
+    stations = {
+        t.cost.mode for t in Steering(target, slot=0, other_slot=None).terms(0, 80) if isinstance(t.cost, StationCost)
+    }
+    assert stations == {"reach", "hold"}

@@ -188,6 +188,16 @@ def test_a_lane_change_just_ahead_of_a_vehicle_in_the_target_lane_cuts_in_front_
     assert cut_in_runs(SceneGeometry(scene(tracks, features=_two_lanes()), (), DetectorConfig()), 0, 1)
 
 
+def test_a_lane_change_into_a_vehicle_still_beside_it_is_no_cut_in():
+    mover = straight(10, 0, 0, 10.0)
+    ramp = np.clip((np.arange(T) - 10) / 15.0, 0.0, 1.0)
+    mover[:, 1] = 3.5 * (3 * ramp**2 - 2 * ramp**3)
+    tracks = {1: (VEH, mover), 2: (VEH, straight(8, 3.5, 0, 10.0))}  # 2 m behind: bumpers overlap at the switch
+    labels = detect_interactions(scene(tracks, features=_two_lanes()))
+    assert not any(lab.subtype.id == "lane_change/cut_in" for lab in labels)  # side-swiped, not cut in on
+    assert not cut_in_runs(SceneGeometry(scene(tracks, features=_two_lanes()), (), DetectorConfig()), 0, 1)
+
+
 def test_a_cut_in_by_a_vehicle_that_was_behind_shortly_before_is_an_overtake_and_cut_in():
     mover = straight(0, 0, 0, 14.0)  # 10 m behind 2 at the start, 4 m/s faster: level at about 2.5 s
     ramp = np.clip((np.arange(T) - 55) / 15.0, 0.0, 1.0)

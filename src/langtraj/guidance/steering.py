@@ -224,26 +224,33 @@ def _at_station_then_speed(s: Steering, clock: _Clock) -> list:
 
 
 def _cut_in(s: Steering, clock: _Clock) -> list:
-    """At the goal station (the gap ahead of the other agent) when the change has settled (`CUT_IN_S`), not past it
-    before; in the other's lane from 2 s on; at the other agent's speed after."""
-    return _at_station_then_speed(s, clock) + _route(s, clock, first=_steps(2.0))
+    """In the other's lane from 2 s on; the gap ahead of the other agent when the change has settled (`CUT_IN_S`)
+    and after (`_gap_ahead`)."""
+    return _gap_ahead(s, clock) + _route(s, clock, first=_steps(2.0))
+
+
+def _gap_ahead(s: Steering, clock: _Clock) -> list:
+    """The gap ahead of the other agent from when the target says it has settled, and never more than
+    `LEAD_SLACK_M` beyond it before, measured against where the other agent drives in the plan (`LeadCost`), so that
+    an agent cut in on that slows down is still cut in on. Where the model does not drive the other agent: at the
+    goal station when settled, not past it before, at the other's speed after (`_at_station_then_speed`)."""
+    t, settled = s.target, _settled(s.target)
+    if s.other_slot is None or t.lead_m is None:
+        return _at_station_then_speed(s, clock)
+    return _lead(s, clock, t.lead_m, "reach", settled, FUTURE_STEPS, REACH_WEIGHT) + _lead(
+        s, clock, t.lead_m + LEAD_SLACK_M, "hold", 1, FUTURE_STEPS, HOLD_WEIGHT
+    )
 
 
 def _overtake_cut_in(s: Steering, clock: _Clock) -> list:
     """At the passing speed from 1 s until the change begins (`LANE_CHANGE_S` before it settles), on its way
-    throughout (its own lane past the other, then the other's); the gap ahead of the other agent from when the target
-    says it has settled, and never more than `LEAD_SLACK_M` beyond it before, measured against where the other agent
-    drives in the plan (`LeadCost`), so that an overtaken agent that slows down is still cut in on. Where the model
-    does not drive the other agent: at the goal station when settled, not past it before, at the other's speed
-    after."""
+    throughout (its own lane past the other, then the other's), the gap ahead of the other once settled
+    (`_gap_ahead`)."""
     t, settled = s.target, _settled(s.target)
-    terms = _speed(s, clock, float(t.speed or 0.0), _steps(1.0), settled - _steps(LANE_CHANGE_S)) + _route(s, clock)
-    if s.other_slot is None or t.lead_m is None:
-        return terms + _at_station_then_speed(s, clock)
     return (
-        terms
-        + _lead(s, clock, t.lead_m, "reach", settled, FUTURE_STEPS, REACH_WEIGHT)
-        + _lead(s, clock, t.lead_m + LEAD_SLACK_M, "hold", 1, FUTURE_STEPS, HOLD_WEIGHT)
+        _speed(s, clock, float(t.speed or 0.0), _steps(1.0), settled - _steps(LANE_CHANGE_S))
+        + _route(s, clock)
+        + _gap_ahead(s, clock)
     )
 
 

@@ -42,7 +42,9 @@ The rules mirror how `ground_truth.py` defines each type from SUMO's events, so 
   `lane_change_max_lateral` within `lane_change_lateral_steps` of it; switches of one agent closer than
   `lane_change_half_span` are one manoeuvre. The other is the lane leader on the target lane right after the switch,
   or -1. Where the map has no lanes, `changing_lanes` agent labels stand in (the other is then the path leader). An
-  overtaking lane change names the overtaken agent.
+  overtaking lane change names the overtaken agent. A cut-in: a lane change (or merge) with a vehicle following in
+  the target lane right after the switch, its front behind the changer's rear by at most `cut_in_range` or
+  `cut_in_headway_s` at its speed (one still beside the changer is side-swiped, not cut in on).
 - merging: a lane change out of a lane that ends while the lane entered goes on: the lane left has no successors,
   and the target lane has some or runs on `lane_runs_on` past the lane left's end (a map crop cuts both alike);
   a map without lane connectivity (nuScenes) shows no lane ending, so it has no merges.

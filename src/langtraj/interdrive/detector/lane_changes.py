@@ -154,8 +154,9 @@ class LaneChangeGeometry(ScenePart):
 
     def follower_after(self, change: LaneChange) -> int:
         """The nearest vehicle or cyclist behind the changer right after the switch, on the target lane or a lane
-        leading into it, its bumper at most `cut_in_range` or `cut_in_headway_s` at its speed behind the changer's
-        (agent index, -1 when none): the one a cut-in lands in front of, closer than the two-second rule keeps."""
+        leading into it, its front bumper behind the changer's rear by at most `cut_in_range` or `cut_in_headway_s` at
+        its speed (agent index, -1 when none): the one a cut-in lands in front of, closer than the two-second rule
+        keeps. One still beside the changer (bumpers overlapping) is side-swiped, not cut in on."""
         a, t = change.agent, min(change.switch + 1, self.num_steps - 1)
         lane = self.scenario.road_map.by_id.get(change.to_lane)
         if lane is None or not self.valid[a, t]:
@@ -167,7 +168,7 @@ class LaneChangeGeometry(ScenePart):
         behind = -(rel[:, 0] * math.cos(head) + rel[:, 1] * math.sin(head))
         gap = behind - 0.5 * (self.length[others, t] + self.length[a, t])
         cfg = self.config
-        keep = (behind > 0) & (gap <= np.maximum(cfg.cut_in_range, cfg.cut_in_headway_s * self.speed[others, t]))
+        keep = (gap > 0) & (gap <= np.maximum(cfg.cut_in_range, cfg.cut_in_headway_s * self.speed[others, t]))
         return int(others[keep][np.argmin(behind[keep])]) if keep.any() else -1
 
     def former_leader(self, change: LaneChange) -> int:

@@ -157,9 +157,9 @@ class BehaviourTarget:
     deceleration: float | None = None
     """How hard it brakes (m/s^2), where the target says (a braking lead)."""
     lead_m: float | None = None
-    """How far the agent's centre is ahead of the other's along the path once settled (m), where the target says (an
-    overtake and cut-in: the gap and the half lengths), so that steering can keep it relative to where the other
-    actually drives."""
+    """How far the agent's centre is ahead of the other's along the path once settled (m), where the target says (a
+    cut-in, an overtake and cut-in: the gap and the half lengths), so that steering can keep it relative to where
+    the other actually drives."""
 
     @property
     def stop(self) -> bool:
@@ -538,6 +538,7 @@ def _cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: float) -> Beh
         other_speed=v_other,
         side=side,
         settled_s=CUT_IN_S,
+        lead_m=float(gap + lengths),
     )
 
 
