@@ -197,3 +197,15 @@ def test_a_cut_in_keeps_its_gap_to_where_the_other_drives_and_to_a_station_where
         t.cost.mode for t in Steering(target, slot=0, other_slot=None).terms(0, 80) if isinstance(t.cost, StationCost)
     }
     assert stations == {"reach", "hold"}
+
+
+def test_a_red_light_runner_goes_first_through_the_crossing_at_its_speed_on_its_way():
+    runner = _steering(
+        Behaviour.RUN_RED_LIGHT, station_of_goal=20.0, speed=8.0, other_id=2, other_eta=5.0, other_speed=8.0
+    )
+    terms = runner.terms(0, 80)
+    (reach,) = [t.cost for t in terms if isinstance(t.cost, StationCost)]
+    assert (reach.station, reach.mode, reach.start) == (25.0, "reach", 39)  # 5 m past the crossing, a second early
+    speed = next(t.cost for t in terms if isinstance(t.cost, TargetSpeedCost))
+    assert (speed.speeds, speed.start, speed.end) == ((8.0,), 9, 40)  # at its speed through the light until then
+    assert {t.weight for t in terms if isinstance(t.cost, RouteCost)} >= {1.0}  # held to its way

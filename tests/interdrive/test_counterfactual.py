@@ -337,11 +337,11 @@ def test_an_infeasible_lane_change_names_the_side_without_a_lane():
 def test_fifty_free_text_prompts_parse_name_known_kinds_and_render_to_valid_prompts():
     prompts = load_free_text_prompts(FREE_TEXT)
     assert len(prompts) == 50 and len({p.text for p in prompts}) == 50
-    # The file predates the pull-over, follow, cut-in, overtake-and-cut-in, braking-lead and tailgating kinds;
+    # The file predates the pull-over, follow and safety-critical kinds;
     # tests/data/prompt_paraphrases.yaml covers the others.
     later = {
         Behaviour.PULL_OVER, Behaviour.FOLLOW, Behaviour.CUT_IN, Behaviour.OVERTAKE_CUT_IN, Behaviour.BRAKE_HARD,
-        Behaviour.TAILGATE,
+        Behaviour.TAILGATE, Behaviour.RUN_RED_LIGHT,
     }  # fmt: skip
     assert {p.behaviour for p in prompts} == set(Behaviour) - later
     for prompt in prompts:

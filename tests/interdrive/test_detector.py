@@ -19,6 +19,7 @@ from langtraj.interdrive.detector import (
     overtake_cut_in_runs,
     pair_rows,
     passing_runs,
+    red_light_runs,
     tailgating_runs,
     yielding_runs,
 )
@@ -186,6 +187,29 @@ def test_a_lane_change_just_ahead_of_a_vehicle_in_the_target_lane_cuts_in_front_
     cut_ins = {(lab.track_id, lab.other_id) for lab in labels if lab.subtype.id == "lane_change/cut_in"}
     assert cut_ins == {(1, 2)}  # 2 is 7.5 m behind in the target lane; 3 is 75 m behind, beyond `cut_in_range`
     assert cut_in_runs(SceneGeometry(scene(tracks, features=_two_lanes()), (), DetectorConfig()), 0, 1)
+
+
+def _red_light_scene(
+    light: TrafficLightState, other_y0: float = -40.0, other_heading: float = np.pi / 2, other_x0: float = 1.75
+) -> Scenario:
+    runner = straight(-40, -1.75, 0, 10.0)  # past the stop point (x = -8) at about 3.2 s, 10 m/s throughout
+    other = straight(other_x0, other_y0, other_heading, 8.0)  # northbound across its way, there at about 4.8 s
+    states = np.full((T, 1), light, np.int8)
+    lights = TrafficLights([101], states, np.ones((T, 1), bool), [[-8.0, -1.75, 0.0]])
+    return replace(scene({1: (VEH, runner), 2: (VEH, other)}), traffic_lights=lights)
+
+
+def test_passing_a_red_stop_line_and_then_crossing_another_agents_way_runs_the_red_light_across_it():
+    labels = detect_interactions(_red_light_scene(TrafficLightState.STOP))
+    runs = [lab for lab in labels if lab.subtype.id == "passing/red_light_running"]
+    assert [(lab.track_id, lab.other_id) for lab in runs] == [(1, 2)]
+    assert 30 <= runs[0].start <= 34  # from when it passes the stop line
+    geometry = SceneGeometry(_red_light_scene(TrafficLightState.STOP), (), DetectorConfig())
+    assert red_light_runs(geometry, 0, 1) and not red_light_runs(geometry, 1, 0)
+    behind = _red_light_scene(TrafficLightState.STOP, -1.75, 0.0, -60.0)  # following it in its lane
+    for quiet in (_red_light_scene(TrafficLightState.GO), _red_light_scene(TrafficLightState.STOP, 40.0), behind):
+        # a green light; the other already past the crossing, driving away north; the other behind it in its lane
+        assert not any(lab.subtype.id == "passing/red_light_running" for lab in detect_interactions(quiet))
 
 
 def test_a_lane_change_into_a_vehicle_still_beside_it_is_no_cut_in():
@@ -481,7 +505,12 @@ def _detector_scenes() -> list[Scenario]:
     ]
 
 
-PER_PAIR = {"yielding": yielding_runs, "passing": passing_runs, "following": following_runs}
+PER_PAIR = {
+    "yielding": yielding_runs, "passing": passing_runs, "following": following_runs, "red_light": red_light_runs,
+    "braking_lead": braking_lead_runs,
+}  # fmt: skip
+OWN_RULE = {"passing/red_light_running": "red_light", "passing/braking_lead": "braking_lead"}
+"""Subtypes judged by a per-pair rule of their own, not by their type's."""
 
 
 @pytest.mark.parametrize("index", range(5))
@@ -490,7 +519,8 @@ def test_one_pair_judged_alone_gets_the_runs_of_the_whole_scene(index):
     config = DetectorConfig()
     expected: dict[tuple[int, int, str], list[tuple[int, int]]] = {}
     for lab in detect_interactions(s, config=config):
-        expected.setdefault((lab.track_id, lab.other_id, lab.type.value), []).append((lab.start, lab.end))
+        kind = OWN_RULE.get(lab.subtype.id, lab.type.value)
+        expected.setdefault((lab.track_id, lab.other_id, kind), []).append((lab.start, lab.end))
     assert {kind for *_, kind in expected} & set(PER_PAIR)
     ids = s.agents.ids
     whole = SceneGeometry(s, (), config)

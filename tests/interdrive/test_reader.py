@@ -336,3 +336,16 @@ def test_the_overtake_and_cut_in_vocabulary_reads_as_one_kind(text):
     # a cut-in in front of another agent than the one passed is that cut-in, not an overtake of either
     assert read_prompt("@52 overtakes @56 and cuts in front of @9").behaviour is B.CUT_IN
     assert read_prompt("@52 overtakes @56").behaviour is None  # an overtake alone is not in the vocabulary
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["@52 runs the red light across @56's path", "@52 runs a red light in front of @56",
+     "@52 jumps the red in front of @56", "@52 crosses the junction on red in front of @56",
+     "@52 cuts across the path of @56 on a red light", "@52 ignores the red light and goes in front of @56"],
+)  # fmt: skip
+def test_the_red_light_vocabulary_reads_as_running_it_across_the_other(text):
+    reading = read_prompt(text)
+    assert (reading.behaviour, reading.agent, reading.other) == (B.RUN_RED_LIGHT, 52, 56)
+    assert read_prompt("@52 runs the red light").reason == "run_red_light needs exactly one other agent"
+    assert read_prompt("@52 goes first before @56").behaviour is B.GO_FIRST

@@ -158,6 +158,31 @@ def test_an_overtake_passes_in_its_own_lane_then_cuts_into_the_others_lane_the_g
         _target(same_lane, 1, Behaviour.OVERTAKE_CUT_IN, 2)
 
 
+def test_a_red_light_runner_goes_through_the_red_light_ahead_and_across_the_others_way_before_it():
+    from dataclasses import replace
+
+    from langtraj.scenario import TrafficLights
+    from langtraj.scenario.types import TrafficLightState
+
+    s = scene(four_way(), drive(LEFT_LANE_STRAIGHT), _track(line(-80, -HALF, -10, -HALF), 8.0, 40.0))
+    steps = s.agents.states.shape[1]
+
+    def lit(state: TrafficLightState):  # the eastbound approach's signal, its stop line at the junction (x = -10)
+        lights = TrafficLights([41], np.full((steps, 1), state, np.int8), np.ones((steps, 1), bool), [[-10, -HALF, 0]])
+        return replace(s, traffic_lights=lights)
+
+    target = _target(lit(TrafficLightState.STOP), 2, Behaviour.RUN_RED_LIGHT, 1)  # 2 eastbound at x = -32, 8 m/s
+    assert "through the red light 22 m ahead at 8.0 m/s, across @1's way" in target.reason
+    assert target.first is True and target.speed == pytest.approx(8.0) and target.conflict is not None
+    assert target.station_of_goal > 22.0  # the crossing lies past the light
+    with pytest.raises(TargetUnavailable, match="no signal shows red at the current step"):
+        _target(lit(TrafficLightState.GO), 2, Behaviour.RUN_RED_LIGHT, 1)
+    with pytest.raises(TargetUnavailable, match="no red light on its way"):
+        _target(lit(TrafficLightState.STOP), 1, Behaviour.RUN_RED_LIGHT, 2)  # 1's way has no light
+    with pytest.raises(TargetUnavailable, match="the scene has no traffic lights"):
+        _target(s, 2, Behaviour.RUN_RED_LIGHT, 1)
+
+
 def test_yielding_and_going_first_meet_at_the_conflict_point_of_crossing_lanes():
     eastbound = _track(line(-80, -HALF, -10, -HALF), 8.0, 40.0)  # on lane 41 at x = -32 (8 m/s)
     s = scene(four_way(), drive(LEFT_LANE_STRAIGHT), eastbound)

@@ -236,6 +236,7 @@ INTERACTION_GUIDANCE: Mapping[str, Builder] = MappingProxyType(
         "passing/maintaining_speed": _speed(_own()),
         "passing/as_leading_vehicle": _all(_lane(), _avoid(1.0), _speed(_own())),
         "passing/braking_lead": _all(_lane(), _speed(_fixed(0.0), "second")),
+        "passing/red_light_running": _all(_lane(), _avoid(1.0), _speed(_own(low=8.0))),
         "passing/vru_crossing": _all(_avoid(1.0), _speed(_own(low=WALKING_SPEED))),
         # Overtaking: faster than the other agent, clear of it, back in a lane at the end.
         "overtaking/car_avoidance": _all(_road, _avoid(1.5)),

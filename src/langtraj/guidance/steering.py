@@ -185,6 +185,15 @@ def _go_first(s: Steering, clock: _Clock) -> list:
     )
 
 
+def _run_red_light(s: Steering, clock: _Clock) -> list:
+    """As going first (past the crossing a second before the other agent gets there, clear of it), through the red
+    light at its target speed from 1 s until then, on its way throughout: the model, which learned to stop at red
+    lights, is held to it."""
+    t = s.target
+    by = int(np.clip(_steps((t.other_eta or 0.0) - 1.0), 10, FUTURE_STEPS))
+    return _go_first(s, clock) + _speed(s, clock, float(t.speed or 0.0), _steps(1.0), by) + _route(s, clock)
+
+
 def _yield(s: Steering, clock: _Clock) -> list:
     """Held before the conflict point until two seconds after the other agent gets there, slow meanwhile, and
     clear of it; with no conflict point, at 30 % of its speed for 4 s."""
@@ -299,5 +308,6 @@ _BUILDERS = {
     Behaviour.OVERTAKE_CUT_IN: _overtake_cut_in,
     Behaviour.BRAKE_HARD: _brake_hard,
     Behaviour.TAILGATE: _tailgate,
+    Behaviour.RUN_RED_LIGHT: _run_red_light,
 }
 assert set(_BUILDERS) == set(BEHAVIOURS), "every behaviour kind needs a builder"

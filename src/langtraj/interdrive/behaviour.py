@@ -42,6 +42,7 @@ class Behaviour(StrEnum):
     OVERTAKE_CUT_IN = "overtake_cut_in"
     BRAKE_HARD = "brake_hard"
     TAILGATE = "tailgate"
+    RUN_RED_LIGHT = "run_red_light"
 
 
 @dataclass(frozen=True)
@@ -66,8 +67,9 @@ class BehaviourSpec:
     is one kind of lane change toward another agent; `PromptReading.followed`)."""
     conditioned_as: Behaviour | None = None
     """The kind whose sentence the model, which never saw this kind in training, is conditioned on instead of the
-    typed words (braking hard in front of another agent: a stop; a cut-in, with or without an overtake first: a
-    lane change, to the side its target takes; `sim.prompts.conditioning_sentence`)."""
+    typed words (running a red light across another agent's path: going first; braking hard in front of another
+    agent: a stop; a cut-in, with or without an overtake first: a lane change, to the side its target takes;
+    `sim.prompts.conditioning_sentence`)."""
 
     @property
     def is_pair(self) -> bool:
@@ -203,6 +205,15 @@ BEHAVIOURS: Mapping[Behaviour, BehaviourSpec] = {
             interaction=InteractionType.FOLLOWING,
             subtype="following/tailgating",
             exact=True,
+        ),
+        BehaviourSpec(
+            Behaviour.RUN_RED_LIGHT,
+            "@{agent} runs the red light across the path of @{other}",
+            "run the red light across the path of",
+            interaction=InteractionType.PASSING,
+            subtype="passing/red_light_running",
+            exact=True,
+            conditioned_as=Behaviour.GO_FIRST,
         ),
     )
 }

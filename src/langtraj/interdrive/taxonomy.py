@@ -176,6 +176,13 @@ SUBTYPES: tuple[Subtype, ...] = (
             "braking lead vehicle; LangTraj's addition to the paper's subtypes, for safety-critical tests).",
         ),
         (
+            "red_light_running",
+            "Running a red light",
+            "Crossing the stop line of its lane while the signal shows stop, across the path of another road user who "
+            "has to give way or brake (NHTSA's running-a-red-light pre-crash scenario; LangTraj's addition to the "
+            "paper's subtypes, for safety-critical tests).",
+        ),
+        (
             "vru_crossing",
             "Pedestrian or cyclist crossing the road",
             "Pedestrians or cyclists crossing the road, usually with vehicles yielding.",

@@ -267,7 +267,7 @@ def conditioning_sentence(target: BehaviourTarget) -> str | None:
         return None
     if BEHAVIOURS[kind].is_lane_change and target.side is not None:
         kind = Behaviour.LANE_CHANGE_LEFT if target.side == "left" else Behaviour.LANE_CHANGE_RIGHT
-    return BEHAVIOURS[kind].text(target.track_id)
+    return BEHAVIOURS[kind].text(target.track_id, target.other_id)
 
 
 _OPPOSITE = {Behaviour.YIELD: Behaviour.GO_FIRST, Behaviour.GO_FIRST: Behaviour.YIELD}

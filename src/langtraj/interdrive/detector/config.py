@@ -36,6 +36,10 @@ class DetectorConfig:
     merge_gap: int = 5  # yield runs up to this many steps apart are joined
     min_event_steps: int = 5  # yield runs shorter than this are dropped
     red_distance: float = 12.0  # m: a stop point this far ahead of a vehicle's front with a non-go light holds it
+    red_lateral: float = 2.0  # m: a stop point this close to a vehicle's heading line is on its way (red-light runs)
+    red_crossing_s: float = 4.0  # s after running a red light within which it must cross the other's path
+    red_conflict_radius: float = 2.5  # m: a red-light runner this close to the other's heading line is on it
+    red_foe_range: float = 15.0  # m: the other within this (or `foe_horizon_s` at its speed) of the crossing counts
     ped_lookahead: float = 12.0  # m ahead of a vehicle's front checked against crosswalks
     crosswalk_margin: float = 0.5  # m: a vehicle centre this close to a crosswalk is on it
     wait_to_cross_steps: int = 10  # a standing pedestrian must step onto the crosswalk within this many steps

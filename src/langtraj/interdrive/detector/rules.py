@@ -153,7 +153,8 @@ class YieldingRule(InteractionRule):
 
 @INTERACTION_RULES.register
 class PassingRule(InteractionRule):
-    """The other side of every yield: going first while another agent waits."""
+    """The other side of every yield: going first while another agent waits; a braking lead; a red light run across
+    another's path."""
 
     name = "passing"
     type = InteractionType.PASSING
@@ -172,7 +173,21 @@ class PassingRule(InteractionRule):
         labels += _pair_labels(scene, crossings.pedestrian_yields, "passing/vru_crossing", reverse=True)
         labels += _pair_labels(scene, [v for _, v in crossings.pedestrian_waits], "passing/pedestrian")
         labels += _pair_labels(scene, _braking_leads(scene, scene.paths.follows), "passing/braking_lead")
+        labels += _pair_labels(scene, _red_light_runs(scene), "passing/red_light_running")
         return labels
+
+
+def _red_light_runs(scene: SceneGeometry) -> list[Pair]:
+    """Every red light run across another road user's path (`RedLightGeometry.runs`), by each vehicle or cyclist
+    that passes a red stop point, toward every other agent valid then."""
+    red = scene.red_lights
+    return [
+        p
+        for a in np.flatnonzero(scene.movers).tolist()
+        if red.crossings(a).size
+        for b in range(len(scene.ids))
+        for p in red.runs(a, b)
+    ]
 
 
 def _braking_leads(scene: SceneGeometry, follows: Sequence[Pair]) -> list[Pair]:
@@ -301,8 +316,9 @@ def yielding_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
 
 def passing_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
     """The steps over which agent row `agent` goes first while row `other` yields to it: the runs of the
-    "passing/..." labels of agent toward other that `detect_interactions` gives on `scene`'s scenario (any
-    subtype), computed for the pair alone."""
+    "passing/..." labels of agent toward other that `detect_interactions` gives on `scene`'s scenario (any subtype
+    but the braking lead's and the red-light run's, which have rules of their own: `braking_lead_runs`,
+    `red_light_runs`), computed for the pair alone."""
     return _kept(scene, [p for _, p in _pair_yields(scene, other, agent)], "passing/intersection_with_yielding")
 
 
@@ -363,6 +379,13 @@ def braking_lead_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair
     "passing/braking_lead" labels of agent toward other that `detect_interactions` gives on `scene`'s scenario,
     computed for the pair alone."""
     return _kept(scene, _braking_leads(scene, scene.paths.following(other, agent)), "passing/braking_lead")
+
+
+def red_light_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
+    """The steps over which agent row `agent` runs a red light across row `other`'s path: its
+    "passing/red_light_running" labels toward other that `detect_interactions` gives on `scene`'s scenario, computed
+    for the pair alone."""
+    return _kept(scene, scene.red_lights.runs(agent, other), "passing/red_light_running")
 
 
 def tailgating_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:

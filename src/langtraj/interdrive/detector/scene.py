@@ -3,7 +3,8 @@
 It holds the agents' arrays and who stands all window (`SceneArrays`, in `arrays`); the rest lives in its parts,
 each computed once on first use and built here in dependency order, each given the parts it reads: `paths` (paths,
 leaders, following), `lanes` (lane matches, lane leaders, roundabouts), `changes` (lane changes, merges,
-overtakes), `yields` (held vehicles, yields at conflict points) and `crossings` (pedestrians and crosswalks).
+overtakes), `yields` (held vehicles, yields at conflict points), `crossings` (pedestrians and crosswalks) and
+`red_lights` (red lights run across another's path).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from langtraj.interdrive.detector.lane_changes import LaneChangeGeometry
 from langtraj.interdrive.detector.lanes import LaneGeometry
 from langtraj.interdrive.detector.parts import ScenePart
 from langtraj.interdrive.detector.paths import PathGeometry
+from langtraj.interdrive.detector.red_lights import RedLightGeometry
 from langtraj.interdrive.detector.yields import YieldGeometry
 from langtraj.interdrive.labels import AgentLabel
 from langtraj.roads import MapIndex
@@ -43,3 +45,4 @@ class SceneGeometry(ScenePart):
         self.changes = LaneChangeGeometry(arrays, self.lanes, self.agent_labels)
         self.yields = YieldGeometry(arrays, self.paths, self.lanes)
         self.crossings = CrosswalkGeometry(arrays, self.yields)
+        self.red_lights = RedLightGeometry(arrays, self.yields)

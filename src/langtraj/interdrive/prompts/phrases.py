@@ -294,6 +294,12 @@ _SUBTYPE_TEMPLATES: dict[str, tuple[str, ...]] = {
         "|makes an emergency stop|does an emergency stop} {in front of|right in front of|just ahead of} <other>",
         "{brake-checks|brake checks} <other>",
     ),
+    "passing/red_light_running": (
+        "{runs|jumps|ignores|blows through|goes through|drives through} the red light {across the path of"
+        "|in front of|right in front of} <other>",
+        "{crosses|enters|drives through} the intersection {on red|against the red light}"
+        " {in front of|across the path of} <other>",
+    ),
     "passing/vru_crossing": (
         _CROSS_ROAD + " {while <other> yields|while <other> waits|as <other> gives way|in front of <other>"
         "|ahead of <other>}",

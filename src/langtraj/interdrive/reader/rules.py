@@ -402,6 +402,27 @@ _TAILGATE = [
 ]
 """Following the other too closely (the detector's tailgating: under 0.6 s of headway at speed)."""
 
+_RED = r"(?:a\s+|the\s+|its\s+|their\s+)?(?:red\s+(?:light|signal|traffic\s+light)s?|red|stop\s+light|light\s+on\s+red)"
+_WHOSE_PATH = rf"(?:the\s+(?:path|way|lane)\s+of\s+)?{_OTHER}(?:'s\s+(?:path|way|lane))?"
+_ACROSS = rf"(?:across|into|through|in\s+front\s+of|ahead\s+of|right\s+in\s+front\s+of|before)\s+{_WHOSE_PATH}"
+_RED_VERBS = verb(
+    "run", "jump", "skip", "ignore", "blow through", "blow", "go through", "drive through", "speed through",
+    "race through", "shoot through", "cross on", "go on", "drive on", "run through", "disregard",
+)  # fmt: skip
+_RUN_RED_LIGHT = [
+    rf"\b{_RED_VERBS}\s+{_RED}(?!\w)",
+    rf"\b{_RED_VERBS}\s+{_RED}{_TIGHT_GAP}\s+{_ACROSS}",
+    rf"\b{verb('cross', 'enter', 'go through', 'drive through', 'pass through', 'cut across', 'drive across')}"
+    rf"\s+(?:the\s+)?(?:junction|intersection|crossing)\s+(?:on|against|through)\s+(?:a\s+|the\s+)?red"
+    rf"(?:\s+light)?{_TIGHT_GAP}\s+{_ACROSS}",
+    rf"\b{verb('cross', 'cut across', 'pull across', 'drive across')}\s+{_WHOSE_PATH}\s+(?:on|against|through)"
+    r"\s+(?:a\s+|the\s+)?red(?:\s+light)?\b",
+]
+"""Running a red light across the other's path (NHTSA's running-a-red-light pre-crash scenario): "runs the red light
+across @7's path", "jumps the red in front of @7", "crosses the junction on red in front of @7", "cuts across @7's
+path on a red light"; or "runs the red light" alone, the other agent the one other mention ("ignores the red light
+and goes in front of @7")."""
+
 _YIELD = [
     rf"\b{verb('yield', 'give way', 'defer', 'cede', 'submit')}"
     rf"(?:\s+(?:the\s+)?(?:right\s+of\s+way|right-of-way|priority|precedence|the\s+junction))?\s+(?:to|for)\s+{_OTHER}",
@@ -458,6 +479,7 @@ def _build_rules() -> tuple[_Rule, ...]:
         (Behaviour.CUT_IN, _CUT_IN),  # before going first: "cuts in ahead of @7" is a cut-in
         (Behaviour.BRAKE_HARD, _BRAKE_HARD),
         (Behaviour.TAILGATE, _TAILGATE),  # before following
+        (Behaviour.RUN_RED_LIGHT, _RUN_RED_LIGHT),  # before going first
         (Behaviour.GO_FIRST, _GO_FIRST),
         (Behaviour.YIELD, _YIELD),
         (Behaviour.FOLLOW, _FOLLOW),
@@ -481,6 +503,7 @@ SUBSUMES: dict[Behaviour, frozenset[Behaviour]] = {
     Behaviour.OVERTAKE_CUT_IN: frozenset({Behaviour.CUT_IN, Behaviour.GO_FIRST}) | _CHANGE_AND_SPEED,
     Behaviour.BRAKE_HARD: frozenset({Behaviour.STOP, Behaviour.SLOW_DOWN}),
     Behaviour.TAILGATE: frozenset({Behaviour.FOLLOW, Behaviour.SPEED_UP, Behaviour.SLOW_DOWN}),
+    Behaviour.RUN_RED_LIGHT: frozenset({Behaviour.GO_FIRST, Behaviour.SPEED_UP, Behaviour.GO_STRAIGHT}),
 }
 """A kind that, asked with another, is part of it: "pulls over and stops", "brakes to let @7 pass"."""
 

@@ -25,7 +25,9 @@ the lane graph (`lanes_ahead`) and returns either a `BehaviourTarget` in world c
 - braking hard in front of another agent (which follows it in its lane): the agent's lane ahead and the stop that
   braking at the asked deceleration from 1 s on brings it to;
 - tailgating another agent (ahead of it in its lane): the agent's lane ahead, the station that closes the gap to
-  0.4 s of headway within a few seconds, and the other's speed after.
+  0.4 s of headway within a few seconds, and the other's speed after;
+- running a red light across another agent's way: its way through a signal showing stop at the current step, and
+  the crossing with the other's way past it, to be passed first.
 
 Only the current step and the past are read (never the logged future), so a simulation may use the target.
 See docs/interdrive.md ('Targets and feasibility').
@@ -56,7 +58,7 @@ from langtraj.polylines import arc_lengths, point_at, project_on_polyline, resam
 from langtraj.roads import MapIndex
 from langtraj.roads.routes import ROUTE_SPACING, route, straight_line
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
-from langtraj.scenario.types import AgentType, StateField
+from langtraj.scenario.types import AgentType, StateField, TrafficLightState
 
 Status = Literal["feasible", "infeasible", "undecided"]
 
@@ -106,6 +108,17 @@ unless the asked gap is smaller."""
 """The least speed of the agent overtaken (m/s): slower traffic is queued, not overtaken."""
 """By when an overtake must have settled in the other's lane (s): a second before the horizon, for the judge."""
 GO_FIRST_MARGIN_S = 0.5
+RED_STATES = (TrafficLightState.STOP, TrafficLightState.ARROW_STOP)
+"""The signal states a red-light runner passes: red, and a red arrow."""
+AMBER_STATES = (TrafficLightState.CAUTION, TrafficLightState.ARROW_CAUTION)
+"""Signal states that are about to stop a lane: the other agent must face neither these nor red (it has the right of
+way a red-light runner cuts)."""
+RED_LIGHT_SPEED = 8.0
+"""The least speed a red-light runner crosses at (m/s): a car that jumps the light does not creep."""
+RED_LIGHT_REACH_S = 4.0
+"""How far ahead, in time at that speed, the red light may be (s): later, it may well have turned green."""
+RED_STOP_LATERAL = 1.5
+"""How close to a way a signal's stop point must lie to be that way's (m; lanes are about 3.5 m apart)."""
 BRAKE_HARD_DECELERATION = 4.0
 """How hard a braking lead brakes unless the prompt says (m/s^2): Euro NCAP's braking-lead tests use 2 to 6."""
 BRAKE_HARD_LIMITS = (3.0, 10.0)
@@ -169,7 +182,7 @@ class BehaviourTarget:
     @property
     def first(self) -> bool | None:
         """Whether the agent passes the conflict point first (None for a single-agent behaviour)."""
-        return None if self.other_id is None else self.behaviour is Behaviour.GO_FIRST
+        return None if self.other_id is None else self.behaviour in (Behaviour.GO_FIRST, Behaviour.RUN_RED_LIGHT)
 
     @property
     def goal_point(self) -> np.ndarray | None:
@@ -386,6 +399,8 @@ def _target(
         return _brake_hard(ctx, agent, other, BRAKE_HARD_DECELERATION if deceleration is None else deceleration)
     if behaviour is Behaviour.TAILGATE:
         return _tailgate(ctx, agent, other)
+    if behaviour is Behaviour.RUN_RED_LIGHT:
+        return _run_red_light(ctx, agent, other)
     return _order(ctx, agent, other, behaviour)
 
 
@@ -613,6 +628,76 @@ def _past_then_into_lane(
         return own
     lead_in = resample(np.stack([own[-1], theirs[0]]), ROUTE_SPACING)
     return np.concatenate([own[:-1], lead_in[:-1], theirs])
+
+
+def _run_red_light(ctx: TargetContext, agent: _Agent, other: _Agent) -> BehaviourTarget:
+    """Through a signal showing stop at the current step and across the other's way: the first of the agent's ways
+    ahead (`TargetContext.ways_ahead`) that passes within `RED_STOP_LATERAL` of the stop point of such a signal, no
+    farther than `RED_LIGHT_REACH_S` at `RED_LIGHT_SPEED` (or its own speed, if faster), and that a way of the other
+    agent crosses past it, the other facing no red or amber light before the crossing (it has the right of way); the
+    goal is that crossing, passed first, at that speed, as going first (`_order`). Undecided without signals;
+    infeasible without such a light and crossing, or where the other gets to the crossing first
+    (`_check_going_first`)."""
+    behaviour = Behaviour.RUN_RED_LIGHT
+    lights = ctx.scenario.traffic_lights
+    if lights is None or lights.num_lanes == 0:
+        raise TargetUnavailable(agent.track_id, behaviour, "undecided", "the scene has no traffic lights")
+    c = ctx.scenario.current_index
+    red = np.isin(lights.states[c], [int(s) for s in RED_STATES]) & lights.valid[c]
+    if not red.any():
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", "no signal shows red at the current step")
+    stops = np.asarray(lights.stop_points)[red, :2]
+    not_go = np.isin(lights.states[c], [int(s) for s in (*RED_STATES, *AMBER_STATES)]) & lights.valid[c]
+    speed = max(agent.here.speed, RED_LIGHT_SPEED)
+    reach = speed * RED_LIGHT_REACH_S
+    theirs = ctx.ways_ahead(other)
+    reason = f"no red light on its way within {reach:.0f} m"
+    for path in ctx.ways_ahead(agent):
+        found = project_on_polyline(stops, path)
+        on_way = (found.distance < RED_STOP_LATERAL) & (found.station > 0.0) & (found.station <= reach)
+        if not on_way.any():
+            continue
+        light = float(found.station[on_way].min())
+        arc = arc_lengths(path)
+        crossings = [c for c in (_crossing(path, t) for t in theirs) if c is not None and arc[c[0]] > light]
+        if not crossings:
+            reason = f"@{other.track_id}'s way does not cross its way past the red light {light:.0f} m ahead"
+            continue
+        i, distance = min(crossings)
+        if _red_before(np.asarray(lights.stop_points)[not_go, :2], theirs, path[i]):
+            reason = f"@{other.track_id} faces a red or amber light too, before the crossing: no right of way to cut"
+            continue
+        target = BehaviourTarget(
+            agent.track_id,
+            behaviour,
+            path,
+            f"through the red light {light:.0f} m ahead at {speed:.1f} m/s, across @{other.track_id}'s way "
+            f"{arc[i]:.0f} m ahead, before it",
+            station_of_goal=float(arc[i]),
+            speed=float(speed),
+            other_id=other.track_id,
+            conflict=path[i],
+            other_eta=distance / max(other.here.speed, 1.0),
+            current_speed=agent.here.speed,
+            other_speed=other.here.speed,
+        )
+        _check_going_first(agent, other, target)
+        return target
+    raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+
+
+def _red_before(stops: np.ndarray, ways: list[np.ndarray], point: np.ndarray) -> bool:
+    """Whether every one of `ways` that passes `point` has one of `stops` (of signals that do not show go) on it
+    before that point."""
+    passing = [w for w in ways if project_on_polyline(point, w).distance < CROSSING_RADIUS]
+    if not passing:
+        return False
+    for way in passing:
+        at = float(project_on_polyline(point, way).station)
+        found = project_on_polyline(stops, way)
+        if not ((found.distance < RED_STOP_LATERAL) & (found.station < at)).any():
+            return False
+    return True
 
 
 def _turn(ctx: TargetContext, agent: _Agent, behaviour: Behaviour) -> BehaviourTarget:
