@@ -66,6 +66,7 @@ def test_unread_prompts_and_missing_targets_say_what_steers_them():
     unread = prompt_steering(s, read_prompts(["@1 does a little dance"]), np.arange(3), ORIGIN, ALL_LEVERS)
     assert not unread.steerings and not unread.asks
     assert unread.notes[0].startswith("not read:") and "it steers by its text alone" in unread.notes[0]
+    assert "the prompt steers by text alone" not in unread.notes[0]  # said once
     left = read_prompts(["@2 turns left at the next intersection"])
     no_target = prompt_steering(s, left, np.arange(3), ORIGIN, ALL_LEVERS)
     assert not no_target.steerings and len(no_target.asks) == 1  # the judge still asks; the map gives no target

@@ -214,7 +214,8 @@ def prompt_steering(
             warnings.append(warning)
         if reading.behaviour is None or reading.agent is None:
             alone = "it steers by its text alone" if levers.text else "nothing steers it (the text lever is off)"
-            notes.append(f"{reading.describe()}; {alone}")
+            head = f"not read: {reading.reason}" if reading.behaviour is None else reading.describe()
+            notes.append(f"{head}; {alone}")
             continue
         if reading.agent not in slots:
             raise InputError(f"@{reading.agent} is not among the agents the model drives", where="prompt")
