@@ -197,5 +197,9 @@ def test_kinds_the_model_never_saw_are_conditioned_on_the_sentence_of_what_their
     brake = BehaviourTarget(12, Behaviour.BRAKE_HARD, path, "", other_id=7, speed=0.0)
     assert conditioning_sentence(cut_in) == "@12 changes lanes to the right"
     assert conditioning_sentence(brake) == "@12 comes to a stop and stands still"
+    overtake = BehaviourTarget(12, Behaviour.OVERTAKE_CUT_IN, path, "", other_id=7, side="left")
+    assert conditioning_sentence(overtake) == "@12 changes lanes to the left"
+    red = BehaviourTarget(12, Behaviour.RUN_RED_LIGHT, path, "", other_id=7)  # a pair sentence names the other
+    assert conditioning_sentence(red) == "@12 takes the right of way over @7"
     assert conditioning_sentence(BehaviourTarget(12, Behaviour.TAILGATE, path, "", other_id=7)) is None  # seen
     assert conditioning_sentence(BehaviourTarget(12, Behaviour.STOP, path, "", speed=0.0)) is None
