@@ -1,7 +1,8 @@
 """Adherence of candidates (`sim.adherence`): on constructed trajectories that do and do not follow a prompt, the
 candidate judge that selection uses agrees with the judge that scores instruction following, also on the yields
 built around the thresholds an earlier rule of selection's own did not share with the detector (crossing radius,
-wait extension, the passing agent's length, joined held runs, red lights, queues)."""
+wait extension, the passing agent's length, joined held runs, red lights, queues), and on the safety-critical kinds
+judged by their own subtype (an overtake and cut-in, a red light run)."""
 
 from __future__ import annotations
 
@@ -87,6 +88,21 @@ def test_a_left_lane_change_and_keeping_the_lane_are_judged_alike():
     speeds = np.full_like(TIME, 10.0)
     candidates = [scene(two_lane_road(), _eastbound(speeds, change)), scene(two_lane_road(), _eastbound(speeds))]
     selection, scoring = _verdicts(candidates, Ask(1, 0, 0, Behaviour.LANE_CHANGE_LEFT), [0])
+    assert selection == scoring == [True, False]
+
+
+def test_an_overtake_and_cut_in_and_passing_without_cutting_in_are_judged_alike():
+    blend = np.clip((TIME - 4.5) / 3.0, 0.0, 1.0)
+    change = 3.5 - 3.5 * (1 - np.cos(np.pi * blend)) / 2  # from the left lane into the right from 4.5 s
+    fast, slow = np.full_like(TIME, 14.0), np.full_like(TIME, 10.0)
+    kind, xy, heading = _eastbound(slow)
+    other = (kind, xy + [10.0, 0.0], heading)  # 10 m ahead in the right lane: passed at 4 m/s more by about 2.5 s
+    candidates = [
+        scene(two_lane_road(), _eastbound(fast, change), other),
+        scene(two_lane_road(), _eastbound(fast, 3.5), other),
+    ]
+    ask = Ask(1, 0, 0, Behaviour.OVERTAKE_CUT_IN, other_id=2, other_row=1, other_slot=1)
+    selection, scoring = _verdicts(candidates, ask, [0, 1])
     assert selection == scoring == [True, False]
 
 
@@ -191,6 +207,19 @@ def test_waiting_at_a_red_light_is_no_yield_for_either_judge(light, expected):
     stop_line = [[-4.0, 0.0, 0.0]]  # 1.75 m ahead of car 1's front
     lights = TrafficLights([900], np.full((len(TIME), 1), light, np.int8), np.ones((len(TIME), 1), bool), stop_line)
     _agree(replace(s, traffic_lights=lights), expected)
+
+
+@pytest.mark.parametrize(("light", "expected"), [(TrafficLightState.STOP, True), (TrafficLightState.GO, False)])
+def test_running_a_red_light_across_a_crossing_car_is_judged_alike(light, expected):
+    runner = straight(-40, -1.75, 0, 10.0)  # past its stop line (x = -8) at about 3.2 s, at 10 m/s throughout
+    crossing = straight(1.75, -40, np.pi / 2, 8.0)  # northbound across its way, there at about 4.8 s
+    lights = TrafficLights(
+        [900], np.full((len(TIME), 1), light, np.int8), np.ones((len(TIME), 1), bool), [[-8, -1.75, 0]]
+    )
+    s = replace(track_scene({1: (VEH, runner), 2: (VEH, crossing)}), traffic_lights=lights)
+    ask = Ask(1, 0, 0, Behaviour.RUN_RED_LIGHT, other_id=2, other_row=1, other_slot=1)
+    selection, scoring = _verdicts([s], ask, [0, 1])
+    assert selection == scoring == [expected]
 
 
 def test_a_car_queued_behind_its_leader_yields_to_no_one_for_either_judge():
