@@ -12,7 +12,7 @@ import torch
 from langtraj.errors import InputError
 from langtraj.guidance import GuidanceTerm, NoCollisionCost, RouteCost, StationCost, TargetSpeedCost
 from langtraj.guidance.route import LeadCost, RoutePath
-from langtraj.guidance.steering import KEEP_LANE_WEIGHT, ClearOfOthersCost, Steering
+from langtraj.guidance.steering import KEEP_LANE_WEIGHT, RED_LIGHT_ROUTE_WEIGHT, ClearOfOthersCost, Steering
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.targets import BehaviourTarget
 
@@ -208,4 +208,5 @@ def test_a_red_light_runner_goes_first_through_the_crossing_at_its_speed_on_its_
     assert (reach.station, reach.mode, reach.start) == (25.0, "reach", 39)  # 5 m past the crossing, a second early
     speed = next(t.cost for t in terms if isinstance(t.cost, TargetSpeedCost))
     assert (speed.speeds, speed.start, speed.end) == ((8.0,), 9, 40)  # at its speed through the light until then
-    assert {t.weight for t in terms if isinstance(t.cost, RouteCost)} >= {1.0}  # held to its way
+    routes = [t.weight for t in terms if isinstance(t.cost, RouteCost)]
+    assert routes == [RED_LIGHT_ROUTE_WEIGHT] and RED_LIGHT_ROUTE_WEIGHT > 1.0  # held to its way, by one term

@@ -14,11 +14,11 @@ import numpy as np
 from langtraj.angles import wrap_angle
 from langtraj.env.route import Route
 from langtraj.errors import InputError
-from langtraj.metrics.traffic_lights import STOP_STATES, SignalLanes, red_light_violations
+from langtraj.metrics.traffic_lights import SignalLanes, red_light_violations
 from langtraj.roads import MapIndex
 from langtraj.roads.position import LANE_MATCH_RADIUS
 from langtraj.scenario.model import Scenario
-from langtraj.scenario.types import StateField
+from langtraj.scenario.types import RED_STATES, StateField
 
 LIGHT_MODES = ("log", "held")
 """`log`: each step's lights as the log has them (up to that step), as Waymax and nuPlan replay them; `held`: the
@@ -78,7 +78,7 @@ class RuleJudge:
     def stop_at(self, step: int) -> np.ndarray:
         """bool [S]: which signals show stop at `step` as the episode sees them."""
         states, seen = self.lights.at(step)
-        return seen & np.isin(states, [int(s) for s in STOP_STATES])
+        return seen & np.isin(states, [int(s) for s in RED_STATES])
 
     def judge(self, before: np.ndarray, now: np.ndarray, step: int, station: float) -> RuleEvents:
         """The ego's state before [9] and now [9] (at `step` of the scenario), at `station` along its route."""

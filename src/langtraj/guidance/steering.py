@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import cached_property
+from typing import Literal
 
 import numpy as np
 
@@ -34,6 +35,9 @@ KEEP_LANE_WEIGHT = 16.0 * ROUTE_WEIGHT
 """Per m^2 off the lane, for a braking lead, which must not swerve: above the common range, as the model, conditioned
 on a stop, moves aside by 1.5-3 m at 1x; chosen on validation maps (docs/testing.md, 'The safety-critical
 vocabulary')."""
+RED_LIGHT_ROUTE_WEIGHT = 1.25 * ROUTE_WEIGHT
+"""Per m^2 off its way, for a red-light runner: going first's quarter weight and the usual one on top, as measured
+(docs/testing.md, 'Red lights run by name, measured')."""
 LEAD_SLACK_M = 2.0
 """How far beyond its settled lead an overtaking agent may get ahead of the other before it has settled (m)."""
 CLEAR_WEIGHT = AVOID_WEIGHT  # per unit of summed disk overlap with the other agents (as the library keeps clear)
@@ -170,17 +174,17 @@ def _speed_change(s: Steering, clock: _Clock) -> list:
     return _speed(s, clock, float(s.target.speed or 0.0), _steps(3.0)) + _route(s, clock, weight=0.25)
 
 
-def _go_first(s: Steering, clock: _Clock) -> list:
+def _go_first(s: Steering, clock: _Clock, route_weight: float = 0.25 * ROUTE_WEIGHT) -> list:
     """Past the conflict point (by 5 m) a second before the other agent gets there, clear of it; with no conflict
-    point, at least its speed (3 m/s or more)."""
+    point, at least its speed (3 m/s or more); on its way at `route_weight`."""
     t = s.target
     if t.station_of_goal is None or t.other_eta is None:  # keep going, clear of the other agent
-        return _speed(s, clock, max(t.current_speed, 3.0), 1) + _route(s, clock, weight=0.25) + _avoid(s, 1.0)
+        return _speed(s, clock, max(t.current_speed, 3.0), 1) + _route(s, clock, weight=route_weight) + _avoid(s, 1.0)
     by = int(np.clip(_steps(t.other_eta - 1.0), 10, FUTURE_STEPS))
     goal = t.station_of_goal + 5.0
     return (
         _station(s, clock, goal, "reach", by, FUTURE_STEPS, REACH_WEIGHT)
-        + _route(s, clock, weight=0.25)
+        + _route(s, clock, weight=route_weight)
         + _avoid(s, 1.0)
     )
 
@@ -191,7 +195,7 @@ def _run_red_light(s: Steering, clock: _Clock) -> list:
     lights, is held to it."""
     t = s.target
     by = int(np.clip(_steps((t.other_eta or 0.0) - 1.0), 10, FUTURE_STEPS))
-    return _go_first(s, clock) + _speed(s, clock, float(t.speed or 0.0), _steps(1.0), by) + _route(s, clock)
+    return _go_first(s, clock, RED_LIGHT_ROUTE_WEIGHT) + _speed(s, clock, float(t.speed or 0.0), _steps(1.0), by)
 
 
 def _yield(s: Steering, clock: _Clock) -> list:
@@ -263,12 +267,13 @@ def _overtake_cut_in(s: Steering, clock: _Clock) -> list:
     )
 
 
-def _lead(s: Steering, clock: _Clock, lead: float, mode: str, first: int, last: int, weight: float) -> list:
+def _lead(
+    s: Steering, clock: _Clock, lead: float, mode: Literal["reach", "hold"], first: int, last: int, weight: float
+) -> list:
     span = clock.window(first, last)
     if span is None or len(s.target.path) < 2 or s.other_slot is None:
         return []
-    cost = LeadCost(s.slot, s.other_slot, s.route, lead, mode=mode, start=span[0], end=span[1])  # type: ignore[arg-type]
-    return [GuidanceTerm(cost, weight)]
+    return [GuidanceTerm(LeadCost(s.slot, s.other_slot, s.route, lead, mode=mode, start=span[0], end=span[1]), weight)]
 
 
 def _tailgate(s: Steering, clock: _Clock) -> list:

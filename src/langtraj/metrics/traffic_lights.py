@@ -13,10 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from langtraj.scenario.model import Scenario
-from langtraj.scenario.types import MapFeatureType, TrafficLightState
-
-STOP_STATES = (TrafficLightState.STOP, TrafficLightState.ARROW_STOP)
-"""The signal states that stop a lane's traffic (red, and a red arrow)."""
+from langtraj.scenario.types import RED_STATES, MapFeatureType
 
 
 @dataclass(frozen=True)
@@ -43,7 +40,7 @@ class SignalLanes:
         for i, feature in enumerate(lanes):
             points[i, : len(feature.points)] = feature.points[:, :2]
             point_valid[i, : len(feature.points)] = True
-        is_stop = np.isin(lights.states, [int(s) for s in STOP_STATES]) & lights.valid
+        is_stop = np.isin(lights.states, [int(s) for s in RED_STATES]) & lights.valid
         return cls(
             np.array([f.id for f in lanes], np.int64),
             points,

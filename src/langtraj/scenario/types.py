@@ -93,6 +93,11 @@ class TrafficLightState(IntEnum):
         return self in (TrafficLightState.GO, TrafficLightState.ARROW_GO)
 
 
+RED_STATES = (TrafficLightState.STOP, TrafficLightState.ARROW_STOP)
+"""The signal states a red-light violation counts (red and a red arrow, as WOSAC; not a flashing red, which is a stop
+sign): red-light metrics, the ego's rules, the red-light runner's target and its judge."""
+
+
 class StateField(IntEnum):
     """Column of `Agents.states` (units: m, rad, m/s)."""
 

@@ -171,6 +171,19 @@ class LaneChangeGeometry(ScenePart):
         keep = (gap > 0) & (gap <= np.maximum(cfg.cut_in_range, cfg.cut_in_headway_s * self.speed[others, t]))
         return int(others[keep][np.argmin(behind[keep])]) if keep.any() else -1
 
+    @cached_property
+    def cut_ins(self) -> list[tuple[LaneChange, int]]:
+        """Every cut-in, each a lane change or merge (a merge just ahead of a vehicle cuts in front of it too; overtakes
+        left out) with the agent index of the vehicle that then follows in the target lane (`follower_after`)."""
+        out = []
+        for change in self.lane_changes:
+            if change in self.overtakes:
+                continue
+            trail = self.follower_after(change)
+            if trail >= 0:
+                out.append((change, trail))
+        return out
+
     def former_leader(self, change: LaneChange) -> int:
         """The leader on the lane left right before the switch (agent index, -1 when none)."""
         return self.lanes.leader(change.agent, max(change.switch - 1, 0), change.from_lane)

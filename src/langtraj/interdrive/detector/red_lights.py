@@ -20,9 +20,7 @@ from langtraj.interdrive.detector.arrays import SceneArrays
 from langtraj.interdrive.detector.parts import Pair, ScenePart
 from langtraj.interdrive.detector.yields import YieldGeometry
 from langtraj.scenario.model import STEP_SECONDS
-from langtraj.scenario.types import TrafficLightState
-
-_STOP = (int(TrafficLightState.STOP), int(TrafficLightState.ARROW_STOP))
+from langtraj.scenario.types import RED_STATES
 
 
 class RedLightGeometry(ScenePart):
@@ -32,6 +30,7 @@ class RedLightGeometry(ScenePart):
     def __init__(self, arrays: SceneArrays, yields: YieldGeometry):
         super().__init__(arrays)
         self.yields = yields
+        self._crossings: dict[int, np.ndarray] = {}
 
     @cached_property
     def _stop(self) -> np.ndarray | None:
@@ -39,10 +38,16 @@ class RedLightGeometry(ScenePart):
         lights = self.scenario.traffic_lights
         if lights is None or lights.num_lanes == 0:
             return None
-        return np.isin(lights.states[: self.num_steps], _STOP) & lights.valid[: self.num_steps]
+        return np.isin(lights.states[: self.num_steps], [int(s) for s in RED_STATES]) & lights.valid[: self.num_steps]
 
     def crossings(self, a: int) -> np.ndarray:
-        """The steps at which vehicle or cyclist `a`'s front passes the stop point of a signal showing stop."""
+        """The steps at which vehicle or cyclist `a`'s front passes the stop point of a signal showing stop (computed
+        once per agent: every other agent's run asks)."""
+        if a not in self._crossings:
+            self._crossings[a] = self._crossings_of(a)
+        return self._crossings[a]
+
+    def _crossings_of(self, a: int) -> np.ndarray:
         stop = self._stop
         if stop is None or not self.movers[a]:
             return np.zeros(0, np.int64)
@@ -62,12 +67,14 @@ class RedLightGeometry(ScenePart):
         if a == b or not self.movers[a] or not self.valid[b].any():
             return []
         window = round(cfg.red_crossing_s / STEP_SECONDS)
-        gave_way = self.yields.pair_yields(b, a) if self.movers[b] else []
+        gave_way: list[Pair] | None = None  # the yield rule's runs of b for a, found once and only when needed
         out: list[Pair] = []
         for red in self.crossings(a).tolist():
             if out and red < out[-1].end:
                 continue  # the same run past a second stop line
             end = min(red + window, self.num_steps)
+            if gave_way is None:
+                gave_way = self.yields.pair_yields(b, a) if self.movers[b] else []
             waits = [y for y in gave_way if y.start <= end and y.end >= red - window]
             if waits or self._across(a, b, red, end):
                 out.append(Pair(a, b, red, max([end, *(y.end for y in waits)])))

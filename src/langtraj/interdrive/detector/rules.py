@@ -323,18 +323,8 @@ def passing_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
 
 
 def _cut_in_changes(scene: SceneGeometry, agent: int | None = None) -> list[tuple[LaneChange, int]]:
-    """The cut-ins of `scene` (of row `agent` only, when given), each a lane change or merge (a merge just ahead of a
-    vehicle cuts in front of it too; overtakes left out) with the row of the vehicle that then follows in the target
-    lane within `cut_in_range` (`LaneChangeGeometry.follower_after`)."""
-    changes = scene.changes
-    out = []
-    for change in changes.lane_changes:
-        if (agent is not None and change.agent != agent) or change in changes.overtakes:
-            continue
-        trail = changes.follower_after(change)
-        if trail >= 0:
-            out.append((change, trail))
-    return out
+    """The cut-ins of `scene` (`LaneChangeGeometry.cut_ins`; of row `agent` only, when given)."""
+    return [(c, trail) for c, trail in scene.changes.cut_ins if agent is None or c.agent == agent]
 
 
 def _cut_ins(scene: SceneGeometry, agent: int | None = None) -> list[Pair]:

@@ -321,9 +321,12 @@ _CUT_IN_VERBS = verb(
     "cut", "nip", "dive", "swerve", "squeeze", "slot", "tuck", "merge", "slip", "jump", "weave", "change lanes",
     "switch lanes", "move over", "pull in", "pull over", "barge", "force its way", "push in",
 )  # fmt: skip
+_CUT_MANNER = r"(?:over|back|across|sharply|suddenly|right|just|closely|dangerously|abruptly|tightly|aggressively)"
+_JUST_AHEAD = r"(?:in\s+front\s+of|ahead\s+of|just\s+ahead\s+of)"
+_CUTS_IN = rf"{_CUT_IN_VERBS}(?:\s+(?:in|{_CUT_MANNER}))*\s+(?:{_JUST_AHEAD}|in\s+on)"
+"""A cut in front of someone named next: "cuts in front of", "swerves sharply in ahead of", "cuts in on"."""
 _CUT_IN = [
-    rf"\b{_CUT_IN_VERBS}(?:\s+(?:in|over|back|across|sharply|suddenly|right|just|closely|dangerously|abruptly|tightly"
-    rf"|aggressively))*\s+(?:in\s+front\s+of|ahead\s+of|just\s+ahead\s+of)\s+{_OTHER}",
+    rf"\b{_CUTS_IN}\s+{_OTHER}",
     rf"\b{verb('cut', 'push', 'barge')}\s+in\s+on\s+{_OTHER}",
     rf"\b{verb('cut')}\s+(?:off|up)\s+{_OTHER}",
     rf"\b{verb('cut')}\s+{_OTHER}\s+(?:off|up)\b",
@@ -348,8 +351,7 @@ _ITS_LANE = (
     rf"(?:\s+(?:right\s+|just\s+)?(?:in\s+front\s+of|ahead\s+of)\s+{_SAME})?"
 )
 _CUT_BACK = (
-    rf"(?:{_CUT_IN_VERBS}(?:\s+(?:in(?!\s+(?:front|on)\b)|over|back|across|sharply|suddenly|right|just|closely"
-    rf"|dangerously|abruptly|tightly|aggressively))*(?:\s+(?:in\s+front\s+of|ahead\s+of|just\s+ahead\s+of|in\s+on)"
+    rf"(?:{_CUT_IN_VERBS}(?:\s+(?:in(?!\s+(?:front|on)\b)|{_CUT_MANNER}))*(?:\s+(?:{_JUST_AHEAD}|in\s+on)"
     rf"\s+{_SAME}|\s+{_ITS_LANE}|\s+(?:in|back)\b)?"
     rf"|{verb('move', 'pull', 'swing', 'swerve', 'get', 'go', 'steer', 'drift')}\s+{_ITS_LANE}"
     rf"|{verb('cut')}\s+(?:off\s+{_SAME}|{_SAME}\s+(?:off|up)))\b(?!\s+(?:in\s+)?(?:front|ahead|on|in)\b)"
@@ -358,13 +360,9 @@ _CUT_BACK = (
 off"."""
 _OVERTAKE_CUT_IN = [
     rf"\b{_PASS_VERBS}\s+{_OTHER}{_THEN}{_FILLER_WORDS}{_CUT_BACK}",
-    rf"\b{_PASS_VERBS}(?:{_THEN}|\s+){_FILLER_WORDS}"
-    rf"{_CUT_IN_VERBS}(?:\s+(?:in|over|back|sharply|suddenly|right|just|closely|dangerously|abruptly))*"
-    rf"\s+(?:in\s+front\s+of|ahead\s+of|just\s+ahead\s+of|in\s+on)\s+{_OTHER}",
-    rf"\b{_CUT_IN_VERBS}(?:\s+(?:in|over|back|sharply|suddenly|right|just|closely|dangerously|abruptly))*"
-    rf"\s+(?:in\s+front\s+of|ahead\s+of|just\s+ahead\s+of|in\s+on)\s+{_OTHER}"
-    rf"(?:\s*,)?\s+(?:after|once|right\s+after|just\s+after)\s+{verb('overtake', 'pass', 'get past', 'go past')}"
-    rf"\s+{_SAME}",
+    rf"\b{_PASS_VERBS}(?:{_THEN}|\s+){_FILLER_WORDS}{_CUTS_IN}\s+{_OTHER}",
+    rf"\b{_CUTS_IN}\s+{_OTHER}(?:\s*,)?\s+(?:(?:right|just)\s+)?(?:after|once)"
+    rf"\s+{verb('overtake', 'pass', 'get past', 'go past')}\s+{_SAME}",
     rf"\b{_PASS_VERBS}\s+{_OTHER}\s+and\s+{verb('cut')}\s+{_SAME}\s+(?:off|up)\b",
 ]
 """Passing the other and then changing into its lane just ahead of it: "overtakes @7 and cuts in front of it",

@@ -58,7 +58,7 @@ from langtraj.polylines import arc_lengths, point_at, project_on_polyline, resam
 from langtraj.roads import MapIndex
 from langtraj.roads.routes import ROUTE_SPACING, route, straight_line
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
-from langtraj.scenario.types import AgentType, StateField, TrafficLightState
+from langtraj.scenario.types import RED_STATES, AgentType, StateField, TrafficLightState
 
 Status = Literal["feasible", "infeasible", "undecided"]
 
@@ -105,14 +105,11 @@ OVERTAKE_MIN_SPEED = 5.0
 OVERTAKE_CLEAR_M = 2.0
 """How far an overtaking agent's rear is past the other's front when its change into the other's lane begins (m),
 unless the asked gap is smaller."""
-"""The least speed of the agent overtaken (m/s): slower traffic is queued, not overtaken."""
-"""By when an overtake must have settled in the other's lane (s): a second before the horizon, for the judge."""
 GO_FIRST_MARGIN_S = 0.5
-RED_STATES = (TrafficLightState.STOP, TrafficLightState.ARROW_STOP)
-"""The signal states a red-light runner passes: red, and a red arrow."""
-AMBER_STATES = (TrafficLightState.CAUTION, TrafficLightState.ARROW_CAUTION)
-"""Signal states that are about to stop a lane: the other agent must face neither these nor red (it has the right of
-way a red-light runner cuts)."""
+"""Going first must get the agent to the crossing this much earlier than the other agent at its speed (s)."""
+NOT_GO_STATES = tuple(s for s in TrafficLightState if s.is_stop or s.is_caution)
+"""Signal states that stop a lane or are about to: the other agent must face none of these before the crossing (it
+has the right of way a red-light runner cuts)."""
 RED_LIGHT_SPEED = 8.0
 """The least speed a red-light runner crosses at (m/s): a car that jumps the light does not creep."""
 RED_LIGHT_REACH_S = 4.0
@@ -137,7 +134,7 @@ TAILGATE_MIN_SPEED = 6.0
 TAILGATE_CLOSING = 3.0
 """How much faster than the other a tailgater closes the gap (m/s on average), within `TAILGATE_WITHIN_S`."""
 TAILGATE_WITHIN_S = 6.0
-"""Going first must get the agent to the crossing this much earlier than the other agent at its speed (s)."""
+"""The latest a tailgater must have closed to its short headway (s): later, the judge may not see it tailgate."""
 
 
 @dataclass(frozen=True)
@@ -599,10 +596,14 @@ def _overtake_cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: floa
     if room < goal:
         reason = f"@{other.track_id}'s lane runs into a junction {room:.0f} m ahead, before it could settle there"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    path = _past_then_into_lane(ctx, agent, lane, level, begin, 0.5 * (goal - begin))
+    if path is None:
+        reason = f"@{other.track_id}'s lane ends before it could change into it"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
     return BehaviourTarget(
         agent.track_id,
         behaviour,
-        _past_then_into_lane(ctx, agent, lane, level, begin, 0.5 * (goal - begin)),
+        path,
         f"past @{other.track_id} at {top:.1f} m/s, then into its lane on its {side} from "
         f"{settle - LANE_CHANGE_S:.1f} s, {gap:g} m ahead of it by {settle:.1f} s",
         station_of_goal=float(goal),
@@ -618,14 +619,15 @@ def _overtake_cut_in(ctx: TargetContext, agent: _Agent, other: _Agent, gap: floa
 
 def _past_then_into_lane(
     ctx: TargetContext, agent: _Agent, lane: int, level: float, begin: float, across: float
-) -> np.ndarray:
+) -> np.ndarray | None:
     """The agent's own lane for `begin` m, then a straight line over `across` m into `lane` (whose station beside
-    the agent is `level`), then that lane on: an overtake's way past and back in."""
+    the agent is `level`), then that lane on: an overtake's way past and back in (None where `lane`, with what it
+    leads into, ends before that)."""
     index = ctx.index
     own = route(index, [agent.here.lane], agent.here.station, begin + ROUTE_SPACING)[: int(begin / ROUTE_SPACING) + 1]
     theirs = route(index, [lane], level, begin + across + agent.reach)[int((begin + across) / ROUTE_SPACING) :]
     if len(theirs) < 2:
-        return own
+        return None
     lead_in = resample(np.stack([own[-1], theirs[0]]), ROUTE_SPACING)
     return np.concatenate([own[:-1], lead_in[:-1], theirs])
 
@@ -647,7 +649,7 @@ def _run_red_light(ctx: TargetContext, agent: _Agent, other: _Agent) -> Behaviou
     if not red.any():
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", "no signal shows red at the current step")
     stops = np.asarray(lights.stop_points)[red, :2]
-    not_go = np.isin(lights.states[c], [int(s) for s in (*RED_STATES, *AMBER_STATES)]) & lights.valid[c]
+    not_go = np.isin(lights.states[c], [int(s) for s in NOT_GO_STATES]) & lights.valid[c]
     speed = max(agent.here.speed, RED_LIGHT_SPEED)
     reach = speed * RED_LIGHT_REACH_S
     theirs = ctx.ways_ahead(other)
@@ -689,11 +691,11 @@ def _run_red_light(ctx: TargetContext, agent: _Agent, other: _Agent) -> Behaviou
 def _red_before(stops: np.ndarray, ways: list[np.ndarray], point: np.ndarray) -> bool:
     """Whether every one of `ways` that passes `point` has one of `stops` (of signals that do not show go) on it
     before that point."""
-    passing = [w for w in ways if project_on_polyline(point, w).distance < CROSSING_RADIUS]
+    passing = [(w, project_on_polyline(point, w)) for w in ways]
+    passing = [(w, float(at.station)) for w, at in passing if at.distance < CROSSING_RADIUS]
     if not passing:
         return False
-    for way in passing:
-        at = float(project_on_polyline(point, way).station)
+    for way, at in passing:
         found = project_on_polyline(stops, way)
         if not ((found.distance < RED_STOP_LATERAL) & (found.station < at)).any():
             return False
