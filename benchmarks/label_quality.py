@@ -22,7 +22,8 @@ see only positions and the map) against it, per agent over the future of each wi
   `intersection`) of at least 0.5 s in the future.
 
 Interactions from the rule-based detector are scored against those mapped from SUMO's events
-(`langtraj.interdrive.ground_truth`), per type.
+(`langtraj.interdrive.ground_truth`), per type; LangTraj's added subtypes (`taxonomy.ADDED_SUBTYPES`: cut-ins,
+braking leads, red lights run), which SUMO's events never give, are left out.
 
     python benchmarks/label_quality.py [--corpus DIR | --windows 200 --seed 1 --workers 2]
 """
@@ -213,6 +214,7 @@ def run(corpus: Path) -> dict:
             t1 = time.perf_counter()
             predicted = detect_interactions(scenario, labels, map_index=index)
             detect_seconds += time.perf_counter() - t1
+            predicted = [lab for lab in predicted if not lab.subtype.added]  # SUMO's events give none of these
             label_seconds += t1 - t0
             interactions = add_counts(interactions, match_interactions(predicted, ground_truth_interactions(scenario)))
             score_single(scenario, labels, config, scores)

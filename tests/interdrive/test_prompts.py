@@ -34,6 +34,7 @@ from langtraj.interdrive.prompts import (
     sample,
 )
 from langtraj.interdrive.taxonomy import (
+    ADDED_SUBTYPES,
     LANE_POSITIONS,
     SINGLE_AGENT_LABELS,
     SUBTYPES,
@@ -578,3 +579,8 @@ def test_an_llm_phrase_bank_extends_every_table_and_feeds_the_prompts():
     labels = WindowLabels("w", (AgentLabel(3, "speeding_up", 20, 40),))
     texts = {p.text for seed in range(60) for p in build_prompt_pool(labels, seed, per_agent=1, bank=bank)}
     assert "@3 speeds up (version one)" in texts
+
+
+def test_langtrajs_added_subtypes_are_those_whose_definition_says_so() -> None:
+    assert {s.id for s in SUBTYPES if "LangTraj's addition" in s.definition} == ADDED_SUBTYPES
+    assert all(SUBTYPES_BY_ID[i].added for i in ADDED_SUBTYPES) and not SUBTYPES_BY_ID["yielding/intersection"].added

@@ -59,6 +59,11 @@ class Subtype:
     def id(self) -> str:
         return f"{self.type.value}/{self.key}"
 
+    @property
+    def added(self) -> bool:
+        """Whether this is one of LangTraj's additions to the paper's subtypes (`ADDED_SUBTYPES`)."""
+        return self.id in ADDED_SUBTYPES
+
 
 def _subtypes(kind: InteractionType, *rows: tuple[str, str, str]) -> tuple[Subtype, ...]:
     return tuple(Subtype(kind, key, name, definition) for key, name, definition in rows)
@@ -240,6 +245,12 @@ SUBTYPES: tuple[Subtype, ...] = (
         ("unknown", "Unknown status", "The behaviour cannot be determined from insufficient or unclear data."),
     ),
 )
+
+ADDED_SUBTYPES = frozenset(
+    {"lane_change/cut_in", "overtaking/cut_in", "passing/braking_lead", "passing/red_light_running"}
+)
+"""LangTraj's additions to the paper's subtypes, what a safety-critical test asks by name; SUMO's events give none of
+them (`ground_truth`), so scoring the detector against SUMO leaves them out."""
 
 SUBTYPES_BY_ID: Mapping[str, Subtype] = MappingProxyType({s.id: s for s in SUBTYPES})
 
