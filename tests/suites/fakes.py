@@ -23,8 +23,9 @@ FAKE_ENV = "suites.fakes:FakeEnv"
 
 def write_scene(folder: Path, name: str, **behaviour: Any) -> Path:
     """A fake scene file: `scenario_id` = `name`; keys: steps (80), collide_at, collided_with ([7]), at_fault,
-    offroad_at, ttc (5.0), min_ttc_at ([step, value]), progress (final fraction, 1.0), error_at (the env raises),
-    exit_at (the process dies)."""
+    contact (the collisions' own keys over the default front or rear, e.g. kind and right_of_way), offroad_at, ttc
+    (5.0), min_ttc_at ([step, value]), progress (final fraction, 1.0), error_at (the env raises), exit_at (the process
+    dies)."""
     path = folder / f"{name}.json"
     path.write_text(json.dumps({"scenario_id": name, **behaviour}))
     return path
@@ -99,7 +100,12 @@ class FakeEnv:
             "collision": collision,
             "collided_with": d.get("collided_with", [7]) if collision else [],
             "collisions": [
-                {"with": i, "kind": "front" if d.get("at_fault") else "rear", "at_fault": bool(d.get("at_fault"))}
+                {
+                    "with": i,
+                    "kind": "front" if d.get("at_fault") else "rear",
+                    "at_fault": bool(d.get("at_fault")),
+                    **d.get("contact", {}),
+                }
                 for i in (d.get("collided_with", [7]) if collision else [])
             ],
             "at_fault": collision and d.get("at_fault", False),

@@ -219,3 +219,18 @@ def test_a_collision_that_fails_nothing_is_reported_with_its_video(tmp_path):
     assert episode["video"] == "videos/bumped-seed0.mp4" and (options.out / episode["video"]).is_file()
     report = (options.out / "report.md").read_text()
     assert "Collision, seed 0: step 12 with 42 (rear, not the ego's fault) ([video](videos/bumped-seed0.mp4))" in report
+
+
+def test_a_collision_decided_by_right_of_way_says_what_decided_it(tmp_path):
+    """A car that ran its red light crosses into the ego: not its fault, and the report says the signal decided."""
+    contact = {"kind": "crossed", "right_of_way": "signal"}
+    write_scene(tmp_path, "runner", collide_at=30, collided_with=[9], steps=40, contact=contact)
+    path = write_suite(tmp_path, [{"name": "runner", "scenario": "runner.json"}])
+    options = RunOptions(out=tmp_path / "out", planner="suites.fakes:GoodPlanner", env=FAKE_ENV)
+    assert run_suite(load_suite(path), options).case_statuses() == {"runner": "pass"}
+    (episode,) = json.loads((options.out / "results.json").read_text())["episodes"]
+    assert episode["figures"]["collisions"] == [
+        {"step": 30, "with": 9, "kind": "crossed", "at_fault": False, "right_of_way": "signal"}
+    ]
+    report = (options.out / "report.md").read_text()
+    assert "step 30 with 9 (crossed, right of way by signal, not the ego's fault)" in report

@@ -191,7 +191,7 @@ class LangTrajEnv(gym.Env):
         self._route = ego_route(scene.index, start, pose[:2], float(pose[2]), seen)
         lights = EpisodeLights(scenario, self.lights)
         self._observer = Observer(scenario, ego, self._route, scene.pieces, lights)
-        self._judge = EventJudge(scenario, ego, scene.edges, scene.index)
+        self._judge = EventJudge(scenario, ego, scene.edges, scene.index, lights)
         self._rules = RuleJudge(scenario, ego, scene.index, self._route, lights)
         self._curvature = ego_curvature(scenario, ego)
         self._control = np.zeros(2)
@@ -236,7 +236,7 @@ class LangTrajEnv(gym.Env):
         self._sim.advance(nxt[None, None])
         frame = self._frame()
         obs, station = self._observe(frame)
-        events = self._judge.judge(*frame)
+        events = self._judge.judge(*frame, self._sim.step)
         rules = self._rules.judge(before, frame[0][self._ego], self._sim.step, station)
         gained = station - self._last_station
         self._last_station = station

@@ -1,5 +1,6 @@
 """What happened to the ego at a step (docs/testing.md, 'Step info'): each collision, with whom, of which kind and
-whether the ego caused it (`env.fault`), off-road, time to collision with the agent ahead, with the WOSAC metrics'
+whether the ego caused it (`env.fault`, with the right of way from the signals and signs every agent passed:
+`env.right_of_way`), off-road, time to collision with the agent ahead, with the WOSAC metrics'
 own box geometry (`metrics.interaction`, `metrics.road`), so a suite and the realism scores agree on what a
 collision is."""
 
@@ -10,25 +11,33 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from langtraj.env.fault import CollisionKind, at_fault, collision_kind, left_its_lane
+from langtraj.env.fault import CollisionKind, at_fault, collision_kind, left_its_lane, right_of_way
+from langtraj.env.right_of_way import Passings
+from langtraj.env.rules import EpisodeLights
 from langtraj.metrics.features import COLLISION_THRESHOLD, OFFROAD_THRESHOLD
 from langtraj.metrics.interaction import MAX_TTC, pair_signed_distance, time_to_collision
 from langtraj.metrics.road import RoadEdgeIndex, distance_to_road_edge
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
-from langtraj.scenario.types import StateField
+from langtraj.scenario.types import AgentType, StateField
 
 
 @dataclass(frozen=True)
 class Contact:
-    """One agent whose box overlaps the ego's: its track id, the kind of contact and whether the ego caused it."""
+    """One agent whose box overlaps the ego's: its track id, the kind of contact, whether the ego caused it and, for
+    the kinds right of way decides (`crossed`, `owed`), what decided it (`env.right_of_way.Basis`: signal, sign or
+    lanes)."""
 
     partner: int
     kind: CollisionKind
     at_fault: bool
+    right_of_way: str | None = None
 
     def to_json(self) -> dict[str, object]:
-        return {"with": self.partner, "kind": self.kind.value, "at_fault": self.at_fault}
+        out: dict[str, object] = {"with": self.partner, "kind": self.kind.value, "at_fault": self.at_fault}
+        if self.right_of_way is not None:
+            out["right_of_way"] = self.right_of_way
+        return out
 
 
 @dataclass(frozen=True)
@@ -56,16 +65,37 @@ class StepEvents:
 
 class EventJudge:
     """Judges the ego (scenario row `ego`) against every other valid agent, the road edges of `scenario` (`edges`:
-    `metrics.road.road_edge_index` of them, None without any) and its lanes (`index`, for side contacts)."""
+    `metrics.road.road_edge_index` of them, None without any) and its lanes (`index`, for side contacts and right of
+    way). With `lights` (the episode's), every agent's passings of red lights and stop signs are logged from the
+    scene's history on, so that right of way at a crossing goes by them (`env.right_of_way`); each `judge` then
+    names its step, and steps come in order."""
 
-    def __init__(self, scenario: Scenario, ego: int, edges: RoadEdgeIndex | None, index: MapIndex | None = None):
+    def __init__(
+        self,
+        scenario: Scenario,
+        ego: int,
+        edges: RoadEdgeIndex | None,
+        index: MapIndex | None = None,
+        lights: EpisodeLights | None = None,
+    ):
         self.ego = ego
         self.ids = scenario.agents.ids.astype(np.int64)
+        self.vehicles = scenario.agents.types == AgentType.VEHICLE
         self.edges = edges
         self.index = index
+        c = scenario.current_index
+        self.passings = None if lights is None else Passings(scenario, lights, c)
+        self._last = scenario.agents.states[:, c].copy(), scenario.agents.valid[:, c].copy(), c
 
-    def judge(self, states: np.ndarray, valid: np.ndarray) -> StepEvents:
-        """The figures from every agent's state [A, 9] and validity [A] at one step."""
+    def judge(self, states: np.ndarray, valid: np.ndarray, step: int | None = None) -> StepEvents:
+        """The figures from every agent's state [A, 9] and validity [A] at one step (`step` of the scenario, after
+        the last judged; needed with `lights`)."""
+        if self.passings is not None:
+            if step is None or step <= self._last[2]:
+                raise ValueError(f"judge needs the steps in order after {self._last[2]}, got {step}")
+            before, was_valid, _ = self._last
+            self.passings.update(before, states, was_valid & valid, step)
+            self._last = states.copy(), valid.copy(), step
         s = states.astype(np.float64)
         x, y, heading = s[:, StateField.X], s[:, StateField.Y], s[:, StateField.HEADING]
         length, width = s[:, StateField.LENGTH], s[:, StateField.WIDTH]
@@ -86,10 +116,17 @@ class EventJudge:
         boxes = np.stack([x, y, heading, length, width, s[:, StateField.VX], s[:, StateField.VY]], axis=1)
         contacts = []
         for row in hit:  # one or two at a step, and only at a contact: nothing cached
-            kind = collision_kind(boxes[e], boxes[row], self.index)
+            way = None
+            if self.vehicles[e] and self.vehicles[row]:  # a pedestrian or cyclist ahead stays the ego's to avoid
+                passed = None if self.passings is None else self.passings.right_of_way(e, int(row), self._last[2])
+                way = right_of_way(self.index, boxes[e], boxes[row], passed)
+            kind = collision_kind(boxes[e], boxes[row], self.index, way)
             side = kind in (CollisionKind.LATERAL, CollisionKind.CROSSED)
             left_lane = left_its_lane(self.index, boxes[e]) if side else None
-            contacts.append(Contact(int(self.ids[row]), kind, at_fault(kind, left_lane)))
+            decided = (
+                way.basis.value if way is not None and kind in (CollisionKind.CROSSED, CollisionKind.OWED) else None
+            )
+            contacts.append(Contact(int(self.ids[row]), kind, at_fault(kind, left_lane), decided))
         offroad = False
         if self.edges is not None:
             one = s[e : e + 1]

@@ -3,9 +3,12 @@ an ego standing still is never at fault; driving into an agent that stands still
 one ahead in its lane, it is; hit from behind, it is not; a side contact is the fault of whoever left their lane,
 judged on the ego: it is at fault when its box reaches out of the lane it is on (or it is on no lane at all)
 (`left_its_lane`). A contact at the ego's bumper with an agent that is itself out of its lane and coming across toward
-the ego (a cut-in landing on the bumper) is a side contact too; one drifting away is still the ego's to avoid. Right
-of way, beyond nuPlan: an agent crossing the ego's path that had to give way to it (turning across the road the ego
-keeps, or coming off the road) is not the ego's fault unless the ego left its lane (`CollisionKind.CROSSED`)."""
+the ego (a cut-in landing on the bumper) is a side contact too; one drifting away is still the ego's to avoid.
+
+Right of way, beyond nuPlan, where the two cross paths (`right_of_way`): from the signals and signs each passed
+(`env.right_of_way`), else from the lanes (the agent turning across the road the other keeps, or coming from off the
+road, gives way). An ego that owed the way is at fault (`CollisionKind.OWED`); an agent that owed it to the ego is
+not the ego's fault unless the ego left its lane (`CollisionKind.CROSSED`)."""
 
 from __future__ import annotations
 
@@ -14,6 +17,7 @@ from enum import StrEnum
 
 import numpy as np
 
+from langtraj.env.right_of_way import Basis, RightOfWay
 from langtraj.metrics.features import COLLISION_THRESHOLD
 from langtraj.metrics.interaction import pair_signed_distance
 from langtraj.roads import MapIndex
@@ -45,12 +49,16 @@ class CollisionKind(StrEnum):
     FRONT = "front"  # the ego's front bumper struck it, ahead in its lane: at fault
     LATERAL = "lateral"  # a side contact: at fault when the ego left its lane
     CROSSED = "crossed"  # it crossed the ego's path owing it the right of way: at fault when the ego left its lane
+    OWED = "owed"  # the ego crossed its path owing it the right of way: at fault
 
 
-def collision_kind(ego: np.ndarray, other: np.ndarray, index: MapIndex | None = None) -> CollisionKind:
+def collision_kind(
+    ego: np.ndarray, other: np.ndarray, index: MapIndex | None = None, way: RightOfWay | None = None
+) -> CollisionKind:
     """The kind of a contact between the ego's box and another's (x, y, heading, length, width, vx, vy each);
     `index`, the map's lanes, tells a bumper contact with an agent cutting in (lateral) from one with an agent
-    ahead."""
+    ahead; `way`, who owed whom the right of way where their paths cross (`right_of_way`), makes the ego's front or
+    side contact `OWED` when the ego owed it, a front contact `CROSSED` when the other did."""
     if math.hypot(ego[5], ego[6]) < STOPPED_SPEED:
         return CollisionKind.STOPPED_EGO
     if math.hypot(other[5], other[6]) < STOPPED_SPEED:
@@ -63,6 +71,8 @@ def collision_kind(ego: np.ndarray, other: np.ndarray, index: MapIndex | None = 
     bearing = math.atan2(other[1] - y, other[0] - x) - heading
     if abs(math.remainder(bearing, 2 * math.pi)) > REAR_BEARING:
         return CollisionKind.REAR
+    if way is not None and way.ego_owed:
+        return CollisionKind.OWED
     ahead = length / 2 - BUMPER_DEPTH_M / 2
     bumper = pair_signed_distance(
         np.array(x + ahead * math.cos(heading)), np.array(y + ahead * math.sin(heading)), np.array(heading),
@@ -73,24 +83,39 @@ def collision_kind(ego: np.ndarray, other: np.ndarray, index: MapIndex | None = 
     coming = beside * sideways < 0 and abs(sideways) > CROSSING_SPEED
     if coming and left_its_lane(index, other) and not left_its_lane(index, ego):  # it cut in onto the bumper
         return CollisionKind.LATERAL
-    if gives_way_to_ego(index, ego, other):
+    if way is not None:
         return CollisionKind.CROSSED
     return CollisionKind.FRONT
 
 
-def gives_way_to_ego(index: MapIndex | None, ego: np.ndarray, other: np.ndarray) -> bool:
-    """Whether the other, crossing the ego's path (heading more than `CROSSING_ANGLE` off the ego's), had to give way
-    to it: the ego keeps its road (on a lane that does not turn) while the other turns across it (on a turning lane)
-    or comes from off the road (on no lane: a driveway, the kerb). Signals and signs are not read (a red light is its
-    own criterion), and two roads crossing straight stay the ego's to avoid, as nuPlan's front collisions."""
+def right_of_way(
+    index: MapIndex | None, ego: np.ndarray, other: np.ndarray, passed: RightOfWay | None = None
+) -> RightOfWay | None:
+    """Who of the ego and the other (boxes as `collision_kind`'s) owed the other the right of way, where their paths
+    cross (headings more than `CROSSING_ANGLE` apart; None otherwise): `passed`, what the signals and signs they
+    passed say (`env.right_of_way.Passings`), when it says anything; else the lanes (`gives_way`); else None (two
+    roads crossing straight with neither signal nor sign: the ego's to avoid, as nuPlan's front collisions)."""
+    if abs(math.remainder(float(other[2]) - float(ego[2]), 2 * math.pi)) <= CROSSING_ANGLE:
+        return None
+    if passed is not None:
+        return passed
+    if gives_way(index, keeper=ego, crosser=other):
+        return RightOfWay(ego_owed=False, basis=Basis.LANES)
+    if gives_way(index, keeper=other, crosser=ego):
+        return RightOfWay(ego_owed=True, basis=Basis.LANES)
+    return None
+
+
+def gives_way(index: MapIndex | None, *, keeper: np.ndarray, crosser: np.ndarray) -> bool:
+    """Whether `crosser`, crossing `keeper`'s path, had to give way to it by the lanes: `keeper` keeps its road (on a
+    lane that does not turn) while `crosser` turns across it (on a turning lane) or comes from off the road (on no
+    lane: a driveway, the kerb)."""
     if index is None or not index.has_lanes:
         return False
-    if abs(math.remainder(float(other[2]) - float(ego[2]), 2 * math.pi)) <= CROSSING_ANGLE:
-        return False
-    mine = _lane_of(index, ego)
+    mine = _lane_of(index, keeper)
     if mine is None or _turns(index, mine):
         return False
-    theirs = _lane_of(index, other)
+    theirs = _lane_of(index, crosser)
     return theirs is None or _turns(index, theirs)
 
 
@@ -127,6 +152,6 @@ def left_its_lane(index: MapIndex | None, box: np.ndarray) -> bool | None:
 def at_fault(kind: CollisionKind, left_lane: bool | None) -> bool:
     """Whether the ego caused a contact of `kind` (`left_lane`: `left_its_lane`; a side contact where the map has no
     lanes is not the ego's)."""
-    if kind in (CollisionKind.STOPPED_OTHER, CollisionKind.FRONT):
+    if kind in (CollisionKind.STOPPED_OTHER, CollisionKind.FRONT, CollisionKind.OWED):
         return True
     return kind in (CollisionKind.LATERAL, CollisionKind.CROSSED) and bool(left_lane)

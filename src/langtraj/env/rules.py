@@ -56,6 +56,18 @@ class EpisodeLights:
         return self._read[1]
 
 
+def red_light_runs(signals: SignalLanes, stop: np.ndarray, before: np.ndarray, now: np.ndarray) -> np.ndarray:
+    """bool [A]: which agents, at `before` [A, 2] and then at `now` [A, 2], crossed the stop point of a lane whose
+    signal shows stop (`stop`, bool [S] over `signals`) between the two: the WOSAC metric's rule, for the ego's
+    `red_light` and for right of way alike (`env.right_of_way`)."""
+    if not stop.any():
+        return np.zeros(len(now), bool)
+    signals = replace(signals, signal_is_stop=np.stack([stop, stop]))
+    x = np.stack([before[:, 0], now[:, 0]], axis=1).astype(np.float64)
+    y = np.stack([before[:, 1], now[:, 1]], axis=1).astype(np.float64)
+    return red_light_violations(signals, x, y, np.ones(x.shape, bool))[:, 1]
+
+
 @dataclass(frozen=True)
 class RuleEvents:
     """The ego at one step: `red_light` it crossed a red light's stop point since the last step; `wrong_way` it
@@ -84,12 +96,8 @@ class RuleJudge:
         """The ego's state before [9] and now [9] (at `step` of the scenario), at `station` along its route."""
         red = False
         if self.signals is not None:
-            stop = self.stop_at(step)
-            if stop.any():
-                signals = replace(self.signals, signal_is_stop=np.stack([stop, stop]))
-                x = np.array([before[StateField.X], now[StateField.X]], np.float64)
-                y = np.array([before[StateField.Y], now[StateField.Y]], np.float64)
-                red = bool(red_light_violations(signals, x, y, np.ones(2, bool))[1])
+            xy = [StateField.X, StateField.Y]
+            red = bool(red_light_runs(self.signals, self.stop_at(step), before[None, xy], now[None, xy])[0])
         speed = float(np.hypot(now[StateField.VX], now[StateField.VY]))
         _, on_route, limits = self.route.ahead(station, 1, 1.0)
         limit = float(limits[0]) if on_route[0] else math.nan

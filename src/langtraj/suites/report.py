@@ -83,8 +83,9 @@ def _collision_lines(episodes: list[EpisodeResult]) -> list[str]:
         for c in result.figures.get("collisions", []):
             fault = "the ego at fault" if c["at_fault"] else "not the ego's fault"
             video = f" ([video]({result.video}))" if result.video else ""
+            way = f", right of way by {c['right_of_way']}" if c.get("right_of_way") else ""
             lines.append(
-                f"Collision, seed {result.seed}: step {c['step']} with {c['with']} ({c['kind']}, {fault}){video}  "
+                f"Collision, seed {result.seed}: step {c['step']} with {c['with']} ({c['kind']}{way}, {fault}){video}  "
             )
     return [""] + lines if lines else []
 

@@ -90,7 +90,8 @@ def _rounded(value: float | None, digits: int = 4) -> float | None:
 
 def contacts(record: StepRecord) -> list[dict[str, Any]]:
     """Every collision of the episode, whether or not it fails a criterion: the step each contact with a partner
-    began, the partner (`with`), its `kind` and whether the ego was `at_fault` (`env.fault`), in step order."""
+    began, the partner (`with`), its `kind`, whether the ego was `at_fault` (`env.fault`) and, where right of way
+    decided it, `right_of_way` (signal, sign or lanes: `env.right_of_way.Basis`), in step order."""
     out, before = [], set()
     for k, step in enumerate(record.collisions):
         now = {c["with"]: c for c in step}
