@@ -13,8 +13,7 @@ from enum import StrEnum
 import numpy as np
 
 from langtraj.env.rules import EpisodeLights, red_light_runs
-from langtraj.metrics.traffic_lights import SignalLanes
-from langtraj.roads.stop_signs import StopLines
+from langtraj.roads.stop_lines import StopLines
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.types import RED_STATES, StateField
 
@@ -48,8 +47,8 @@ class Passings:
 
     def __init__(self, scenario: Scenario, lights: EpisodeLights, start: int):
         self.lights = lights
-        self.signals = SignalLanes.from_scenario(scenario) if lights.log is not None else None
-        self.signs = StopLines.of(scenario.road_map)
+        self.signals = None if lights.log is None else StopLines.of_signals(scenario.road_map, lights.log)
+        self.signs = StopLines.of_signs(scenario.road_map)
         self.memory = round(ENTRY_MEMORY_S / STEP_SECONDS)
         num = scenario.num_agents
         self.red = np.full(num, NEVER, np.int64)
@@ -67,13 +66,12 @@ class Passings:
         xy = [StateField.X, StateField.Y]
         rows = np.flatnonzero(valid)
         was, is_ = before[rows][:, xy].astype(np.float64), now[rows][:, xy].astype(np.float64)
+        heading = now[rows, StateField.HEADING].astype(np.float64)
         if self.signals is not None:
             states, seen = self.lights.at(step)
             stop = seen & np.isin(states, [int(s) for s in RED_STATES])
-            self.red[rows[red_light_runs(self.signals, stop, was, is_)]] = step
-        if len(self.signs):
-            heading = now[rows, StateField.HEADING].astype(np.float64)
-            self.sign[rows[self.signs.passed(was, is_, heading)]] = step
+            self.red[rows[red_light_runs(self.signals, stop, was, is_, heading)]] = step
+        self.sign[rows[self.signs.passed(was, is_, heading)]] = step
 
     def right_of_way(self, ego: int, other: int, step: int) -> RightOfWay | None:
         """Who of rows `ego` and `other` owed the other the right of way at `step` by signals, else by signs; None

@@ -1,22 +1,22 @@
 """The ego against the rules of the road at one step, after nuPlan's closed-loop metrics (docs/testing.md, 'What an
-episode measures'): whether it ran a red light (crossed the stop point of a lane whose signal shows stop, as the
-WOSAC metric defines it, `metrics.traffic_lights`), whether it drives against its lane, and how far it is over the
-speed limit of its route. The lights are those of the step: replayed from the log, or held at the start
-(`LIGHT_MODES`)."""
+episode measures'): whether it ran a red light (passed the stop line of a signal that shows stop, going its lane's
+way: `red_light_runs`, the one rule for the ego and for right of way), whether it drives against its lane, and how
+far it is over the speed limit of its route. The lights are those of the step: replayed from the log, or held at
+the start (`LIGHT_MODES`)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from langtraj.angles import wrap_angle
 from langtraj.env.route import Route
 from langtraj.errors import InputError
-from langtraj.metrics.traffic_lights import SignalLanes, red_light_violations
 from langtraj.roads import MapIndex
 from langtraj.roads.position import LANE_MATCH_RADIUS
+from langtraj.roads.stop_lines import StopLines
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import RED_STATES, StateField
 
@@ -56,16 +56,17 @@ class EpisodeLights:
         return self._read[1]
 
 
-def red_light_runs(signals: SignalLanes, stop: np.ndarray, before: np.ndarray, now: np.ndarray) -> np.ndarray:
-    """bool [A]: which agents, at `before` [A, 2] and then at `now` [A, 2], crossed the stop point of a lane whose
-    signal shows stop (`stop`, bool [S] over `signals`) between the two: the WOSAC metric's rule, for the ego's
-    `red_light` and for right of way alike (`env.right_of_way`)."""
+def red_light_runs(
+    lines: StopLines, stop: np.ndarray, before: np.ndarray, now: np.ndarray, heading: np.ndarray
+) -> np.ndarray:
+    """bool [A]: which agents, at `before` [A, 2] and then at `now` [A, 2] heading `heading` [A], passed the line of
+    a signal that shows stop (`lines`: `StopLines.of_signals`, row for row with `stop`, bool [S]) between the two,
+    and no line of a signal that did not (a red left arrow beside a green straight at one stop point is no run): the
+    one rule for the ego's `red_light` and for right of way (`env.right_of_way`)."""
     if not stop.any():
         return np.zeros(len(now), bool)
-    signals = replace(signals, signal_is_stop=np.stack([stop, stop]))
-    x = np.stack([before[:, 0], now[:, 0]], axis=1).astype(np.float64)
-    y = np.stack([before[:, 1], now[:, 1]], axis=1).astype(np.float64)
-    return red_light_violations(signals, x, y, np.ones(x.shape, bool))[:, 1]
+    each = lines.passed_each(before, now, heading)
+    return each.any(axis=1) & ~(each & ~stop[None]).any(axis=1)
 
 
 @dataclass(frozen=True)
@@ -85,7 +86,7 @@ class RuleJudge:
 
     def __init__(self, scenario: Scenario, ego: int, index: MapIndex, route: Route, lights: EpisodeLights):
         self.ego, self.index, self.route, self.lights = ego, index, route, lights
-        self.signals = SignalLanes.from_scenario(scenario) if lights.log is not None else None
+        self.signals = None if lights.log is None else StopLines.of_signals(scenario.road_map, lights.log)
 
     def stop_at(self, step: int) -> np.ndarray:
         """bool [S]: which signals show stop at `step` as the episode sees them."""
@@ -96,8 +97,8 @@ class RuleJudge:
         """The ego's state before [9] and now [9] (at `step` of the scenario), at `station` along its route."""
         red = False
         if self.signals is not None:
-            xy = [StateField.X, StateField.Y]
-            red = bool(red_light_runs(self.signals, self.stop_at(step), before[None, xy], now[None, xy])[0])
+            xy, heading = [StateField.X, StateField.Y], now[None, StateField.HEADING]
+            red = bool(red_light_runs(self.signals, self.stop_at(step), before[None, xy], now[None, xy], heading)[0])
         speed = float(np.hypot(now[StateField.VX], now[StateField.VY]))
         _, on_route, limits = self.route.ahead(station, 1, 1.0)
         limit = float(limits[0]) if on_route[0] else math.nan

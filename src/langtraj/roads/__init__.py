@@ -22,7 +22,7 @@ What each query relies on, and what it falls back to (each `*_source` attribute 
 Modules: `segments` (`SegmentSet`, the grid of short segments), `records` (`LaneMatch`, `LaneChange`), `lane_graph`
 (lane links, neighbour spans, junction lanes, derived at build time), `index` (`MapIndex` and its queries), `routes`
 (a lane's centreline from a station, a route along lanes continued by the straightest exits, a straight line),
-`stop_signs` (`StopLines`, where the lanes a stop sign controls stop).
+`stop_lines` (`StopLines`, where traffic stops for a stop sign or a signal).
 """
 
 from langtraj.polylines import arc_lengths  # re-exported for the modules that still import it from here
