@@ -145,8 +145,9 @@ def test_who_is_asked(text, expected):
         ("Make sure @7 doesn't change lanes", "negated"),
         ("@7 dances a jig", "no behaviour phrase"),
         ("@7 changes lanes", "no behaviour phrase"),  # no side
-        ("@7 turns left and then stops", "more than one behaviour"),
         ("@7 speeds up and changes lanes to the left", "more than one behaviour"),
+        ("@7 turns left and changes lanes to the right", "only a turn or a lane change and then a stop is read"),
+        ("@7 stops and then turns left", "asks stop before turn_left"),
         ("@7 waits for @12 then turns left", "more than one behaviour"),
         ("@7 yields", "needs exactly one other agent"),
         ("turn left", "names no agent"),
@@ -167,7 +168,7 @@ def test_describe_to_json_and_the_words_of_the_typed_text():
     assert pair.describe() == 'read as: @12 yield @7 ("gives way to @7")'
     assert pair.to_json() == {
         "behaviour": "yield", "agent": 12, "other": 7, "words": "gives way to @7", "reason": "", "also": [],
-        "clause": "", "metres": None, "deceleration": None,
+        "then": None, "clause": "", "metres": None, "deceleration": None,
     }  # fmt: skip
     assert read_prompt("@12 hums").to_json() == {
         "behaviour": None,
@@ -176,6 +177,7 @@ def test_describe_to_json_and_the_words_of_the_typed_text():
         "words": "",
         "reason": "no behaviour phrase found",
         "also": [],
+        "then": None,
         "clause": "",
         "metres": None,
         "deceleration": None,
@@ -349,3 +351,26 @@ def test_the_red_light_vocabulary_reads_as_running_it_across_the_other(text):
     assert (reading.behaviour, reading.agent, reading.other) == (B.RUN_RED_LIGHT, 52, 56)
     assert read_prompt("@52 runs the red light").reason == "run_red_light needs exactly one other agent"
     assert read_prompt("@52 goes first before @56").behaviour is B.GO_FIRST
+
+
+@pytest.mark.parametrize(
+    ("text", "first", "words"),
+    [
+        ("@7 turns left and then stops", B.TURN_LEFT, "turns left and then stops"),
+        ("@7 turns right, then comes to a stop", B.TURN_RIGHT, "turns right, then comes to a stop"),
+        ("@7 goes straight through the junction and stops", B.GO_STRAIGHT, None),
+        ("@7 changes to the left lane and stops", B.LANE_CHANGE_LEFT, "changes to the left lane and stops"),
+        ("@7 moves over a lane to the right, then halts", B.LANE_CHANGE_RIGHT, None),
+    ],
+)
+def test_a_manoeuvre_and_then_a_stop_is_read_as_the_two_in_order(text, first, words):
+    reading = read_prompt(text)
+    assert (reading.behaviour, reading.agent, reading.then) == (first, 7, B.STOP)
+    assert words is None or reading.words == words
+    assert reading.describe().startswith(f"read as: @7 {first.value} then stop (")
+    assert reading.to_json()["then"] == "stop"
+    turn = frozenset({("label", 7, "turning_left"), ("label", 7, "crossing_intersection")})
+    if first is B.TURN_LEFT:
+        assert reading.followed(turn | {("label", 7, "static")})
+        assert not reading.followed(turn)  # turned, never stopped
+        assert not reading.followed(frozenset({("label", 7, "static")}))  # stopped, never turned

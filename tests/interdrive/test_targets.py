@@ -349,3 +349,27 @@ def test_a_tailgater_closes_to_the_short_headway_behind_the_other_in_its_lane():
         _target(far, 1, Behaviour.TAILGATE, 2)
     with pytest.raises(TargetUnavailable, match="not ahead of it in its lane"):
         _target(s, 2, Behaviour.TAILGATE, 1)
+
+
+def test_a_stop_after_a_manoeuvre_lies_past_it_and_is_refused_out_of_reach():
+    from langtraj.errors import InputError
+    from langtraj.interdrive.targets import stop_after, then_feasibility
+
+    from .test_counterfactual import LEFT_LANE_LEFT
+
+    s = scene(four_way(), drive(LEFT_LANE_LEFT, start=52.0), drive(RIGHT_LANE_STRAIGHT))  # @1 10 m before it
+    turn = _target(s, 1, Behaviour.TURN_LEFT)
+    stopped = stop_after(turn)
+    assert stopped.stop and stopped.path is turn.path and stopped.behaviour is Behaviour.TURN_LEFT
+    assert stopped.station_of_goal == pytest.approx(turn.station_of_goal + 2.0)
+    braking = 8.0**2 / (2 * 2.0)  # 16 m at 2 m/s^2 from 8 m/s
+    assert stopped.settled_s == pytest.approx((stopped.station_of_goal - braking) / 8.0 + 2 * braking / 8.0)
+    with pytest.raises(TargetUnavailable, match="beyond its reach in 7 s"):
+        stop_after(_target(scene(four_way(), drive(LEFT_LANE_LEFT)), 1, Behaviour.TURN_LEFT))  # 32 m before it
+    with pytest.raises(InputError, match="not a sequence"):
+        stop_after(_target(s, 1, Behaviour.STOP))
+    refused = feasibility(s, 2, Behaviour.TURN_LEFT, MapIndex.build(s.road_map))  # the right lane turns no left
+    assert then_feasibility(refused, Behaviour.STOP) is refused
+    far = feasibility(scene(four_way(), drive(LEFT_LANE_LEFT)), 1, Behaviour.TURN_LEFT, MapIndex.build(s.road_map))
+    out_of_reach = then_feasibility(far, Behaviour.STOP)
+    assert out_of_reach.status == "infeasible" and out_of_reach.reason.startswith("then stop: a stop past the junction")

@@ -257,3 +257,20 @@ def test_selection_reads_the_detector_settings_it_is_given():
     assert not CandidateJudge(world, [ask], index).misses([0], world.start, plans).any()
     short = DetectorConfig(wait_extension=10.0)  # the way on no longer reaches the crossing
     assert CandidateJudge(world, [ask], index, detector=short).misses([0], world.start, plans).all()
+
+
+def test_a_lane_change_then_a_stop_is_judged_on_both_by_selection():
+    blend = np.clip((TIME - 3.0) / 3.0, 0.0, 1.0)
+    change = 3.5 * (1 - np.cos(np.pi * blend)) / 2
+    cruise = np.full_like(TIME, 10.0)
+    stops = np.where(TIME < 4.0, 10.0, np.maximum(10.0 - 4.0 * (TIME - 4.0), 0.0))
+    candidates = [
+        scene(two_lane_road(), _eastbound(stops, change)),
+        scene(two_lane_road(), _eastbound(cruise, change)),  # changes lanes, never stops
+        scene(two_lane_road(), _eastbound(stops)),  # stops in its own lane
+    ]
+    ask = Ask(1, 0, 0, Behaviour.LANE_CHANGE_LEFT, then=Behaviour.STOP)
+    selection, _ = _verdicts(candidates, ask, [0])
+    assert selection == [True, False, False]
+    plain, _ = _verdicts(candidates, Ask(1, 0, 0, Behaviour.LANE_CHANGE_LEFT), [0])
+    assert plain == [True, True, False]

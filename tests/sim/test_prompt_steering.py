@@ -8,7 +8,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from interdrive.test_counterfactual import HALF, LEFT_LANE_STRAIGHT, RIGHT_LANE_STRAIGHT, drive, four_way
+from interdrive.test_counterfactual import (
+    HALF,
+    LEFT_LANE_LEFT,
+    LEFT_LANE_STRAIGHT,
+    RIGHT_LANE_STRAIGHT,
+    drive,
+    four_way,
+)
 from interdrive.test_heuristics import TIME, along, scene
 from roads.test_mapindex import line
 
@@ -203,3 +210,40 @@ def test_kinds_the_model_never_saw_are_conditioned_on_the_sentence_of_what_their
     assert conditioning_sentence(red) == "@12 takes the right of way over @7"
     assert conditioning_sentence(BehaviourTarget(12, Behaviour.TAILGATE, path, "", other_id=7)) is None  # seen
     assert conditioning_sentence(BehaviourTarget(12, Behaviour.STOP, path, "", speed=0.0)) is None
+
+
+def test_a_turn_then_a_stop_steers_the_turn_and_a_stop_past_the_junctions_exit():
+    near = drive(LEFT_LANE_LEFT, start=52.0)  # 10 m before the junction at 8 m/s, in the lane that turns left
+    s = scene(four_way(), near, drive(RIGHT_LANE_STRAIGHT))
+    steering = prompt_steering(s, read_prompts(["@1 turns left and then stops"]), np.arange(2), ORIGIN, ALL_LEVERS)
+    (reading,) = steering.readings
+    assert (reading.behaviour, reading.then) == (Behaviour.TURN_LEFT, Behaviour.STOP)
+    (steer,) = steering.steerings
+    target = steer.target
+    assert target.behaviour is Behaviour.TURN_LEFT and target.stop
+    exit_at = 10.0 + 11.75 * np.pi / 2  # the junction's entry 10 m ahead, then the left turn's arc
+    assert target.station_of_goal == pytest.approx(exit_at + 7.0, abs=0.6)  # wholly out of the junction
+    assert 5.0 < target.settled_s <= 7.0  # driving on, then braking at 2 m/s^2, standing by 7 s
+    costs = {type(t.cost).__name__ for t in steer.terms(0, 80)}
+    assert {"RouteCost", "StationCost", "TargetSpeedCost"} <= costs
+    (ask,) = steering.asks
+    assert (ask.behaviour, ask.then) == (Behaviour.TURN_LEFT, Behaviour.STOP)
+    assert "its exit 28 m ahead, then a stop 35 m ahead" in steering.notes[0] and not steering.warnings
+    far = prompt_steering(
+        _crossing_scene(), read_prompts(["@1 turns left and then stops"]), np.arange(3), ORIGIN, ALL_LEVERS
+    )  # 32 m before the junction at 8 m/s: no stop past it within the 8 s
+    assert not far.steerings
+    assert far.warnings == (
+        "@1 cannot turn left: then stop: a stop past the junction (57 m ahead) is beyond its reach in 7 s",
+    )
+
+
+def test_a_lane_change_then_a_stop_stops_in_the_new_lane():
+    s = _crossing_scene()
+    steering = prompt_steering(
+        s, read_prompts(["@2 changes to the left lane and stops"]), np.arange(3), ORIGIN, ALL_LEVERS
+    )
+    (steer,) = steering.steerings
+    assert steer.target.behaviour is Behaviour.LANE_CHANGE_LEFT and steer.target.stop
+    assert steer.target.station_of_goal == pytest.approx(4.0 * 8.0 + 2.0, abs=0.01)  # 4 s at 8 m/s, then 2 m
+    assert steering.asks[0].then is Behaviour.STOP

@@ -134,17 +134,30 @@ def _steps(seconds: float) -> int:
 
 
 def _turn(s: Steering, clock: _Clock) -> list:
-    """On the branch's lanes throughout; past the junction's exit by 7.5 s."""
+    """On the branch's lanes throughout; past the junction's exit by 7.5 s, or, with a stop asked after it
+    (`interdrive.targets.stop_after`), at rest at its stop past the exit (`_then_stop`)."""
     goal = s.target.station_of_goal
     terms = _route(s, clock)
+    if s.target.stop:
+        return terms + _then_stop(s, clock)
     if goal is not None:
         terms += _station(s, clock, goal, "reach", _steps(7.5), FUTURE_STEPS, REACH_WEIGHT)
     return terms
 
 
 def _lane_change(s: Steering, clock: _Clock) -> list:
-    """In the neighbour lane from 4 s on (the change itself is the model's: 2 to 4 s is typical)."""
-    return _route(s, clock, first=_steps(4.0))
+    """In the neighbour lane from 4 s on (the change itself is the model's: 2 to 4 s is typical); with a stop asked
+    after it, at rest at its stop past the change (`_then_stop`)."""
+    terms = _route(s, clock, first=_steps(4.0))
+    return terms + _then_stop(s, clock) if s.target.stop else terms
+
+
+def _then_stop(s: Steering, clock: _Clock) -> list:
+    """A stop after a manoeuvre: never past the stop point, standing still from when the target has it stand
+    (`settled_s`: driving on, then braking comfortably)."""
+    goal, settled = s.target.station_of_goal or 0.0, s.target.settled_s
+    standing = _stop_step(s) if settled is None else int(np.clip(_steps(settled), 10, FUTURE_STEPS - 10))
+    return _station(s, clock, goal, "hold", 1, FUTURE_STEPS, HOLD_WEIGHT) + _speed(s, clock, 0.0, standing)
 
 
 def _stop_step(s: Steering) -> int:

@@ -70,8 +70,9 @@ PAIR_RUNS: dict[Behaviour, Callable[[SceneGeometry, int, int], list[Pair]]] = {
 
 @dataclass(frozen=True)
 class Ask:
-    """What one prompt asks of one driven agent: its scenario `row` and model `slot`, the `behaviour`, and for a
-    pair behaviour the other agent's row and slot (None when the model does not drive it)."""
+    """What one prompt asks of one driven agent: its scenario `row` and model `slot`, the `behaviour`, for a
+    pair behaviour the other agent's row and slot (None when the model does not drive it), and what it does `then`
+    (a single-agent behaviour judged with it: "turns left and then stops")."""
 
     track_id: int
     row: int
@@ -80,6 +81,7 @@ class Ask:
     other_id: int | None = None
     other_row: int | None = None
     other_slot: int | None = None
+    then: Behaviour | None = None
 
 
 class CandidateJudge:
@@ -149,7 +151,8 @@ class CandidateJudge:
         copies = _up_to(copies, self.world.end)
         labels, _ = label_agents(copies, self.config, self.index)
         found = label_facts(labels, ())
-        wanted = {key for _, _, key in behaviour_facts(ask.behaviour, 0)}  # type: ignore[misc]
+        asked = behaviour_facts(ask.behaviour, 0) | (behaviour_facts(ask.then, 0) if ask.then else frozenset())
+        wanted = {key for _, _, key in asked}  # type: ignore[misc]
         have: dict[int, set[str]] = {}
         for fact in found:
             have.setdefault(int(fact[1]), set()).add(str(fact[-1]))

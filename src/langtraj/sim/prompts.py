@@ -21,7 +21,14 @@ from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
 from langtraj.interdrive.reader import PromptReading, read_clauses
-from langtraj.interdrive.targets import BehaviourTarget, Feasibility, TargetUnavailable, derive_target, feasibility
+from langtraj.interdrive.targets import (
+    BehaviourTarget,
+    Feasibility,
+    TargetUnavailable,
+    derive_target,
+    feasibility,
+    then_feasibility,
+)
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 from langtraj.sim.adherence import Ask
@@ -111,7 +118,7 @@ def _verdict(scenario: Scenario, reading: PromptReading, index: MapIndex) -> Fea
         return None
     if BEHAVIOURS[reading.behaviour].is_pair and reading.other is None:
         return None
-    return feasibility(
+    verdict = feasibility(
         scenario,
         reading.agent,
         reading.behaviour,
@@ -120,6 +127,7 @@ def _verdict(scenario: Scenario, reading: PromptReading, index: MapIndex) -> Fea
         gap=reading.metres,
         deceleration=reading.deceleration,
     )
+    return verdict if reading.then is None else then_feasibility(verdict, reading.then)
 
 
 def _fallback(
@@ -228,6 +236,7 @@ def prompt_steering(
             reading.other,
             other_row,
             None if reading.other is None else slots.get(reading.other),
+            then=reading.then if steered is verdict else None,
         )
         used = ["text"] if levers.text else []
         if levers.guidance and steered is not None:

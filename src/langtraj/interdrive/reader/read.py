@@ -24,6 +24,7 @@ from langtraj.interdrive.reader.rules import (
     RULES,
     SLOT,
     SUBSUMES,
+    THEN_KINDS,
     verb,
 )
 from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID
@@ -68,6 +69,9 @@ class PromptReading:
     also: tuple[Behaviour, ...] = ()
     """Kinds asked with `behaviour` that it subsumes ("pulls over and comes to a stop": stop), the fallback a
     simulation steers by where the map gives `behaviour` no target (`sim.prompts`)."""
+    then: Behaviour | None = None
+    """A kind asked after `behaviour` is done ("turns left and then stops": stop), steered and judged with it (a
+    turn or a lane change, then a stop: `THEN_KINDS`)."""
     clause: str = ""
     """The part of the typed prompt read (`clauses.read_clauses`; the whole text for a prompt of one clause)."""
     metres: float | None = None
@@ -88,6 +92,8 @@ class PromptReading:
         if self.behaviour is None or self.agent is None:
             return None
         spec = BEHAVIOURS[self.behaviour]
+        if self.then is not None and not behaviour_facts(self.then, self.agent) <= found:
+            return False
         if not spec.is_pair:
             return behaviour_facts(self.behaviour, self.agent) <= found
         if self.other is None:
@@ -117,7 +123,8 @@ class PromptReading:
         if self.behaviour is None:
             return f"not read: {self.reason}; the prompt steers by text alone"
         toward = f" @{self.other}" if self.other is not None else ""
-        return f'read as: @{self.agent} {self.behaviour.value}{toward} ("{self.words}")'
+        then = f" then {self.then.value}" if self.then is not None else ""
+        return f'read as: @{self.agent} {self.behaviour.value}{toward}{then} ("{self.words}")'
 
     def to_json(self) -> dict[str, object]:
         return {
@@ -127,6 +134,7 @@ class PromptReading:
             "words": self.words,
             "reason": self.reason,
             "also": [b.value for b in self.also],
+            "then": None if self.then is None else self.then.value,
             "clause": self.clause,
             "metres": self.metres,
             "deceleration": self.deceleration,
@@ -304,8 +312,7 @@ def read_prompt(text: str) -> PromptReading:
     if not kinds:
         return _not_read("no behaviour phrase found", agent)
     if len(kinds) > 1:
-        named = ", ".join(b.value for b in Behaviour if b in kinds)
-        return _not_read(f"asks for more than one behaviour ({named})", agent)
+        return _sequence(text, norm, kinds, matches, agent)
     (kind,) = kinds
     decided = [m for m in matches if m.behaviour is kind]
     if not BEHAVIOURS[kind].is_pair:
@@ -313,6 +320,29 @@ def read_prompt(text: str) -> PromptReading:
         also = tuple(b for b in Behaviour if b in asked and b in SUBSUMES.get(kind, ()))
         return PromptReading(kind, agent, None, norm.span(text, best.start, best.end), also=also)
     return _pair_reading(text, norm, kind, decided, subject_slot)
+
+
+def _sequence(
+    text: str, norm: _Text, kinds: set[Behaviour], matches: Sequence[_Match], agent: int | None
+) -> PromptReading:
+    """Two kinds asked of one agent: a manoeuvre and then what follows it (`THEN_KINDS`: "turns left and then
+    stops"), in that order; anything else is not read, saying what is."""
+    named = ", ".join(b.value for b in Behaviour if b in kinds)
+    pairs = [(first, then) for first in kinds for then in kinds if then in THEN_KINDS.get(first, ())]
+    if len(kinds) != 2 or not pairs:
+        return _not_read(
+            f"asks for more than one behaviour ({named}); of two for one agent, only a turn or a lane change and then "
+            "a stop is read",
+            agent,
+        )
+    ((first, then),) = pairs
+    before = min((m for m in matches if m.behaviour is first), key=lambda m: m.start)
+    after = max((m for m in matches if m.behaviour is then), key=lambda m: m.end)
+    if after.start < before.start:
+        return _not_read(
+            f"asks {then.value} before {first.value}; only a {first.value} and then a {then.value} is read"
+        )
+    return PromptReading(first, agent, None, norm.span(text, before.start, after.end), then=then)
 
 
 def _pair_reading(text: str, norm: _Text, kind: Behaviour, decided: Sequence[_Match], subject: int) -> PromptReading:

@@ -513,3 +513,17 @@ CONTRAST = re.compile(r"\b(?:instead\s+of|rather\s+than)\b[^,;.!?]*")
 """What follows 'instead of' in its clause is what the prompt does not ask ("goes straight instead of turning")."""
 PASSIVE = re.compile(rf"\b(?:is|are|was|were|be|been|being|gets?|got)\b[^,;.!?]*?\bby\s+{SLOT}")
 """A passive clause naming an agent ("@7 is followed by @12"): who does what is not read."""
+
+
+THEN_KINDS: dict[Behaviour, frozenset[Behaviour]] = {
+    kind: frozenset({Behaviour.STOP})
+    for kind in (
+        Behaviour.TURN_LEFT,
+        Behaviour.TURN_RIGHT,
+        Behaviour.GO_STRAIGHT,
+        Behaviour.LANE_CHANGE_LEFT,
+        Behaviour.LANE_CHANGE_RIGHT,
+    )
+}
+"""What may follow a manoeuvre asked of one agent in one clause ("turns left and then stops", "changes to the left
+lane and stops"): the manoeuvre is steered and judged first, then the stop past it (`interdrive.targets.stop_after`)."""

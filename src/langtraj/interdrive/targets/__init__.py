@@ -4,7 +4,7 @@
 Modules, in the order they build on each other: `config` (`CounterfactualConfig`, how far the map is searched),
 `lanes_ahead` (the agent on its lane, the next junction's branches, the road ahead; paths along the lane graph are
 `roads.routes`), `derive` (`BehaviourTarget`, `derive_target`, `TargetUnavailable`), `feasibility` (`Feasibility`,
-`feasibility`, `behaviour_feasibility`). See docs/interdrive.md ('Targets and feasibility').
+`feasibility`, `behaviour_feasibility`, `then_feasibility`). See docs/interdrive.md ('Targets and feasibility').
 """
 
 from langtraj.interdrive.targets.config import CounterfactualConfig
@@ -17,8 +17,9 @@ from langtraj.interdrive.targets.derive import (
     Status,
     TargetUnavailable,
     derive_target,
+    stop_after,
 )
-from langtraj.interdrive.targets.feasibility import Feasibility, behaviour_feasibility, feasibility
+from langtraj.interdrive.targets.feasibility import Feasibility, behaviour_feasibility, feasibility, then_feasibility
 from langtraj.roads.position import AgentOnLane
 
 __all__ = [
@@ -35,4 +36,6 @@ __all__ = [
     "behaviour_feasibility",
     "derive_target",
     "feasibility",
+    "stop_after",
+    "then_feasibility",
 ]

@@ -27,7 +27,8 @@ the lane graph (`lanes_ahead`) and returns either a `BehaviourTarget` in world c
 - tailgating another agent (ahead of it in its lane): the agent's lane ahead, the station that closes the gap to
   0.4 s of headway within a few seconds, and the other's speed after;
 - running a red light across another agent's way: its way through a signal showing stop at the current step, and
-  the crossing with the other's way past it, to be passed first.
+  the crossing with the other's way past it, to be passed first;
+- a turn or a lane change and then a stop (`stop_after`): the manoeuvre's path, and a stop past where it is done.
 
 Only the current step and the past are read (never the logged future), so a simulation may use the target.
 See docs/interdrive.md ('Targets and feasibility').
@@ -36,7 +37,7 @@ See docs/interdrive.md ('Targets and feasibility').
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -135,6 +136,15 @@ TAILGATE_CLOSING = 3.0
 """How much faster than the other a tailgater closes the gap (m/s on average), within `TAILGATE_WITHIN_S`."""
 TAILGATE_WITHIN_S = 6.0
 """The latest a tailgater must have closed to its short headway (s): later, the judge may not see it tailgate."""
+STOP_AFTER_M = 2.0
+"""How far past where a manoeuvre is done a stop asked after it lies (m): a turn is done 5 m past the junction's exit,
+so its stop lies 7 m past the exit, the car wholly out of the junction."""
+LANE_CHANGE_DONE_S = 4.0
+"""When a lane change is done (s): its steering holds the agent in the new lane from then (`guidance.steering`)."""
+STOP_AFTER_BY_S = HORIZON_S - 1.0
+"""The latest a stop asked after a manoeuvre may begin to stand (s): the labelers see a stop of 1 s or more."""
+STOP_AFTER_MIN_SPEED = 3.0
+"""The speed (m/s) a slower agent is taken to set off at to reach a stop past its manoeuvre."""
 
 
 @dataclass(frozen=True)
@@ -927,6 +937,42 @@ def _kerb_past_junction(ctx: TargetContext, agent: _Agent) -> tuple[np.ndarray, 
         return np.zeros((0, 2)), 0.0, 0.0, "the road past it reaches another junction too soon"
     path = route(index, (*branch.lanes, lane), agent.here.station, max(agent.reach, stop + 20.0))
     return path, stop, branch.exit_at + 2.0, ""
+
+
+def stop_after(target: BehaviourTarget) -> BehaviourTarget:
+    """A manoeuvre's target (a turn or a lane change) and then a stop past it: along its path, `STOP_AFTER_M` past
+    where the manoeuvre is done (a turn: its goal past the junction's exit; a lane change: where its steering holds it
+    in the new lane, `LANE_CHANGE_DONE_S` at its speed), and no nearer than braking at `COMFORT_DECELERATION` brings
+    it to rest; standing (`settled_s`) once it gets there driving on at its speed (at least `STOP_AFTER_MIN_SPEED`)
+    and then braking at that deceleration, which must be by `STOP_AFTER_BY_S`; else `TargetUnavailable`
+    (infeasible)."""
+    spec = BEHAVIOURS[target.behaviour]
+    v = target.current_speed
+    if spec.is_turn and target.station_of_goal is not None:
+        done, what = target.station_of_goal, "the junction"
+    elif spec.is_lane_change:
+        done, what = max(LANE_CHANGE_DONE_S * v, LANE_CHANGE_MIN_M), "its lane change"
+    else:
+        raise InputError(f"a stop after {target.behaviour.value} is not a sequence LangTraj steers", where="target")
+    braking = v * v / (2 * COMFORT_DECELERATION)
+    stop = max(done + STOP_AFTER_M, braking + 0.5)
+    length = float(arc_lengths(target.path)[-1]) if len(target.path) >= 2 else 0.0
+    if stop > length:
+        reason = f"its way past {what} ends before a stop {stop:.0f} m ahead"
+        raise TargetUnavailable(target.track_id, target.behaviour, "infeasible", reason)
+    cruise = max(v, STOP_AFTER_MIN_SPEED)
+    braking = min(cruise * cruise / (2 * COMFORT_DECELERATION), stop)
+    standing = (stop - braking) / cruise + 2 * braking / cruise
+    if standing > STOP_AFTER_BY_S:
+        reason = f"a stop past {what} ({stop:.0f} m ahead) is beyond its reach in {STOP_AFTER_BY_S:g} s"
+        raise TargetUnavailable(target.track_id, target.behaviour, "infeasible", reason)
+    return replace(
+        target,
+        reason=f"{target.reason}, then a stop {stop:.0f} m ahead",
+        station_of_goal=float(stop),
+        speed=0.0,
+        settled_s=float(standing),
+    )
 
 
 def kerb_distance(index: MapIndex, point: np.ndarray, direction: np.ndarray) -> float | None:

@@ -4,11 +4,12 @@ always has a target to steer toward (docs/interdrive.md, 'Targets and feasibilit
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
+from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.targets.config import CounterfactualConfig
-from langtraj.interdrive.targets.derive import BehaviourTarget, Status, TargetContext, TargetUnavailable
+from langtraj.interdrive.targets.derive import BehaviourTarget, Status, TargetContext, TargetUnavailable, stop_after
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 
@@ -73,3 +74,19 @@ def _verdict(
     except TargetUnavailable as exc:
         return Feasibility(track_id, behaviour, exc.status, exc.reason)
     return Feasibility(track_id, behaviour, "feasible", target=target)
+
+
+def then_feasibility(verdict: Feasibility, then: Behaviour) -> Feasibility:
+    """The verdict on a manoeuvre and then `then` (a stop: `derive.stop_after`): feasible with the two in one target
+    where the manoeuvre is and the map has room for what follows it; else the manoeuvre's own refusal, or why what
+    follows has no room ("... then stop: a stop past its turn (40 m ahead) is beyond its reach in 7 s")."""
+    if verdict.target is None:
+        return verdict
+    if then is not Behaviour.STOP:
+        raise InputError(
+            f"{then.value} after {verdict.behaviour.value} is not a sequence LangTraj steers", where="then"
+        )
+    try:
+        return replace(verdict, target=stop_after(verdict.target))
+    except TargetUnavailable as exc:
+        return Feasibility(verdict.track_id, verdict.behaviour, exc.status, f"then {then.value}: {exc.reason}")
