@@ -2,8 +2,8 @@
 'Step info'): an agent that crossed a red light's stop point owes the way to one that did not; one that passed a stop
 sign owes it to one that came without passing any (at an all-way stop, the later to pass its sign owes it). A
 passing counts for `ENTRY_MEMORY_S`, long enough to clear a junction. Where neither decides, the lanes do
-(`env.fault.right_of_way`). Every agent's passings are logged from the scene's history on, as the episode's lights
-show them (`EpisodeLights`), so a car that ran its red before the start owes the way too."""
+(`env.fault.right_of_way`). Every agent's passings are logged from the scene's history on (under the log's lights,
+then those the episode sees, `EpisodeLights`), so a car that ran its red before the start owes the way too."""
 
 from __future__ import annotations
 
@@ -54,13 +54,13 @@ class Passings:
         self.red = np.full(num, NEVER, np.int64)
         self.sign = np.full(num, NEVER, np.int64)
         states, valid = scenario.agents.states, scenario.agents.valid
-        for step in range(max(start - self.memory, 1), start + 1):  # the logged history up to the start
+        for step in range(max(start - self.memory, 1), start + 1):  # the logged history, under the log's lights
             both = valid[:, step - 1] & valid[:, step]
-            self.update(states[:, step - 1], states[:, step], both, step)
+            self.update(states[:, step - 1], states[:, step], both, step, logged=True)
 
-    def update(self, before: np.ndarray, now: np.ndarray, valid: np.ndarray, step: int) -> None:
+    def update(self, before: np.ndarray, now: np.ndarray, valid: np.ndarray, step: int, logged: bool = False) -> None:
         """Log the passings of the agents `valid` [A] between their states `before` [A, 9] and `now` [A, 9] (at
-        `step`)."""
+        `step`, under the lights the episode sees then; `logged`: the log's, for a step of the history)."""
         if not valid.any() or (self.signals is None and not len(self.signs)):
             return
         xy = [StateField.X, StateField.Y]
@@ -68,7 +68,8 @@ class Passings:
         was, is_ = before[rows][:, xy].astype(np.float64), now[rows][:, xy].astype(np.float64)
         heading = now[rows, StateField.HEADING].astype(np.float64)
         if self.signals is not None:
-            states, seen = self.lights.at(step)
+            assert self.lights.log is not None
+            states, seen = self.lights.log.held_at(step) if logged else self.lights.at(step)
             stop = seen & np.isin(states, [int(s) for s in RED_STATES])
             self.red[rows[red_light_runs(self.signals, stop, was, is_, heading)]] = step
         self.sign[rows[self.signs.passed(was, is_, heading)]] = step
