@@ -180,6 +180,9 @@ class BehaviourTarget:
     """How far the agent's centre is ahead of the other's along the path once settled (m), where the target says (a
     cut-in, an overtake and cut-in: the gap and the half lengths), so that steering can keep it relative to where
     the other actually drives."""
+    joins_m: float | None = None
+    """How far along the path it joins its new lane (m), where the target changes lanes (a lane change: where its
+    lead-in meets the lane), so that what is asked after the change lies past it (`stop_after`)."""
 
     @property
     def stop(self) -> bool:
@@ -783,13 +786,15 @@ def _lane_change(ctx: TargetContext, agent: _Agent, behaviour: Behaviour, side: 
         if round(point.distance + room - begin, 2) < round(room_needed, 2):  # to the centimetre
             cramped = True  # the lane beside it runs into a junction before a change could settle in it
             continue
+        path = _into_lane(index, agent, lane, station)
         return BehaviourTarget(
             agent.track_id,
             behaviour,
-            _into_lane(index, agent, lane, station),
+            path,
             f"the lane on its {side}, from {point.distance:.0f} m ahead",
             current_speed=agent.here.speed,
             side=side,
+            joins_m=float(np.linalg.norm(index.point_at(lane, station) - agent.xy)),
         )
     reason = f"no lane on its {side} along its road (within {agent.search:.0f} m)"
     if cramped:
@@ -941,17 +946,17 @@ def _kerb_past_junction(ctx: TargetContext, agent: _Agent) -> tuple[np.ndarray, 
 
 def stop_after(target: BehaviourTarget) -> BehaviourTarget:
     """A manoeuvre's target (a turn or a lane change) and then a stop past it: along its path, `STOP_AFTER_M` past
-    where the manoeuvre is done (a turn: its goal past the junction's exit; a lane change: where its steering holds it
-    in the new lane, `LANE_CHANGE_DONE_S` at its speed), and no nearer than braking at `COMFORT_DECELERATION` brings
-    it to rest; standing (`settled_s`) once it gets there driving on at its speed (at least `STOP_AFTER_MIN_SPEED`)
-    and then braking at that deceleration, which must be by `STOP_AFTER_BY_S`; else `TargetUnavailable`
-    (infeasible)."""
+    where the manoeuvre is done (a turn: its goal past the junction's exit; a lane change: where its lead-in joins the
+    new lane, and no sooner than its steering holds it there, `LANE_CHANGE_DONE_S` at its speed), and no nearer than
+    braking at `COMFORT_DECELERATION` brings it to rest; standing (`settled_s`) once it gets there driving on at its
+    speed (at least `STOP_AFTER_MIN_SPEED`) and then braking at that deceleration, which must be by
+    `STOP_AFTER_BY_S`; else `TargetUnavailable` (infeasible)."""
     spec = BEHAVIOURS[target.behaviour]
     v = target.current_speed
     if spec.is_turn and target.station_of_goal is not None:
         done, what = target.station_of_goal, "the junction"
     elif spec.is_lane_change:
-        done, what = max(LANE_CHANGE_DONE_S * v, LANE_CHANGE_MIN_M), "its lane change"
+        done, what = max(target.joins_m or 0.0, LANE_CHANGE_DONE_S * v, LANE_CHANGE_MIN_M), "its lane change"
     else:
         raise InputError(f"a stop after {target.behaviour.value} is not a sequence LangTraj steers", where="target")
     braking = v * v / (2 * COMFORT_DECELERATION)
