@@ -245,6 +245,6 @@ def test_a_lane_change_then_a_stop_stops_in_the_new_lane():
     )
     (steer,) = steering.steerings
     assert steer.target.behaviour is Behaviour.LANE_CHANGE_LEFT and steer.target.stop
-    assert steer.target.joins_m == pytest.approx(10.2, abs=0.3)  # its lead-in meets the left lane 10 m ahead
+    assert steer.target.joins_m == pytest.approx(10.6, abs=0.1)  # its lead-in meets the left lane 10 m ahead
     assert steer.target.station_of_goal == pytest.approx(4.0 * 8.0 + 2.0, abs=0.01)  # 4 s at 8 m/s, then 2 m
     assert steering.asks[0].then is Behaviour.STOP
