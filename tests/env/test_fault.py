@@ -138,8 +138,9 @@ def _crossing_scene(ego_lead_m: float, *, red: str | None = None, signs: tuple[i
 
 
 def _first_contact_in_episode(scenario: Scenario, lights: str = "log"):
+    """The first contact of the ego with the log's steps judged one by one from the scene's current step."""
     judge = EventJudge(scenario, 0, None, MapIndex.build(scenario.road_map), EpisodeLights(scenario, lights))
-    for step in range(NOW + 1, STEPS):
+    for step in range(scenario.current_index + 1, STEPS):
         events = judge.judge(scenario.agents.states[:, step], np.ones(2, bool), step)
         if events.contacts:
             return events.contacts[0]
@@ -172,23 +173,13 @@ def test_a_red_run_before_the_start_counts_and_held_lights_are_those_at_the_star
     lead = -2.0
     scenario = _crossing_scene(lead, red="other")
     late = replace(scenario, current_index=22)  # the other crossed its red line (x = -10) at about step 21
-    assert _first_contact_in_episode_from(late).right_of_way == "signal"
+    assert _first_contact_in_episode(late).right_of_way == "signal"
     turns_red = scenario.traffic_lights.states.copy()
     turns_red[:15] = int(TrafficLightState.GO)
     turns_red[:15, 1:] = int(TrafficLightState.STOP)  # the ego's lights red and the other's green until step 15
     changed = replace(scenario, traffic_lights=replace(scenario.traffic_lights, states=turns_red))
     assert _first_contact_in_episode(changed, "log").right_of_way == "signal"
     assert _first_contact_in_episode(changed, "held").kind is CollisionKind.OWED  # held: the ego's red at the start
-
-
-def _first_contact_in_episode_from(scenario: Scenario):
-    c = scenario.current_index
-    judge = EventJudge(scenario, 0, None, MapIndex.build(scenario.road_map), EpisodeLights(scenario))
-    for step in range(c + 1, STEPS):
-        events = judge.judge(scenario.agents.states[:, step], np.ones(2, bool), step)
-        if events.contacts:
-            return events.contacts[0]
-    raise AssertionError("no contact")
 
 
 def test_a_pedestrian_or_cyclist_crossing_in_front_stays_the_egos_to_avoid():
@@ -198,7 +189,6 @@ def test_a_pedestrian_or_cyclist_crossing_in_front_stays_the_egos_to_avoid():
 
 
 def test_a_passing_is_forgotten_once_the_junction_is_cleared():
-    assert pytest.approx(5.0) == ENTRY_MEMORY_S
     scenario = _crossing_scene(-2.0, red="other")
     judge = EventJudge(scenario, 0, None, MapIndex.build(scenario.road_map), EpisodeLights(scenario))
     assert judge.passings is not None
@@ -206,7 +196,8 @@ def test_a_passing_is_forgotten_once_the_junction_is_cleared():
         judge.judge(scenario.agents.states[:, step], np.ones(2, bool), step)
     crossed_at = int(judge.passings.red[1])
     assert NOW < crossed_at < 40 and judge.passings.red[0] < 0  # the other crossed its red line, the ego none
-    assert judge.passings.right_of_way(0, 1, crossed_at + 49) == RightOfWay(ego_owed=False, basis=Basis.SIGNAL)
-    assert judge.passings.right_of_way(0, 1, crossed_at + 51) is None
+    memory = round(ENTRY_MEMORY_S / 0.1)  # steps
+    assert judge.passings.right_of_way(0, 1, crossed_at + memory) == RightOfWay(ego_owed=False, basis=Basis.SIGNAL)
+    assert judge.passings.right_of_way(0, 1, crossed_at + memory + 1) is None
     with pytest.raises(ValueError, match="in order"):
         judge.judge(scenario.agents.states[:, 20], np.ones(2, bool), 20)

@@ -84,9 +84,7 @@ def test_comfort_figures_hold_the_executed_controls_to_nuplans_bounds():
 
 def test_a_run_at_a_junctions_mouth_is_a_run_where_wosacs_nearest_segment_misses_it(real_data_dir):
     """637f's 1580 as simulated in a red-light case: over lane 448's red stop point, heading south, at step 26."""
-    from langtraj.env.rules import red_light_runs
     from langtraj.metrics.traffic_lights import SignalLanes, red_light_violations
-    from langtraj.roads.stop_lines import StopLines
     from langtraj.scenario.io import read_scenario
 
     scenario = read_scenario(real_data_dir / "motion_data_one_scenario.tfrecord", 0)
@@ -95,10 +93,11 @@ def test_a_run_at_a_junctions_mouth_is_a_run_where_wosacs_nearest_segment_misses
     states, seen = lights.held_at(26)
     stop = seen & np.isin(states, [int(TrafficLightState.STOP), int(TrafficLightState.ARROW_STOP)])
     assert stop[list(lights.lane_ids).index(448)]
-    lines = StopLines.of_signals(scenario.road_map, lights)
-    assert red_light_runs(lines, stop, before, now, np.array([-np.pi / 2]))[0]
-    assert not red_light_runs(lines, stop, before, now, np.array([0.0]))[0]  # heading across the lane: no pass
-    assert not red_light_runs(lines, np.zeros_like(stop), before, now, np.array([-np.pi / 2]))[0]
+    episode = EpisodeLights(scenario)
+    assert episode.runs(before, now, np.array([-np.pi / 2]), 26)[0]
+    assert not episode.runs(before, now, np.array([0.0]), 26)[0]  # heading across the lane: no pass
+    green = replace(lights, states=np.full_like(lights.states, int(TrafficLightState.GO)))
+    assert not EpisodeLights(replace(scenario, traffic_lights=green)).runs(before, now, np.array([-np.pi / 2]), 26)[0]
     signals = replace(SignalLanes.from_scenario(scenario), signal_is_stop=np.stack([stop, stop]))
     x, y = np.concatenate([before[:, 0], now[:, 0]]), np.concatenate([before[:, 1], now[:, 1]])
     assert not red_light_violations(signals, x, y, np.ones(2, bool))[1]  # the challenge's rule misses it

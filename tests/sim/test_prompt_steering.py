@@ -248,3 +248,13 @@ def test_a_lane_change_then_a_stop_stops_in_the_new_lane():
     assert steer.target.joins_m == pytest.approx(10.6, abs=0.1)  # its lead-in meets the left lane 10 m ahead
     assert steer.target.station_of_goal == pytest.approx(4.0 * 8.0 + 2.0, abs=0.01)  # 4 s at 8 m/s, then 2 m
     assert steering.asks[0].then is Behaviour.STOP
+
+
+def test_a_stop_after_a_manoeuvre_without_its_time_to_stand_is_an_error_not_a_guess():
+    near = drive(LEFT_LANE_LEFT, start=52.0)
+    s = scene(four_way(), near, drive(RIGHT_LANE_STRAIGHT))
+    steering = prompt_steering(s, read_prompts(["@1 turns left and then stops"]), np.arange(2), ORIGIN, ALL_LEVERS)
+    (steer,) = steering.steerings
+    untimed = replace(steer, target=replace(steer.target, settled_s=None))
+    with pytest.raises(ValueError, match="needs its time to stand"):
+        untimed.terms(0, 80)

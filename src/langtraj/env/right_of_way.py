@@ -12,10 +12,10 @@ from enum import StrEnum
 
 import numpy as np
 
-from langtraj.env.rules import EpisodeLights, red_light_runs
+from langtraj.env.rules import EpisodeLights
 from langtraj.roads.stop_lines import StopLines
 from langtraj.scenario.model import STEP_SECONDS, Scenario
-from langtraj.scenario.types import RED_STATES, StateField
+from langtraj.scenario.types import StateField
 
 ENTRY_MEMORY_S = 5.0
 """How long (s) a red light crossed or a stop sign passed decides the right of way: the time to clear a junction."""
@@ -47,7 +47,6 @@ class Passings:
 
     def __init__(self, scenario: Scenario, lights: EpisodeLights, start: int):
         self.lights = lights
-        self.signals = None if lights.log is None else StopLines.of_signals(scenario.road_map, lights.log)
         self.signs = StopLines.of_signs(scenario.road_map)
         self.memory = round(ENTRY_MEMORY_S / STEP_SECONDS)
         num = scenario.num_agents
@@ -61,17 +60,13 @@ class Passings:
     def update(self, before: np.ndarray, now: np.ndarray, valid: np.ndarray, step: int, logged: bool = False) -> None:
         """Log the passings of the agents `valid` [A] between their states `before` [A, 9] and `now` [A, 9] (at
         `step`, under the lights the episode sees then; `logged`: the log's, for a step of the history)."""
-        if not valid.any() or (self.signals is None and not len(self.signs)):
+        if not valid.any() or (self.lights.log is None and not len(self.signs)):
             return
         xy = [StateField.X, StateField.Y]
         rows = np.flatnonzero(valid)
         was, is_ = before[rows][:, xy].astype(np.float64), now[rows][:, xy].astype(np.float64)
         heading = now[rows, StateField.HEADING].astype(np.float64)
-        if self.signals is not None:
-            assert self.lights.log is not None
-            states, seen = self.lights.log.held_at(step) if logged else self.lights.at(step)
-            stop = seen & np.isin(states, [int(s) for s in RED_STATES])
-            self.red[rows[red_light_runs(self.signals, stop, was, is_, heading)]] = step
+        self.red[rows[self.lights.runs(was, is_, heading, step, logged)]] = step
         self.sign[rows[self.signs.passed(was, is_, heading)]] = step
 
     def right_of_way(self, ego: int, other: int, step: int) -> RightOfWay | None:

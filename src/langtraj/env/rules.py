@@ -1,6 +1,6 @@
 """The ego against the rules of the road at one step, after nuPlan's closed-loop metrics (docs/testing.md, 'What an
 episode measures'): whether it ran a red light (passed the stop line of a signal that shows stop, going its lane's
-way: `red_light_runs`, the one rule for the ego and for right of way), whether it drives against its lane, and how
+way: `EpisodeLights.runs`, the one rule for the ego and for right of way), whether it drives against its lane, and how
 far it is over the speed limit of its route. The lights are those of the step: replayed from the log, or held at
 the start (`LIGHT_MODES`)."""
 
@@ -39,11 +39,14 @@ def light_mode(mode: str) -> str:
 class EpisodeLights:
     """The traffic lights an episode sees at each step, in one of `LIGHT_MODES`: the log's up to that step
     (`TrafficLights.held_at`, never past it) or those at the start; each step's read once for the observation and the
-    rules alike. `log` is None for a scene without signals."""
+    rules alike. `log` is None for a scene without signals; `lines`, the signals' stop lines (`StopLines.of_signals`),
+    row for row with them. `runs` is the one red-light rule, for the ego's `red_light` and for right of way
+    (`env.right_of_way`)."""
 
     def __init__(self, scenario: Scenario, mode: str = "log"):
         lights = scenario.traffic_lights
         self.log = lights if lights is not None and len(lights.lane_ids) else None
+        self.lines = None if self.log is None else StopLines.of_signals(scenario.road_map, self.log)
         self.mode, self.start = light_mode(mode), scenario.current_index
         self._read: tuple[int, tuple[np.ndarray, np.ndarray]] | None = None
 
@@ -55,18 +58,21 @@ class EpisodeLights:
             self._read = (step, self.log.held_at(step))
         return self._read[1]
 
-
-def red_light_runs(
-    lines: StopLines, stop: np.ndarray, before: np.ndarray, now: np.ndarray, heading: np.ndarray
-) -> np.ndarray:
-    """bool [A]: which agents, at `before` [A, 2] and then at `now` [A, 2] heading `heading` [A], passed the line of
-    a signal that shows stop (`lines`: `StopLines.of_signals`, row for row with `stop`, bool [S]) between the two,
-    and no line of a signal that did not (a red left arrow beside a green straight at one stop point is no run): the
-    one rule for the ego's `red_light` and for right of way (`env.right_of_way`)."""
-    if not stop.any():
-        return np.zeros(len(now), bool)
-    each = lines.passed_each(before, now, heading)
-    return each.any(axis=1) & ~(each & ~stop[None]).any(axis=1)
+    def runs(
+        self, before: np.ndarray, now: np.ndarray, heading: np.ndarray, step: int, logged: bool = False
+    ) -> np.ndarray:
+        """bool [A]: which agents, at `before` [A, 2] and then at `now` [A, 2] heading `heading` [A], passed the line
+        of a signal that shows stop at `step` (as the episode sees it; `logged`: as the log has it, for a step of the
+        history) and the line of no signal that does not (a red left arrow beside a green straight at one stop point
+        is no run). False for all without signals."""
+        if self.log is None or self.lines is None:
+            return np.zeros(len(now), bool)
+        states, seen = self.log.held_at(step) if logged else self.at(step)
+        stop = seen & np.isin(states, [int(s) for s in RED_STATES])
+        if not stop.any():
+            return np.zeros(len(now), bool)
+        each = self.lines.passed_each(before, now, heading)
+        return each.any(axis=1) & ~(each & ~stop[None]).any(axis=1)
 
 
 @dataclass(frozen=True)
@@ -86,19 +92,11 @@ class RuleJudge:
 
     def __init__(self, scenario: Scenario, ego: int, index: MapIndex, route: Route, lights: EpisodeLights):
         self.ego, self.index, self.route, self.lights = ego, index, route, lights
-        self.signals = None if lights.log is None else StopLines.of_signals(scenario.road_map, lights.log)
-
-    def stop_at(self, step: int) -> np.ndarray:
-        """bool [S]: which signals show stop at `step` as the episode sees them."""
-        states, seen = self.lights.at(step)
-        return seen & np.isin(states, [int(s) for s in RED_STATES])
 
     def judge(self, before: np.ndarray, now: np.ndarray, step: int, station: float) -> RuleEvents:
         """The ego's state before [9] and now [9] (at `step` of the scenario), at `station` along its route."""
-        red = False
-        if self.signals is not None:
-            xy, heading = [StateField.X, StateField.Y], now[None, StateField.HEADING]
-            red = bool(red_light_runs(self.signals, self.stop_at(step), before[None, xy], now[None, xy], heading)[0])
+        xy = [StateField.X, StateField.Y]
+        red = bool(self.lights.runs(before[None, xy], now[None, xy], now[None, StateField.HEADING], step)[0])
         speed = float(np.hypot(now[StateField.VX], now[StateField.VY]))
         _, on_route, limits = self.route.ahead(station, 1, 1.0)
         limit = float(limits[0]) if on_route[0] else math.nan

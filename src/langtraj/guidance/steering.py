@@ -153,10 +153,17 @@ def _lane_change(s: Steering, clock: _Clock) -> list:
 
 
 def _then_stop(s: Steering, clock: _Clock) -> list:
-    """A stop after a manoeuvre: never past the stop point, standing still from when the target has it stand
-    (`settled_s`: driving on, then braking comfortably)."""
-    goal, settled = s.target.station_of_goal or 0.0, s.target.settled_s
-    standing = _stop_step(s) if settled is None else int(np.clip(_steps(settled), 10, FUTURE_STEPS - 10))
+    """A stop after a manoeuvre (`interdrive.targets.stop_after`, which times it): standing still at its stop from
+    when the target has it stand (`settled_s`: driving on, then braking comfortably)."""
+    settled = s.target.settled_s
+    if settled is None:
+        raise ValueError(f"a stop after {s.target.behaviour.value} needs its time to stand (settled_s)")
+    return _stand(s, clock, int(np.clip(_steps(settled), 10, FUTURE_STEPS - 10)))
+
+
+def _stand(s: Steering, clock: _Clock, standing: int) -> list:
+    """Never past the stop point; standing still from simulated step `standing` on."""
+    goal = s.target.station_of_goal or 0.0
     return _station(s, clock, goal, "hold", 1, FUTURE_STEPS, HOLD_WEIGHT) + _speed(s, clock, 0.0, standing)
 
 
@@ -168,18 +175,13 @@ def _stop_step(s: Steering) -> int:
 
 def _stop(s: Steering, clock: _Clock) -> list:
     """Never past the stop point; standing still from when even braking gets there."""
-    goal = s.target.station_of_goal or 0.0
-    terms = _station(s, clock, goal, "hold", 1, FUTURE_STEPS, HOLD_WEIGHT)
-    return terms + _speed(s, clock, 0.0, _stop_step(s)) + _route(s, clock, weight=0.25 * ROUTE_WEIGHT)
+    return _stand(s, clock, _stop_step(s)) + _route(s, clock, weight=0.25 * ROUTE_WEIGHT)
 
 
 def _pull_over(s: Steering, clock: _Clock) -> list:
     """On the kerb line from 2 s on, never past the stop point, standing still from when even braking gets
     there (at most 5.5 s, so the stop lasts the 2 s the labeler asks)."""
-    goal = s.target.station_of_goal or 0.0
-    terms = _route(s, clock, first=_steps(2.0))
-    terms += _station(s, clock, goal, "hold", 1, FUTURE_STEPS, HOLD_WEIGHT)
-    return terms + _speed(s, clock, 0.0, min(_stop_step(s), _steps(5.5)))
+    return _route(s, clock, first=_steps(2.0)) + _stand(s, clock, min(_stop_step(s), _steps(5.5)))
 
 
 def _speed_change(s: Steering, clock: _Clock) -> list:

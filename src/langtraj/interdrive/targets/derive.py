@@ -959,14 +959,13 @@ def stop_after(target: BehaviourTarget) -> BehaviourTarget:
         done, what = max(target.joins_m or 0.0, LANE_CHANGE_DONE_S * v, LANE_CHANGE_MIN_M), "its lane change"
     else:
         raise InputError(f"a stop after {target.behaviour.value} is not a sequence LangTraj steers", where="target")
-    braking = v * v / (2 * COMFORT_DECELERATION)
-    stop = max(done + STOP_AFTER_M, braking + 0.5)
+    stop = max(done + STOP_AFTER_M, v * v / (2 * COMFORT_DECELERATION) + 0.5)  # and half a metre to come to rest
     length = float(arc_lengths(target.path)[-1]) if len(target.path) >= 2 else 0.0
     if stop > length:
         reason = f"its way past {what} ends before a stop {stop:.0f} m ahead"
         raise TargetUnavailable(target.track_id, target.behaviour, "infeasible", reason)
     cruise = max(v, STOP_AFTER_MIN_SPEED)
-    braking = min(cruise * cruise / (2 * COMFORT_DECELERATION), stop)
+    braking = min(cruise * cruise / (2 * COMFORT_DECELERATION), stop)  # the metres it brakes over
     standing = (stop - braking) / cruise + 2 * braking / cruise
     if standing > STOP_AFTER_BY_S:
         reason = f"a stop past {what} ({stop:.0f} m ahead) is beyond its reach in {STOP_AFTER_BY_S:g} s"
