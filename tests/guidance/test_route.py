@@ -12,7 +12,14 @@ import torch
 from langtraj.errors import InputError
 from langtraj.guidance import GuidanceTerm, NoCollisionCost, RouteCost, StationCost, TargetSpeedCost
 from langtraj.guidance.route import LeadCost, RoutePath
-from langtraj.guidance.steering import KEEP_LANE_WEIGHT, RED_LIGHT_ROUTE_WEIGHT, ClearOfOthersCost, Steering
+from langtraj.guidance.steering import (
+    HOLD_WEIGHT,
+    KEEP_LANE_WEIGHT,
+    PULL_OUT_REACH_WEIGHT,
+    RED_LIGHT_ROUTE_WEIGHT,
+    ClearOfOthersCost,
+    Steering,
+)
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.targets import BehaviourTarget
 
@@ -210,3 +217,18 @@ def test_a_red_light_runner_goes_first_through_the_crossing_at_its_speed_on_its_
     assert (speed.speeds, speed.start, speed.end) == ((8.0,), 9, 40)  # at its speed through the light until then
     routes = [t.weight for t in terms if isinstance(t.cost, RouteCost)]
     assert routes == [RED_LIGHT_ROUTE_WEIGHT] and RED_LIGHT_ROUTE_WEIGHT > 1.0  # held to its way, by one term
+
+
+def test_a_pull_out_waits_until_it_sets_off_then_reaches_the_meeting_point_ahead_of_the_other():
+    fields = dict(station_of_goal=15.0, speed=8.0, other_id=2, other_eta=6.0, other_speed=8.0, settled_s=4.0)
+    joining = _steering(Behaviour.PULL_OUT, starts_s=1.5, lead_m=6.5, **fields).terms(0, 80)
+    stations = {(t.cost.mode, t.cost.station, t.cost.start, t.cost.end, t.weight) for t in joining
+                if isinstance(t.cost, StationCost)}  # fmt: skip
+    assert stations == {("hold", 0.5, 0, 15, HOLD_WEIGHT), ("reach", 20.0, 39, 80, PULL_OUT_REACH_WEIGHT)}
+    speeds = sorted((t.cost.speeds, t.cost.start, t.cost.end) for t in joining if isinstance(t.cost, TargetSpeedCost))
+    assert speeds == [((0.0,), 0, 15), ((8.0,), 24, 80)]  # standing until 1.5 s, at its speed from a second after
+    (lead,) = [t.cost for t in joining if isinstance(t.cost, LeadCost)]
+    assert (lead.lead, lead.mode, lead.start) == (6.5, "reach", 39)  # ahead of where the other drives, once there
+    crossing = _steering(Behaviour.PULL_OUT, starts_s=0.0, **fields).terms(0, 80)
+    assert not any(isinstance(t.cost, LeadCost) for t in crossing)  # it crosses the other's way: no lead along it
+    assert not any(isinstance(t.cost, StationCost) and t.cost.mode == "hold" for t in crossing)  # it goes at once

@@ -341,7 +341,7 @@ def test_fifty_free_text_prompts_parse_name_known_kinds_and_render_to_valid_prom
     # tests/data/prompt_paraphrases.yaml covers the others.
     later = {
         Behaviour.PULL_OVER, Behaviour.FOLLOW, Behaviour.CUT_IN, Behaviour.OVERTAKE_CUT_IN, Behaviour.BRAKE_HARD,
-        Behaviour.TAILGATE, Behaviour.RUN_RED_LIGHT,
+        Behaviour.TAILGATE, Behaviour.RUN_RED_LIGHT, Behaviour.PULL_OUT,
     }  # fmt: skip
     assert {p.behaviour for p in prompts} == set(Behaviour) - later
     for prompt in prompts:

@@ -19,6 +19,7 @@ from langtraj.interdrive.detector import (
     overtake_cut_in_runs,
     pair_rows,
     passing_runs,
+    pull_out_runs,
     red_light_runs,
     tailgating_runs,
     yielding_runs,
@@ -210,6 +211,31 @@ def test_passing_a_red_stop_line_and_then_crossing_another_agents_way_runs_the_r
     for quiet in (_red_light_scene(TrafficLightState.GO), _red_light_scene(TrafficLightState.STOP, 40.0), behind):
         # a green light; the other already past the crossing, driving away north; the other behind it in its lane
         assert not any(lab.subtype.id == "passing/red_light_running" for lab in detect_interactions(quiet))
+
+
+def _pull_out_scene(other_y0: float = -50.0, sets_off: int = 20) -> Scenario:
+    """Car 1 stands west of a map-less crossing (x = -12, heading east) until `sets_off`, then pulls out east at
+    2.5 m/s^2 (up to 10 m/s); car 2 drives north at 8 m/s along x = 1.75 from `other_y0`."""
+    t = np.arange(T) * 0.1
+    pulls = np.clip(2.5 * (t - sets_off * 0.1), 0.0, 10.0)
+    side = straight(-12, -1.75, 0, pulls)
+    main = straight(1.75, other_y0, np.pi / 2, 8.0)
+    return scene({1: (VEH, side), 2: (VEH, main)})
+
+
+def test_a_car_pulling_out_from_standing_just_ahead_of_a_passing_car_pulls_out_in_front_of_it():
+    labels = detect_interactions(_pull_out_scene())
+    found = [lab for lab in labels if lab.subtype.id == "merging/pull_out"]
+    assert [(lab.track_id, lab.other_id) for lab in found] == [(1, 2)]
+    assert 20 <= found[0].start <= 32 < 50 <= found[0].end  # from setting off to past coming onto its line
+    geometry = SceneGeometry(_pull_out_scene(), (), DetectorConfig())
+    assert pull_out_runs(geometry, 0, 1) and not pull_out_runs(geometry, 1, 0)
+    for quiet in (
+        _pull_out_scene(other_y0=-20.0),  # the other has passed by the time it gets there: it crosses behind
+        _pull_out_scene(other_y0=-110.0),  # the other is far off: no one to pull out in front of
+        _pull_out_scene(other_y0=-20.0, sets_off=-40),  # at 10 m/s throughout: it crosses, it does not pull out
+    ):
+        assert not any(lab.subtype.id == "merging/pull_out" for lab in detect_interactions(quiet))
 
 
 def test_a_lane_change_into_a_vehicle_still_beside_it_is_no_cut_in():
@@ -507,9 +533,11 @@ def _detector_scenes() -> list[Scenario]:
 
 PER_PAIR = {
     "yielding": yielding_runs, "passing": passing_runs, "following": following_runs, "red_light": red_light_runs,
-    "braking_lead": braking_lead_runs,
+    "braking_lead": braking_lead_runs, "pull_out": pull_out_runs,
 }  # fmt: skip
-OWN_RULE = {"passing/red_light_running": "red_light", "passing/braking_lead": "braking_lead"}
+OWN_RULE = {
+    "passing/red_light_running": "red_light", "passing/braking_lead": "braking_lead", "merging/pull_out": "pull_out",
+}  # fmt: skip
 """Subtypes judged by a per-pair rule of their own, not by their type's."""
 
 

@@ -295,7 +295,7 @@ def test_the_cut_in_vocabulary_reads_as_a_cut_in(text):
     reading = read_prompt(text)
     assert (reading.behaviour, reading.agent, reading.other) == (B.CUT_IN, 52, 56)
     assert reading.metres == (10.0 if "10 m" in text else None)
-    assert read_prompt("@52 pulls out in front of @56").behaviour is B.GO_FIRST  # from a side road: going first
+    assert read_prompt("@52 pulls out in front of @56").behaviour is B.PULL_OUT  # from a side road, not a lane beside
     assert read_prompt("@52 cuts in front of @56 at 10 m/s").metres is None  # a speed is no gap
 
 
@@ -351,6 +351,20 @@ def test_the_red_light_vocabulary_reads_as_running_it_across_the_other(text):
     assert (reading.behaviour, reading.agent, reading.other) == (B.RUN_RED_LIGHT, 52, 56)
     assert read_prompt("@52 runs the red light").reason == "run_red_light needs exactly one other agent"
     assert read_prompt("@52 goes first before @56").behaviour is B.GO_FIRST
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["@52 pulls out in front of @56", "@52 pulls out of the side road into the path of @56",
+     "@52 noses out of a driveway into @56's lane", "@52 emerges from the junction right in front of @56",
+     "@52 turns left out of the side road in front of @56", "@52 pulls out suddenly in front of @56 from a side road",
+     "@52 comes out of a driveway just ahead of @56", "@52 pulls out from the kerb into the road ahead of @56"],
+)  # fmt: skip
+def test_the_pull_out_vocabulary_reads_as_pulling_out_in_front_of_the_other(text):
+    reading = read_prompt(text)
+    assert (reading.behaviour, reading.agent, reading.other) == (B.PULL_OUT, 52, 56)
+    assert read_prompt("@52 crosses in front of @56").behaviour is B.GO_FIRST  # no pulling out: going first
+    assert read_prompt("@52 pulls out").behaviour is not B.PULL_OUT  # in front of nobody
 
 
 @pytest.mark.parametrize(

@@ -183,6 +183,41 @@ def test_a_red_light_runner_goes_through_the_red_light_ahead_and_across_the_othe
         _target(s, 2, Behaviour.RUN_RED_LIGHT, 1)
 
 
+def test_a_car_waiting_at_a_side_road_pulls_out_across_the_others_way_just_before_it():
+    waiting = _track(line(-80, -HALF, -10, -HALF), 0.0, 68.0)  # standing on the eastbound road at x = -12
+    s = scene(four_way(), drive(RIGHT_LANE_STRAIGHT), waiting)  # 1 northbound at 8 m/s, 40 m before the crossing
+    target = _target(s, 2, Behaviour.PULL_OUT, 1)
+    assert target.first is True and "out across @1's way 13 m ahead from 0.0 s" in target.reason
+    assert np.allclose(target.conflict, [HALF - 1.0, -HALF], atol=0.3)  # 1 m short of the northbound lane's line
+    assert target.settled_s == pytest.approx(math.sqrt(2 * target.station_of_goal / 2.5), abs=0.01)
+    assert target.other_eta - target.settled_s >= 1.0 and target.lead_m is None  # it crosses, it does not join
+    far = scene(four_way(), drive(RIGHT_LANE_STRAIGHT, start=20.0), waiting)  # 6 s from the crossing: it waits
+    later = _target(far, 2, Behaviour.PULL_OUT, 1)
+    assert later.starts_s > 0.5 and later.other_eta - later.settled_s == pytest.approx(2.0)
+    for near, why in (
+        (scene(four_way(), drive(RIGHT_LANE_STRAIGHT, start=60.0), waiting), "@1 gets to where it would pull out"),
+        (scene(four_way(), drive(RIGHT_LANE_STRAIGHT), _track(line(-80, -HALF, -10, -HALF), 8.0, 40.0)), "moving"),
+        (scene(four_way(), drive(RIGHT_LANE_STRAIGHT, speed=1.0), waiting), "@1 is too slow"),
+    ):
+        with pytest.raises(TargetUnavailable, match=why):
+            _target(near, 2, Behaviour.PULL_OUT, 1)
+
+
+def test_a_car_in_a_driveway_pulls_out_into_the_others_lane_ahead_of_it():
+    from langtraj.scenario import AgentType
+
+    xy = np.tile([20.0, -6.0], (len(TIME), 1))
+    driveway = (AgentType.VEHICLE, xy, np.full(len(TIME), math.pi / 2))  # off the road, facing it
+    s = scene(two_lane_road(), _eastbound_from(-40.0), driveway)  # 1 eastbound at 10 m/s in the right lane
+    target = _target(s, 2, Behaviour.PULL_OUT, 1)
+    assert "out into @1's way" in target.reason and target.lead_m is not None  # it joins the lane, heading east
+    assert np.allclose(target.path[-1, 1], 0.0, atol=0.05) and target.path[-1, 0] > 60.0
+    assert target.path[0] == pytest.approx([20.0, -6.0])
+    on_lane = scene(two_lane_road(), _eastbound_from(-40.0), _eastbound_from(0.0, speed=0.0))
+    with pytest.raises(TargetUnavailable, match="on @1's way already"):
+        _target(on_lane, 2, Behaviour.PULL_OUT, 1)
+
+
 def test_yielding_and_going_first_meet_at_the_conflict_point_of_crossing_lanes():
     eastbound = _track(line(-80, -HALF, -10, -HALF), 8.0, 40.0)  # on lane 41 at x = -32 (8 m/s)
     s = scene(four_way(), drive(LEFT_LANE_STRAIGHT), eastbound)

@@ -208,6 +208,8 @@ def test_kinds_the_model_never_saw_are_conditioned_on_the_sentence_of_what_their
     assert conditioning_sentence(overtake) == "@12 changes lanes to the left"
     red = BehaviourTarget(12, Behaviour.RUN_RED_LIGHT, path, "", other_id=7)  # a pair sentence names the other
     assert conditioning_sentence(red) == "@12 takes the right of way over @7"
+    pull_out = BehaviourTarget(12, Behaviour.PULL_OUT, path, "", other_id=7)
+    assert conditioning_sentence(pull_out) == "@12 takes the right of way over @7"
     assert conditioning_sentence(BehaviourTarget(12, Behaviour.TAILGATE, path, "", other_id=7)) is None  # seen
     assert conditioning_sentence(BehaviourTarget(12, Behaviour.STOP, path, "", speed=0.0)) is None
 

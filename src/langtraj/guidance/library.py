@@ -249,6 +249,7 @@ INTERACTION_GUIDANCE: Mapping[str, Builder] = MappingProxyType(
         "merging/zipper": _all(_lane("second"), _avoid(1.0), _speed(_other)),
         "merging/on_ramp_accelerating": _all(_lane("second"), _avoid(1.5), _speed(_faster(0.0), "second")),
         "merging/late": _all(_lane("second"), _avoid(1.0)),
+        "merging/pull_out": _all(_lane("second"), _avoid(1.0), _speed(_own(low=5.0), "second")),
         # Other: nothing to steer towards.
         "other/undefined": _none,
         "other/no_interaction": _none,

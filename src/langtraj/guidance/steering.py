@@ -38,6 +38,10 @@ vocabulary')."""
 RED_LIGHT_ROUTE_WEIGHT = 1.25 * ROUTE_WEIGHT
 """Per m^2 off its way, for a red-light runner: going first's quarter weight and the usual one on top, as measured
 (docs/testing.md, 'Red lights run by name, measured')."""
+PULL_OUT_REACH_WEIGHT = 16.0 * REACH_WEIGHT
+"""Per m^2 short of the meeting point, for a pull-out: above the common range, as the model, trained where cars on a
+side road wait for the main road, holds it at the mouth; chosen on validation maps (docs/testing.md, 'Pulling out by
+name, measured')."""
 LEAD_SLACK_M = 2.0
 """How far beyond its settled lead an overtaking agent may get ahead of the other before it has settled (m)."""
 CLEAR_WEIGHT = AVOID_WEIGHT  # per unit of summed disk overlap with the other agents (as the library keeps clear)
@@ -213,6 +217,23 @@ def _run_red_light(s: Steering, clock: _Clock) -> list:
     return _go_first(s, clock, RED_LIGHT_ROUTE_WEIGHT) + _speed(s, clock, float(t.speed or 0.0), _steps(1.0), by)
 
 
+def _pull_out(s: Steering, clock: _Clock) -> list:
+    """Where it stands until it sets off (`starts_s`), then out onto the other's way: past the meeting point (by
+    5 m) when the target has it there (`settled_s`), on its way throughout, at its target speed a second later; and,
+    where it joins the other's way, the target's lead ahead of where the other actually drives from then (`LeadCost`),
+    so that a pull-out the other closes on is not given up."""
+    t, settled = s.target, _settled(s.target)
+    starts = _steps(t.starts_s or 0.0)
+    goal = float(t.station_of_goal or 0.0) + 5.0
+    terms = _route(s, clock) + _station(s, clock, goal, "reach", max(settled, 10), FUTURE_STEPS, PULL_OUT_REACH_WEIGHT)
+    if starts > 0:
+        terms += _station(s, clock, 0.5, "hold", 1, starts, HOLD_WEIGHT) + _speed(s, clock, 0.0, 1, starts)
+    terms += _speed(s, clock, float(t.speed or 0.0), starts + _steps(1.0))
+    if t.lead_m is not None:
+        terms += _lead(s, clock, t.lead_m, "reach", settled, FUTURE_STEPS, REACH_WEIGHT)
+    return terms
+
+
 def _yield(s: Steering, clock: _Clock) -> list:
     """Held before the conflict point until two seconds after the other agent gets there, slow meanwhile, and
     clear of it; with no conflict point, at 30 % of its speed for 4 s."""
@@ -329,5 +350,6 @@ _BUILDERS = {
     Behaviour.BRAKE_HARD: _brake_hard,
     Behaviour.TAILGATE: _tailgate,
     Behaviour.RUN_RED_LIGHT: _run_red_light,
+    Behaviour.PULL_OUT: _pull_out,
 }
 assert set(_BUILDERS) == set(BEHAVIOURS), "every behaviour kind needs a builder"

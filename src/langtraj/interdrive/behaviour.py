@@ -43,6 +43,7 @@ class Behaviour(StrEnum):
     BRAKE_HARD = "brake_hard"
     TAILGATE = "tailgate"
     RUN_RED_LIGHT = "run_red_light"
+    PULL_OUT = "pull_out"
 
 
 @dataclass(frozen=True)
@@ -67,9 +68,9 @@ class BehaviourSpec:
     is one kind of lane change toward another agent; `PromptReading.followed`)."""
     conditioned_as: Behaviour | None = None
     """The kind whose sentence the model, which never saw this kind in training, is conditioned on instead of the
-    typed words (running a red light across another agent's path: going first; braking hard in front of another
-    agent: a stop; a cut-in, with or without an overtake first: a lane change, to the side its target takes;
-    `sim.prompts.conditioning_sentence`)."""
+    typed words (running a red light across another agent's path, or pulling out in front of it: going first; braking
+    hard in front of another agent: a stop; a cut-in, with or without an overtake first: a lane change, to the side
+    its target takes; `sim.prompts.conditioning_sentence`)."""
 
     @property
     def is_pair(self) -> bool:
@@ -212,6 +213,15 @@ BEHAVIOURS: Mapping[Behaviour, BehaviourSpec] = {
             "run the red light across the path of",
             interaction=InteractionType.PASSING,
             subtype="passing/red_light_running",
+            exact=True,
+            conditioned_as=Behaviour.GO_FIRST,
+        ),
+        BehaviourSpec(
+            Behaviour.PULL_OUT,
+            "@{agent} pulls out in front of @{other}",
+            "pull out in front of",
+            interaction=InteractionType.MERGING,
+            subtype="merging/pull_out",
             exact=True,
             conditioned_as=Behaviour.GO_FIRST,
         ),

@@ -233,6 +233,14 @@ SUBTYPES: tuple[Subtype, ...] = (
             "Entering a highway while accelerating to match traffic speed.",
         ),
         ("late", "Late merge", "Merging closer to the end of the merging lane in congested traffic."),
+        (
+            "pull_out",
+            "Pulling out in front of",
+            "Entering another vehicle's path from a side road, a driveway or the kerb, from (nearly) standing, just "
+            "ahead of it, so that it must brake or give way (NHTSA's pre-crash scenarios of a vehicle turning or "
+            "crossing at a non-signalized junction; LangTraj's addition to the paper's subtypes, for safety-critical "
+            "tests).",
+        ),
     ),
     *_subtypes(
         InteractionType.OTHER,
@@ -247,7 +255,13 @@ SUBTYPES: tuple[Subtype, ...] = (
 )
 
 ADDED_SUBTYPES = frozenset(
-    {"lane_change/cut_in", "overtaking/cut_in", "passing/braking_lead", "passing/red_light_running"}
+    {
+        "lane_change/cut_in",
+        "overtaking/cut_in",
+        "passing/braking_lead",
+        "passing/red_light_running",
+        "merging/pull_out",
+    }
 )
 """LangTraj's additions to the paper's subtypes, what a safety-critical test asks by name; SUMO's events give none of
 them (`ground_truth`), so scoring the detector against SUMO leaves them out."""

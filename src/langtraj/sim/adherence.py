@@ -7,7 +7,7 @@ followed by the candidate, up to the end of the simulated 8 s, exactly what the 
 scene holding a copy of the agent per candidate and rollout (one labelling per replan). Pair behaviours are judged by
 the interaction detector's own rule for one ordered pair (`PAIR_RUNS`: `interdrive.detector.yielding_runs`,
 `passing_runs`, `following_runs`, `cut_in_runs`, `overtake_cut_in_runs`, `braking_lead_runs`, `tailgating_runs`,
-`red_light_runs`, with the judge's
+`red_light_runs`, `pull_out_runs`, with the judge's
 `DetectorConfig`), the one `detect_interactions` runs over every pair, on each candidate's scene: every agent's past
 up to the replan, the driven agents' candidates after it, the undriven agents' simulated tracks, speeds from
 positions as the judge reads a rollout (`metrics.instruction_following.rollout_scenario`), cut to the agents the rule
@@ -16,9 +16,10 @@ Yielding: the prompted agent yields to the other; going first: the other yields 
 yield); following: it follows the other; cutting in: it changes into the other's lane just ahead of it (overtaking and
 cutting in: having been behind it shortly before); braking hard: it brakes hard while the other follows it;
 tailgating: it follows the other too closely; running a red light: it passes a red stop line and then crosses the
-other's path. Each is judged by its interaction type, whatever the subtype (a prompt read from text names none; the
-judge of an experiment's prompt asks for the subtype the log shows), except the last five, judged by their own
-subtype (`BehaviourSpec.exact`).
+other's path; pulling out: from (nearly) standing off the other's way, it comes onto it just ahead of it. Each is
+judged by its interaction type, whatever the subtype (a prompt read from text names none; the judge of an
+experiment's prompt asks for the subtype the log shows), except the last six, judged by their own subtype
+(`BehaviourSpec.exact`).
 
 Only simulated states are read: the executed past, the candidates and the undriven agents' simulated tracks (never
 the logged future); traffic lights are held at their state at the start of the simulation. See docs/simulation.md
@@ -43,6 +44,7 @@ from langtraj.interdrive.detector import (
     overtake_cut_in_runs,
     pair_rows,
     passing_runs,
+    pull_out_runs,
     red_light_runs,
     tailgating_runs,
     yielding_runs,
@@ -63,6 +65,7 @@ PAIR_RUNS: dict[Behaviour, Callable[[SceneGeometry, int, int], list[Pair]]] = {
     Behaviour.BRAKE_HARD: braking_lead_runs,
     Behaviour.TAILGATE: tailgating_runs,
     Behaviour.RUN_RED_LIGHT: red_light_runs,
+    Behaviour.PULL_OUT: pull_out_runs,
 }
 """The detector's per-pair rule judging each pair behaviour: the runs of its interaction type toward the other agent
 (`BehaviourSpec.interaction`), or of its own subtype where the spec is `exact`."""

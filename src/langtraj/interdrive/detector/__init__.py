@@ -7,12 +7,12 @@ registered in `INTERACTION_RULES`; `detect_interactions` runs them all over one 
 `parts` (`Pair` and the `ScenePart` base), `scene` (`SceneGeometry`, its parts built in dependency order), `paths`
 (paths, leaders, following), `lanes` (lane matches, lane leaders, roundabouts), `lane_changes` (lane changes,
 merges, overtakes), `yields` (held vehicles, conflict points), `crosswalks` (pedestrians), `red_lights` (red lights
-run across another's path), `rules` (the rules); each
+run across another's path), `pull_outs` (pulling out in front of another), `rules` (the rules); each
 part imports only the parts it reads, so no module imports one that imports it back. Lane primitives shared
 with the heuristic labeler (`LaneChange`, neighbour lanes, the road-side test of parked cars) are in `mapindex`.
 One ordered pair can be judged alone by the rules' own definitions: `yielding_runs`, `passing_runs`,
-`following_runs`, `cut_in_runs`, `overtake_cut_in_runs`, `braking_lead_runs`, `tailgating_runs` and
-`red_light_runs` give the runs of the pair's labels of that
+`following_runs`, `cut_in_runs`, `overtake_cut_in_runs`, `braking_lead_runs`, `tailgating_runs`, `red_light_runs`
+and `pull_out_runs` give the runs of the pair's labels of that
 type that `detect_interactions` keeps, computing only what the pair needs (the two agents' paths, held steps, red
 lights and standing, and the leaders of the one that waits, per agent and only at the steps that decide); `pair_rows`
 names the agents they read, so a scene may be cut to those. The rules over all pairs run the same per-pair
@@ -50,6 +50,8 @@ The rules mirror how `ground_truth.py` defines each type from SUMO's events, so 
   and the target lane has some or runs on `lane_runs_on` past the lane left's end (a map crop cuts both alike);
   a map without lane connectivity (nuScenes) shows no lane ending, so it has no merges.
   On-ramp subtypes when no lane before the lane left lies beside (or is) a lane before the target lane.
+  Pulling out (a merging subtype): see `pull_outs` (A, nearly standing off B's heading line and across it or on no
+  lane, comes onto that line just ahead of B).
 - red-light running (a passing subtype): see `red_lights` (A passes a red stop point, then crosses B's heading line
   just ahead of B, or B yields to A).
 - overtaking: a lane change of A whose former leader B (the lane leader on the lane left right before the switch)
@@ -93,6 +95,7 @@ from langtraj.interdrive.detector.rules import (
     overtake_cut_in_runs,
     pair_rows,
     passing_runs,
+    pull_out_runs,
     red_light_runs,
     tailgating_runs,
     yielding_runs,
@@ -111,6 +114,7 @@ __all__ = [
     "overtake_cut_in_runs",
     "pair_rows",
     "passing_runs",
+    "pull_out_runs",
     "red_light_runs",
     "tailgating_runs",
     "yielding_runs",

@@ -73,5 +73,10 @@ class DetectorConfig:
     hard_braking_steps: int = 5  # steps (0.5 s) over which hard braking is averaged
     hard_braking_speed: float = 3.0  # m/s: hard braking starts at least this fast
     braking_response_s: float = 2.0  # s after a lead's hard braking that its label covers (the follower's response)
+    pull_out_speed: float = 3.0  # m/s: at most this fast, off another's line, a vehicle waits to pull out ...
+    pull_out_lookback_s: float = 4.0  # s: ... within this before it comes onto that line
+    pull_out_heading: float = math.radians(30.0)  # heading across the other's line by this much (or on no lane)
+    pull_out_on_line: float = 1.5  # m: a vehicle this close to the other's heading line has pulled out onto it
+    pull_out_other_speed: float = 3.0  # m/s: the vehicle pulled out in front of drives at least this fast
     slow_lead_ratio: float = 0.6  # a leader at most this share of the follower's earlier top speed is slow
     min_window_s: float = 1.0  # a label must overlap the current and future steps by this long

@@ -235,7 +235,8 @@ class OvertakingRule(InteractionRule):
 
 @INTERACTION_RULES.register
 class MergingRule(InteractionRule):
-    """A lane change out of a lane that ends, with the leader on the target lane."""
+    """A lane change out of a lane that ends, with the leader on the target lane; and a vehicle pulling out in front
+    of another from a side road, a driveway or the kerb (`PullOutGeometry`)."""
 
     name = "merging"
     type = InteractionType.MERGING
@@ -257,7 +258,20 @@ class MergingRule(InteractionRule):
             else:
                 sub = "merging/standard" if onramp else "merging/lane_reduction"
             labels.append(_label(scene, a, changes.leader_after(change), sub, change.start, change.end))
-        return labels
+        return labels + _pair_labels(scene, _pull_outs(scene), "merging/pull_out")
+
+
+def _pull_outs(scene: SceneGeometry) -> list[Pair]:
+    """Every pull-out in front of another road user (`PullOutGeometry.runs`), by each vehicle or cyclist that is
+    (nearly) standing at some step, toward every other mover."""
+    found = scene.pull_outs
+    return [
+        p
+        for a in np.flatnonzero(scene.movers).tolist()
+        if found.could_pull_out(a)
+        for b in np.flatnonzero(scene.movers).tolist()
+        for p in found.runs(a, b)
+    ]
 
 
 def _window_steps(config: DetectorConfig) -> int:
@@ -376,6 +390,12 @@ def red_light_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
     "passing/red_light_running" labels toward other that `detect_interactions` gives on `scene`'s scenario, computed
     for the pair alone."""
     return _kept(scene, scene.red_lights.runs(agent, other), "passing/red_light_running")
+
+
+def pull_out_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:
+    """The steps over which agent row `agent` pulls out in front of row `other`: its "merging/pull_out" labels toward
+    other that `detect_interactions` gives on `scene`'s scenario, computed for the pair alone."""
+    return _kept(scene, scene.pull_outs.runs(agent, other), "merging/pull_out")
 
 
 def tailgating_runs(scene: SceneGeometry, agent: int, other: int) -> list[Pair]:

@@ -3,8 +3,8 @@
 It holds the agents' arrays and who stands all window (`SceneArrays`, in `arrays`); the rest lives in its parts,
 each computed once on first use and built here in dependency order, each given the parts it reads: `paths` (paths,
 leaders, following), `lanes` (lane matches, lane leaders, roundabouts), `changes` (lane changes, merges,
-overtakes), `yields` (held vehicles, yields at conflict points), `crossings` (pedestrians and crosswalks) and
-`red_lights` (red lights run across another's path).
+overtakes), `yields` (held vehicles, yields at conflict points), `crossings` (pedestrians and crosswalks),
+`red_lights` (red lights run across another's path) and `pull_outs` (vehicles pulling out in front of another).
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from langtraj.interdrive.detector.lane_changes import LaneChangeGeometry
 from langtraj.interdrive.detector.lanes import LaneGeometry
 from langtraj.interdrive.detector.parts import ScenePart
 from langtraj.interdrive.detector.paths import PathGeometry
+from langtraj.interdrive.detector.pull_outs import PullOutGeometry
 from langtraj.interdrive.detector.red_lights import RedLightGeometry
 from langtraj.interdrive.detector.yields import YieldGeometry
 from langtraj.interdrive.labels import AgentLabel
@@ -46,3 +47,4 @@ class SceneGeometry(ScenePart):
         self.yields = YieldGeometry(arrays, self.paths, self.lanes)
         self.crossings = CrosswalkGeometry(arrays, self.yields)
         self.red_lights = RedLightGeometry(arrays, self.yields)
+        self.pull_outs = PullOutGeometry(arrays, self.lanes)

@@ -354,6 +354,12 @@ _SUBTYPE_TEMPLATES: dict[str, tuple[str, ...]] = {
         "|at the end of the merging lane|near the end of the lane|at the last possible point}"
         " {next to|alongside} <other>[ in {heavy|congested} traffic]",
     ),
+    "merging/pull_out": (
+        "{pulls out|pulls out right|pulls out suddenly|noses out|edges out} in front of <other>"
+        "[ from {a side road|a side street|a driveway|the kerb|a parking spot}]",
+        "{pulls out of|emerges from|comes out of} {a side road|a side street|a driveway|a junction}"
+        " {in front of|right in front of|just ahead of} <other>",
+    ),
     # -- other
     "other/undefined": (
         "{behaves unusually|acts unusually|does something unusual|behaves in an unexpected way"

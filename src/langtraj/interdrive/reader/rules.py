@@ -301,7 +301,7 @@ _GO_FIRST = [
     rf"\b{_GO_FIRST_VERBS}{_gap(5)}\s+(?:before|sooner\s+than|earlier\s+than)\s+{_OTHER}",
     rf"\b{_AHEAD_VERBS}"
     rf"{_gap(5)}\s+ahead\s+of\s+{_OTHER}",
-    rf"\b{verb('cross', 'pull out', 'dart', 'shoot', 'pass', 'go', 'turn')}"
+    rf"\b{verb('cross', 'dart', 'shoot', 'pass', 'go', 'turn')}"
     rf"(?:\s+(?:out|across))?\s+in\s+front\s+of\s+{_OTHER}",
     rf"\b{verb('take', 'have', 'claim', 'keep', 'assert', 'use', 'exercise', 'get', 'seize')}"
     rf"\s+(?:{_POSSESSIVE}\s+)?(?:right\s+of\s+way|right-of-way|priority|precedence)"
@@ -334,8 +334,8 @@ _CUT_IN = [
     rf"(?:\s+(?:over|across))?\s+(?:in)?to\s+{_OTHER}'s\s+lane\b"
     r"(?:\s+(?:right\s+|just\s+)?(?:in\s+front\s+of|ahead\s+of)\s+(?:it|them|him|her))?",
 ]
-"""Changing into the other's lane just ahead of it (Euro NCAP's cut-in); "pulls out in front of @7" stays going first
-(from a side road, not a lane beside it)."""
+"""Changing into the other's lane just ahead of it (Euro NCAP's cut-in); "pulls out in front of @7" is a pull-out
+(from a side road, not a lane beside it: `_PULL_OUT`)."""
 
 _PASS_VERBS = verb(
     "overtake", "pass", "get past", "go past", "get by", "go by", "get round", "go round", "get around", "go around",
@@ -421,6 +421,33 @@ across @7's path", "jumps the red in front of @7", "crosses the junction on red 
 path on a red light"; or "runs the red light" alone, the other agent the one other mention ("ignores the red light
 and goes in front of @7")."""
 
+_PULL_OUT_VERBS = verb(
+    "pull out", "nose out", "edge out", "creep out", "inch out", "emerge", "come out", "turn out", "shoot out",
+    "dart out", "lurch out", "roll out", "back out", "reverse out", "pull away",
+)  # fmt: skip
+_PLACE = (
+    r"(?:a|an|the|its|their|his|her)\s+(?:[\w-]+\s+)?(?:side\s+road|side\s+street|road|street|driveway|drive|junction"
+    r"|intersection|parking\s+(?:spot|space|lot|bay)|car\s+park|kerb|curb|lane|alley|alleyway|entrance|exit|gate"
+    r"|garage|forecourt|minor\s+road|t-junction)"
+)
+_FROM_PLACE = (
+    rf"(?:\s+(?:of|from|out\s+of)\s+{_PLACE})?"
+    r"(?:\s+(?:in)?to\s+(?:the\s+)?(?:road|street|traffic|lane|main\s+road))?"
+)
+_PULL_OUT = [
+    rf"\b{_PULL_OUT_VERBS}(?:\s+(?:suddenly|right|just|sharply|abruptly|quickly|blindly|straight))*{_FROM_PLACE}"
+    rf"\s+(?:{_IN_FRONT}|(?:in)?to\s+the\s+(?:path|way)\s+of|across\s+the\s+path\s+of)\s+{_OTHER}",
+    rf"\b{_PULL_OUT_VERBS}(?:\s+(?:suddenly|right|just|sharply|abruptly|quickly|blindly|straight))*{_FROM_PLACE}"
+    rf"\s+(?:in)?to\s+{_OTHER}'s\s+(?:path|way|lane)\b",
+    rf"\b{verb('pull', 'turn', 'come', 'drive', 'emerge')}\s+(?:(?:left|right)\s+)?(?:out\s+)?(?:of|from|out\s+of)"
+    rf"\s+{_PLACE}"
+    rf"{_TIGHT_GAP}\s+{_IN_FRONT}\s+{_OTHER}",
+]
+"""Pulling out in front of the other from a side road, a driveway or the kerb (NHTSA's pre-crash scenarios at
+non-signalized junctions): "pulls out in front of @7", "pulls out of the side road into the path of @7", "noses out
+of a driveway into @7's lane", "emerges from the junction right in front of @7", "turns left out of the side road in
+front of @7"."""
+
 _YIELD = [
     rf"\b{verb('yield', 'give way', 'defer', 'cede', 'submit')}"
     rf"(?:\s+(?:the\s+)?(?:right\s+of\s+way|right-of-way|priority|precedence|the\s+junction))?\s+(?:to|for)\s+{_OTHER}",
@@ -478,6 +505,7 @@ def _build_rules() -> tuple[_Rule, ...]:
         (Behaviour.BRAKE_HARD, _BRAKE_HARD),
         (Behaviour.TAILGATE, _TAILGATE),  # before following
         (Behaviour.RUN_RED_LIGHT, _RUN_RED_LIGHT),  # before going first
+        (Behaviour.PULL_OUT, _PULL_OUT),  # before going first
         (Behaviour.GO_FIRST, _GO_FIRST),
         (Behaviour.YIELD, _YIELD),
         (Behaviour.FOLLOW, _FOLLOW),
@@ -502,6 +530,7 @@ SUBSUMES: dict[Behaviour, frozenset[Behaviour]] = {
     Behaviour.BRAKE_HARD: frozenset({Behaviour.STOP, Behaviour.SLOW_DOWN}),
     Behaviour.TAILGATE: frozenset({Behaviour.FOLLOW, Behaviour.SPEED_UP, Behaviour.SLOW_DOWN}),
     Behaviour.RUN_RED_LIGHT: frozenset({Behaviour.GO_FIRST, Behaviour.SPEED_UP, Behaviour.GO_STRAIGHT}),
+    Behaviour.PULL_OUT: frozenset({Behaviour.GO_FIRST, Behaviour.SPEED_UP, Behaviour.TURN_LEFT, Behaviour.TURN_RIGHT}),
 }
 """A kind that, asked with another, is part of it: "pulls over and stops", "brakes to let @7 pass"."""
 

@@ -28,6 +28,9 @@ the lane graph (`lanes_ahead`) and returns either a `BehaviourTarget` in world c
   0.4 s of headway within a few seconds, and the other's speed after;
 - running a red light across another agent's way: its way through a signal showing stop at the current step, and
   the crossing with the other's way past it, to be passed first;
+- pulling out in front of another agent from a side road, a driveway or the kerb (the agent nearly standing): the
+  first of its ways (off lanes, a straight line) that meets the other's way ahead of it, set off so that it is there
+  `PULL_OUT_GAP_S` before the other;
 - a turn or a lane change and then a stop (`stop_after`): the manoeuvre's path, and a stop past where it is done.
 
 Only the current step and the past are read (never the logged future), so a simulation may use the target.
@@ -136,6 +139,27 @@ TAILGATE_CLOSING = 3.0
 """How much faster than the other a tailgater closes the gap (m/s on average), within `TAILGATE_WITHIN_S`."""
 TAILGATE_WITHIN_S = 6.0
 """The latest a tailgater must have closed to its short headway (s): later, the judge may not see it tailgate."""
+PULL_OUT_MAX_SPEED = 3.0
+"""The most an agent asked to pull out may be moving (m/s; the judge's `DetectorConfig.pull_out_speed`): a pull-out
+starts from standing or a crawl."""
+PULL_OUT_OTHER_MIN_SPEED = 3.0
+"""The least speed of the agent pulled out in front of (m/s; the judge's `DetectorConfig.pull_out_other_speed`)."""
+PULL_OUT_REACH_M = 30.0
+"""How far along its way an agent pulling out may meet the other's way (m): farther, it is driving, not pulling out."""
+PULL_OUT_MEET_M = 1.0
+"""The agent's way meets the other's where it comes this close to it (m)."""
+PULL_OUT_GAP_S = 2.0
+"""How long before the other agent gets there the agent is where it pulls out onto the other's way (s), setting off
+later where the other is farther: the two-second rule, broken for the other as the agent noses in."""
+PULL_OUT_MIN_GAP_S = 1.0
+"""The least such time (s): less, and the other cannot brake for it (a crash, not a pull-out)."""
+PULL_OUT_LATEST_S = HORIZON_S - 2.0
+"""The latest the other may get to where the agent pulls out (s): the judge sees the two after it."""
+PULL_OUT_TOP_SPEED = 10.0
+"""The speed an agent that has pulled out drives on at (m/s), or the other's, if slower."""
+PULL_OUT_OFF_WAY_M = 2.5
+"""How far from the other's way an agent pulling out must be (m; the judge's `DetectorConfig.red_conflict_radius`):
+nearer, it is on that way already (in the lane, or standing in the junction across it)."""
 STOP_AFTER_M = 2.0
 """How far past where a manoeuvre is done a stop asked after it lies (m): a turn is done 5 m past the junction's exit,
 so its stop lies 7 m past the exit, the car wholly out of the junction."""
@@ -180,6 +204,8 @@ class BehaviourTarget:
     """How far the agent's centre is ahead of the other's along the path once settled (m), where the target says (a
     cut-in, an overtake and cut-in: the gap and the half lengths), so that steering can keep it relative to where
     the other actually drives."""
+    starts_s: float | None = None
+    """When the agent sets off (s), where the target has it wait first (a pull-out waiting for its moment)."""
     joins_m: float | None = None
     """How far along the path it joins its new lane (m), where the target changes lanes (a lane change: where its
     lead-in meets the lane), so that what is asked after the change lies past it (`stop_after`)."""
@@ -192,7 +218,7 @@ class BehaviourTarget:
     @property
     def first(self) -> bool | None:
         """Whether the agent passes the conflict point first (None for a single-agent behaviour)."""
-        return None if self.other_id is None else self.behaviour in (Behaviour.GO_FIRST, Behaviour.RUN_RED_LIGHT)
+        return None if self.other_id is None else self.behaviour in _FIRST
 
     @property
     def goal_point(self) -> np.ndarray | None:
@@ -216,6 +242,10 @@ class BehaviourTarget:
             "conflict": None if self.conflict is None else [round(float(v), 2) for v in self.conflict],
             "first": self.first,
         }
+
+
+_FIRST = (Behaviour.GO_FIRST, Behaviour.RUN_RED_LIGHT, Behaviour.PULL_OUT)
+"""The pair kinds whose agent gets to the conflict point first."""
 
 
 class TargetUnavailable(InputError):
@@ -411,6 +441,8 @@ def _target(
         return _tailgate(ctx, agent, other)
     if behaviour is Behaviour.RUN_RED_LIGHT:
         return _run_red_light(ctx, agent, other)
+    if behaviour is Behaviour.PULL_OUT:
+        return _pull_out(ctx, agent, other)
     return _order(ctx, agent, other, behaviour)
 
 
@@ -699,6 +731,118 @@ def _run_red_light(ctx: TargetContext, agent: _Agent, other: _Agent) -> Behaviou
         _check_going_first(agent, other, target)
         return target
     raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+
+
+def _pull_out(ctx: TargetContext, agent: _Agent, other: _Agent) -> BehaviourTarget:
+    """From (nearly) standing onto the other's way ahead of it: the first of the agent's ways (`_pull_out_ways`)
+    that comes within `PULL_OUT_MEET_M` of the other's way ahead of the other's front, within `PULL_OUT_REACH_M`
+    (one that joins it, running on along it, before one that crosses it); the agent, speeding up as going first does,
+    is there `PULL_OUT_GAP_S` before the other gets there at its speed, setting off later (`starts_s`) where the
+    other is farther, and drives on at `PULL_OUT_TOP_SPEED` or the other's speed. Infeasible for an agent moving
+    faster than `PULL_OUT_MAX_SPEED`, on the other's way already (within `PULL_OUT_OFF_WAY_M`), with no such meeting,
+    or with a red light on its way before it (that is running the light); for an other slower than
+    `PULL_OUT_OTHER_MIN_SPEED`, there later than `PULL_OUT_LATEST_S`, or too close to be there less than
+    `PULL_OUT_MIN_GAP_S` after the agent."""
+    behaviour, v, v_other = Behaviour.PULL_OUT, agent.here.speed, other.here.speed
+    if agent.kind not in (AgentType.VEHICLE, AgentType.CYCLIST):
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", "only vehicles and cyclists pull out")
+    if v > PULL_OUT_MAX_SPEED:
+        reason = f"it is moving at {v:.1f} m/s: a pull-out starts from standing or a crawl "
+        reason += f"(at most {PULL_OUT_MAX_SPEED:g})"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    if v_other < PULL_OUT_OTHER_MIN_SPEED:
+        reason = f"@{other.track_id} is too slow to pull out in front of ({v_other:.1f} m/s; at least "
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason + f"{PULL_OUT_OTHER_MIN_SPEED:g})")
+    theirs = ctx.ahead(other)
+    if float(project_on_polyline(agent.xy, theirs).distance) <= PULL_OUT_OFF_WAY_M:
+        reason = f"it is on @{other.track_id}'s way already: nothing to pull out of"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    clear = 0.5 * (agent.length + other.length) + 2.0  # its centre this far ahead of the other's, at least
+    meetings = [m for m in (_meeting(path, theirs) for path in _pull_out_ways(ctx, agent, theirs)) if m is not None]
+    meetings = [m for m in meetings if m[1] <= PULL_OUT_REACH_M and m[2] > clear]
+    if not meetings:
+        reason = f"none of its ways meets @{other.track_id}'s way ahead of it within {PULL_OUT_REACH_M:g} m"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    path, there, station, joins = min(meetings, key=lambda m: (not m[3], m[1]))
+    if _red_on_way(ctx, path, there):
+        reason = f"its way shows red before @{other.track_id}'s: going on is running the red light"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    need = _time_to_cover(there, v)
+    other_there = (station - 0.5 * other.length) / max(v_other, 1e-6)
+    if other_there > PULL_OUT_LATEST_S:
+        reason = f"@{other.track_id} is {other_there:.1f} s from where it would pull out "
+        reason += f"(at most {PULL_OUT_LATEST_S:g})"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    if other_there - need < PULL_OUT_MIN_GAP_S:
+        reason = f"@{other.track_id} gets to where it would pull out in {other_there:.1f} s; it needs {need:.1f} s"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    starts = max(other_there - need - PULL_OUT_GAP_S, 0.0)
+    how = "into" if joins else "across"
+    return BehaviourTarget(
+        agent.track_id,
+        behaviour,
+        path,
+        f"out {how} @{other.track_id}'s way {there:.0f} m ahead from {starts:.1f} s, there by {starts + need:.1f} s, "
+        f"{other_there - starts - need:.1f} s before it",
+        station_of_goal=float(there),
+        speed=float(min(PULL_OUT_TOP_SPEED, v_other)),
+        other_id=other.track_id,
+        conflict=point_at(path, there),
+        other_eta=float(other_there),
+        current_speed=v,
+        other_speed=v_other,
+        settled_s=float(starts + need),
+        lead_m=float(clear) if joins else None,
+        starts_s=float(starts),
+    )
+
+
+def _pull_out_ways(ctx: TargetContext, agent: _Agent, theirs: np.ndarray) -> list[np.ndarray]:
+    """The ways a pull-out may take: on a lane, its ways by the lane graph (`TargetContext.ways_ahead`); off lanes (a
+    driveway, a car park, the kerb), a straight line onto the other's way `theirs`, meeting it as far past the point
+    beside the agent as the agent is from it (at least 6 m), then along it, where the agent faces that point."""
+    if ctx.index.has_lanes and agent.on_lane:
+        return ctx.ways_ahead(agent)
+    beside = project_on_polyline(agent.xy, theirs)
+    station = float(beside.station) + max(6.0, float(beside.distance))
+    entry = point_at(theirs, station)
+    to_entry = entry - agent.xy
+    facing = np.array([math.cos(agent.heading), math.sin(agent.heading)])
+    if float(to_entry @ facing) <= 0.0:
+        return []
+    on = theirs[arc_lengths(theirs) > station]
+    lead_in = resample(np.stack([agent.xy, entry]), ROUTE_SPACING)
+    return [np.concatenate([lead_in[:-1], entry[None], on])]
+
+
+def _meeting(path: np.ndarray, theirs: np.ndarray) -> tuple[np.ndarray, float, float, bool] | None:
+    """Where `path` first comes within `PULL_OUT_MEET_M` of the other's way `theirs`: (path, the station along
+    `path` there, the station along `theirs`, whether `path` joins it, running on within that of it 5 m later);
+    None where it never does."""
+    if len(path) < 2:
+        return None
+    found = project_on_polyline(path, theirs)
+    near = np.flatnonzero(found.distance < PULL_OUT_MEET_M)
+    if not near.size:
+        return None
+    i = int(near[0])
+    arc = arc_lengths(path)
+    later = int(np.searchsorted(arc, arc[i] + 5.0))
+    joins = later < len(path) and bool(found.distance[later] < PULL_OUT_MEET_M)
+    return path, float(arc[i]), float(found.station[i]), joins
+
+
+def _red_on_way(ctx: TargetContext, path: np.ndarray, station: float) -> bool:
+    """Whether the stop point of a signal showing stop at the current step lies on `path` (within
+    `RED_STOP_LATERAL`) before `station`."""
+    lights, c = ctx.scenario.traffic_lights, ctx.scenario.current_index
+    if lights is None or lights.num_lanes == 0:
+        return False
+    red = np.isin(lights.states[c], [int(s) for s in RED_STATES]) & lights.valid[c]
+    if not red.any():
+        return False
+    found = project_on_polyline(np.asarray(lights.stop_points)[red, :2], path)
+    return bool(((found.distance < RED_STOP_LATERAL) & (found.station < station)).any())
 
 
 def _red_before(stops: np.ndarray, ways: list[np.ndarray], point: np.ndarray) -> bool:
