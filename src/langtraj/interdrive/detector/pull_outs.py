@@ -28,6 +28,14 @@ class PullOutGeometry(ScenePart):
     def __init__(self, arrays: SceneArrays, lanes: LaneGeometry):
         super().__init__(arrays)
         self.lanes = lanes
+        self._off_lanes: dict[int, np.ndarray] = {}
+
+    def off_lanes(self, a: int) -> np.ndarray:
+        """bool [T]: agent `a` is on no map lane at each step (computed once per agent: every other agent's pull-out
+        asks)."""
+        if a not in self._off_lanes:
+            self._off_lanes[a] = self.lanes.lanes_at(a, np.arange(self.num_steps)) < 0
+        return self._off_lanes[a]
 
     def could_pull_out(self, a: int) -> bool:
         """Whether `a` is a mover that is (nearly) standing at some valid step: only such agents can pull out."""
@@ -49,10 +57,8 @@ class PullOutGeometry(ScenePart):
         clear = along - 0.5 * (self.length[a] + self.length[b])
         on_line = both & (np.abs(side) <= cfg.pull_out_on_line) & (clear > 0.0)
         across = np.abs(wrap_angle(self.heading[a] - self.heading[b])) >= cfg.pull_out_heading
-        steps = np.arange(self.num_steps)
-        off_lanes = self.lanes.lanes_at(a, steps) < 0
         waiting = both & (np.abs(side) > cfg.red_conflict_radius) & (self.speed[a] <= cfg.pull_out_speed)
-        waiting &= across | off_lanes
+        waiting &= across | self.off_lanes(a)
         lookback = round(cfg.pull_out_lookback_s / STEP_SECONDS)
         response = round(cfg.braking_response_s / STEP_SECONDS)
         out: list[Pair] = []

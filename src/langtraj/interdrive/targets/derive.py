@@ -40,6 +40,7 @@ See docs/interdrive.md ('Targets and feasibility').
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from typing import Any, Literal
 
@@ -48,6 +49,7 @@ import numpy as np
 from langtraj.angles import wrap_angle
 from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour, Side
+from langtraj.interdrive.detector.config import DetectorConfig
 from langtraj.interdrive.targets.config import CounterfactualConfig
 from langtraj.interdrive.targets.lanes_ahead import (
     AgentOnLane,
@@ -65,6 +67,9 @@ from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
 from langtraj.scenario.types import RED_STATES, AgentType, StateField, TrafficLightState
 
 Status = Literal["feasible", "infeasible", "undecided"]
+
+_JUDGE = DetectorConfig()
+"""The judge's thresholds (`interdrive.detector`), which a target that must be judged to happen starts from."""
 
 COMFORT_DECELERATION = 2.0
 """Comfortable braking (m/s^2): a stop lies where it brings the agent to rest, and a pull-over needs room to stop
@@ -139,11 +144,11 @@ TAILGATE_CLOSING = 3.0
 """How much faster than the other a tailgater closes the gap (m/s on average), within `TAILGATE_WITHIN_S`."""
 TAILGATE_WITHIN_S = 6.0
 """The latest a tailgater must have closed to its short headway (s): later, the judge may not see it tailgate."""
-PULL_OUT_MAX_SPEED = 3.0
-"""The most an agent asked to pull out may be moving (m/s; the judge's `DetectorConfig.pull_out_speed`): a pull-out
-starts from standing or a crawl."""
-PULL_OUT_OTHER_MIN_SPEED = 3.0
-"""The least speed of the agent pulled out in front of (m/s; the judge's `DetectorConfig.pull_out_other_speed`)."""
+PULL_OUT_MAX_SPEED = _JUDGE.pull_out_speed
+"""The most an agent asked to pull out may be moving (m/s; the judge's): a pull-out starts from standing or a
+crawl."""
+PULL_OUT_OTHER_MIN_SPEED = _JUDGE.pull_out_other_speed
+"""The least speed of the agent pulled out in front of (m/s; the judge's)."""
 PULL_OUT_REACH_M = 30.0
 """How far along its way an agent pulling out may meet the other's way (m): farther, it is driving, not pulling out."""
 PULL_OUT_MEET_M = 1.0
@@ -157,9 +162,9 @@ PULL_OUT_LATEST_S = HORIZON_S - 2.0
 """The latest the other may get to where the agent pulls out (s): the judge sees the two after it."""
 PULL_OUT_TOP_SPEED = 10.0
 """The speed an agent that has pulled out drives on at (m/s), or the other's, if slower."""
-PULL_OUT_OFF_WAY_M = 2.5
-"""How far from the other's way an agent pulling out must be (m; the judge's `DetectorConfig.red_conflict_radius`):
-nearer, it is on that way already (in the lane, or standing in the junction across it)."""
+PULL_OUT_OFF_WAY_M = _JUDGE.red_conflict_radius
+"""How far from the other's way an agent pulling out must be (m; the judge's): nearer, it is on that way already (in
+the lane, or standing in the junction across it)."""
 STOP_AFTER_M = 2.0
 """How far past where a manoeuvre is done a stop asked after it lies (m): a turn is done 5 m past the junction's exit,
 so its stop lies 7 m past the exit, the car wholly out of the junction."""
@@ -686,15 +691,11 @@ def _run_red_light(ctx: TargetContext, agent: _Agent, other: _Agent) -> Behaviou
     infeasible without such a light and crossing, or where the other gets to the crossing first
     (`_check_going_first`)."""
     behaviour = Behaviour.RUN_RED_LIGHT
-    lights = ctx.scenario.traffic_lights
-    if lights is None or lights.num_lanes == 0:
+    stops = _stop_points(ctx, RED_STATES)
+    if stops is None:
         raise TargetUnavailable(agent.track_id, behaviour, "undecided", "the scene has no traffic lights")
-    c = ctx.scenario.current_index
-    red = np.isin(lights.states[c], [int(s) for s in RED_STATES]) & lights.valid[c]
-    if not red.any():
+    if not len(stops):
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", "no signal shows red at the current step")
-    stops = np.asarray(lights.stop_points)[red, :2]
-    not_go = np.isin(lights.states[c], [int(s) for s in NOT_GO_STATES]) & lights.valid[c]
     speed = max(agent.here.speed, RED_LIGHT_SPEED)
     reach = speed * RED_LIGHT_REACH_S
     theirs = ctx.ways_ahead(other)
@@ -711,7 +712,7 @@ def _run_red_light(ctx: TargetContext, agent: _Agent, other: _Agent) -> Behaviou
             reason = f"@{other.track_id}'s way does not cross its way past the red light {light:.0f} m ahead"
             continue
         i, distance = min(crossings)
-        if _red_before(np.asarray(lights.stop_points)[not_go, :2], theirs, path[i]):
+        if _red_before(_stop_points(ctx, NOT_GO_STATES), theirs, path[i]):
             reason = f"@{other.track_id} faces a red or amber light too, before the crossing: no right of way to cut"
             continue
         target = BehaviourTarget(
@@ -832,16 +833,23 @@ def _meeting(path: np.ndarray, theirs: np.ndarray) -> tuple[np.ndarray, float, f
     return path, float(arc[i]), float(found.station[i]), joins
 
 
+def _stop_points(ctx: TargetContext, states: Iterable[TrafficLightState]) -> np.ndarray | None:
+    """The stop points [K, 2] of the signals showing one of `states` at the current step (none: [0, 2]); None where
+    the scene has no signals."""
+    lights, c = ctx.scenario.traffic_lights, ctx.scenario.current_index
+    if lights is None or lights.num_lanes == 0:
+        return None
+    showing = np.isin(lights.states[c], [int(s) for s in states]) & lights.valid[c]
+    return np.asarray(lights.stop_points)[showing, :2]
+
+
 def _red_on_way(ctx: TargetContext, path: np.ndarray, station: float) -> bool:
     """Whether the stop point of a signal showing stop at the current step lies on `path` (within
     `RED_STOP_LATERAL`) before `station`."""
-    lights, c = ctx.scenario.traffic_lights, ctx.scenario.current_index
-    if lights is None or lights.num_lanes == 0:
+    stops = _stop_points(ctx, RED_STATES)
+    if stops is None or not len(stops):
         return False
-    red = np.isin(lights.states[c], [int(s) for s in RED_STATES]) & lights.valid[c]
-    if not red.any():
-        return False
-    found = project_on_polyline(np.asarray(lights.stop_points)[red, :2], path)
+    found = project_on_polyline(stops, path)
     return bool(((found.distance < RED_STOP_LATERAL) & (found.station < station)).any())
 
 
