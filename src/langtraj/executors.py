@@ -3,7 +3,9 @@
 An executor maps a picklable function over independent items and yields the results as they finish.
 `process` (the default) is a local process pool; `ray` hands each item to a Ray cluster as a task
 (docs/design.md, 'Scale-out'), so one command scales from a laptop to many nodes. libsumo keeps one
-simulation per process, so every engine must run one item per process at a time.
+simulation per process, so every engine must run one item per process at a time. Each process gets its share of
+the machine's cores for its math libraries (`share_cores`): two workers each spinning up a thread per core would
+run the model three times slower than one (docs/benchmarks.md, 'Suite workers').
 """
 
 from __future__ import annotations
@@ -42,6 +44,22 @@ class ShardExecutor(ABC):
 
 EXECUTORS: Registry[ShardExecutor] = Registry("executor")
 
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+"""The variables math libraries read for their thread count when they load."""
+
+
+def share_cores(workers: int) -> int:
+    """Limit this process's math threads to its share of the cores when `workers` processes run at once (a pool
+    worker's initializer); a count the user set in the environment wins. Returns the threads it now has."""
+    threads = max(1, (os.cpu_count() or 1) // max(1, workers))
+    for name in THREAD_VARIABLES:
+        os.environ.setdefault(name, str(threads))
+    threads = int(os.environ["OMP_NUM_THREADS"])
+    torch = sys.modules.get("torch")  # already loaded (an import at spawn): it read the variables too early
+    if torch is not None:
+        torch.set_num_threads(threads)
+    return threads
+
 
 @EXECUTORS.register
 class ProcessExecutor(ShardExecutor):
@@ -61,7 +79,9 @@ class ProcessExecutor(ShardExecutor):
             yield from (fn(item) for item in items)
             return
         context = multiprocessing.get_context("spawn")  # libsumo keeps global state: fresh processes only
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+        pool = ProcessPoolExecutor(
+            max_workers=workers, mp_context=context, initializer=share_cores, initargs=(workers,)
+        )
         try:
             for future in as_completed([pool.submit(fn, item) for item in items]):
                 yield future.result()
