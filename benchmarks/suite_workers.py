@@ -57,7 +57,11 @@ def main() -> None:
         suite = args.suite or Path(tmp) / "suite.yaml"
         if args.suite is None:
             suite.write_text(SUITE)
-        setups = {"1 worker": (1, None), "2 workers, cores shared": (2, None), f"2 workers, {cores} threads each": (2, cores)}
+        setups = {
+            "1 worker": (1, None),
+            "2 workers, cores shared": (2, None),
+            f"2 workers, {cores} threads each": (2, cores),
+        }
         medians = {}
         for label, (workers, threads) in setups.items():
             times = [
@@ -65,7 +69,9 @@ def main() -> None:
                 for i in range(args.repeats)
             ]
             medians[label] = statistics.median(times)
-            print(f"{label}: median {medians[label]:.1f} s over {args.repeats} ({', '.join(f'{t:.1f}' for t in times)})")
+            print(
+                f"{label}: median {medians[label]:.1f} s over {args.repeats} ({', '.join(f'{t:.1f}' for t in times)})"
+            )
     one = medians["1 worker"]
     for label, seconds in medians.items():
         print(f"  {label}: {seconds / one:.2f}x one worker")

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
+from langtraj.sim.prompt_checks import MAX_PROMPT_CHARS
 from langtraj.studio.app import StudioConfig, create_app
 from langtraj.studio.catalog import Catalog
-from langtraj.studio.checks import MAX_PROMPT_CHARS
 
 WOMD_ID = "637f20cafde22ff8"
 YIELD = "@1580 yields to @1584"  # read, and the map gives the yield a path
@@ -59,6 +59,17 @@ def test_an_unread_prompt_is_runnable_without_a_target(client: TestClient, womd_
     assert check["reading"]["describe"].startswith("not read:")
 
 
+def test_a_behaviour_the_map_rules_out_is_warned_about_as_simulate_does(client: TestClient, womd_key: str) -> None:
+    """Not refused: `simulate` warns and runs, and a suite reports the scenario as not happened."""
+    body = _check(client, womd_key, [f"@1588 comes to a stop. {LEFT}"])
+    (check,) = body["prompts"]
+    assert body["ok"] and check["ok"] and check["feasible"] is False
+    assert "@1587 cannot turn left: no left turn from its lane" in check["warning"]
+    stop, left = check["readings"]
+    assert (stop["agent"], stop["behaviour"], left["agent"], left["behaviour"]) == (1588, "stop", 1587, "turn_left")
+    assert [t["agent"] for t in check["targets"]] == [1588]
+
+
 def _not_valid_now(client: TestClient, key: str) -> int:
     agents = client.get(f"/api/scenes/{key}").json()["agents"]
     return next(a["id"] for a in agents if not a["sim"])
@@ -71,7 +82,9 @@ def _not_valid_now(client: TestClient, key: str) -> int:
         (["x" * 10_000], f"prompt is 10000 characters long; the limit is {MAX_PROMPT_CHARS}"),
         (["@99999 stops"], "unknown agent @99999"),
         (["the red car stops"], "mentions no agent"),
-        ([LEFT], "@1587 cannot turn left: no left turn from its lane"),
+        (["@1580 yields to @1580"], "names @1580 twice"),
+        (["@1580 yeilds to @1584"], "did you mean '@1580 yields to @1584'?"),
+        (["@1580 slows down. @1584 trun left"], "did you mean '@1584 turn left'?"),
         ([YIELD, "@1584 speeds up"], "@1584 is named by prompt 1 too"),
         (["NOT_VALID stops"], "not valid at the current step"),
     ],
@@ -86,8 +99,6 @@ def test_prompts_that_cannot_run_are_refused_with_no_job(
     refused = [p for p in body["prompts"] if not p["ok"]]
     assert len(refused) == 1 and expected in refused[0]["error"]
     assert "\n" not in refused[0]["error"]
-    if expected.startswith("@1587 cannot"):
-        assert refused[0]["feasible"] is False and refused[0]["warning"] == refused[0]["error"]
     response = client.post("/api/jobs", json={"scene": womd_key, "prompts": prompts, "rollouts": 2})
     assert response.status_code == 400 and expected in response.json()["error"]
     assert client.get("/api/jobs").json() == {"jobs": []}
@@ -96,7 +107,7 @@ def test_prompts_that_cannot_run_are_refused_with_no_job(
 def test_the_long_prompt_never_reaches_the_reader(
     client: TestClient, womd_key: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import langtraj.studio.checks as checks
+    import langtraj.sim.prompt_checks as checks
 
     def refuse(*_args):
         raise AssertionError("read")

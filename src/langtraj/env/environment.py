@@ -42,7 +42,8 @@ from langtraj.scenario.types import AgentType, StateField
 from langtraj.scenario.windowing import nth_window
 from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.policies import POLICIES, LoadedModel
-from langtraj.sim.prompts import prompt_mentions, user_prompt_entry
+from langtraj.sim.prompt_checks import check_prompts
+from langtraj.sim.prompts import prompt_mentions
 from langtraj.sim.setup import build_policy
 from langtraj.sim.stepping import SteppedSimulation
 from langtraj.sim.terms import pair_problem
@@ -156,9 +157,9 @@ class LangTrajEnv(gym.Env):
         ego = self._ego_row(scenario, episode.ego)
         ego_id = int(scenario.agents.ids[ego])
         prompts = tuple(p.replace(EGO_PLACEHOLDER, f"@{ego_id}") for p in episode.prompts)
-        for text in prompts:
-            if user_prompt_entry(scenario, text).mentions[0] == ego_id:
-                raise InputError(f"{text!r} asks something of the ego, which the planner drives", where="prompts")
+        error = check_prompts(scenario, prompts, ego=ego_id, targets=False).first_error()  # the one prompt check
+        if error is not None:
+            raise InputError(error, where="prompts")
         target = ego_id if episode.target == "ego" else episode.target
         adversary = episode.adversary
         problem = pair_problem(adversary, target, ego=ego_id)  # the scene's own agents: checked by the simulation

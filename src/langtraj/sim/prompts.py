@@ -8,6 +8,7 @@ simulation: each behaviour's target and the criteria selection judges by (`promp
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -21,6 +22,7 @@ from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
 from langtraj.interdrive.reader import PromptReading, read_clauses
+from langtraj.interdrive.reader.spelling import did_you_mean
 from langtraj.interdrive.targets import (
     BehaviourTarget,
     Feasibility,
@@ -94,6 +96,9 @@ def read_prompts(texts: Sequence[str], *, strict: bool = True) -> tuple[PromptRe
         for reading in clauses:
             if not strict:
                 continue
+            problem = None if reading.read else _unread_problem(reading)
+            if problem is not None:
+                raise InputError(problem, where="prompt")
             if len(clauses) > 1 and not reading.read:
                 raise InputError(
                     f"clause {reading.clause!r} of {text!r} cannot be read ({reading.reason}); write each agent's "
@@ -110,6 +115,20 @@ def read_prompts(texts: Sequence[str], *, strict: bool = True) -> tuple[PromptRe
                 asked[reading.agent] = reading
         readings += clauses
     return tuple(readings)
+
+
+def _unread_problem(reading: PromptReading) -> str | None:
+    """Why an unread clause is refused even alone rather than steering by its text: an agent named as both sides of
+    a pair ("@5 yields to @5"), or a misspelt reader word ("yeilds", `reader.spelling.did_you_mean`), or None."""
+    mentions = re.findall(r"@(\d+)", reading.clause)
+    repeated = next((m for m in mentions if mentions.count(m) > 1), None)
+    if repeated is not None:
+        return f"clause {reading.clause!r} names @{repeated} twice; a behaviour between two agents needs two agents"
+    fixed = did_you_mean(reading.clause)
+    if fixed is None:
+        return None
+    unknown = f"{', '.join(repr(typed) for typed, _ in fixed[1])} not a word the reader knows"
+    return f"clause {reading.clause!r} cannot be read ({unknown}); did you mean {fixed[0]!r}?"
 
 
 def _verdict(scenario: Scenario, reading: PromptReading, index: MapIndex) -> Feasibility | None:

@@ -12,6 +12,7 @@ from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.scenario.model import HISTORY_STEPS, Scenario
 from langtraj.sim.config import SimRequest
 from langtraj.sim.policies import POLICIES, LoadedModel, Policy
+from langtraj.sim.prompt_checks import check_prompts
 
 
 def build_policy(
@@ -31,6 +32,10 @@ def build_policy(
     sim_agents = sim_agent_indices(scenario)
     if not len(sim_agents):
         raise InputError(f"scenario {scenario.scenario_id} has no agent valid at its current step", where="agents")
+    if cls.uses_model:  # the one check of typed prompts (the studio's and the env's too); targets come with the policy
+        error = check_prompts(scenario, request.prompts, targets=False).first_error()  # the pair: collision_terms
+        if error is not None:
+            raise InputError(error, where="prompt")
     try:
         policy = cls.from_request(scenario, request, loaded)
     except InputError as exc:

@@ -20,9 +20,9 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from langtraj.cases import NAME, read_case
 from langtraj.errors import InputError
 from langtraj.fileio import read_json
+from langtraj.sim.prompt_checks import check_prompts
 from langtraj.studio.cases import DuplicateCase, case_of, save_case
 from langtraj.studio.catalog import Catalog
-from langtraj.studio.checks import check_prompts
 from langtraj.studio.jobs import Job, JobBoard, JobSpec, JobStore, Runner
 from langtraj.studio.simulation import RESULT_FILE, ROLLOUTS_FILE, JobRunner
 from langtraj.studio.views import scene_view

@@ -18,11 +18,11 @@ from langtraj.scenario.model import STEP_SECONDS
 from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.engine import replan_schedule, simulate
 from langtraj.sim.policies import LoadedModel, Policy
+from langtraj.sim.prompt_checks import check_prompts
 from langtraj.sim.prompts import read_prompts
 from langtraj.sim.setup import build_policy
 from langtraj.sim.world import SimWorld
 from langtraj.studio.catalog import Catalog
-from langtraj.studio.checks import check_prompts
 from langtraj.studio.jobs import Interrupted, Job, Report
 from langtraj.studio.results import run_json
 

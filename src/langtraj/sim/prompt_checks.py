@@ -1,8 +1,10 @@
-"""Prompt checks before a job: for each typed prompt, whether it can be run (and why not), how the reader reads
-it, whether the map gives its behaviour a target (and the warning `langtraj simulate` would print when it does
-not), and the target itself; plus the adversary and target. The answers are the simulation's own
-(`sim.prompts`: `user_prompt_entry`, `read_prompts`, `prompt_steering`), asked one prompt at a time
-(docs/simulation.md, 'From words to rollouts'; docs/studio.md, 'POST /api/scenes/{key}/prompts')."""
+"""The one check of typed prompts, before anything runs: for each prompt, whether it can be run (and why not, in one
+line), how the reader reads it clause by clause, whether the map gives its behaviours a target (and the warning
+`langtraj simulate` prints when it does not: a behaviour the map rules out is warned about, not refused, and a suite
+reports it as "scenario did not happen"), and the targets; plus the adversary and target. `simulate` (`sim.setup`),
+the env (with its ego: a prompt asking something of the ego is refused), suites and the studio all ask this function,
+so they accept and refuse the same prompts with the same message (docs/simulation.md, 'From words to rollouts';
+docs/studio.md, 'POST /api/scenes/{key}/prompts')."""
 
 from __future__ import annotations
 
@@ -31,7 +33,8 @@ _WORLD: tuple[float, float, float] = (0.0, 0.0, 0.0)
 class PromptCheck:
     """One prompt: `error` says why it cannot be run (None: it can); `readings` what the reader made of each clause
     (empty when it was refused before reading); `feasible` whether the map gives every read behaviour a target (None:
-    not read); `warning` the lines `langtraj simulate` would warn with; `targets` where the behaviours steer."""
+    not read, or targets not asked for); `warning` the lines `langtraj simulate` warns with (a behaviour the map
+    rules out: the run goes on and a suite reports the scenario as not happened); `targets` where they steer."""
 
     text: str
     error: str | None = None
@@ -107,17 +110,23 @@ def check_prompts(
     adversary: int | None = None,
     target: int | None = None,
     index: MapIndex | None = None,
+    *,
+    ego: int | None = None,
+    targets: bool = True,
 ) -> PromptChecks:
-    """Check `texts` against `scenario` (`index`: its map index, built here when not given)."""
+    """Check `texts` against `scenario` (`index`: its map index, built here when not given). `ego`: the track a
+    planner drives, which no prompt may ask something of and which cannot be the adversary. `targets`: whether to
+    derive each behaviour's target (False where the caller steers by them anyway and needs the refusals alone)."""
     rows = sim_agent_indices(scenario)
     sim_ids = [int(i) for i in scenario.agents.ids[rows]]
-    index = index if index is not None else MapIndex.build(scenario.road_map)
+    if targets and index is None:
+        index = MapIndex.build(scenario.road_map)
     named: dict[int, int] = {}
     checks = []
     for number, text in enumerate(texts):
-        check = _check(scenario, text, number, sim_ids, rows, named, index)
+        check = _check(scenario, text, number, sim_ids, rows, named, index if targets else None, ego)
         checks.append(check)
-    return PromptChecks(tuple(checks), _pair_error(adversary, target, sim_ids))
+    return PromptChecks(tuple(checks), _pair_error(adversary, target, sim_ids, ego))
 
 
 def _check(
@@ -127,7 +136,8 @@ def _check(
     sim_ids: list[int],
     rows: np.ndarray,
     named: dict[int, int],
-    index: MapIndex,
+    index: MapIndex | None,
+    ego: int | None,
 ) -> PromptCheck:
     if len(text) > MAX_PROMPT_CHARS:  # never passed on: a paste gone wrong must not reach the reader
         return PromptCheck(text, f"prompt is {len(text)} characters long; the limit is {MAX_PROMPT_CHARS}")
@@ -143,23 +153,24 @@ def _check(
     if again:
         m = again[0]
         return PromptCheck(text, f"@{m} is named by prompt {named[m] + 1} too; describe each agent in one prompt")
+    if ego is not None and entry.mentions and entry.mentions[0] == ego:
+        return PromptCheck(text, f"{text!r} asks something of the ego, which the planner drives")
     for m in entry.mentions:
         named[m] = number
     try:
         readings = read_prompts([text])
     except InputError as exc:
         return PromptCheck(text, str(exc))
-    if not any(r.read for r in readings):
+    if not any(r.read for r in readings) or index is None:
         return PromptCheck(text, None, readings)
     steering = prompt_steering(scenario, readings, rows, _WORLD, ALL_LEVERS, index)
     own = tuple(t for t in steering.targets if t.track_id in {r.agent for r in readings})
     warning = "; ".join(steering.warnings) or None
     feasible = {t.track_id for t in own} >= {r.agent for r in readings if r.read}
-    error = None if feasible else warning  # a behaviour the map refuses, unless a stop it also asks for is kept
-    return PromptCheck(text, error, readings, feasible, warning, own)
+    return PromptCheck(text, None, readings, feasible, warning, own)
 
 
-def _pair_error(adversary: int | None, target: int | None, sim_ids: list[int]) -> str | None:
+def _pair_error(adversary: int | None, target: int | None, sim_ids: list[int], ego: int | None) -> str | None:
     """What is wrong with a collision pair (`sim.terms.pair_problem`, as `langtraj simulate` refuses it), or None."""
-    problem = pair_problem(adversary, target, sim_ids=set(sim_ids))
+    problem = pair_problem(adversary, target, sim_ids=set(sim_ids), ego=ego)
     return None if problem is None else problem[1]
