@@ -317,12 +317,13 @@ def test_pick_prompt_run_watch_judge_keep(site: Site, browser: Browser) -> None:
 
 
 def find_infeasible(site: Site, key: str, scene: dict[str, Any]) -> tuple[str, str]:
-    """A prompt the map rules out in this scene (read, with a warning), and its warning."""
+    """A prompt the map rules out in this scene (read, runnable with a warning, as `simulate` runs it), and its
+    warning."""
     for agent in moving_vehicles(scene):
         asks = [f"@{agent['id']} {ask}" for ask in INFEASIBLE_ASKS]
         checks = [site.post(f"/api/scenes/{key}/prompts", {"prompts": [t]})["prompts"][0] for t in asks]
         for text, check in zip(asks, checks, strict=True):
-            if not check["ok"] and check["reading"] and check["reading"]["behaviour"] and check["warning"]:
+            if check["ok"] and check["feasible"] is False and check["warning"]:
                 return text, check["warning"]
     raise AssertionError("no prompt the map rules out found in the scene")
 
@@ -336,9 +337,14 @@ def test_bad_prompts_show_a_message_and_start_no_job(site: Site, browser: Browse
     page = v.page
     expect(page.locator("#scene-title")).to_contain_text(SCENE_ID)  # the scene of the address
     jobs = site.job_ids()
+    set_prompt(v, infeasible)  # runnable, with the map's warning: a suite reports it as not happened
+    expect(page.locator("#reading-0 .pill")).to_have_text("the map rules it out")
+    expect(page.locator("#reading-0")).to_contain_text(warning)
+    other = moving_vehicles(scene)[1]["id"]
     cases = [
         ("unknown", "@987654 slows down", "987654"),
-        ("infeasible", infeasible, "infeasible"),
+        ("typo", f"@{known} yeilds to @{other}", f"did you mean '@{known} yields to @{other}'?"),
+        ("self", f"@{known} yields to @{known}", f"names @{known} twice"),
         ("empty", "   ", "Prompt 1 is empty"),
         ("long", f"@{known} slows down " + "x" * (10_000 - len(f"@{known} slows down ")), "10000 characters"),
     ]
@@ -349,10 +355,7 @@ def test_bad_prompts_show_a_message_and_start_no_job(site: Site, browser: Browse
         error = page.locator("#run-error")
         expect(error).to_be_visible()
         expect(error).to_contain_text(message)
-        if name == "infeasible":
-            expect(error).to_contain_text(warning)
-            expect(page.locator("#reading-0 .pill")).to_have_text("infeasible")
-        if name in ("unknown", "long"):
+        if name in ("unknown", "long", "typo", "self"):
             expect(page.locator("#reading-0 .pill")).to_have_text("cannot run")
         v.shot(f"{name}", "#scene-canvas")
         assert site.job_ids() == jobs, f"{name}: a job was created"

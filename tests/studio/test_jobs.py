@@ -13,8 +13,10 @@ import pytest
 from fastapi.testclient import TestClient
 
 from langtraj.cases import Case
+from langtraj.errors import InputError
 from langtraj.rollouts.container import Rollouts
 from langtraj.studio.app import StudioConfig, create_app
+from langtraj.studio.cases import case_of
 from langtraj.studio.catalog import Catalog
 from langtraj.studio.jobs import INTERRUPTED, Job, JobBoard, JobSpec, JobStore
 from langtraj.studio.simulation import RESULT_FILE, ROLLOUTS_FILE, JobRunner
@@ -39,8 +41,10 @@ def _wait(client: TestClient, job_id: str, seconds: float = 300) -> dict:
     raise AssertionError(f"job {job_id} did not finish in {seconds} s")
 
 
-@pytest.mark.slow  # about 70 s; the browser test runs a real job through the same API by default
+@pytest.mark.slow  # about 150 s; the browser test runs a real job through the same API by default
 def test_a_real_job_end_to_end(catalog: Catalog, womd_key: str, tmp_path: Path) -> None:
+    """A job under the IDM planner (the default), saved as a case that `langtraj test --planner idm` replays: the
+    same positions as the watched rollout, and its prompts judged followed."""
     app = create_app(StudioConfig((), data=tmp_path), catalog)
     client = TestClient(app)
     try:
@@ -52,7 +56,8 @@ def test_a_real_job_end_to_end(catalog: Catalog, womd_key: str, tmp_path: Path) 
         job = _wait(client, job_id)
     finally:
         app.state.board.close()
-    assert (job["status"], job["progress"], job["error"], job["case"]["seeds"]) == ("done", 1.0, None, [3])
+    assert (job["status"], job["progress"], job["error"], job["case"]["seeds"]) == ("done", 1.0, None, [3, 4])
+    assert job["planner"] == "idm" and job["case"]["criteria"]["terminate_on_collision"] is False
     assert job["started"] and job["finished"]
     result = job["result"]
     assert (result["start_step"], result["step_seconds"]) == (10, 0.1)
@@ -95,9 +100,11 @@ def test_a_real_job_end_to_end(catalog: Catalog, womd_key: str, tmp_path: Path) 
         0,
         None,
         tuple(PROMPTS),
-        (3,),
+        (3, 4),
     )
     assert case.scenario.name == "motion_data_one_scenario.tfrecord"
+    assert saved.json()["command"].startswith(f"langtraj test {saved.json()['suite']} --planner idm")
+    _replays(case, rollouts, prompted, tmp_path)
     again = client.post(f"/api/jobs/{job_id}/case", json={"suite": "smoke", "name": "yield-stop"})
     assert again.status_code == 409 and "yield-stop" in again.json()["error"]
     bad = client.post(f"/api/jobs/{job_id}/case", json={"suite": "smoke", "name": "x", "criteria": {"min_ttc": -1}})
@@ -107,6 +114,28 @@ def test_a_real_job_end_to_end(catalog: Catalog, womd_key: str, tmp_path: Path) 
 
 
 @pytest.mark.slow  # 40 s; test_server_stop's ctrl-c case stops a real job mid-run and checks its files by default
+def _replays(case, watched: Rollouts, prompted: dict, tmp_path: Path) -> None:
+    """The saved case's first seed run as `langtraj test` runs it gives the watched rollout 0 to 1e-4 m, with the
+    prompts' verdicts the studio showed."""
+    from langtraj.suites.episode import EpisodeTask, run_episode
+
+    kept: list[Rollouts] = []
+    task = EpisodeTask("smoke", case, case.seeds[0], "idm", None, 10.0, tmp_path / "test", video=False)
+    result = run_episode(task, lambda env: kept.append(env.rollout()))
+    (replayed,) = kept
+    assert list(replayed.object_id) == list(watched.object_id)
+    assert np.abs(replayed.x[0] - watched.x[0]).max() < 1e-4 and np.abs(replayed.y[0] - watched.y[0]).max() < 1e-4
+    followed = [p["followed"][0] for p in prompted["prompts"]]
+    assert [p["followed"] for p in result.prompts] == followed
+    assert result.status != "error", result.reasons
+
+
+def test_a_job_that_simulated_the_ego_cannot_be_kept() -> None:
+    job = Job("j", JobSpec("s0", WOMD_ID, Case(prompts=("@1 stops",)), planner=None))
+    with pytest.raises(InputError, match="simulated every agent, the ego too"):
+        case_of(job, "kept", None)
+
+
 def test_a_job_stopped_mid_run_leaves_only_complete_files(catalog: Catalog, womd_key: str, tmp_path: Path) -> None:
     real = JobRunner(catalog)
 

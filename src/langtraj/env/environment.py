@@ -34,6 +34,7 @@ from langtraj.model.config import ModelConfig
 from langtraj.roads import MapIndex
 from langtraj.roads.position import AgentOnLane
 from langtraj.rollouts.agents import sim_agent_indices
+from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.drivable import measured_road_edges
 from langtraj.scenario.io import read_scenario
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
@@ -154,7 +155,7 @@ class LangTrajEnv(gym.Env):
         episode = read_case(options or {}, where="options", defaults=self.case, keys=RESET_KEYS)
         scene = self._scene(episode)
         scenario = scene.scenario
-        ego = self._ego_row(scenario, episode.ego)
+        ego = ego_row(scenario, episode.ego)
         ego_id = int(scenario.agents.ids[ego])
         prompts = tuple(p.replace(EGO_PLACEHOLDER, f"@{ego_id}") for p in episode.prompts)
         error = check_prompts(scenario, prompts, ego=ego_id, targets=False).first_error()  # the one prompt check
@@ -275,6 +276,18 @@ class LangTrajEnv(gym.Env):
         played = self._sim.world.played(0)
         return played.slice_steps(0, self._sim.step + 1, played.current_index)
 
+    def rollout(self) -> Rollouts:
+        """The episode so far as one rollout of every sim agent, the ego included (the studio keeps what it showed)."""
+        if self._sim is None:
+            raise RuntimeError("call reset() first")
+        return self._sim.world.rollouts()
+
+    def simulation_report(self) -> dict[str, Any]:
+        """The others' simulation report (`sim.engine`'s: the prompts' targets and warnings among it)."""
+        if self._sim is None:
+            raise RuntimeError("call reset() first")
+        return self._sim.report()
+
     def render(self) -> np.ndarray | None:
         if self.render_mode is None or self._sim is None:
             return None
@@ -306,25 +319,6 @@ class LangTrajEnv(gym.Env):
             self._scenes = {key: _Scene.of(scenario)}  # the last scene only
         return self._scenes[key]
 
-    @staticmethod
-    def _ego_row(scenario: Scenario, ego: int | None) -> int:
-        sim = sim_agent_indices(scenario)
-        if ego is not None:
-            try:
-                row = scenario.agents.index_of(ego)
-            except KeyError:
-                raise InputError(f"no agent @{ego} in scenario {scenario.scenario_id}", where="ego") from None
-            if row not in set(sim.tolist()):
-                raise InputError(f"agent @{ego} is not valid at the scene's current step", where="ego")
-            return row
-        if scenario.sdc_index >= 0 and scenario.sdc_index in set(sim.tolist()):
-            return int(scenario.sdc_index)
-        ranked = prioritized_agents(scenario, None)
-        vehicles = [r for r in ranked if scenario.agents.types[r] == AgentType.VEHICLE]
-        if not vehicles:
-            raise InputError(f"scenario {scenario.scenario_id} has no vehicle to be the ego", where="ego")
-        return int(vehicles[0])
-
     def _pose(self) -> np.ndarray:
         assert self._sim is not None
         return self._sim.world.current(self._sim.step, np.array([self._ego]))[0, 0]
@@ -351,6 +345,27 @@ class LangTrajEnv(gym.Env):
         except spaces.ActionError as error:
             raise InputError(f"{error} ({self.action_kind} action space)", where="action") from None
         return track(pose, values) if self.action_kind == "trajectory" else values
+
+
+def ego_row(scenario: Scenario, ego: int | None = None) -> int:
+    """The ego's row: the track `ego` (valid at the current step), else the scene's self-driving car, else its most
+    important vehicle (the studio asks it too, to refuse a prompt of the ego before a job runs)."""
+    sim = sim_agent_indices(scenario)
+    if ego is not None:
+        try:
+            row = scenario.agents.index_of(ego)
+        except KeyError:
+            raise InputError(f"no agent @{ego} in scenario {scenario.scenario_id}", where="ego") from None
+        if row not in set(sim.tolist()):
+            raise InputError(f"agent @{ego} is not valid at the scene's current step", where="ego")
+        return row
+    if scenario.sdc_index >= 0 and scenario.sdc_index in set(sim.tolist()):
+        return int(scenario.sdc_index)
+    ranked = prioritized_agents(scenario, None)
+    vehicles = [r for r in ranked if scenario.agents.types[r] == AgentType.VEHICLE]
+    if not vehicles:
+        raise InputError(f"scenario {scenario.scenario_id} has no vehicle to be the ego", where="ego")
+    return int(vehicles[0])
 
 
 def _logged_future(scenario: Scenario, row: int) -> np.ndarray:

@@ -316,15 +316,59 @@ def _agents_or_all(rollouts: Rollouts, agent_ids: Sequence[int] | None) -> np.nd
 def collision_flags(scenario: Scenario, rollouts: Rollouts, agent_ids: Sequence[int] | None = None) -> np.ndarray:
     """bool [R, E]: whether agent `agent_ids[e]` (default: every rollout agent, in rollout order) touches
     any other rollout agent at some future step of rollout r."""
-    tracks = check_rollouts(scenario, rollouts)
-    cols = _agents_or_all(rollouts, agent_ids)
-    dims = _current_boxes(scenario, tracks)
+    return _touching(scenario, rollouts, _agents_or_all(rollouts, agent_ids)).any(-1)
+
+
+@dataclass(frozen=True)
+class CollisionEvent:
+    """An agent's first contact in a rollout: the rollout, the agent's and its partner's track ids, and the future
+    step (0: the first simulated step) at which `collision_flags` first finds it."""
+
+    rollout: int
+    agent: int
+    other: int
+    step: int
+
+
+def collision_events(scenario: Scenario, rollouts: Rollouts) -> list[CollisionEvent]:
+    """Every (rollout, agent) pair `collision_flags` flags, with the step of its first contact and the agent it
+    touches then (the nearest by the same signed distance), in rollout then rollout-agent order."""
+    cols = np.arange(rollouts.num_agents)
+    touching = _touching(scenario, rollouts, cols)  # [R, A, T]
+    boxes = _boxes(scenario, rollouts)
+    events = []
+    for r, a in zip(*np.nonzero(touching.any(-1)), strict=True):
+        step = int(np.argmax(touching[r, a]))
+        x, y = rollouts.x[r, :, step].astype(np.float64), rollouts.y[r, :, step].astype(np.float64)
+        nearest = [int(j) for j in np.argsort(np.hypot(x - x[a], y - y[a])) if j != a]
+        other = next((j for j in nearest if _pair_touches(rollouts, boxes, int(r), int(a), j, step)), nearest[0])
+        ids = rollouts.object_id
+        events.append(CollisionEvent(int(r), int(ids[a]), int(ids[other]), step))
+    return events
+
+
+def _boxes(scenario: Scenario, rollouts: Rollouts) -> tuple[np.ndarray, np.ndarray]:
+    """Length and width [R, A, T] of the rollout agents: their size at the current step."""
+    dims = _current_boxes(scenario, check_rollouts(scenario, rollouts))
     shape = rollouts.x.shape
-    length = np.broadcast_to(dims[None, :, 0, None], shape)
-    width = np.broadcast_to(dims[None, :, 1, None], shape)
+    return np.broadcast_to(dims[None, :, 0, None], shape), np.broadcast_to(dims[None, :, 1, None], shape)
+
+
+def _touching(scenario: Scenario, rollouts: Rollouts, cols: np.ndarray) -> np.ndarray:
+    """bool [R, E, T]: whether agent column `cols[e]` touches another rollout agent at each future step."""
+    length, width = _boxes(scenario, rollouts)
     pose = [getattr(rollouts, f).astype(np.float64) for f in ("x", "y", "heading")]
-    dist = distance_to_nearest_object(*pose, length, width, np.ones(shape, bool), cols)
-    return (dist < COLLISION_THRESHOLD).any(-1)
+    dist = distance_to_nearest_object(*pose, length, width, np.ones(rollouts.x.shape, bool), cols)
+    return dist < COLLISION_THRESHOLD
+
+
+def _pair_touches(rollouts: Rollouts, boxes: tuple[np.ndarray, np.ndarray], r: int, a: int, j: int, t: int) -> bool:
+    """Whether agents `a` and `j` alone touch at step `t` of rollout `r` (the same distance, two boxes)."""
+    pick = (slice(r, r + 1), [a, j], slice(t, t + 1))
+    pose = [getattr(rollouts, f)[pick].astype(np.float64) for f in ("x", "y", "heading")]
+    size = [b[pick] for b in boxes]
+    dist = distance_to_nearest_object(*pose, *size, np.ones((1, 2, 1), bool), np.array([0]))
+    return bool(dist[0, 0, 0] < COLLISION_THRESHOLD)
 
 
 def collision_rate(scenario: Scenario, rollouts: Rollouts, agent_ids: Sequence[int] | None = None) -> float:

@@ -18,9 +18,13 @@ from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from langtraj.cases import NAME, read_case
+from langtraj.env.environment import ego_row
 from langtraj.errors import InputError
 from langtraj.fileio import read_json
-from langtraj.sim.prompt_checks import check_prompts
+from langtraj.planners import PLANNERS
+from langtraj.roads import MapIndex
+from langtraj.scenario.model import Scenario
+from langtraj.sim.prompt_checks import PromptChecks, check_prompts
 from langtraj.studio.cases import DuplicateCase, case_of, save_case
 from langtraj.studio.catalog import Catalog
 from langtraj.studio.jobs import Job, JobBoard, JobSpec, JobStore, Runner
@@ -47,6 +51,7 @@ VIDEO_FILE = "video.mp4"
 VIDEO_PX = 640
 MAX_PROMPTS = 16
 MAX_ROLLOUTS = 16
+DEFAULT_PLANNER = "idm"
 _NAME = NAME.pattern  # suite and case names, as `langtraj test` reads them
 
 
@@ -69,7 +74,13 @@ class PromptsBody(BaseModel):
     target: int | None = None
 
 
-class JobBody(PromptsBody):
+class PlannedBody(PromptsBody):
+    planner: str | None = Field(default=DEFAULT_PLANNER, max_length=64)
+    """A registered planner driving the ego (the case's episodes, as `langtraj test` runs them); null: every agent
+    simulated, the ego too."""
+
+
+class JobBody(PlannedBody):
     scene: str = Field(max_length=64)
     rollouts: int = Field(default=4, ge=1, le=MAX_ROLLOUTS)
     seed: int = Field(default=0, ge=0, le=2**31 - 1)
@@ -176,12 +187,11 @@ def _scene_routes(app: FastAPI, catalog: Catalog) -> None:
         return scene_view(key, loaded.scenario)
 
     @app.post("/api/scenes/{key}/prompts")
-    def prompts(key: str, body: PromptsBody) -> dict[str, Any]:
+    def prompts(key: str, body: PlannedBody) -> dict[str, Any]:
         loaded = catalog.load(key)
         if loaded is None:
             raise NotFound(f"no scene {key!r}")
-        checks = check_prompts(loaded.scenario, body.prompts, body.adversary, body.target, loaded.map_index)
-        return checks.to_json()
+        return _checks(loaded.scenario, body, loaded.map_index).to_json()
 
 
 def _job_routes(app: FastAPI, catalog: Catalog, board: JobBoard, suites: Path, checkpoint: Path | None) -> None:
@@ -205,14 +215,18 @@ def _job_routes(app: FastAPI, catalog: Catalog, board: JobBoard, suites: Path, c
         loaded = catalog.load(body.scene)
         if loaded is None:
             raise NotFound(f"no scene {body.scene!r}")
-        checks = check_prompts(loaded.scenario, body.prompts, body.adversary, body.target, loaded.map_index)
+        checks = _checks(loaded.scenario, body, loaded.map_index)
         if not checks.ok:
             raise InputError(checks.first_error() or "the prompts cannot be run")
+        if not body.prompts and body.adversary is None and body.compare:
+            raise InputError("no prompts and no collision pair: the run and its comparison would be the same run")
         entry = catalog.entry(body.scene)
         case = {"scenario": entry.file, "index": entry.index, "window": entry.window, "prompts": body.prompts}
-        case |= {"adversary": body.adversary, "target": body.target, "seeds": [body.seed]}
+        seeds = list(range(body.seed, body.seed + body.rollouts)) if body.planner else [body.seed]
+        case |= {"adversary": body.adversary, "target": body.target, "seeds": seeds}
+        case |= {"criteria": {"terminate_on_collision": False}}  # the watched episodes run their 8 s
         case = read_case(case | {"checkpoint": checkpoint})
-        spec = JobSpec(body.scene, loaded.scenario.scenario_id, case, rollouts=body.rollouts, compare=body.compare)
+        spec = JobSpec(body.scene, loaded.scenario.scenario_id, case, body.rollouts, body.compare, planner=body.planner)
         return {"job": board.submit(spec).to_json()}
 
     @app.get("/api/jobs")
@@ -248,7 +262,17 @@ def _job_routes(app: FastAPI, catalog: Catalog, board: JobBoard, suites: Path, c
             path = save_case(suites, body.suite, case_of(found, body.name, body.criteria))
         except DuplicateCase as exc:
             raise Conflict(str(exc)) from None
-        return {"suite": str(path), "case": body.name}
+        command = f"langtraj test {path} --planner {found.spec.planner} --out runs/{body.suite}"
+        return {"suite": str(path), "case": body.name, "planner": found.spec.planner, "command": command}
+
+
+def _checks(scenario: Scenario, body: PlannedBody, index: MapIndex) -> PromptChecks:
+    """The one prompt check (`sim.prompt_checks`); with a planner, against the ego it will drive, as the env checks."""
+    ego = None
+    if body.planner is not None:
+        PLANNERS.get(body.planner, where="planner")
+        ego = int(scenario.agents.ids[ego_row(scenario)])
+    return check_prompts(scenario, body.prompts, body.adversary, body.target, index, ego=ego)
 
 
 def _render(catalog: Catalog, job: Job, path: Path) -> None:

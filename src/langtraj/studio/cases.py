@@ -30,9 +30,16 @@ def suite_path(suites: Path, suite: str) -> Path:
 
 
 def case_of(job: Job, name: str, criteria: dict[str, Any] | None) -> Case:
-    """The job's case, named `name`, with `criteria` (keys of `langtraj.cases.Criteria`) over the defaults; the env
-    chooses the ego."""
-    return read_case({"name": name, "criteria": criteria or {}}, defaults=job.spec.case)
+    """The job's case (its seeds the watched episodes'), named `name`, with `criteria` (keys of
+    `langtraj.cases.Criteria`) over the job's; the env chooses the ego, as it did for the job. A job that simulated
+    every agent, the ego too, is refused: no planner run of the case would replay it."""
+    if job.spec.planner is None:
+        raise InputError(
+            "this job simulated every agent, the ego too; a case replays what a planner drove: run the job with a "
+            "planner to keep it",
+            where="job",
+        )
+    return read_case({"name": name, "criteria": criteria or {}}, defaults=job.spec.case)  # criteria key by key
 
 
 def save_case(suites: Path, suite: str, case: Case) -> Path:

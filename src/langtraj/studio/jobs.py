@@ -31,19 +31,26 @@ class Interrupted(Exception):
 
 @dataclass(frozen=True)
 class JobSpec:
-    """What a job simulates: the `case` (its scene file, index and window, prompts, collision pair, first seed and
+    """What a job simulates: the `case` (its scene file, index and window, prompts, collision pair, seeds and
     checkpoint; `langtraj.cases.Case`) of the catalog's scene `scene` (scenario `scenario_id`), in `rollouts`
-    rollouts, and whether the scene is also simulated without the prompts (`compare`)."""
+    rollouts, and whether the scene is also simulated without the prompts (`compare`). `planner`: the registered
+    planner driving the ego, one env episode per seed of the case, exactly as `langtraj test --planner` runs them,
+    so a saved case replays what was watched; None: every agent simulated, the ego too, as `langtraj simulate`."""
 
     scene: str
     scenario_id: str
     case: Case
     rollouts: int = 4
     compare: bool = True
+    planner: str | None = None
 
     @property
     def seed(self) -> int:
         return self.case.seeds[0]
+
+
+SPEC_KEYS = ("scene", "scenario_id", "rollouts", "compare", "planner")
+"""The spec's fields a job record keeps beside its case (a record without `planner` ran every agent)."""
 
 
 @dataclass(frozen=True)
@@ -62,9 +69,9 @@ class Job:
     finished: str | None = None
 
     def to_json(self) -> dict[str, Any]:
-        """The job record (job.json, and the API's job): id, scene, scenario_id, rollouts, compare, the case as
+        """The job record (job.json, and the API's job): id, scene, scenario_id, rollouts, compare, planner, the case as
         `case_json` writes it, then where the job stands."""
-        spec = {k: getattr(self.spec, k) for k in ("scene", "scenario_id", "rollouts", "compare")}
+        spec = {k: getattr(self.spec, k) for k in SPEC_KEYS}
         state = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("id", "spec")}
         return {"id": self.id, **spec, "case": case_json(self.spec.case), **state}
 
@@ -72,8 +79,7 @@ class Job:
     def from_json(cls, data: dict[str, Any], where: str) -> Job:
         try:
             case = read_case(data["case"], where="case")
-            names = ("scene", "scenario_id", "rollouts", "compare")
-            spec = JobSpec(case=case, **{k: data[k] for k in names if k in data})
+            spec = JobSpec(case=case, **{k: data[k] for k in SPEC_KEYS if k in data})
             rest = {k: v for k, v in data.items() if k in cls.__dataclass_fields__ and k not in ("id", "spec")}
             job = cls(id=str(data["id"]), spec=spec, **rest)
         except (KeyError, TypeError) as exc:

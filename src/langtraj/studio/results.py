@@ -17,12 +17,15 @@ import numpy as np
 from langtraj.errors import InputError
 from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.reader import PromptReading
-from langtraj.metrics.controllability import collision_flags, offroad_flags
+from langtraj.metrics.controllability import collision_events, collision_flags, offroad_flags
 from langtraj.metrics.instruction_following import rollout_scenario
 from langtraj.metrics.wosac import evaluate_scenario
+from langtraj.rollouts.agents import evaluated_agent_indices
+from langtraj.scenario.drivable import road_edges_derived_from
 from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
+from langtraj.sim.parked import parked_in_history
 
 REALISM_FIELDS = {
     "meta_metric": "metametric",
@@ -66,10 +69,18 @@ def judge_prompts(
 
 
 def agent_outcomes(scenario: Scenario, rollouts: Rollouts) -> list[dict[str, Any]]:
-    """Per rollout agent: whether it collides with another rollout agent in each rollout, and whether it leaves
-    the road (vehicles only; null for pedestrians, cyclists and others, and where the map has no road edges)."""
+    """Per rollout agent: whether it collides with another rollout agent in each rollout, each first contact with
+    its step (0: the first simulated one) and partner (`collision_events`, the same signed distance as the realism
+    table's collision rate), whether WOSAC scores it (`evaluated`: the realism rates are over these agents alone),
+    whether it stands still through its history (`parked`), and whether it leaves the road (vehicles only; null for
+    pedestrians, cyclists and others, and where the map has no road edges: not measured)."""
     ids = [int(i) for i in rollouts.object_id]
     collided = collision_flags(scenario, rollouts)  # [R, A]
+    contacts: dict[int, list[dict[str, int]]] = {i: [] for i in ids}
+    for event in collision_events(scenario, rollouts):
+        contacts[event.agent].append({"rollout": event.rollout, "step": event.step, "with": event.other})
+    evaluated = {int(i) for i in scenario.agents.ids[evaluated_agent_indices(scenario)]}
+    parked = {int(i) for i in scenario.agents.ids[parked_in_history(scenario)]}
     offroad: dict[int, list[bool]] = {}
     types = scenario.agents.types[[scenario.agents.index_of(i) for i in ids]]
     if (types == AgentType.VEHICLE).any():
@@ -80,18 +91,56 @@ def agent_outcomes(scenario: Scenario, rollouts: Rollouts) -> list[dict[str, Any
             offroad = {}
     nothing = [None] * rollouts.num_rollouts
     return [
-        {"id": i, "collision": collided[:, k].tolist(), "offroad": offroad.get(i, nothing)} for k, i in enumerate(ids)
+        {
+            "id": i,
+            "collision": collided[:, k].tolist(),
+            "collisions": contacts[i],
+            "offroad": offroad.get(i, nothing),
+            "evaluated": i in evaluated,
+            "parked": i in parked,
+        }
+        for k, i in enumerate(ids)
     ]
 
 
 def realism(scenario: Scenario, rollouts: Rollouts) -> dict[str, Any]:
-    """WOSAC figures of the rollouts (2025 configuration); all null, with the reason, where the scene does not
-    log the 80 future steps or has no agent to score."""
+    """WOSAC figures of the rollouts (2025 configuration), over the agents WOSAC evaluates (`evaluated`, their
+    count); all null, with the reason, where the scene does not log the 80 future steps or has no agent to score."""
+    evaluated = len(evaluated_agent_indices(scenario))
     try:
         metrics = evaluate_scenario(scenario, rollouts).to_dict()
     except InputError as exc:
-        return {name: None for name in REALISM_FIELDS} | {"note": str(exc)}
-    return {name: _finite(metrics[key]) for name, key in REALISM_FIELDS.items()} | {"note": None}
+        return {name: None for name in REALISM_FIELDS} | {"note": str(exc), "evaluated": evaluated}
+    return {name: _finite(metrics[key]) for name, key in REALISM_FIELDS.items()} | {
+        "note": None,
+        "evaluated": evaluated,
+    }
+
+
+def road_edges(scenario: Scenario) -> str | None:
+    """What off-road is measured against: "map" (its own road edges), "derived from ..." (edges derived where the
+    map has none, as nuScenes'), or None (nothing to measure against: off-road is not measured)."""
+    if scenario.road_map.road_edges:
+        return "map"
+    derived = road_edges_derived_from(scenario)
+    return f"derived from {derived}" if derived else None
+
+
+def table_rates(agents: Sequence[dict[str, Any]]) -> dict[str, float | None]:
+    """The per-agent table's own rates: the share of (rollout, agent) pairs colliding and, of the vehicles
+    measured, leaving the road, over every agent and over the evaluated ones (which is WOSAC's collision rate)."""
+
+    def share(rows: Sequence[dict[str, Any]], key: str) -> float | None:
+        flags = [f for row in rows for f in row[key] if f is not None]
+        return round(sum(flags) / len(flags), 4) if flags else None
+
+    evaluated = [a for a in agents if a["evaluated"]]
+    return {
+        "collision_all": share(agents, "collision"),
+        "collision_evaluated": share(evaluated, "collision"),
+        "offroad_all": share(agents, "offroad"),
+        "offroad_evaluated": share(evaluated, "offroad"),
+    }
 
 
 def rollouts_json(rollouts: Rollouts) -> list[dict[str, dict[str, list[float]]]]:
@@ -118,10 +167,13 @@ def run_json(
 ) -> dict[str, Any]:
     """The RUN object of a job's result."""
     prompt = report.get("prompt") or {}
+    agents = agent_outcomes(scenario, rollouts)
     return {
         "rollouts": rollouts_json(rollouts),
         "prompts": judge_prompts(scenario, rollouts, texts, readings, checker),
-        "agents": agent_outcomes(scenario, rollouts),
+        "agents": agents,
+        "rates": table_rates(agents),
+        "road_edges": road_edges(scenario),
         "realism": realism(scenario, rollouts),
         "targets": list(prompt.get("targets") or []),
         "warnings": list(report.get("prompt_warnings") or []),

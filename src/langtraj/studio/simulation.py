@@ -1,20 +1,30 @@
-"""Running a job: the scene simulated closed loop with the job's prompts (and, to compare, without them) by the
-simulation `langtraj simulate` runs (`sim.setup.build_policy`, `sim.engine.simulate`), the checkpoint loaded once
-for every job, progress counted in replans; each run judged (`studio.results`), and the files written into the
-job's folder, each atomically: `rollouts.npz` (the prompted run), then `result.json` (docs/studio.md, 'Jobs')."""
+"""Running a job: the scene simulated closed loop with the job's prompts (and, to compare, without them). With a
+planner, each rollout is the env episode `langtraj test --planner` runs for one seed of the job's case
+(`suites.episode.run_episode`: the same env, seed and planner), so a case saved from the job replays what was
+watched; without one, every agent is simulated by the simulation `langtraj simulate` runs (`sim.setup.build_policy`,
+`sim.engine.simulate`), the checkpoint loaded once for every job, progress counted in replans. Each run is judged
+(`studio.results`), and the files written into the job's folder, each atomically: `rollouts.npz` (the prompted run),
+then `result.json` (docs/studio.md, 'Jobs')."""
 
 from __future__ import annotations
 
 import json
 import threading
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from langtraj.cases import Case
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_path
 from langtraj.interdrive.adherence import AdherenceChecker
-from langtraj.scenario.model import STEP_SECONDS
+from langtraj.roads import MapIndex
+from langtraj.rollouts.container import Rollouts
+from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.engine import replan_schedule, simulate
 from langtraj.sim.policies import LoadedModel, Policy
@@ -89,9 +99,12 @@ class JobRunner:
         checks = check_prompts(scenario, case.prompts, case.adversary, case.target, scene.map_index)
         if not checks.ok:
             raise InputError(checks.first_error() or "the prompts cannot be run")
+        runs = [("prompted", case.prompts)] + ([("unprompted", ())] if spec.compare else [])
+        if spec.planner is not None:
+            self._episodes(job, scene.scenario, scene.map_index, runs, folder, report, stop)
+            return
         report(0.0, "loading the model")
         loaded = self.model()
-        runs = [("prompted", case.prompts)] + ([("unprompted", ())] if spec.compare else [])
         config = SimConfig(rollouts=spec.rollouts, seed=spec.seed)
         per_run = len(replan_schedule(scenario.current_index, config.replan_steps))
         total = per_run * len(runs)
@@ -131,10 +144,95 @@ class JobRunner:
                 result.rollouts.save(folder / ROLLOUTS_FILE)
         if stop.is_set():
             raise Interrupted
-        body = {
-            "start_step": scenario.current_index,
-            "step_seconds": STEP_SECONDS,
-            "runs": {"prompted": out["prompted"], "unprompted": out.get("unprompted")},
-        }
-        with atomic_path(folder / RESULT_FILE) as tmp:
-            tmp.write_text(json.dumps(body, allow_nan=False))
+        _write_result(folder, scenario, out)
+
+    def _episodes(
+        self,
+        job: Job,
+        scenario: Scenario,
+        index: MapIndex,
+        runs: list[tuple[str, Sequence[str]]],
+        folder: Path,
+        report: Report,
+        stop: threading.Event,
+    ) -> None:
+        """Each run as one env episode per seed of the job's case under its planner (`run_episode`, as `langtraj
+        test` runs it in one process); an episode that does not run its whole length fails the job with its reason."""
+        from langtraj.suites.episode import EpisodeTask, run_episode
+
+        spec = job.spec
+        checker = AdherenceChecker.build(scenario, map_index=index) if spec.case.prompts else None
+        total, done, out = len(runs) * len(spec.case.seeds), 0, {}
+        read = [(text, reading) for text in spec.case.prompts for reading in read_prompts([text])]  # every run judged
+        for number, (name, prompts) in enumerate(runs):
+            case = spec.case if prompts else replace(spec.case, prompts=(), adversary=None, target=None)
+            kept = _Kept()
+            results = []
+            start = time.perf_counter()
+            for seed in case.seeds:
+                if stop.is_set():
+                    raise Interrupted
+                report(done / total, f"{name} run, seed {seed}: episode under the {spec.planner} planner")
+                task = EpisodeTask("studio", case, seed, spec.planner, None, 0.0, folder, video=False)
+
+                result = run_episode(task, kept)
+                if result.status == "error" or len(kept.rollouts) <= len(results) or _short(result, case):
+                    why = "; ".join(result.reasons) or "the episode ended early"
+                    raise InputError(f"{name} run, seed {seed}: {why}")
+                results.append(result)
+                done += 1
+            rollouts = _stacked(kept.rollouts)
+            first = kept.reports[0] | {"prompt_warnings": results[0].prompt_warnings}
+            out[name] = run_json(
+                scenario,
+                rollouts,
+                [text for text, _ in read],
+                [reading for _, reading in read],
+                checker,
+                first,
+                time.perf_counter() - start,
+            ) | {"episodes": [_episode_json(r) for r in results], "planner": spec.planner}
+            if number == 0:
+                rollouts.save(folder / ROLLOUTS_FILE)
+        if stop.is_set():
+            raise Interrupted
+        _write_result(folder, scenario, out)
+
+
+class _Kept:
+    """What a job keeps of each episode it watched: the env's rollout and its simulation report."""
+
+    def __init__(self) -> None:
+        self.rollouts: list[Rollouts] = []
+        self.reports: list[dict[str, Any]] = []
+
+    def __call__(self, env: Any) -> None:
+        self.rollouts.append(env.rollout())
+        self.reports.append(env.simulation_report())
+
+
+def _short(result: Any, case: Case) -> bool:
+    """Whether an episode stopped before its end (the planner failed): its rollout would show steps never run."""
+    return len(result.steps.get("collision", [])) < case.steps
+
+
+def _stacked(kept: list[Rollouts]) -> Rollouts:
+    """One rollout per episode, as one container (the same scene: the same agents in the same order)."""
+    first = kept[0]
+    stack = {name: np.concatenate([getattr(r, name) for r in kept]) for name in ("x", "y", "z", "heading")}
+    return Rollouts(first.object_id, **stack, scenario_id=first.scenario_id, log_following_ids=first.log_following_ids)
+
+
+def _episode_json(result: Any) -> dict[str, Any]:
+    """What the page shows of an episode: its seed, verdict and reasons, the ego and each prompt's verdict."""
+    return {k: result.to_json()[k] for k in ("seed", "status", "reasons", "ego", "prompts", "reads_log")}
+
+
+def _write_result(folder: Path, scenario: Scenario, out: dict[str, Any]) -> None:
+    body = {
+        "start_step": scenario.current_index,
+        "step_seconds": STEP_SECONDS,
+        "runs": {"prompted": out["prompted"], "unprompted": out.get("unprompted")},
+    }
+    with atomic_path(folder / RESULT_FILE) as tmp:
+        tmp.write_text(json.dumps(body, allow_nan=False))

@@ -251,8 +251,9 @@ def check_action(action: Any, kind: str, step: int) -> np.ndarray:
         raise _Failed(f"planner returned {error} at step {step}") from None
 
 
-def run_episode(task: EpisodeTask) -> EpisodeResult:
-    """Run one (case, seed) episode and judge it; never raises for what the planner or the env does."""
+def run_episode(task: EpisodeTask, watch: Callable[[Any], None] | None = None) -> EpisodeResult:
+    """Run one (case, seed) episode and judge it; never raises for what the planner or the env does. `watch`, when
+    given, is called with the env once the episode has run (before it closes): the studio keeps its rollout."""
     start = time.perf_counter()
     episode = _Episode(task)
     result = EpisodeResult(case=task.case.name, seed=task.seed, status="pass")
@@ -304,6 +305,8 @@ def run_episode(task: EpisodeTask) -> EpisodeResult:
             result.video = episode.video(caption)
         except Exception as error:
             result.video_error = one_line(error)
+    if watch is not None and episode.env is not None and episode.record.steps:
+        watch(episode.env)
     try:
         episode.close()
     except Exception as error:

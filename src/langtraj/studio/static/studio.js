@@ -732,8 +732,7 @@ function readingView(p) {
   const reading = r.reading;
   const read = Boolean(reading && reading.behaviour);
   if (!r.ok) {
-    const infeasible = read && r.warning;
-    out.append(h('span', { class: 'pill bad' }, infeasible ? 'infeasible' : 'cannot run'), ' ');
+    out.append(h('span', { class: 'pill bad' }, 'cannot run'), ' ');
     if (reading && reading.describe) out.append(h('span', { class: 'describe' }, reading.describe), ' ');
     out.append(h('span', { class: 'bad' }, r.error || 'The prompt cannot be run.'));
     return out;
@@ -745,7 +744,7 @@ function readingView(p) {
   }
   out.append(h('span', { class: 'ok describe' }, reading.describe), ' ');
   if (r.feasible === true) out.append(h('span', { class: 'pill ok' }, 'feasible'));
-  else if (r.feasible === false) out.append(h('span', { class: 'pill warn' }, 'no target on the map'));
+  else if (r.feasible === false) out.append(h('span', { class: 'pill warn' }, 'the map rules it out'));
   if (r.warning) out.append(h('span', { class: 'warn' }, r.warning));
   return out;
 }
@@ -803,7 +802,10 @@ function readPrompts() {
     S.reading = Promise.resolve(false);
     return S.reading;
   }
-  const body = { prompts: idx.map((i) => S.prompts[i].text), adversary: selected('adversary'), target: selected('target') };
+  const body = {
+    prompts: idx.map((i) => S.prompts[i].text), adversary: selected('adversary'), target: selected('target'),
+    planner: $('planner').value || null,
+  };
   S.reading = api('POST', `/api/scenes/${encodeURIComponent(S.sceneKey)}/prompts`, body).then((data) => {
     if (seq !== S.readSeq) return S.reading; // superseded
     const results = data.prompts || [];
@@ -837,7 +839,6 @@ function blocker() {
   for (const [i, p] of S.prompts.entries()) {
     const r = p.result;
     if (!r) continue;
-    if (!r.ok && r.reading && r.reading.behaviour && r.warning) return `Prompt ${i + 1} is infeasible here: ${r.error}`;
     if (!r.ok) return `Prompt ${i + 1} cannot be run: ${r.error || 'it is not understood'}`;
   }
   return null;
@@ -864,9 +865,10 @@ async function run() {
     const data = await api('POST', '/api/jobs', {
       scene: S.sceneKey, prompts: S.prompts.map((p) => p.text), rollouts, seed,
       adversary: selected('adversary'), target: selected('target'), compare: $('compare').checked,
+      planner: $('planner').value || null,
     });
     const { job } = data;
-    say(`Job ${job.id} started: ${rollouts} rollout${rollouts === 1 ? '' : 's'} of ${job.scenario_id}.`);
+    say(`Job ${job.id} ${job.status === 'queued' ? 'queued' : 'started'}: ${rollouts} rollout${rollouts === 1 ? '' : 's'} of ${job.scenario_id}.`);
     S.jobs = [job, ...S.jobs.filter((j) => j.id !== job.id)];
     renderJobs();
     pollJobs();
@@ -1030,10 +1032,15 @@ function buildReplay(job, scene) {
     t: 0, playing: false, last: null, raf: null, panels: [] };
 }
 
-/** The ids of agents with a collision in rollout `ro` of `run` (to outline them red). */
+/** Agent id -> the future step of its first contact in rollout `ro` of `run` (outlined red from then on). */
 function collidedIn(run, ro) {
   const k = run.rollouts.indexOf(ro);
-  return new Set((run.agents || []).filter((a) => a.collision && a.collision[k]).map((a) => String(a.id)));
+  const out = new Map();
+  for (const a of run.agents || []) {
+    const contact = (a.collisions || []).find((c) => c.rollout === k);
+    if (contact) out.set(String(a.id), contact.step);
+  }
+  return out;
 }
 
 /** The panels: all rollouts (prompted beside unprompted) or one rollout, each a canvas. */
@@ -1117,7 +1124,7 @@ function paintReplay() {
         hd += dh * f;
       }
       const id = String(g.a.id);
-      const mark = ro.collided.has(id) && i0 >= R.hist ? '#c01c28' : prompted.has(id) ? TARGET : null;
+      const mark = ro.collided.has(id) && i0 >= R.hist + ro.collided.get(id) ? '#c01c28' : prompted.has(id) ? TARGET : null;
       drawAgent(ctx, g.a, x, y, hd, frame, surf, { mark });
       if (frame.s > 2.2 || prompted.has(id)) drawLabel(ctx, id, x, y, frame, surf);
     }
@@ -1193,6 +1200,11 @@ function rate(values) {
   return `${n} of ${judged.length} (${Math.round((100 * n) / judged.length)}%)`;
 }
 
+function fmtRate(value, run) {
+  if (value === null || value === undefined) return run && run.road_edges === null ? 'not measured' : '—';
+  return fmt(value);
+}
+
 function renderResults(job) {
   const { prompted, unprompted } = job.result.runs;
   const n = prompted.rollouts.length;
@@ -1209,37 +1221,74 @@ function renderResults(job) {
     h('thead', {}, h('tr', {}, h('th', { scope: 'col' }, 'prompt'), h('th', { scope: 'col' }, 'read as'), ...heads,
       unprompted ? h('th', { scope: 'col' }, 'without prompts (base rate)') : null)),
     h('tbody', {}, rows.length ? rows : h('tr', {}, h('td', { colspan: n + 2 }, 'No prompt was judged.')))));
-  // collisions and off-road
+  // collisions and off-road: each first contact with its time and partner (the realism rates' own computation)
+  const stepSeconds = job.result.step_seconds || 0.1;
   for (const [name, run] of [['with the prompts', prompted], ['without prompts', unprompted]]) {
     if (!run) continue;
     const promptedIds = new Set((run.prompts || []).flatMap((p) => [p.agent, p.other]).filter((v) => v !== null && v !== undefined).map(String));
-    const agents = (run.agents || []).filter((a) => promptedIds.has(String(a.id))
+    const measured = run.road_edges !== null && run.road_edges !== undefined;
+    const listed = (run.agents || []).filter((a) => promptedIds.has(String(a.id))
       || (a.collision || []).some(Boolean) || (a.offroad || []).some(Boolean));
+    const parked = listed.filter((a) => a.parked && !promptedIds.has(String(a.id)));
+    const agents = listed.filter((a) => !parked.includes(a));
     agents.sort((a, b) => Number(promptedIds.has(String(b.id))) - Number(promptedIds.has(String(a.id)))); // prompted first
-    const body = agents.map((a) => h('tr', {}, h('th', { scope: 'row' }, `@${a.id}${promptedIds.has(String(a.id)) ? ' (prompted)' : ''}`), ...Array.from({ length: n }, (_, k) => {
-      const ev = [(a.collision || [])[k] ? 'collision' : null, (a.offroad || [])[k] ? 'off-road' : null].filter(Boolean);
-      return h('td', { class: ev.length ? 'event' : 'yes' }, ev.length ? ev.join(', ') : 'clear');
+    const body = agents.map((a) => h('tr', {}, h('th', { scope: 'row' }, `@${a.id}${promptedIds.has(String(a.id)) ? ' (prompted)' : ''}${a.evaluated ? '' : ' ·'}`), ...Array.from({ length: n }, (_, k) => {
+      const contact = (a.collisions || []).find((c) => c.rollout === k);
+      const ev = [];
+      if (contact) ev.push(h('button', { type: 'button', class: 'event-jump', 'data-rollout': k, 'data-step': contact.step, title: 'jump to the moment' },
+        `collision with @${contact.with} at ${((contact.step + 1) * stepSeconds).toFixed(1)} s`));
+      if ((a.offroad || [])[k]) ev.push(h('span', {}, ev.length ? ', off-road' : 'off-road'));
+      if (ev.length) return h('td', { class: 'event' }, ...ev);
+      return h('td', { class: measured ? 'yes' : 'na' }, measured ? 'clear' : 'no collision; off-road not measured');
     })));
+    const note = [`“·”: not scored by WOSAC (its rates cover the ${(run.realism || {}).evaluated ?? '?'} evaluated agents).`];
+    if (!measured) note.push('Off-road is not measured: this map has no road edges.');
+    else if (run.road_edges !== 'map') note.push(`Off-road is measured against road edges ${run.road_edges}.`);
+    if (parked.length) note.push(`${parked.length} parked agent${parked.length === 1 ? '' : 's'} with events not listed: ${parked.map((a) => `@${a.id}`).join(', ')}.`);
     out.push(h('table', { class: 'events-table', 'data-run': run === prompted ? 'prompted' : 'unprompted' },
       h('caption', {}, `Collisions and off-road, ${name}`),
       h('thead', {}, h('tr', {}, h('th', { scope: 'col' }, 'agent'), ...heads.map((x) => x.cloneNode(true)))),
       h('tbody', {}, body.length ? body : h('tr', {}, h('td', { colspan: n + 1 }, 'No collision or off-road in any rollout.')))));
+    out.push(h('p', { class: 'hint events-note' }, note.join(' ')));
   }
   // realism
-  const keys = [...new Set([...Object.keys(prompted.realism || {}), ...Object.keys((unprompted && unprompted.realism) || {})])];
+  const keys = [...new Set([...Object.keys(prompted.realism || {}), ...Object.keys((unprompted && unprompted.realism) || {})])]
+    .filter((key) => key !== 'note' && key !== 'evaluated');
+  const tableRate = (run, key) => (run && run.rates ? run.rates[key] : null);
   if (keys.length) {
     out.push(h('table', { id: 'realism-table' }, h('caption', {}, 'Realism'),
       h('thead', {}, h('tr', {}, h('th', { scope: 'col' }, 'figure'), h('th', { scope: 'col' }, 'with the prompts'),
         unprompted ? h('th', { scope: 'col' }, 'without prompts') : null)),
       h('tbody', {}, keys.map((key) => h('tr', {}, h('th', { scope: 'row' }, key.replace(/_/g, ' ')),
         h('td', { class: 'num' }, fmt((prompted.realism || {})[key])),
-        unprompted ? h('td', { class: 'num' }, fmt((unprompted.realism || {})[key])) : null)))));
+        unprompted ? h('td', { class: 'num' }, fmt((unprompted.realism || {})[key])) : null)).concat(
+        [['collision_all', 'collision rate, every agent in the events table'], ['offroad_all', 'off-road rate, every vehicle measured']]
+          .map(([key, label]) => h('tr', {}, h('th', { scope: 'row' }, label),
+            h('td', { class: 'num' }, fmtRate(tableRate(prompted, key), prompted)),
+            unprompted ? h('td', { class: 'num' }, fmtRate(tableRate(unprompted, key), unprompted)) : null))))),
+      h('p', { class: 'hint' }, `WOSAC's rates are over the ${(prompted.realism || {}).evaluated ?? '?'} agents it scores${(prompted.realism || {}).note ? ` (${prompted.realism.note})` : ''}; the last two rows are over every agent of the table.`));
   }
   const warnings = [...(prompted.warnings || []), ...((unprompted && unprompted.warnings) || [])];
   if (warnings.length) {
     out.push(h('div', { class: 'warnings' }, h('h3', {}, 'Warnings'), h('ul', {}, [...new Set(warnings)].map((w) => h('li', {}, w)))));
   }
   $('results').replaceChildren(...out);
+  for (const b of $('results').querySelectorAll('button.event-jump')) b.addEventListener('click', () => jumpTo(Number(b.dataset.rollout), Number(b.dataset.step)));
+  // every first contact of the prompted run as a tick on the scrubber, labelled with its pair and time
+  const hist = (job.result.start_step ?? 0) + 1;
+  $('scrub-events').replaceChildren(...(prompted.agents || []).flatMap((a) => (a.collisions || []).map((c) =>
+    h('option', { value: String(hist + c.step), label: `@${a.id} × @${c.with}, rollout ${c.rollout + 1}` }))));
+}
+
+/** Show rollout `k` at future step `step` (an event's moment), paused. */
+function jumpTo(k, step) {
+  if (!S.replay) return;
+  if ($('layout').value === 'one' && $('which-rollout').value !== String(k)) { $('which-rollout').value = String(k); layoutReplay(); }
+  setPlaying(false);
+  S.replay.t = S.replay.hist + step;
+  S.replay.last = null;
+  paintReplay();
+  $('scrub').focus();
 }
 
 // ------------------------------------------------------------------ keep: save as a test case
@@ -1257,7 +1306,7 @@ async function saveCase(e) {
   try {
     const r = await api('POST', `/api/jobs/${encodeURIComponent(S.openJob.id)}/case`,
       { suite: $('case-suite').value.trim(), name: $('case-name').value.trim(), criteria });
-    $('case-result').textContent = `Saved case “${r.case}” in ${r.suite}`;
+    $('case-result').textContent = `Saved case “${r.case}” in ${r.suite}; it replays these rollouts with: ${r.command}`;
     $('case-result').hidden = false;
     say(`Test case ${r.case} saved.`);
   } catch (err) {
@@ -1283,6 +1332,7 @@ function start() {
     $('insert-agent').value = '';
   });
   for (const id of ['adversary', 'target']) $(id).addEventListener('change', () => { drawScene(); scheduleRead(); });
+  $('planner').addEventListener('change', scheduleRead); // with a planner, a prompt of the ego is refused
   $('run').addEventListener('click', run);
   $('play').addEventListener('click', () => S.replay && setPlaying(!S.replay.playing));
   $('scrub').addEventListener('input', () => {

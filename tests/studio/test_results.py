@@ -1,0 +1,68 @@
+"""A job's per-agent events agree with its realism figures: each first contact with its step and partner, the
+table's collision rate over the evaluated agents equal to WOSAC's, and off-road saying what it is measured against ("not measured" without road edges)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from langtraj.metrics.controllability import collision_events
+from langtraj.rollouts.agents import evaluated_agent_indices
+from langtraj.scenario.io import read_scenario
+from langtraj.sim.failures import log_rollouts
+from langtraj.scenario.model import RoadMap
+from langtraj.studio.results import agent_outcomes, realism, road_edges, table_rates
+
+CONTACT_STEP = 30
+
+
+@pytest.fixture(scope="module")
+def rammed(real_data_dir: Path):
+    """The WOMD scene's logged future as two rollouts, in the second of which an evaluated agent is put onto
+    another agent's pose from step 30 on."""
+    scenario = read_scenario(real_data_dir / "motion_data_one_scenario.tfrecord")
+    log = log_rollouts(scenario)
+    two = {k: np.concatenate([getattr(log, k)] * 2) for k in ("x", "y", "z", "heading")}
+    ids = list(log.object_id)
+    evaluated = [int(i) for i in scenario.agents.ids[evaluated_agent_indices(scenario)]]
+    mover, struck = evaluated[0], next(i for i in ids if int(i) != evaluated[0] and int(i) not in evaluated)
+    a, b = ids.index(mover), ids.index(struck)
+    for key in ("x", "y", "heading"):
+        two[key][1, a, CONTACT_STEP:] = two[key][1, b, CONTACT_STEP:]
+    return scenario, replace(log, **two, log_following_ids=None), mover, int(struck)
+
+
+def test_a_contact_is_listed_with_its_step_and_partner(rammed) -> None:
+    scenario, rollouts, mover, struck = rammed
+    events = [(e.rollout, e.agent, e.other) for e in collision_events(scenario, rollouts)]
+    assert (1, mover, struck) in events and (1, struck, mover) in events
+    assert (0, mover, struck) not in events
+    rows = {a["id"]: a for a in agent_outcomes(scenario, rollouts)}
+    (contact,) = [c for c in rows[mover]["collisions"] if c["rollout"] == 1]
+    assert contact == {"rollout": 1, "step": CONTACT_STEP, "with": struck}
+    assert rows[mover]["collision"] == [False, True] and rows[mover]["evaluated"]
+
+
+def test_the_tables_rate_over_evaluated_agents_is_wosacs(rammed) -> None:
+    scenario, rollouts, _, _ = rammed
+    agents = agent_outcomes(scenario, rollouts)
+    rates, figures = table_rates(agents), realism(scenario, rollouts)
+    assert figures["evaluated"] == sum(a["evaluated"] for a in agents)
+    assert rates["collision_evaluated"] == pytest.approx(figures["collision_rate"], abs=1e-4)
+    assert rates["collision_evaluated"] > 0 and rates["collision_all"] >= rates["collision_evaluated"] / 10
+
+
+def test_offroad_says_what_it_is_measured_against(real_data_dir: Path) -> None:
+    """nuScenes maps have no road edges of their own: off-road is measured against edges derived from the lanes
+    and says so; a map with neither is not measured."""
+    nuscenes = read_scenario(real_data_dir / "sd_nuscenes_v1.0-mini_scene-0061.pkl")
+    assert road_edges(nuscenes).startswith("derived from")
+    womd = read_scenario(real_data_dir / "motion_data_one_scenario.tfrecord")
+    assert road_edges(womd) == "map"
+    bare = replace(womd, road_map=RoadMap(()))
+    assert road_edges(bare) is None
+    agents = agent_outcomes(bare, log_rollouts(bare))
+    assert all(f is None for a in agents for f in a["offroad"]) and table_rates(agents)["offroad_all"] is None
