@@ -146,3 +146,26 @@ def test_bad_job_bodies_get_one_line(client: TestClient, womd_key: str) -> None:
     big = client.post("/api/jobs", content=b"{" + b" " * 300_000 + b"}", headers={"content-type": "application/json"})
     assert big.status_code == 413
     assert client.get("/api/jobs").json() == {"jobs": []}
+
+
+def test_a_prompt_of_the_ego_is_refused_as_the_env_refuses_it(client: TestClient, womd_key: str) -> None:
+    """With a planner (IDM by default) the scene's self-driving car is the ego, which no prompt may steer: the
+    check is the env's own, so a saved case never fails in `langtraj test` for it. Every agent simulated: allowed."""
+    ego = next(a["id"] for a in client.get(f"/api/scenes/{womd_key}").json()["agents"] if a["sdc"])
+    text = f"@{ego} slows down"
+    (check,) = _check(client, womd_key, [text])["prompts"]
+    assert not check["ok"] and check["error"] == f"{text!r} asks something of the ego, which the planner drives"
+    response = client.post("/api/jobs", json={"scene": womd_key, "prompts": [text]})
+    assert response.status_code == 400 and "asks something of the ego" in response.json()["error"]
+    (free,) = _check(client, womd_key, [text], planner=None)["prompts"]
+    assert free["ok"]
+    unknown = client.post(f"/api/scenes/{womd_key}/prompts", json={"prompts": [text], "planner": "nope"})
+    assert unknown.status_code == 400 and "planner" in unknown.json()["error"]
+
+
+def test_a_job_that_would_run_the_same_simulation_twice_is_refused(client: TestClient, womd_key: str) -> None:
+    response = client.post("/api/jobs", json={"scene": womd_key})
+    assert (
+        response.status_code == 400 and "the run and its comparison would be the same run" in response.json()["error"]
+    )
+    assert client.get("/api/jobs").json() == {"jobs": []}

@@ -1,5 +1,6 @@
 """A job's per-agent events agree with its realism figures: each first contact with its step and partner, the
-table's collision rate over the evaluated agents equal to WOSAC's, and off-road saying what it is measured against ("not measured" without road edges)."""
+table's collision rate over the evaluated agents equal to WOSAC's, and off-road saying what it is measured against
+("not measured" without road edges)."""
 
 from __future__ import annotations
 
@@ -12,8 +13,8 @@ import pytest
 from langtraj.metrics.controllability import collision_events
 from langtraj.rollouts.agents import evaluated_agent_indices
 from langtraj.scenario.io import read_scenario
-from langtraj.sim.failures import log_rollouts
 from langtraj.scenario.model import RoadMap
+from langtraj.sim.failures import log_rollouts
 from langtraj.studio.results import agent_outcomes, realism, road_edges, table_rates
 
 CONTACT_STEP = 30

@@ -57,7 +57,10 @@ class Studio:
 
     def running_job(self) -> str:
         """Start a job and wait until it runs (its first replan counted)."""
-        job = _post(f"{self.url}/api/jobs", {"scene": self.scenes[0]["key"], "prompts": [], "rollouts": 8})["job"]
+        job = _post(
+            f"{self.url}/api/jobs",
+            {"scene": self.scenes[0]["key"], "prompts": [], "rollouts": 8, "compare": False, "planner": None},
+        )["job"]
         deadline = time.monotonic() + 120
         while (now := _get(f"{self.url}/api/jobs/{job['id']}"))["progress"] <= 0 or now["status"] != "running":
             assert now["status"] in ("queued", "running") and time.monotonic() < deadline, now

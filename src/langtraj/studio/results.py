@@ -21,8 +21,8 @@ from langtraj.metrics.controllability import collision_events, collision_flags, 
 from langtraj.metrics.instruction_following import rollout_scenario
 from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.rollouts.agents import evaluated_agent_indices
-from langtraj.scenario.drivable import road_edges_derived_from
 from langtraj.rollouts.container import Rollouts
+from langtraj.scenario.drivable import road_edges_derived_from
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
 from langtraj.sim.parked import parked_in_history
@@ -144,7 +144,7 @@ def table_rates(agents: Sequence[dict[str, Any]]) -> dict[str, float | None]:
 
 
 def rollouts_json(rollouts: Rollouts) -> list[dict[str, dict[str, list[float]]]]:
-    """Per rollout, per agent (track id as text), its 80 simulated x, y (centimetres) and headings (milliradians)."""
+    """Per rollout, per agent (track id as text), its 80 simulated x, y (metres, to the centimetre) and headings (radians, to the milliradian)."""
     ids = [str(int(i)) for i in rollouts.object_id]
     out = []
     for r in range(rollouts.num_rollouts):

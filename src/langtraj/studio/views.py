@@ -1,5 +1,5 @@
 """What the studio's page draws of a scene: agents with their tracks up to the current step, the map as typed
-polylines, and the traffic lights at the current step, in world coordinates rounded to centimetres
+polylines, and the traffic lights at the current step, in world coordinates (metres) rounded to centimetres
 (docs/studio.md, 'GET /api/scenes/{key}')."""
 
 from __future__ import annotations

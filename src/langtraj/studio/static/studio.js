@@ -658,11 +658,19 @@ async function pickScene(key) {
   say('Loading the scene…');
   let scene;
   try { scene = await sceneDetail(key); } catch (err) { showError(`Cannot load the scene: ${err.message}`); say(''); return; }
+  const switched = S.sceneKey !== null && S.sceneKey !== undefined && S.sceneKey !== key;
+  const typed = S.prompts.some((p) => p.text.trim());
   S.sceneKey = key;
   S.scene = scene;
   S.view.frame = null;
   S.view.hover = null;
   for (const p of S.prompts) p.result = null;
+  if (switched) {
+    // the @ids of the old scene name other agents here (or none): never carry them over
+    if (typed) S.prompts = [{ text: '', result: null }];
+    S.active = 0;
+    for (const id of ['run-error', 'read-error', 'case-error']) showIn(id, '');
+  }
   $('scene-title').textContent = `Scene ${scene.scenario_id} (${scene.agents.length} agents)`;
   $('hover-info').textContent = 'Drag to pan, wheel to zoom; click an agent to insert its @id.';
   for (const b of $('scene-list').querySelectorAll('button.scene')) {
@@ -676,7 +684,7 @@ async function pickScene(key) {
   $('insert-agent').replaceChildren(h('option', { value: '' }, 'Insert @id…'),
     ...scene.agents.map((a) => h('option', { value: String(a.id) }, `@${a.id} ${a.type}`)));
   saveHash();
-  say(`Scene ${scene.scenario_id} loaded.`);
+  say(`Scene ${scene.scenario_id} loaded.${switched && typed ? ' The previous scene’s prompts were cleared: their @ids named its agents.' : ''}`);
   renderPrompts();
   readPrompts();
   drawScene();
@@ -812,6 +820,7 @@ function readPrompts() {
     S.prompts.forEach((p) => { p.result = null; p.pending = false; });
     idx.forEach((i, k) => { S.prompts[i].result = results[k] || null; });
     if (data.error) showIn('read-error', data.error);
+    else if (data.ok) showIn('run-error', ''); // the cause of a refused run is fixed: its message goes with it
     renderReadings();
     drawScene();
     return Boolean(data.ok) && idx.every((i) => {
