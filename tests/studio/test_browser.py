@@ -23,9 +23,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from browser_harness import chromium, serve
 
+from langtraj.rollouts.container import Rollouts
 from langtraj.studio.app import StudioConfig, create_app
 from langtraj.studio.catalog import Catalog
 
@@ -308,8 +310,12 @@ def test_pick_prompt_run_watch_judge_keep(site: Site, browser: Browser) -> None:
     assert "min_ttc" in text and "no_collision" in text, text[:2000]
     page.locator("#case-form button[type=submit]").click()  # the same name again: the server's error, in the page
     expect(page.locator("#case-error")).to_contain_text("slows-down")
+    expect(page.locator("#case-result")).to_contain_text("--planner idm")
     npz = page.request.get(site.url + (page.locator("#dl-npz").get_attribute("href") or ""))
     assert npz.ok and npz.body()[:2] == b"PK", npz.status
+    watched_file = site.data / "watched.npz"
+    watched_file.write_bytes(npz.body())
+    replays_watched(suite_file, Rollouts.load(watched_file), site.data / "replay")
     assert (page.locator("#dl-video").get_attribute("href") or "").endswith("/video.mp4")
     v.shot("8-saved", "#replay-grid canvas")
     v.check_clean()
@@ -326,6 +332,23 @@ def find_infeasible(site: Site, key: str, scene: dict[str, Any]) -> tuple[str, s
             if check["ok"] and check["feasible"] is False and check["warning"]:
                 return text, check["warning"]
     raise AssertionError("no prompt the map rules out found in the scene")
+
+
+def replays_watched(suite_file: Path, watched: Rollouts, out: Path) -> None:
+    """The kept case run as `langtraj test --planner idm` runs it (its first seed, one process) gives the rollout
+    the page showed, to 1e-4 m."""
+    from langtraj.suites.config import load_suite
+    from langtraj.suites.episode import EpisodeTask, run_episode
+
+    (case,) = load_suite(suite_file).cases
+    kept: list[Rollouts] = []
+    task = EpisodeTask("e2e", case, case.seeds[0], "idm", None, 10.0, out, video=False)
+    result = run_episode(task, lambda env: kept.append(env.rollout()))
+    assert result.status != "error", result.reasons
+    (replayed,) = kept
+    assert list(replayed.object_id) == list(watched.object_id)
+    gap = max(np.abs(replayed.x[0] - watched.x[0]).max(), np.abs(replayed.y[0] - watched.y[0]).max())
+    assert gap < 1e-4, f"the kept case replays rollout 0 {gap:.2e} m away"
 
 
 def test_bad_prompts_show_a_message_and_start_no_job(site: Site, browser: Browser) -> None:

@@ -113,7 +113,6 @@ def test_a_real_job_end_to_end(catalog: Catalog, womd_key: str, tmp_path: Path) 
     assert client.post(f"/api/jobs/{job_id}/case", json={"suite": "../up", "name": "x"}).status_code == 400
 
 
-@pytest.mark.slow  # 40 s; test_server_stop's ctrl-c case stops a real job mid-run and checks its files by default
 def _replays(case, watched: Rollouts, prompted: dict, tmp_path: Path) -> None:
     """The saved case's first seed run as `langtraj test` runs it gives the watched rollout 0 to 1e-4 m, with the
     prompts' verdicts the studio showed."""
@@ -136,6 +135,7 @@ def test_a_job_that_simulated_the_ego_cannot_be_kept() -> None:
         case_of(job, "kept", None)
 
 
+@pytest.mark.slow  # 40 s; test_server_stop's ctrl-c case stops a real job mid-run and checks its files by default
 def test_a_job_stopped_mid_run_leaves_only_complete_files(catalog: Catalog, womd_key: str, tmp_path: Path) -> None:
     real = JobRunner(catalog)
 
