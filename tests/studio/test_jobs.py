@@ -202,3 +202,28 @@ def test_jobs_submitted_within_one_second_list_newest_first(tmp_path: Path) -> N
     assert [j.id for j in board.jobs()] == submitted[::-1]
     reloaded = JobBoard(JobStore(tmp_path / "jobs"), lambda job, folder, report, stop: None)
     assert [j.id for j in reloaded.jobs()] == submitted[::-1]
+
+
+def test_an_interrupted_job_is_submitted_again_with_its_spec(catalog: Catalog, womd_key: str, tmp_path: Path) -> None:
+    store = JobStore(tmp_path / "jobs")
+    spec = JobSpec(womd_key, WOMD_ID, Case(prompts=("@1588 comes to a stop",), seeds=(5, 6)), 2, planner="idm")
+    store.save(Job("a-interrupted", spec, status="interrupted", error=INTERRUPTED))
+    store.save(Job("b-done", spec, status="done"))
+    client = TestClient(create_app(StudioConfig((), data=tmp_path), catalog, _no_run, start_worker=False))
+    again = client.post("/api/jobs/a-interrupted/resubmit")
+    assert again.status_code == 201, again.text
+    job = again.json()["job"]
+    assert job["id"] != "a-interrupted" and job["status"] == "queued"
+    assert (job["planner"], job["rollouts"], job["case"]["seeds"], job["case"]["prompts"]) == (
+        "idm",
+        2,
+        [5, 6],
+        ["@1588 comes to a stop"],
+    )
+    done = client.post("/api/jobs/b-done/resubmit")
+    assert done.status_code == 409 and "only an interrupted or failed job" in done.json()["error"]
+    assert client.post("/api/jobs/nope/resubmit").status_code == 404
+
+
+def _no_run(*_args) -> None:
+    raise AssertionError("no job runs in this test")

@@ -92,7 +92,8 @@ class PromptChecks:
 
 def target_json(target: BehaviourTarget) -> dict[str, Any]:
     """The page's form of a target: its agent and behaviour, the path (every 2 m), the stop point where the agent
-    must stand still, the conflict point of a pair behaviour and the other agent (world frame, metres to the centimetre)."""
+    must stand still, the conflict point of a pair behaviour and the other agent (world frame, metres to the
+    centimetre)."""
     full = target.to_json()
     return {
         "agent": target.track_id,

@@ -229,6 +229,24 @@ def _job_routes(app: FastAPI, catalog: Catalog, board: JobBoard, suites: Path, c
         spec = JobSpec(body.scene, loaded.scenario.scenario_id, case, body.rollouts, body.compare, planner=body.planner)
         return {"job": board.submit(spec).to_json()}
 
+    @app.post("/api/jobs/{job_id}/resubmit", status_code=201)
+    def resubmit(job_id: str) -> dict[str, Any]:
+        """A new job of an interrupted or failed job's spec, checked again (the scene or the studio may differ)."""
+        old = job_of(job_id)
+        if old.status not in ("interrupted", "failed"):
+            raise Conflict(f"job {old.id} is {old.status}: only an interrupted or failed job is submitted again")
+        loaded = catalog.load(old.spec.scene)
+        if loaded is None:
+            raise NotFound(f"no scene {old.spec.scene!r} in this studio's catalog")
+        case = old.spec.case
+        body = PlannedBody(
+            prompts=list(case.prompts), adversary=case.adversary, target=case.target, planner=old.spec.planner
+        )
+        checks = _checks(loaded.scenario, body, loaded.map_index)
+        if not checks.ok:
+            raise InputError(checks.first_error() or "the prompts cannot be run")
+        return {"job": board.submit(old.spec).to_json()}
+
     @app.get("/api/jobs")
     def jobs() -> dict[str, Any]:
         return {"jobs": [j.to_json() for j in board.jobs()]}

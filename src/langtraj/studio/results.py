@@ -144,7 +144,8 @@ def table_rates(agents: Sequence[dict[str, Any]]) -> dict[str, float | None]:
 
 
 def rollouts_json(rollouts: Rollouts) -> list[dict[str, dict[str, list[float]]]]:
-    """Per rollout, per agent (track id as text), its 80 simulated x, y (metres, to the centimetre) and headings (radians, to the milliradian)."""
+    """Per rollout, per agent (track id as text), its 80 simulated x, y (metres, to the
+    centimetre) and headings (radians, to the milliradian)."""
     ids = [str(int(i)) for i in rollouts.object_id]
     out = []
     for r in range(rollouts.num_rollouts):

@@ -919,9 +919,10 @@ function jobItem(id) {
     bar: h('progress', { max: 1, value: 0, 'aria-label': `Progress of job ${id}` }), stage: h('span', { class: 'job-stage' }),
     err: h('p', { class: 'job-error', role: 'note' }),
     open: h('button', { type: 'button', class: 'open', onclick: () => openJob(id) }, 'Open'),
+    again: h('button', { type: 'button', class: 'again', onclick: () => resubmit(id) }, 'Run again'),
   };
   el.li.append(h('div', { class: 'job-head' }, el.title, el.badge), el.prompts, el.bar,
-    h('div', { class: 'job-head' }, el.stage, el.open), el.err);
+    h('div', { class: 'job-head' }, el.stage, el.open, el.again), el.err);
   S.jobItems.set(id, el);
   return el;
 }
@@ -932,7 +933,8 @@ function renderJobs() {
   const lis = S.jobs.map((j) => {
     const el = jobItem(j.id);
     el.li.classList.toggle('open', Boolean(S.openJob && S.openJob.id === j.id));
-    el.title.textContent = `${j.scenario_id || j.scene} · ${j.rollouts} rollout${j.rollouts === 1 ? '' : 's'}, seed ${j.case.seeds[0]}`;
+    const driver = j.planner ? `ego: ${j.planner}` : 'every agent simulated';
+    el.title.textContent = `${j.scenario_id || j.scene} · ${j.rollouts} rollout${j.rollouts === 1 ? '' : 's'}, seed ${j.case.seeds[0]} · ${driver}`;
     el.badge.textContent = j.status;
     el.badge.className = `status-badge ${j.status}`;
     el.prompts.textContent = (j.case.prompts || []).join(' · ') || '(no prompt)';
@@ -943,12 +945,27 @@ function renderJobs() {
     el.err.textContent = j.error || '';
     el.err.hidden = !j.error;
     el.open.hidden = j.status !== 'done';
+    el.again.hidden = j.status !== 'interrupted' && j.status !== 'failed';
+    if (j.status === 'queued') el.stage.textContent = `queued since ${time(j.created)}`;
+    else if (j.status === 'running' && j.started) el.stage.textContent = `${j.stage || 'running'} (${pct}), started ${time(j.started)}`;
     el.open.setAttribute('aria-label', `Open job ${j.id}`);
     return el.li;
   });
   const list = $('jobs');
   const same = list.children.length === lis.length && lis.every((li, i) => list.children[i] === li);
   if (!same) list.replaceChildren(...lis);
+}
+
+async function resubmit(id) {
+  try {
+    const { job } = await api('POST', `/api/jobs/${encodeURIComponent(id)}/resubmit`);
+    say(`Job ${id} submitted again as ${job.id}.`);
+    S.jobs = [job, ...S.jobs.filter((j) => j.id !== job.id)];
+    renderJobs();
+    pollJobs();
+  } catch (err) {
+    showError(`Cannot run job ${id} again: ${err.message}`);
+  }
 }
 
 function time(t) {  // an ISO time from the server
