@@ -39,6 +39,7 @@ except ImportError as exc:
     pytest.skip(f"the browser tests need pillow: {exc}", allow_module_level=True)
 
 SCENE_ID = "2a1e44d405a6833f"  # the real WOMD scene: 66 sim agents
+WOMD_SCENE_ID = "637f20cafde22ff8"  # another real scene, to switch to
 SMALL_SCENE_ID = "scene-0757_w0"  # nuScenes, few agents: the two tabs' quick jobs
 SCREENSHOTS = os.environ.get("LANGTRAJ_SCREENSHOTS")
 JOB_TIMEOUT_MS = 100_000
@@ -422,3 +423,23 @@ def test_two_tabs_each_start_a_job_and_reload_shows_them(site: Site, browser: Br
     for v in tabs:
         v.check_clean()
     context.close()
+
+
+def test_a_scene_switch_clears_the_old_prompts_and_a_fixed_cause_its_error(site: Site, browser: Browser) -> None:
+    """@ids name agents of one scene: typed on one and carried to another they would steer other agents (or none);
+    a refused run's message goes once its cause is fixed."""
+    key = site.scene_key(SCENE_ID)
+    known = moving_vehicles(site.get(f"/api/scenes/{key}"))[0]["id"]
+    v = visit(browser, site, "switch")
+    page = v.page
+    open_scene(v, SCENE_ID)
+    set_prompt(v, "@987654 slows down")
+    page.click("#run")
+    expect(page.locator("#run-error")).to_contain_text("987654")
+    set_prompt(v, f"@{known} slows down")
+    expect(page.locator("#run-error")).to_be_hidden()
+    open_scene(v, WOMD_SCENE_ID)
+    expect(page.locator("#prompt-0")).to_have_value("")
+    expect(page.locator("#prompts textarea")).to_have_count(1)
+    v.check_clean()
+    page.context.close()
