@@ -112,7 +112,10 @@ def test_baseline_policies_need_no_checkpoint(tiny_run, tmp_path):
     ("extra", "message"),
     [
         (["--prompt", "@999 turns left"], "unknown agent @999"),
-        (["--prompt", "@7 turns left", "--prompt", "@7 stops"], "named by two prompts"),
+        (
+            ["--prompt", "@7 turns left", "--prompt", "@7 stops"],
+            "@7 is named by prompt 1 too",
+        ),  # the one prompt check: the studio says the same
         (["--adversary", "7", "--target", "7"], "same agent"),
         (["--adversary", "27", "--target", "7"], "@27 is not an agent of this scene at its current step"),
         (["--adversary", "7"], "an adversary needs a target"),
