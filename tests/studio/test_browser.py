@@ -285,6 +285,35 @@ def test_pick_prompt_run_watch_judge_keep(site: Site, browser: Browser) -> None:
     expect(canvases).to_have_count(2)
     expect(page.locator("#replay-grid figcaption").first).to_contain_text("rollout 2")
 
+    # zoom, pan and follow (every panel together), and the ego first in the Follow list
+    fitted = page.evaluate("() => window.studio.replayView()")
+    box = page.locator("#replay-grid canvas").first.bounding_box()
+    assert box is not None
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    page.mouse.wheel(0, -200)
+    zoomed = page.evaluate("() => window.studio.replayView()")
+    assert zoomed["s"] == pytest.approx(fitted["s"] * 1.25, rel=1e-6)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] / 2 + 50, box["y"] + box["height"] / 2)
+    page.mouse.up()
+    panned = page.evaluate("() => window.studio.replayView()")
+    assert panned["cx"] == pytest.approx(zoomed["cx"] - 50 / zoomed["s"], abs=1e-6)
+    follow = page.locator("#follow option").nth(1)
+    expect(follow).to_contain_text("(ego)")
+    ego = int(follow.get_attribute("value") or "0")
+    page.select_option("#follow", str(ego))
+    page.focus("#scrub")
+    page.keyboard.press("End")
+    followed = page.evaluate("() => window.studio.replayView()")
+    watched = result["runs"]["prompted"]["rollouts"][1]  # the one-rollout layout shows rollout 2
+    assert (followed["cx"], followed["cy"]) == (
+        pytest.approx(watched["x"][str(ego)][-1], abs=0.01),
+        pytest.approx(watched["y"][str(ego)][-1], abs=0.01),
+    )
+    v.shot("6b-follow-ego", "#replay-grid canvas")
+    page.click("#replay-fit")
+    assert page.evaluate("() => window.studio.replayView()")["s"] == pytest.approx(fitted["s"], rel=1e-6)
+
     # judge: followed or not per rollout, the base rate, the realism figures
     table = page.locator("#followed-table")
     row = table.locator("tbody tr").first

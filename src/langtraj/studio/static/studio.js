@@ -989,6 +989,7 @@ async function openJob(id) {
   saveHash();
   renderJobs();
   S.replay = buildReplay(job, scene);
+  fillFollow(S.replay);
   $('replay').hidden = false;
   const res = job.result;
   const runs = res.runs || {};
@@ -1054,8 +1055,10 @@ function buildReplay(job, scene) {
   }
   const box = boxOf(pts) || scene.bounds;
   const targets = (runs[0].name === 'prompted' ? runs[0].run.targets || [] : []).map(normTarget).filter(Boolean);
+  const parked = new Set((runs[0].run.agents || []).filter((a) => a.parked).map((a) => String(a.id)));
   return { job, scene, runs, tracks, hist, steps, total, box, targets, nRollouts: runs[0].run.rollouts.length,
-    t: 0, playing: false, last: null, raf: null, panels: [] };
+    t: 0, playing: false, last: null, raf: null, panels: [], parked,
+    view: { zoom: 1, dx: 0, dy: 0, follow: '' } };
 }
 
 /** Agent id -> the future step of its first contact in rollout `ro` of `run` (outlined red from then on). */
@@ -1105,6 +1108,91 @@ function layoutReplay() {
   paintReplay();
 }
 
+/** A panel's view at time `i`: the fit of every path, zoomed and panned as the user asked, or centred on the
+ * followed agent (where it is valid in this panel's rollout). */
+function replayFrame(R, panel, surf, i) {
+  const base = Frame.fit(R.box, surf.w, surf.hgt, 6);
+  const { zoom, dx, dy, follow } = R.view;
+  if (follow) {
+    const g = R.tracks[panel.run][panel.k].agents.find((t) => String(t.a.id) === follow);
+    const j = Math.floor(i);
+    if (g && !Number.isNaN(g.X[j])) return new Frame(g.X[j], g.Y[j], base.s * zoom);
+  }
+  return new Frame(base.cx + dx, base.cy + dy, base.s * zoom);
+}
+
+/** A scale bar bottom left: the roundest length of about a fifth of the panel, in metres. */
+function drawScaleBar(ctx, frame, surf) {
+  const lengths = [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000];
+  const metres = lengths.filter((m) => m * frame.s <= surf.w / 4).pop() || lengths[0];
+  const px = metres * frame.s;
+  const x0 = 10; const y0 = surf.hgt - 12;
+  ctx.save();
+  ctx.strokeStyle = '#222'; ctx.fillStyle = '#222'; ctx.lineWidth = 2;
+  ctx.beginPath(); ctx.moveTo(x0, y0 - 4); ctx.lineTo(x0, y0); ctx.lineTo(x0 + px, y0); ctx.lineTo(x0 + px, y0 - 4); ctx.stroke();
+  ctx.font = '11px system-ui, sans-serif';
+  ctx.fillText(`${metres} m`, x0 + px + 4, y0);
+  ctx.restore();
+}
+
+/** Zoom, pan and follow, shared by every panel: the wheel zooms, a drag pans, the Follow list centres an agent. */
+function bindReplayView() {
+  const grid = $('replay-grid');
+  let drag = null;
+  const scaleOf = (canvas) => {
+    const R = S.replay;
+    const panel = R && R.panels.find((p) => p.canvas === canvas);
+    return panel && panel.surf ? replayFrame(R, panel, panel.surf, R.t).s : null;
+  };
+  grid.addEventListener('wheel', (e) => {
+    if (!S.replay || e.target.tagName !== 'CANVAS') return;
+    e.preventDefault();
+    const v = S.replay.view;
+    v.zoom = clamp(v.zoom * (e.deltaY < 0 ? 1.25 : 0.8), 1, 60);
+    if (!S.replay.playing) paintReplay();
+  }, { passive: false });
+  grid.addEventListener('pointerdown', (e) => {
+    if (!S.replay || e.target.tagName !== 'CANVAS') return;
+    drag = { x: e.clientX, y: e.clientY, s: scaleOf(e.target) };
+    e.target.setPointerCapture(e.pointerId);
+  });
+  grid.addEventListener('pointermove', (e) => {
+    if (!drag || !S.replay || !drag.s) return;
+    const v = S.replay.view;
+    if (v.follow) { v.follow = ''; $('follow').value = ''; }
+    v.dx -= (e.clientX - drag.x) / drag.s; v.dy += (e.clientY - drag.y) / drag.s;
+    drag.x = e.clientX; drag.y = e.clientY;
+    if (!S.replay.playing) paintReplay();
+  });
+  const end = () => { drag = null; };
+  grid.addEventListener('pointerup', end);
+  grid.addEventListener('pointercancel', end);
+  $('follow').addEventListener('change', () => {
+    if (!S.replay) return;
+    S.replay.view.follow = $('follow').value;
+    if (!S.replay.view.follow) { S.replay.view.dx = 0; S.replay.view.dy = 0; }
+    if (!S.replay.playing) paintReplay();
+  });
+  $('replay-fit').addEventListener('click', () => {
+    if (!S.replay) return;
+    S.replay.view = { zoom: 1, dx: 0, dy: 0, follow: '' };
+    $('follow').value = '';
+    if (!S.replay.playing) paintReplay();
+  });
+}
+
+/** The Follow list: the ego (under a planner) and the prompted agents first, then every simulated agent. */
+function fillFollow(R) {
+  const episodes = R.runs[0].run.episodes || [];
+  const ego = episodes.length && episodes[0].ego !== null && episodes[0].ego !== undefined ? String(episodes[0].ego) : null;
+  const prompted = [...promptedIdsOf(R)];
+  const first = [...new Set([ego, ...prompted].filter(Boolean))];
+  const rest = R.tracks[0][0].agents.filter((g) => g.a.sim !== false).map((g) => String(g.a.id)).filter((id) => !first.includes(id));
+  $('follow').replaceChildren(h('option', { value: '' }, 'no agent'),
+    ...first.map((id) => h('option', { value: id }, `@${id}${id === ego ? ' (ego)' : ' (prompted)'}`)),
+    ...rest.map((id) => h('option', { value: id }, `@${id}`)));
+}
+
 function paintReplay() {
   const R = S.replay;
   if (!R) return;
@@ -1114,7 +1202,7 @@ function paintReplay() {
     if (!panel.visible) continue;
     const { surf } = panel;
     surf.measure();
-    const frame = Frame.fit(R.box, surf.w, surf.hgt, 6);
+    const frame = replayFrame(R, panel, surf, i);
     const run = R.runs[panel.run];
     surf.background(frame, mapPaths(R.scene), (ctx) => {
       ctx.setTransform(surf.dpr, 0, 0, surf.dpr, 0, 0);
@@ -1151,9 +1239,10 @@ function paintReplay() {
       }
       const id = String(g.a.id);
       const mark = ro.collided.has(id) && i0 >= R.hist + ro.collided.get(id) ? '#c01c28' : prompted.has(id) ? TARGET : null;
-      drawAgent(ctx, g.a, x, y, hd, frame, surf, { mark });
-      if (frame.s > 2.2 || prompted.has(id)) drawLabel(ctx, id, x, y, frame, surf);
+      drawAgent(ctx, g.a, x, y, hd, frame, surf, { mark, alpha: R.parked.has(id) && !mark ? 0.4 : 1 });
+      if (frame.s > 2.2 || prompted.has(id) || id === R.view.follow) drawLabel(ctx, id, x, y, frame, surf);
     }
+    drawScaleBar(ctx, frame, surf);
   }
   const k = Math.floor(i);
   const sim = k - (R.hist - 1);
@@ -1368,6 +1457,7 @@ function start() {
     if (!S.replay.playing) paintReplay();
   });
   $('layout').addEventListener('change', layoutReplay);
+  bindReplayView();
   $('which-rollout').addEventListener('change', layoutReplay);
   $('case-form').addEventListener('submit', saveCase);
   new ResizeObserver(() => { if (S.replay && !S.replay.playing) paintReplay(); }).observe($('replay-grid'));
@@ -1386,6 +1476,14 @@ window.studio = {
     return { x: r.left + S.view.frame.x(p[0], S.view.surf.w), y: r.top + S.view.frame.y(p[1], S.view.surf.hgt) };
   },
   get replayFrames() { return S.replay ? S.replay.total : 0; },
+  /** The first panel's view now: its centre (metres) and scale (pixels a metre). */
+  replayView() {
+    const R = S.replay;
+    const panel = R && R.panels.find((p) => p.surf);
+    if (!panel) return null;
+    const f = replayFrame(R, panel, panel.surf, R.t);
+    return { cx: f.cx, cy: f.cy, s: f.s, follow: R.view.follow };
+  },
 };
 
 start();
