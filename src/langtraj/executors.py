@@ -4,8 +4,8 @@ An executor maps a picklable function over independent items and yields the resu
 `process` (the default) is a local process pool; `ray` hands each item to a Ray cluster as a task
 (docs/design.md, 'Scale-out'), so one command scales from a laptop to many nodes. libsumo keeps one
 simulation per process, so every engine must run one item per process at a time. Each process gets its share of
-the machine's cores for its math libraries (`share_cores`): two workers each spinning up a thread per core would
-run the model three times slower than one (docs/benchmarks.md, 'Suite workers').
+the machine's cores for its math libraries (`share_cores`): two workers each spinning up a thread per core ran a
+suite six times slower than one (docs/benchmarks.md, 'Suite workers').
 """
 
 from __future__ import annotations

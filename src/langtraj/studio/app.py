@@ -18,17 +18,15 @@ from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from langtraj.cases import NAME, read_case
-from langtraj.env.environment import ego_row
 from langtraj.errors import InputError
 from langtraj.fileio import read_json
-from langtraj.planners import PLANNERS
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
-from langtraj.sim.prompt_checks import PromptChecks, check_prompts
+from langtraj.sim.prompt_checks import PromptChecks
 from langtraj.studio.cases import DuplicateCase, case_of, save_case
 from langtraj.studio.catalog import Catalog
 from langtraj.studio.jobs import Job, JobBoard, JobSpec, JobStore, Runner
-from langtraj.studio.simulation import RESULT_FILE, ROLLOUTS_FILE, JobRunner
+from langtraj.studio.simulation import RESULT_FILE, ROLLOUTS_FILE, JobRunner, job_checks
 from langtraj.studio.views import scene_view
 from langtraj.web import with_security_headers
 
@@ -285,12 +283,8 @@ def _job_routes(app: FastAPI, catalog: Catalog, board: JobBoard, suites: Path, c
 
 
 def _checks(scenario: Scenario, body: PlannedBody, index: MapIndex) -> PromptChecks:
-    """The one prompt check (`sim.prompt_checks`); with a planner, against the ego it will drive, as the env checks."""
-    ego = None
-    if body.planner is not None:
-        PLANNERS.get(body.planner, where="planner")
-        ego = int(scenario.agents.ids[ego_row(scenario)])
-    return check_prompts(scenario, body.prompts, body.adversary, body.target, index, ego=ego)
+    """`job_checks` of a request's prompts, pair and planner."""
+    return job_checks(scenario, body.prompts, body.adversary, body.target, body.planner, index)
 
 
 def _render(catalog: Catalog, job: Job, path: Path) -> None:

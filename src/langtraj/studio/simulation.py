@@ -19,16 +19,19 @@ from typing import Any
 import numpy as np
 
 from langtraj.cases import Case
+from langtraj.env.environment import ego_row
 from langtraj.errors import InputError
 from langtraj.fileio import atomic_path
 from langtraj.interdrive.adherence import AdherenceChecker
+from langtraj.interdrive.reader import PromptReading
+from langtraj.planners import PLANNERS
 from langtraj.roads import MapIndex
 from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.sim.config import SimConfig, SimRequest
 from langtraj.sim.engine import replan_schedule, simulate
 from langtraj.sim.policies import LoadedModel, Policy
-from langtraj.sim.prompt_checks import check_prompts
+from langtraj.sim.prompt_checks import PromptChecks, check_prompts
 from langtraj.sim.prompts import read_prompts
 from langtraj.sim.setup import build_policy
 from langtraj.sim.world import SimWorld
@@ -96,20 +99,21 @@ class JobRunner:
             asked, runs = (str(path or "the shipped checkpoint") for path in (case.checkpoint, self.checkpoint))
             raise InputError(f"this job asks for {asked}; the studio runs {runs} (start it with that checkpoint)")
         scenario = scene.scenario
-        checks = check_prompts(scenario, case.prompts, case.adversary, case.target, scene.map_index)
+        checks = job_checks(scenario, case.prompts, case.adversary, case.target, spec.planner, scene.map_index)
         if not checks.ok:
             raise InputError(checks.first_error() or "the prompts cannot be run")
         runs = [("prompted", case.prompts)] + ([("unprompted", ())] if spec.compare else [])
+        # every run is judged on the job's prompts, clause by clause (the unprompted one gives the base rate)
+        read = [(text, reading) for text in case.prompts for reading in read_prompts([text])]
+        checker = AdherenceChecker.build(scenario, map_index=scene.map_index) if case.prompts else None
         if spec.planner is not None:
-            self._episodes(job, scene.scenario, scene.map_index, runs, folder, report, stop)
+            self._episodes(job, scenario, runs, read, checker, folder, report, stop)
             return
         report(0.0, "loading the model")
         loaded = self.model()
         config = SimConfig(rollouts=spec.rollouts, seed=spec.seed)
         per_run = len(replan_schedule(scenario.current_index, config.replan_steps))
         total = per_run * len(runs)
-        read = [(text, reading) for text in case.prompts for reading in read_prompts([text])]  # clause by clause
-        checker = AdherenceChecker.build(scenario, map_index=scene.map_index) if case.prompts else None
         out: dict[str, Any] = {}
         done = 0
         for number, (name, prompts) in enumerate(runs):
@@ -150,8 +154,9 @@ class JobRunner:
         self,
         job: Job,
         scenario: Scenario,
-        index: MapIndex,
         runs: list[tuple[str, Sequence[str]]],
+        read: list[tuple[str, PromptReading]],
+        checker: AdherenceChecker | None,
         folder: Path,
         report: Report,
         stop: threading.Event,
@@ -161,9 +166,7 @@ class JobRunner:
         from langtraj.suites.episode import EpisodeTask, run_episode
 
         spec = job.spec
-        checker = AdherenceChecker.build(scenario, map_index=index) if spec.case.prompts else None
         total, done, out = len(runs) * len(spec.case.seeds), 0, {}
-        read = [(text, reading) for text in spec.case.prompts for reading in read_prompts([text])]  # every run judged
         for number, (name, prompts) in enumerate(runs):
             case = spec.case if prompts else replace(spec.case, prompts=(), adversary=None, target=None)
             kept = _Kept()
@@ -176,20 +179,19 @@ class JobRunner:
                 task = EpisodeTask("studio", case, seed, spec.planner, None, 0.0, folder, video=False)
 
                 result = run_episode(task, kept)
-                if result.status == "error" or len(kept.rollouts) <= len(results) or _short(result, case):
+                if result.status == "error" or _short(result, case):
                     why = "; ".join(result.reasons) or "the episode ended early"
                     raise InputError(f"{name} run, seed {seed}: {why}")
                 results.append(result)
                 done += 1
             rollouts = _stacked(kept.rollouts)
-            first = kept.reports[0] | {"prompt_warnings": results[0].prompt_warnings}
             out[name] = run_json(
                 scenario,
                 rollouts,
                 [text for text, _ in read],
                 [reading for _, reading in read],
                 checker,
-                first,
+                kept.reports[0],  # the others' report: the prompts' targets and warnings
                 time.perf_counter() - start,
             ) | {"episodes": [_episode_json(r) for r in results], "planner": spec.planner}
             if number == 0:
@@ -197,6 +199,23 @@ class JobRunner:
         if stop.is_set():
             raise Interrupted
         _write_result(folder, scenario, out)
+
+
+def job_checks(
+    scenario: Scenario,
+    prompts: Sequence[str],
+    adversary: int | None,
+    target: int | None,
+    planner: str | None,
+    index: MapIndex,
+) -> PromptChecks:
+    """The one prompt check (`sim.prompt_checks`) for a job: with a planner, against the ego the env gives it (a
+    registered planner only), as the env checks before its episode."""
+    ego = None
+    if planner is not None:
+        PLANNERS.get(planner, where="planner")
+        ego = int(scenario.agents.ids[ego_row(scenario)])
+    return check_prompts(scenario, prompts, adversary, target, index, ego=ego)
 
 
 class _Kept:
