@@ -13,7 +13,6 @@ from typing import Annotated, Any
 
 from fastapi import Body, Depends, FastAPI, Request, Response
 from fastapi.responses import FileResponse, JSONResponse
-from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field
 from sqlalchemy import text
 from starlette.concurrency import run_in_threadpool
@@ -30,7 +29,7 @@ from langtraj.labeling.media import MediaConfig, agent_positions, window_video
 from langtraj.labeling.models import Role
 from langtraj.labeling.protocol import parse_labels
 from langtraj.scenario.model import Scenario
-from langtraj.web import with_security_headers
+from langtraj.web import mount_pages, with_security_headers
 
 COOKIE = "langtraj_session"
 CSRF_HEADER = "X-CSRF-Token"
@@ -146,7 +145,7 @@ def create_app(config: ServerConfig, db: Database | None = None) -> FastAPI:
         app.add_exception_handler(error, _handler(status))
 
     _routes(app, state)
-    app.mount("/static", StaticFiles(directory=STATIC), name="static")
+    mount_pages(app, STATIC)
     return app
 
 

@@ -13,7 +13,6 @@ from typing import Any
 from fastapi import FastAPI, Request, Response
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, JSONResponse
-from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
@@ -28,7 +27,7 @@ from langtraj.studio.catalog import Catalog
 from langtraj.studio.jobs import Job, JobBoard, JobSpec, JobStore, Runner
 from langtraj.studio.simulation import RESULT_FILE, ROLLOUTS_FILE, JobRunner, job_checks
 from langtraj.studio.views import scene_view
-from langtraj.web import with_security_headers
+from langtraj.web import mount_pages, with_security_headers
 
 STATIC = Path(__file__).with_name("static")
 MAX_BODY_BYTES = 256 * 1024
@@ -131,7 +130,7 @@ def create_app(
     app.add_exception_handler(StarletteHTTPException, _http)
     _scene_routes(app, catalog)
     _job_routes(app, catalog, board, Path(config.data) / "suites", config.checkpoint)
-    app.mount("/static", StaticFiles(directory=STATIC), name="static")
+    mount_pages(app, STATIC)
     return app
 
 

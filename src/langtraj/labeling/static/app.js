@@ -4,6 +4,9 @@
  * users or the server is inserted with textContent / createElement, never as markup.
  * See docs/labeling.md ('Protocol'); the API is in src/langtraj/labeling/app.py.
  */
+import { request } from '/common/api.js';
+import { $, clamp, h, say, showError, sleep } from '/common/dom.js';
+
 // ------------------------------------------------------------------ constants and state
 
 const NEAR_PX = 25; // click-to-select radius in video pixels, as media.nearest_agent
@@ -22,24 +25,6 @@ const S = {
   queue: [], current: 0, agreement: null, exported: null,
 };
 
-const $ = (id) => document.getElementById(id);
-
-// ------------------------------------------------------------------ DOM helpers (text only, never markup)
-
-function h(tag, attrs = {}, ...kids) {
-  const el = document.createElement(tag);
-  for (const [k, v] of Object.entries(attrs)) {
-    if (v === null || v === undefined || v === false) continue;
-    if (k === 'class') el.className = v;
-    else if (k.startsWith('on')) el.addEventListener(k.slice(2), v);
-    else el.setAttribute(k, v === true ? '' : String(v));
-  }
-  for (const kid of kids.flat()) {
-    if (kid !== null && kid !== undefined && kid !== false) el.append(kid instanceof Node ? kid : String(kid));
-  }
-  return el;
-}
-
 const keymaps = {}; // region -> Map(key -> action)
 const keyLabel = (key) => (/^[A-Z]$/.test(key) ? `Shift+${key}` : key);
 
@@ -56,8 +41,6 @@ function render(region, container, build) {
   container.replaceChildren(...[build()].flat().filter(Boolean));
 }
 
-const say = (text) => { $('status').textContent = text; };
-const showError = (text) => { $('error').textContent = text; $('error').hidden = !text; };
 const badge = (text = 'machine suggestion') => h('span', { class: 'badge machine' }, text);
 const agentName = (id) => `@${id}`;
 const typeTitle = (kind) => (kind === NONE ? 'No interaction' : S.titles.get(kind) || kind);
@@ -67,22 +50,16 @@ const describe = (subtype) => `${typeTitle(subtype.split('/')[0])} – ${subtype
 
 // ------------------------------------------------------------------ API
 
-function detailOf(data) {
-  const detail = data && data.detail;
-  if (Array.isArray(detail)) return detail.map((d) => `${(d.loc || []).slice(1).join('.')}: ${d.msg}`).join('; ');
-  return typeof detail === 'string' ? detail : detail ? JSON.stringify(detail) : '';
-}
-
-/** JSON request; an HTTP error throws an Error with `status` and the server's `detail` as message; a network
- * error throws fetch's TypeError (no `status`). */
+/** JSON request (the shared `request`, with the CSRF token once logged in); a 401 after login asks to log in
+ * again. An HTTP error throws an Error with `status` and the server's `detail`; a network error has no `status`. */
 async function api(method, path, body) {
-  const headers = body === undefined ? {} : { 'Content-Type': 'application/json' };
-  if (method !== 'GET' && S.me) headers['X-CSRF-Token'] = S.me.csrf;
-  const res = await fetch(path, { method, headers, body: body === undefined ? undefined : JSON.stringify(body) });
-  const data = await res.json().catch(() => null);
-  if (res.ok) return data;
-  if (res.status === 401 && S.me && path !== '/api/login') showLogin('Your session ended; log in again.');
-  throw Object.assign(new Error(detailOf(data) || `${res.status} ${res.statusText}`), { status: res.status });
+  const headers = method !== 'GET' && S.me ? { 'X-CSRF-Token': S.me.csrf } : {};
+  try {
+    return await request(method, path, body, headers);
+  } catch (err) {
+    if (err.status === 401 && S.me && path !== '/api/login') showLogin('Your session ended; log in again.');
+    throw err;
+  }
 }
 
 /** Run `fn`, showing its error; the page ignores further actions until it is done. */
@@ -96,7 +73,6 @@ async function guarded(fn) {
 /** 32 random hex digits: the id that makes a retried submission idempotent. */
 const randomId = () => Array.from(crypto.getRandomValues(new Uint8Array(16)), (b) => b.toString(16).padStart(2, '0'))
   .join('');
-const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
 
 // ------------------------------------------------------------------ login, views, progress
 
@@ -215,7 +191,6 @@ async function nextTask() {
   });
 }
 
-const clamp = (x, lo, hi) => Math.min(Math.max(x, lo), hi);
 
 /** The scenario step the video shows: round(currentTime * fps), clamped to the window. */
 const currentStep = () => (S.positions
