@@ -115,6 +115,21 @@ class Visit:
                 share = drawn(canvas_png(self.page, selector, k))
                 assert share > 0.02, f"{step}: {selector} [{k}] is blank ({share:.3f} drawn)"
 
+    def doc_shots(self) -> None:
+        """Under LANGTRAJ_SCREENSHOTS, the main flow as docs/studio.md shows it: the page at 1280x800, its top (the
+        scene, the prompt read, the job) and its replay."""
+        if not SCREENSHOTS:
+            return
+        size = self.page.viewport_size
+        self.page.set_viewport_size({"width": 1280, "height": 800})
+        self.page.evaluate("() => window.scrollTo(0, 0)")
+        self.page.screenshot(path=str(Path(SCREENSHOTS) / "studio-compose.png"))
+        self.page.locator("#replay-title").scroll_into_view_if_needed()
+        self.page.evaluate("() => document.getElementById('replay').scrollIntoView({ block: 'start' })")
+        self.page.screenshot(path=str(Path(SCREENSHOTS) / "studio-replay.png"))
+        if size:
+            self.page.set_viewport_size(size)
+
     def check_clean(self) -> None:
         assert self.dialogs == [], f"dialogs fired: {self.dialogs}"
         assert self.errors == [], f"script errors or CSP violations: {self.errors}"
@@ -249,13 +264,15 @@ def test_pick_prompt_run_watch_judge_keep(site: Site, browser: Browser) -> None:
     wait_done(page, 1)
     v.shot("4-job-done", "#scene-canvas")
 
-    # watch: the replay, rollouts side by side with the unprompted run
+    # watch: the replay, one large view with the other rollouts (and the unprompted run's) as thumbnails
     job.locator("button.open").click()
     expect(page.locator("#replay")).to_be_visible()
     canvases = page.locator("#replay-grid canvas")
-    expect(canvases).to_have_count(4)  # 2 rollouts x (prompted, unprompted)
+    expect(canvases).to_have_count(4)  # 2 rollouts x (prompted, unprompted): 1 large, 3 thumbnails
+    expect(page.locator("#replay-grid .thumbs canvas")).to_have_count(3)
+    main = "#replay-grid .main-view canvas"
     expect(page.locator("#step-info")).to_contain_text("logged history")
-    start_frame = canvas_png(page, "#replay-grid canvas", 0)
+    start_frame = canvas_png(page, main)
     page.evaluate("() => { window.studioStats.frames = []; }")
     page.click("#play")
     page.wait_for_timeout(2000)
@@ -270,8 +287,8 @@ def test_pick_prompt_run_watch_judge_keep(site: Site, browser: Browser) -> None:
     print(f"replay of {agents} agents x 4 panels: {len(frames)} frames in 2 s, median interval {median:.1f} ms")
     assert median < MEDIAN_FRAME_MS, f"median frame interval {median:.1f} ms"
     expect(page.locator("#step-info")).to_contain_text("simulated step")
-    assert canvas_png(page, "#replay-grid canvas", 0) != start_frame  # the agents moved
-    v.shot("5-replay-playing", "#replay-grid canvas")
+    assert canvas_png(page, main) != start_frame  # the agents moved
+    v.shot("5-replay-playing", "#replay-grid canvas", "#replay-plots canvas")
 
     # scrub by keyboard: the first and the last step
     page.focus("#scrub")
@@ -280,14 +297,24 @@ def test_pick_prompt_run_watch_judge_keep(site: Site, browser: Browser) -> None:
     page.keyboard.press("End")
     expect(page.locator("#step-info")).to_contain_text("simulated step 80 of 80")
     v.shot("6-replay-end", "#replay-grid canvas")
-    page.select_option("#layout", "one")
-    page.select_option("#which-rollout", "1")
-    expect(canvases).to_have_count(2)
-    expect(page.locator("#replay-grid figcaption").first).to_contain_text("rollout 2")
+    v.doc_shots()
+    plots_follow_the_replay(page, result, str(agent["id"]))
+
+    # a thumbnail clicked is the large view; the rollout list picks one too; all side by side shows every panel
+    page.locator('#replay-grid .thumbs button[data-pick="1:0"]').click()
+    expect(page.locator("#replay-grid .main-view figcaption")).to_have_text("without prompts · rollout 1")
+    assert page.evaluate("() => window.studio.replayView()")["run"] == "unprompted"
+    page.select_option("#layout", "all")
+    expect(page.locator("#replay-grid .thumbs")).to_have_count(0)
+    expect(canvases).to_have_count(4)
+    page.select_option("#layout", "focus")
+    page.select_option("#which-rollout", "0:1")
+    expect(page.locator("#replay-grid .main-view figcaption")).to_have_text("with the prompts · rollout 2")
+    expect(canvases).to_have_count(4)
 
     # zoom, pan and follow (every panel together), and the ego first in the Follow list
     fitted = page.evaluate("() => window.studio.replayView()")
-    box = page.locator("#replay-grid canvas").first.bounding_box()
+    box = page.locator(main).bounding_box()
     assert box is not None
     page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
     page.mouse.wheel(0, -200)
@@ -305,7 +332,7 @@ def test_pick_prompt_run_watch_judge_keep(site: Site, browser: Browser) -> None:
     page.focus("#scrub")
     page.keyboard.press("End")
     followed = page.evaluate("() => window.studio.replayView()")
-    watched = result["runs"]["prompted"]["rollouts"][1]  # the one-rollout layout shows rollout 2
+    watched = result["runs"]["prompted"]["rollouts"][1]  # the large view shows rollout 2
     assert (followed["cx"], followed["cy"]) == (
         pytest.approx(watched["x"][str(ego)][-1], abs=0.01),
         pytest.approx(watched["y"][str(ego)][-1], abs=0.01),
@@ -350,6 +377,26 @@ def test_pick_prompt_run_watch_judge_keep(site: Site, browser: Browser) -> None:
     v.shot("8-saved", "#replay-grid canvas")
     v.check_clean()
     page.context.close()
+
+
+def plots_follow_the_replay(page: Page, result: dict[str, Any], agent: str) -> None:
+    """The prompted agent's plots show the job's own series: at the last step the cursor reads the large view's
+    rollout's value; a click on a plot moves the replay to that time."""
+    series = result["runs"]["prompted"]["series"][agent]
+    expect(page.locator(f'#replay-plots canvas[data-agent="{agent}"][data-quantity="speed"]')).to_be_visible()
+    quantities = ["speed"] + (["to_target"] if series["to_target"] else [])
+    expect(page.locator(f'#replay-plots canvas[data-agent="{agent}"]')).to_have_count(len(quantities))
+    for key in quantities:
+        shown = page.evaluate(f"() => window.studio.plotValue({agent}, '{key}')")
+        assert shown == pytest.approx(series[key][0][-1], abs=1e-9), (key, shown)
+    plot = page.locator(f'#replay-plots canvas[data-agent="{agent}"][data-quantity="speed"]')
+    box = plot.bounding_box()
+    assert box is not None
+    plot.click(position={"x": box["width"] * 0.75, "y": box["height"] / 2})
+    step = page.evaluate("() => window.studio.replayView()")["step"]
+    total = page.evaluate("() => window.studio.replayFrames")
+    assert 0.55 * total < step < 0.85 * total, (step, total)
+    expect(page.locator("#step-info")).to_contain_text("simulated step")
 
 
 def find_infeasible(site: Site, key: str, scene: dict[str, Any]) -> tuple[str, str]:

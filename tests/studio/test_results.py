@@ -1,21 +1,28 @@
 """A job's per-agent events agree with its realism figures: each first contact with its step and partner, the
 table's collision rate over the evaluated agents equal to WOSAC's, and off-road saying what it is measured against
-("not measured" without road edges)."""
+("not measured" without road edges); the RUN object carries the prompted agents' series (`test_series.py`)."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from langtraj.interdrive.adherence import AdherenceChecker
+from langtraj.interdrive.behaviour import Behaviour
+from langtraj.interdrive.reader import PromptReading
+from langtraj.interdrive.targets import derive_target
 from langtraj.metrics.controllability import collision_events, collision_rate
+from langtraj.roads import MapIndex
 from langtraj.rollouts.agents import evaluated_agent_indices
 from langtraj.scenario.io import read_scenario
 from langtraj.scenario.model import RoadMap
 from langtraj.sim.failures import log_rollouts
-from langtraj.studio.results import agent_outcomes, realism, road_edges, table_rates
+from langtraj.studio.results import agent_outcomes, realism, road_edges, run_json, table_rates
+from langtraj.studio.series import prompted_series
 
 CONTACT_STEP = 30
 
@@ -68,3 +75,23 @@ def test_offroad_says_what_it_is_measured_against(real_data_dir: Path) -> None:
     assert road_edges(bare) is None
     agents = agent_outcomes(bare, log_rollouts(bare))
     assert all(f is None for a in agents for f in a["offroad"]) and table_rates(agents)["offroad_all"] is None
+
+
+def test_the_run_carries_the_prompted_agents_series(rammed) -> None:
+    """The prompt "@mover stops" with its derived stop target in the run's report: the RUN object plots the mover's
+    speed and distance to the stop point in both rollouts (`prompted_series`), a prompt not read adds nothing, and
+    the whole object is JSON without NaN."""
+    scenario, rollouts, mover, _ = rammed
+    index = MapIndex.build(scenario.road_map)
+    target = derive_target(scenario, mover, Behaviour.STOP, index).to_json()
+    readings = [PromptReading(Behaviour.STOP, mover), PromptReading(None, None, reason="no agent named")]
+    report = {"prompt": {"targets": [target]}}
+    checker = AdherenceChecker.build(scenario, map_index=index)
+    run = run_json(scenario, rollouts, ["@m stops", "drive well"], readings, checker, report, 1.0)
+    assert list(run["series"]) == [str(mover)]
+    entry = run["series"][str(mover)]
+    assert entry["goal"] == "the stop point" and entry["to_target"][0][scenario.current_index] > 0  # ahead
+    length = scenario.current_index + 1 + rollouts.num_steps
+    assert [len(s) for s in entry["speed"]] == [length] * 2 and [len(s) for s in entry["to_target"]] == [length] * 2
+    assert entry == prompted_series(scenario, rollouts, [target], [mover])[str(mover)]
+    json.dumps(run, allow_nan=False)

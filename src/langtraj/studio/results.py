@@ -1,6 +1,7 @@
 """Judging a run of a job: per prompt and rollout whether the labelers find it followed, per sim agent and
 rollout whether it collides or leaves the road, the WOSAC realism of the rollouts where the scene logs its
-future, and the rollouts themselves as the page replays them (docs/studio.md, 'GET /api/jobs/{id}').
+future, the rollouts themselves as the page replays them, and the prompted agents' speed and distance to their
+targets over time as it plots them (`studio.series`; docs/studio.md, 'GET /api/jobs/{id}').
 
 A prompt is judged as instruction following and the suites judge it: its reading's `PromptReading.followed` among
 the facts the labelers find in the rollout (`AdherenceChecker.facts` of `rollout_scenario`), as the simulation's
@@ -26,6 +27,7 @@ from langtraj.scenario.drivable import road_edges_derived_from
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
 from langtraj.sim.parked import parked_in_history
+from langtraj.studio.series import prompted_series
 
 REALISM_FIELDS = {
     "meta_metric": "metametric",
@@ -165,10 +167,15 @@ def run_json(
     checker: AdherenceChecker | None,
     report: dict[str, Any],
     seconds: float,
+    aims: Sequence[dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
-    """The RUN object of a job's result."""
+    """The RUN object of a job's result; its `series` are those of the agents the prompts name (`agent` and
+    `other`), toward `aims` (default: the report's targets; a run without the prompts is measured to the prompted
+    run's, so the page can show how far the agent gets without being asked)."""
     prompt = report.get("prompt") or {}
     agents = agent_outcomes(scenario, rollouts)
+    targets = list(prompt.get("targets") or [])
+    named = [i for r in readings for i in (r.agent, r.other) if i is not None]
     return {
         "rollouts": rollouts_json(rollouts),
         "prompts": judge_prompts(scenario, rollouts, texts, readings, checker),
@@ -176,7 +183,8 @@ def run_json(
         "rates": table_rates(agents),
         "road_edges": road_edges(scenario),
         "realism": realism(scenario, rollouts),
-        "targets": list(prompt.get("targets") or []),
+        "targets": targets,
+        "series": prompted_series(scenario, rollouts, targets if aims is None else aims, named),
         "warnings": list(report.get("prompt_warnings") or []),
         "seconds": round(seconds, 2),
     }

@@ -143,6 +143,7 @@ class JobRunner:
                 checker,
                 result.report,
                 result.seconds,
+                aims=out["prompted"]["targets"] if number else None,
             )
             if number == 0:
                 result.rollouts.save(folder / ROLLOUTS_FILE)
@@ -193,6 +194,7 @@ class JobRunner:
                 checker,
                 kept.reports[0],  # the others' report: the prompts' targets and warnings
                 time.perf_counter() - start,
+                aims=out["prompted"]["targets"] if number else None,
             ) | {"episodes": [_episode_json(r) for r in results], "planner": spec.planner}
             if number == 0:
                 rollouts.save(folder / ROLLOUTS_FILE)
