@@ -19,6 +19,7 @@ from langtraj.metrics.controllability import (
     collision_rate,
     controllability,
     min_ade,
+    offroad_first_steps,
     offroad_flags,
     offroad_rate,
     pair_collision,
@@ -188,6 +189,8 @@ def test_offroad_with_a_straight_road_edge():
     ids, flags = offroad_flags(sc, ro)
     np.testing.assert_array_equal(ids, [101, 102])
     np.testing.assert_array_equal(flags, [[False, False], [False, True]])
+    _, first = offroad_first_steps(sc, ro)  # the first step off the road, -1: never
+    np.testing.assert_array_equal(first, [[-1, -1], [-1, 40]])
     assert offroad_rate(sc, ro) == 0.25
     assert offroad_rate(sc, ro, [103]) == 1.0
     assert offroad_rate(sc, ro, [101, 102, 103]) == pytest.approx(3 / 6)

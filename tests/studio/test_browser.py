@@ -350,6 +350,7 @@ def test_pick_prompt_run_watch_judge_keep(site: Site, browser: Browser) -> None:
     expect(row.locator("td").last).to_contain_text(re.compile(r"\d+ of \d+|not judged"))
     expect(page.locator("#realism-table")).to_contain_text("meta metric")
     expect(page.locator(".events-table").first.locator("tbody")).to_contain_text(f"@{agent['id']}")
+    events_agree(page, result)
     v.shot("7-results", "#replay-grid canvas")
 
     # keep: save the case, the suite file holds it; the downloads are there
@@ -377,6 +378,44 @@ def test_pick_prompt_run_watch_judge_keep(site: Site, browser: Browser) -> None:
     v.shot("8-saved", "#replay-grid canvas")
     v.check_clean()
     page.context.close()
+
+
+def events_agree(page: Page, result: dict[str, Any]) -> None:
+    """The page's events are the job's: every contact and off-road of the prompted run is a tick on the scrubber
+    (a contact labelled with its partner); WOSAC's collision rate shown equals the events table's own count over
+    the agents WOSAC scores; an event's button shows its run and rollout at its moment in the large view."""
+    prompted = result["runs"]["prompted"]
+    hist = result["start_step"] + 1
+    ticks = page.locator("#scrub-events option")
+    wanted = sorted(
+        [
+            (hist + c["step"], f"@{a['id']} × @{c['with']}, rollout {c['rollout'] + 1}")
+            for a in prompted["agents"]
+            for c in a["collisions"]
+        ]
+        + [
+            (hist + o["step"], f"@{a['id']} off-road, rollout {o['rollout'] + 1}")
+            for a in prompted["agents"]
+            for o in a["offroads"]
+        ]
+    )
+    shown = sorted((int(t.get_attribute("value") or -1), t.get_attribute("label") or "") for t in ticks.all())
+    assert shown == wanted
+    table = page.locator('.events-table[data-run="prompted"]')
+    n = len(prompted["rollouts"])
+    rows = [r for r in table.locator("tbody tr").all() if r.locator("th").count()]
+    scored = [r for r in rows if not (r.locator("th").inner_text()).endswith("·")]
+    hits = sum("collision with" in c for r in scored for c in r.locator("td").all_text_contents())
+    evaluated = prompted["realism"]["evaluated"]
+    wosac = page.locator("#realism-table tr", has_text="collision rate").first.locator("td").first.inner_text()
+    assert float(wosac) == pytest.approx(hits / (evaluated * n), abs=5e-4), (wosac, hits, evaluated, n)
+    jumps = page.locator(".events-table button.event-jump")
+    assert jumps.count() > 0, "no collision or off-road in the job to jump to"
+    jump = jumps.last
+    run, k, step = (jump.get_attribute(a) for a in ("data-run", "data-rollout", "data-step"))
+    jump.click()
+    view = page.evaluate("() => window.studio.replayView()")
+    assert (view["run"], view["rollout"], view["step"]) == (run, int(k or 0), hist + int(step or 0))
 
 
 def plots_follow_the_replay(page: Page, result: dict[str, Any], agent: str) -> None:
@@ -411,6 +450,25 @@ def find_infeasible(site: Site, key: str, scene: dict[str, Any]) -> tuple[str, s
     raise AssertionError("no prompt the map rules out found in the scene")
 
 
+def clause_by_clause(v: Visit, slower: int, infeasible: str, warning: str, three: list[int]) -> None:
+    """A prompt of two clauses shows both readings, the one the map rules out with its warning, none dropped; a
+    prompt naming three agents before one verb reads as each of them doing it, one line each."""
+    page = v.page
+    set_prompt(v, f"@{slower} slows down. {infeasible}.")
+    clauses = page.locator("#reading-0 .clauses li")
+    expect(clauses).to_have_count(2)
+    expect(clauses.nth(0)).to_contain_text(f"read as: @{slower} slow_down")
+    expect(clauses.nth(1)).to_have_attribute("data-clause", infeasible)
+    expect(clauses.nth(1)).to_contain_text(f"read as: {infeasible.split()[0]} ")
+    expect(page.locator("#reading-0 .pill")).to_have_text("the map rules it out")
+    expect(page.locator("#reading-0")).to_contain_text(warning)
+    set_prompt(v, " ".join(f"@{i}" for i in three) + " stop")
+    expect(clauses).to_have_count(3)
+    for k, i in enumerate(three):
+        expect(clauses.nth(k)).to_contain_text(f"read as: @{i} stop")
+    expect(page.locator("#reading-0 .pill")).to_have_text("feasible")
+
+
 def replays_watched(suite_file: Path, watched: Rollouts, out: Path) -> None:
     """The kept case run as `langtraj test --planner idm` runs it (its first seed, one process) gives the rollout
     the page showed, to 1e-4 m."""
@@ -441,6 +499,9 @@ def test_bad_prompts_show_a_message_and_start_no_job(site: Site, browser: Browse
     expect(page.locator("#reading-0 .pill")).to_have_text("the map rules it out")
     expect(page.locator("#reading-0")).to_contain_text(warning)
     other = moving_vehicles(scene)[1]["id"]
+    movers = [a["id"] for a in moving_vehicles(scene)]
+    slower = next(i for i in movers if f"@{i}" != infeasible.split()[0])  # one behaviour per agent
+    clause_by_clause(v, slower, infeasible, warning, movers[:3])
     cases = [
         ("unknown", "@987654 slows down", "987654"),
         ("typo", f"@{known} yeilds to @{other}", f"did you mean '@{known} yields to @{other}'?"),
@@ -517,5 +578,45 @@ def test_a_scene_switch_clears_the_old_prompts_and_a_fixed_cause_its_error(site:
     open_scene(v, WOMD_SCENE_ID)
     expect(page.locator("#prompt-0")).to_have_value("")
     expect(page.locator("#prompts textarea")).to_have_count(1)
+    v.check_clean()
+    page.context.close()
+
+
+def test_a_nuscenes_job_says_what_offroad_is_measured_against(site: Site, browser: Browser) -> None:
+    """nuScenes maps have no road edges: the page says off-road is measured against edges derived from the lanes;
+    where a map has neither (the same job's answer with `road_edges` null, as the server sends it for such a map),
+    every cell and rate says "not measured" rather than "clear"."""
+    key = site.scene_key(SMALL_SCENE_ID)
+    agent = moving_vehicles(site.get(f"/api/scenes/{key}"))[0]["id"]
+    v = visit(browser, site, "nuscenes", f"#scene={key}")
+    page = v.page
+    set_prompt(v, f"@{agent} slows down")
+    page.fill("#rollouts", "1")
+    page.uncheck("#compare")
+    page.click("#run")
+    wait_done(page, 1)
+    job_id = site.job_ids()[0]
+    result = site.get(f"/api/jobs/{job_id}")["result"]
+    assert result["runs"]["prompted"]["road_edges"].startswith("derived from")
+    page.locator("#jobs .job").first.locator("button.open").click()
+    expect(page.locator(".events-note").first).to_contain_text("measured against road edges derived from")
+    expect(page.locator(".events-table").first).not_to_contain_text("not measured")
+
+    def bare(route: Any) -> None:  # the job as the server answers it for a map with no edges and no lanes
+        job = site.get(f"/api/jobs/{job_id}")
+        run = job["result"]["runs"]["prompted"]
+        run["road_edges"] = None
+        run["rates"]["offroad_all"] = run["rates"]["offroad_evaluated"] = None
+        for a in run["agents"]:
+            a["offroad"], a["offroads"] = [None] * len(a["offroad"]), []
+        route.fulfill(json=job)
+
+    page.route(f"**/api/jobs/{job_id}", bare)
+    page.locator("#jobs .job").first.locator("button.open").click()
+    expect(page.locator(".events-note").first).to_contain_text("Off-road is not measured: this map has no road edges.")
+    expect(page.locator(".events-table").first.locator("tbody")).to_contain_text("off-road not measured")
+    expect(page.locator(".events-table").first.locator("tbody")).not_to_contain_text("clear")
+    row = page.locator("#realism-table tr", has_text="off-road rate, every vehicle measured")
+    expect(row.locator("td").first).to_have_text("not measured")
     v.check_clean()
     page.context.close()

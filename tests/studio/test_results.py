@@ -18,6 +18,7 @@ from langtraj.interdrive.targets import derive_target
 from langtraj.metrics.controllability import collision_events, collision_rate
 from langtraj.roads import MapIndex
 from langtraj.rollouts.agents import evaluated_agent_indices
+from langtraj.rollouts.baselines import generate_baseline
 from langtraj.scenario.io import read_scenario
 from langtraj.scenario.model import RoadMap
 from langtraj.sim.failures import log_rollouts
@@ -75,6 +76,23 @@ def test_offroad_says_what_it_is_measured_against(real_data_dir: Path) -> None:
     assert road_edges(bare) is None
     agents = agent_outcomes(bare, log_rollouts(bare))
     assert all(f is None for a in agents for f in a["offroad"]) and table_rates(agents)["offroad_all"] is None
+    assert all(a["offroads"] == [] for a in agents)
+
+
+def test_an_offroad_event_has_its_first_step(real_data_dir: Path) -> None:
+    """Each rollout in which a vehicle leaves the road lists the first step it is off (as the flag), so the page
+    can jump there: a car pushed 30 m sideways from step 25 of rollout 1 is off the road from step 25 there."""
+    womd = read_scenario(real_data_dir / "motion_data_one_scenario.tfrecord")
+    rollouts = generate_baseline("log_replay", womd, 2)
+    agents = {a["id"]: a for a in agent_outcomes(womd, rollouts)}
+    car = next(i for i, a in agents.items() if a["offroad"] == [False, False] and not a["parked"])
+    k = int(np.flatnonzero(rollouts.object_id == car)[0])
+    rollouts.x[1, k, 25:] += 30.0
+    rollouts.y[1, k, 25:] += 30.0
+    moved = {a["id"]: a for a in agent_outcomes(womd, rollouts)}[car]
+    for a in [moved, *agents.values()]:
+        assert [o["rollout"] for o in a["offroads"]] == [r for r, f in enumerate(a["offroad"]) if f]
+    assert moved["offroads"] == [{"rollout": 1, "step": 25}]
 
 
 def test_the_run_carries_the_prompted_agents_series(rammed) -> None:

@@ -392,6 +392,19 @@ def offroad_flags(
     Default agents: the rollout agents of vehicle type (pedestrians and cyclists legitimately use
     sidewalks). A scene without road edges raises InputError: offroad cannot be measured there.
     """
+    ids, first = offroad_first_steps(scenario, rollouts, agent_ids, scene_map=scene_map)
+    return ids, first >= 0
+
+
+def offroad_first_steps(
+    scenario: Scenario,
+    rollouts: Rollouts,
+    agent_ids: Sequence[int] | None = None,
+    *,
+    scene_map: SceneMap | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(ids [E], int [R, E]): the first future step (0: the first simulated one) at which each agent is off the
+    road in each rollout, -1 where it never is; the agents and errors of `offroad_flags`, which is this >= 0."""
     tracks = check_rollouts(scenario, rollouts)
     if agent_ids is None:
         is_vehicle = scenario.agents.types[tracks] == AgentType.VEHICLE
@@ -409,8 +422,8 @@ def offroad_flags(
     shape = (rollouts.num_rollouts, len(cols), rollouts.num_steps)
     size = [np.broadcast_to(dims[None, :, k, None], shape) for k in range(3)]
     pose = [getattr(rollouts, f)[:, cols].astype(np.float64) for f in ("x", "y", "z", "heading")]
-    dist = distance_to_road_edge(scene_map.road_edges, *pose, *size, np.ones(shape, bool))
-    return rollouts.object_id[cols], (dist > OFFROAD_THRESHOLD).any(-1)
+    off = distance_to_road_edge(scene_map.road_edges, *pose, *size, np.ones(shape, bool)) > OFFROAD_THRESHOLD
+    return rollouts.object_id[cols], np.where(off.any(-1), off.argmax(-1), -1)
 
 
 def agent_rates(

@@ -18,7 +18,7 @@ import numpy as np
 from langtraj.errors import InputError
 from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.reader import PromptReading
-from langtraj.metrics.controllability import collision_events, collision_flags, offroad_flags
+from langtraj.metrics.controllability import collision_events, collision_flags, offroad_first_steps
 from langtraj.metrics.instruction_following import rollout_scenario
 from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.rollouts.agents import evaluated_agent_indices
@@ -75,7 +75,8 @@ def agent_outcomes(scenario: Scenario, rollouts: Rollouts) -> list[dict[str, Any
     its step (0: the first simulated one) and partner (`collision_events`, the same signed distance as the realism
     table's collision rate), whether WOSAC scores it (`evaluated`: the realism rates are over these agents alone),
     whether it stands still through its history (`parked`), and whether it leaves the road (vehicles only; null for
-    pedestrians, cyclists and others, and where the map has no road edges: not measured)."""
+    pedestrians, cyclists and others, and where the map has no road edges: not measured) and at which step it first
+    does in each rollout it does (`offroads`, as `metrics.controllability.offroad_first_steps`)."""
     ids = [int(i) for i in rollouts.object_id]
     collided = collision_flags(scenario, rollouts)  # [R, A]
     contacts: dict[int, list[dict[str, int]]] = {i: [] for i in ids}
@@ -84,13 +85,16 @@ def agent_outcomes(scenario: Scenario, rollouts: Rollouts) -> list[dict[str, Any
     evaluated = {int(i) for i in scenario.agents.ids[evaluated_agent_indices(scenario)]}
     parked = {int(i) for i in scenario.agents.ids[parked_in_history(scenario)]}
     offroad: dict[int, list[bool]] = {}
+    leaves: dict[int, list[dict[str, int]]] = {}
     types = scenario.agents.types[[scenario.agents.index_of(i) for i in ids]]
     if (types == AgentType.VEHICLE).any():
         try:
-            found, flags = offroad_flags(scenario, rollouts)
-            offroad = {int(i): flags[:, k].tolist() for k, i in enumerate(found)}
+            found, first = offroad_first_steps(scenario, rollouts)
         except InputError:  # no road edges: offroad cannot be measured
-            offroad = {}
+            found, first = np.zeros(0, np.int64), np.zeros((rollouts.num_rollouts, 0), np.int64)
+        for k, i in enumerate(found):
+            offroad[int(i)] = (first[:, k] >= 0).tolist()
+            leaves[int(i)] = [{"rollout": r, "step": int(s)} for r, s in enumerate(first[:, k]) if s >= 0]
     nothing = [None] * rollouts.num_rollouts
     return [
         {
@@ -98,6 +102,7 @@ def agent_outcomes(scenario: Scenario, rollouts: Rollouts) -> list[dict[str, Any
             "collision": collided[:, k].tolist(),
             "collisions": contacts[i],
             "offroad": offroad.get(i, nothing),
+            "offroads": leaves.get(i, []),
             "evaluated": i in evaluated,
             "parked": i in parked,
         }

@@ -13,12 +13,12 @@ export const selected = (id) => ($(id).value === '' ? null : Number($(id).value)
 
 /** What the scene marks: the readings' targets and the agents the prompts name. */
 function updateMarks() {
-  const targets = S.prompts.map((p) => p.result && p.result.target && normTarget(p.result.target)).filter(Boolean);
+  const results = S.prompts.map((p) => p.result).filter(Boolean);
+  const targets = results.flatMap((r) => r.targets || (r.target ? [r.target] : [])).map(normTarget).filter(Boolean);
   const prompted = new Set();
-  for (const p of S.prompts) {
-    const r = p.result && p.result.reading;
-    if (r && r.agent !== null && r.agent !== undefined) prompted.add(String(r.agent));
-    if (r && r.other !== null && r.other !== undefined) prompted.add(String(r.other));
+  for (const r of results.flatMap((x) => x.readings || (x.reading ? [x.reading] : []))) {
+    if (r.behaviour && r.agent !== null && r.agent !== undefined) prompted.add(String(r.agent));
+    if (r.behaviour && r.other !== null && r.other !== undefined) prompted.add(String(r.other));
   }
   S.marks = { targets, prompted };
   drawScene();
@@ -63,7 +63,8 @@ function renderReadings() {
   S.prompts.forEach((p, i) => { const el = $(`reading-${i}`); if (el) el.replaceChildren(readingView(p)); });
 }
 
-/** How prompt `p` was read: the reader's description, whether the map allows it, the warning or error. */
+/** How prompt `p` was read: the reader's description (clause by clause where it has several), whether the map
+ * allows it, the warning or error. */
 function readingView(p) {
   if (!p.text.trim()) return h('span', { class: 'pending' }, 'Empty: write a prompt such as “@12 slows down”.');
   if (!S.scene) return h('span', { class: 'pending' }, 'Pick a scene to read it against.');
@@ -83,7 +84,14 @@ function readingView(p) {
       h('span', { class: 'warn describe' }, (reading && reading.describe) || 'The reader did not read it; it steers by its text alone.'));
     return out;
   }
-  out.append(h('span', { class: 'ok describe' }, reading.describe), ' ');
+  const clauses = r.readings || [];
+  if (clauses.length > 1) { // each clause as the simulation reads it, one per line
+    out.append(h('ol', { class: 'clauses', 'aria-label': 'Clause by clause' }, clauses.map((c) => h('li', { 'data-clause': c.clause || '' },
+      c.behaviour ? h('span', { class: 'ok describe' }, c.describe)
+        : [h('span', { class: 'pill warn' }, 'not read'), ' ', h('span', { class: 'warn describe' }, c.describe)]))));
+  } else {
+    out.append(h('span', { class: 'ok describe' }, reading.describe), ' ');
+  }
   if (r.feasible === true) out.append(h('span', { class: 'pill ok' }, 'feasible'));
   else if (r.feasible === false) out.append(h('span', { class: 'pill warn' }, 'the map rules it out'));
   if (r.warning) out.append(h('span', { class: 'warn' }, r.warning));

@@ -348,7 +348,10 @@ function tick(ts) {
     setPlaying(false);
     return;
   }
+  const t0 = performance.now();
   paintReplay();
+  stats.paint.push(performance.now() - t0);
+  if (stats.paint.length > MAX_STATS) stats.paint.splice(0, stats.paint.length - MAX_STATS);
   R.raf = requestAnimationFrame(tick);
 }
 

@@ -1,6 +1,6 @@
 /* Judge: a job's results as tables — each prompt followed or not per rollout (with the base rate without the
- * prompts), each agent's first contact with its time and partner (a button that jumps the replay there) and
- * off-road, the realism figures beside the table's own rates — and the contacts as ticks on the scrubber.
+ * prompts), each agent's first contact with its time and partner and its first step off the road (buttons that
+ * jump the replay there), the realism figures beside the table's own rates — and the contacts as ticks on the scrubber.
  * See docs/studio.md, 'The page'.
  */
 import { $, h } from '/common/dom.js';
@@ -52,7 +52,9 @@ function eventsTable(name, run, which, heads, n, stepSeconds) {
     const ev = [];
     if (contact) ev.push(h('button', { type: 'button', class: 'event-jump', 'data-run': which, 'data-rollout': k, 'data-step': contact.step, title: 'jump to the moment' },
       `collision with @${contact.with} at ${((contact.step + 1) * stepSeconds).toFixed(1)} s`));
-    if ((a.offroad || [])[k]) ev.push(h('span', {}, ev.length ? ', off-road' : 'off-road'));
+    const leave = (a.offroads || []).find((o) => o.rollout === k);
+    if (leave) ev.push(h('button', { type: 'button', class: 'event-jump', 'data-run': which, 'data-rollout': k, 'data-step': leave.step, title: 'jump to the moment' },
+      `off-road at ${((leave.step + 1) * stepSeconds).toFixed(1)} s`));
     if (ev.length) return h('td', { class: 'event' }, ...ev);
     return h('td', { class: measured ? 'yes' : 'na' }, measured ? 'clear' : 'no collision; off-road not measured');
   })));
@@ -104,8 +106,10 @@ export function renderResults(job, onJump) {
   for (const b of $('results').querySelectorAll('button.event-jump')) {
     b.addEventListener('click', () => onJump(b.dataset.run, Number(b.dataset.rollout), Number(b.dataset.step)));
   }
-  // every first contact of the prompted run as a tick on the scrubber, labelled with its pair and time
+  // every first contact and off-road of the prompted run as a tick on the scrubber, labelled
   const hist = (job.result.start_step ?? 0) + 1;
-  $('scrub-events').replaceChildren(...(prompted.agents || []).flatMap((a) => (a.collisions || []).map((c) =>
-    h('option', { value: String(hist + c.step), label: `@${a.id} × @${c.with}, rollout ${c.rollout + 1}` }))));
+  $('scrub-events').replaceChildren(...(prompted.agents || []).flatMap((a) => [
+    ...(a.collisions || []).map((c) => h('option', { value: String(hist + c.step), label: `@${a.id} × @${c.with}, rollout ${c.rollout + 1}` })),
+    ...(a.offroads || []).map((o) => h('option', { value: String(hist + o.step), label: `@${a.id} off-road, rollout ${o.rollout + 1}` })),
+  ]));
 }

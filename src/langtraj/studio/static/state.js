@@ -14,8 +14,9 @@ export const S = {
   jobs: [], jobItems: new Map(), pollTimer: null, openJob: null, replay: null,
 };
 
-/** Frame times of the replay (requestAnimationFrame timestamps, ms) for measuring smoothness. */
-window.studioStats = { frames: [] };
+/** The replay's frame times (requestAnimationFrame timestamps, ms) and how long each frame took to paint (ms), for
+ * measuring smoothness (benchmarks/studio_replay.py). */
+window.studioStats = { frames: [], paint: [] };
 
 /** The picked scene and the open job in the address, so a reload or a shared link opens them again. */
 export function saveHash() {
