@@ -373,7 +373,8 @@ def test_pick_prompt_run_watch_judge_keep(site: Site, browser: Browser) -> None:
     assert npz.ok and npz.body()[:2] == b"PK", npz.status
     watched_file = site.data / "watched.npz"
     watched_file.write_bytes(npz.body())
-    replays_watched(suite_file, Rollouts.load(watched_file), site.data / "replay")
+    followed = result["runs"]["prompted"]["prompts"][0]["followed"][0]
+    replays_watched(suite_file, Rollouts.load(watched_file), site.data / "replay", followed)
     assert (page.locator("#dl-video").get_attribute("href") or "").endswith("/video.mp4")
     v.shot("8-saved", "#replay-grid canvas")
     v.check_clean()
@@ -469,9 +470,10 @@ def clause_by_clause(v: Visit, slower: int, infeasible: str, warning: str, three
     expect(page.locator("#reading-0 .pill")).to_have_text("feasible")
 
 
-def replays_watched(suite_file: Path, watched: Rollouts, out: Path) -> None:
+def replays_watched(suite_file: Path, watched: Rollouts, out: Path, followed: bool) -> None:
     """The kept case run as `langtraj test --planner idm` runs it (its first seed, one process) gives the rollout
-    the page showed, to 1e-4 m."""
+    the page showed, to 1e-4 m, and judges its prompt as the page did (`followed`: its "prompt followed" verdict,
+    without which a suite reports the scenario as not happened)."""
     from langtraj.suites.config import load_suite
     from langtraj.suites.episode import EpisodeTask, run_episode
 
@@ -484,6 +486,11 @@ def replays_watched(suite_file: Path, watched: Rollouts, out: Path) -> None:
     assert list(replayed.object_id) == list(watched.object_id)
     gap = max(np.abs(replayed.x[0] - watched.x[0]).max(), np.abs(replayed.y[0] - watched.y[0]).max())
     assert gap < 1e-4, f"the kept case replays rollout 0 {gap:.2e} m away"
+    assert [p["followed"] for p in result.prompts] == [followed], result.prompts
+    if not followed:  # a case whose scenario did not happen never passes
+        assert result.status != "pass", (result.status, result.reasons)
+    else:
+        assert result.status != "not_happened", (result.status, result.reasons)
 
 
 def test_bad_prompts_show_a_message_and_start_no_job(site: Site, browser: Browser) -> None:
@@ -502,7 +509,9 @@ def test_bad_prompts_show_a_message_and_start_no_job(site: Site, browser: Browse
     movers = [a["id"] for a in moving_vehicles(scene)]
     slower = next(i for i in movers if f"@{i}" != infeasible.split()[0])  # one behaviour per agent
     clause_by_clause(v, slower, infeasible, warning, movers[:3])
+    ego = next(a["id"] for a in scene["agents"] if a["sdc"])
     cases = [
+        ("ego", f"@{ego} slows down", "asks something of the ego, which the planner drives"),
         ("unknown", "@987654 slows down", "987654"),
         ("typo", f"@{known} yeilds to @{other}", f"did you mean '@{known} yields to @{other}'?"),
         ("self", f"@{known} yields to @{known}", f"names @{known} twice"),
@@ -516,7 +525,7 @@ def test_bad_prompts_show_a_message_and_start_no_job(site: Site, browser: Browse
         error = page.locator("#run-error")
         expect(error).to_be_visible()
         expect(error).to_contain_text(message)
-        if name in ("unknown", "long", "typo", "self"):
+        if name in ("ego", "unknown", "long", "typo", "self"):
             expect(page.locator("#reading-0 .pill")).to_have_text("cannot run")
         v.shot(f"{name}", "#scene-canvas")
         assert site.job_ids() == jobs, f"{name}: a job was created"
@@ -593,7 +602,9 @@ def test_a_nuscenes_job_says_what_offroad_is_measured_against(site: Site, browse
     set_prompt(v, f"@{agent} slows down")
     page.fill("#rollouts", "1")
     page.uncheck("#compare")
+    before = len(site.job_ids())
     page.click("#run")
+    expect(page.locator("#jobs .job")).to_have_count(before + 1)
     wait_done(page, 1)
     job_id = site.job_ids()[0]
     result = site.get(f"/api/jobs/{job_id}")["result"]
