@@ -245,8 +245,9 @@ export function drawTargets(ctx, targets, frame, surf) {
 
 // ------------------------------------------------------------------ agents, labels, tooltips, the scale bar
 
-/** One agent as an oriented box (at least a few pixels), with a nose tick; `mark`: outline colour. */
-export function drawAgent(ctx, a, x, y, heading, frame, surf, { alpha = 1, mark = null } = {}) {
+/** One agent as an oriented box (at least a few pixels), with a nose tick; `mark`: outline colour, `markPx` its
+ * width (thinner on a thumbnail). */
+export function drawAgent(ctx, a, x, y, heading, frame, surf, { alpha = 1, mark = null, markPx = 3 } = {}) {
   const sx = frame.x(x, surf.w);
   const sy = frame.y(y, surf.hgt);
   const len = Math.max((a.length || 4) * frame.s, 5);
@@ -268,9 +269,9 @@ export function drawAgent(ctx, a, x, y, heading, frame, surf, { alpha = 1, mark 
   ctx.lineWidth = 2;
   ctx.stroke();
   if (mark) {
-    ctx.lineWidth = 3;
+    ctx.lineWidth = markPx;
     ctx.strokeStyle = mark;
-    ctx.strokeRect(-len / 2 - 3, -wid / 2 - 3, len + 6, wid + 6);
+    ctx.strokeRect(-len / 2 - markPx, -wid / 2 - markPx, len + 2 * markPx, wid + 2 * markPx);
   }
   ctx.restore();
 }

@@ -311,7 +311,7 @@ function paintPanel(R, panel, i) {
     }
     const id = String(g.a.id);
     const mark = ro.collided.has(id) && i0 >= R.hist + ro.collided.get(id) ? COLLIDED : prompted.has(id) ? TARGET : null;
-    drawAgent(ctx, g.a, x, y, hd, frame, surf, { mark, alpha: R.parked.has(id) && !mark ? 0.4 : 1 });
+    drawAgent(ctx, g.a, x, y, hd, frame, surf, { mark, markPx: panel.thumb ? 1.5 : 3, alpha: R.parked.has(id) && !mark ? 0.4 : 1 });
     if (!panel.thumb && (frame.s > 2.2 || prompted.has(id) || id === R.view.follow)) drawLabel(ctx, id, x, y, frame, surf);
   }
   if (!panel.thumb) drawScaleBar(ctx, frame, surf);
