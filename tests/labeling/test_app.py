@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from builders import PASSWORD, add_user, labels_body, make_label_dataset
 from fastapi.testclient import TestClient
+from page_modules import page_files
 from sqlalchemy import func, select
 
 import langtraj.labeling
@@ -247,3 +248,11 @@ def test_the_page_and_api_are_not_cached_stale(server) -> None:  # type: ignore[
     client = TestClient(server[0])
     assert client.get("/").headers["cache-control"] == "no-cache"
     assert client.get("/static/app.js").headers["cache-control"] == "no-cache"
+
+
+def test_the_page_loads_its_own_files_and_the_shared_ones(server) -> None:  # type: ignore[no-untyped-def]
+    """Every file the page loads is served (the shared /common ones too, without logging in) and every name its
+    script imports is exported there (tests/page_modules.py)."""
+    files = dict(page_files(TestClient(server[0])))
+    assert {"/static/app.js", "/static/style.css", "/common/dom.js", "/common/api.js", "/common/base.css"} <= set(files)
+    assert all(r.headers["cache-control"] == "no-cache" for r in files.values())
