@@ -8,7 +8,6 @@ simulation: each behaviour's target and the criteria selection judges by (`promp
 
 from __future__ import annotations
 
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -21,6 +20,7 @@ from langtraj.guidance.steering import Steering
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
+from langtraj.interdrive.prompts.compose import MENTION
 from langtraj.interdrive.reader import PromptReading, read_clauses
 from langtraj.interdrive.reader.spelling import did_you_mean
 from langtraj.interdrive.targets import (
@@ -120,7 +120,7 @@ def read_prompts(texts: Sequence[str], *, strict: bool = True) -> tuple[PromptRe
 def _unread_problem(reading: PromptReading) -> str | None:
     """Why an unread clause is refused even alone rather than steering by its text: an agent named as both sides of
     a pair ("@5 yields to @5"), or a misspelt reader word ("yeilds", `reader.spelling.did_you_mean`), or None."""
-    mentions = re.findall(r"@(\d+)", reading.clause)
+    mentions = MENTION.findall(reading.clause)
     repeated = next((m for m in mentions if mentions.count(m) > 1), None)
     if repeated is not None:
         return f"clause {reading.clause!r} names @{repeated} twice; a behaviour between two agents needs two agents"

@@ -18,7 +18,7 @@ import numpy as np
 from langtraj.errors import InputError
 from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.reader import PromptReading
-from langtraj.metrics.controllability import collision_events, collision_flags, offroad_first_steps
+from langtraj.metrics.controllability import collision_events, offroad_first_steps
 from langtraj.metrics.instruction_following import rollout_scenario
 from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.rollouts.agents import evaluated_agent_indices
@@ -71,16 +71,19 @@ def judge_prompts(
 
 
 def agent_outcomes(scenario: Scenario, rollouts: Rollouts) -> list[dict[str, Any]]:
-    """Per rollout agent: whether it collides with another rollout agent in each rollout, each first contact with
+    """Per rollout agent: whether it collides with another rollout agent in each rollout (`collision_flags`, read
+    off its events rather than computed twice), each first contact with
     its step (0: the first simulated one) and partner (`collision_events`, the same signed distance as the realism
     table's collision rate), whether WOSAC scores it (`evaluated`: the realism rates are over these agents alone),
     whether it stands still through its history (`parked`), and whether it leaves the road (vehicles only; null for
     pedestrians, cyclists and others, and where the map has no road edges: not measured) and at which step it first
     does in each rollout it does (`offroads`, as `metrics.controllability.offroad_first_steps`)."""
     ids = [int(i) for i in rollouts.object_id]
-    collided = collision_flags(scenario, rollouts)  # [R, A]
+    column = {i: k for k, i in enumerate(ids)}
+    collided = np.zeros((rollouts.num_rollouts, len(ids)), bool)  # [R, A]: `collision_flags`, from its events
     contacts: dict[int, list[dict[str, int]]] = {i: [] for i in ids}
     for event in collision_events(scenario, rollouts):
+        collided[event.rollout, column[event.agent]] = True
         contacts[event.agent].append({"rollout": event.rollout, "step": event.step, "with": event.other})
     evaluated = {int(i) for i in scenario.agents.ids[evaluated_agent_indices(scenario)]}
     parked = {int(i) for i in scenario.agents.ids[parked_in_history(scenario)]}

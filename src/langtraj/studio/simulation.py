@@ -246,7 +246,8 @@ def _stacked(kept: list[Rollouts]) -> Rollouts:
 
 def _episode_json(result: Any) -> dict[str, Any]:
     """What the page shows of an episode: its seed, verdict and reasons, the ego and each prompt's verdict."""
-    return {k: result.to_json()[k] for k in ("seed", "status", "reasons", "ego", "prompts", "reads_log")}
+    data = result.to_json()
+    return {k: data[k] for k in ("seed", "status", "reasons", "ego", "prompts", "reads_log")}
 
 
 def _write_result(folder: Path, scenario: Scenario, out: dict[str, Any]) -> None:

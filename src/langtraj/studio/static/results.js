@@ -47,14 +47,15 @@ function eventsTable(name, run, which, heads, n, stepSeconds) {
   const parked = listed.filter((a) => a.parked && !promptedIds.has(String(a.id)));
   const agents = listed.filter((a) => !parked.includes(a));
   agents.sort((a, b) => Number(promptedIds.has(String(b.id))) - Number(promptedIds.has(String(a.id)))); // prompted first
+  const at = (step) => `${((step + 1) * stepSeconds).toFixed(1)} s`; // a future step's time (step 0: 0.1 s)
   const body = agents.map((a) => h('tr', {}, h('th', { scope: 'row' }, `@${a.id}${promptedIds.has(String(a.id)) ? ' (prompted)' : ''}${a.evaluated ? '' : ' ·'}`), ...Array.from({ length: n }, (_, k) => {
     const contact = (a.collisions || []).find((c) => c.rollout === k);
     const ev = [];
     if (contact) ev.push(h('button', { type: 'button', class: 'event-jump', 'data-run': which, 'data-rollout': k, 'data-step': contact.step, title: 'jump to the moment' },
-      `collision with @${contact.with} at ${((contact.step + 1) * stepSeconds).toFixed(1)} s`));
+      `collision with @${contact.with} at ${at(contact.step)}`));
     const leave = (a.offroads || []).find((o) => o.rollout === k);
     if (leave) ev.push(h('button', { type: 'button', class: 'event-jump', 'data-run': which, 'data-rollout': k, 'data-step': leave.step, title: 'jump to the moment' },
-      `off-road at ${((leave.step + 1) * stepSeconds).toFixed(1)} s`));
+      `off-road at ${at(leave.step)}`));
     if (ev.length) return h('td', { class: 'event' }, ...ev);
     return h('td', { class: measured ? 'yes' : 'na' }, measured ? 'clear' : 'no collision; off-road not measured');
   })));
