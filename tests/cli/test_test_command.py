@@ -91,6 +91,48 @@ def test_a_bad_suite_exits_2(tmp_path, capsys):
     assert not out.exists()
 
 
+def test_a_mistyped_sweep_parameter_exits_2(tmp_path, capsys):
+    write_scene(tmp_path, "good")
+    cases = [{"name": "c", "scenario": "good.json", "prompts": ["@5 keeps a ${gapp} m gap"], "sweep": {"gap": [5]}}]
+    path = tmp_path / "suite.yaml"
+    path.write_text(yaml.safe_dump({"name": "s", "cases": cases}))
+    out = tmp_path / "out"
+    code, _, err = run_cli(["test", path, "--planner", "idm", "--out", out], capsys)
+    message = "${gapp} is not a sweep parameter of this case (its parameters: gap) nor an environment variable"
+    assert_one_line_error(code, err, f"{path}: cases[0].prompts[0]: {message}; did you mean ${{gap}}?")
+    assert not out.exists()
+
+
+def test_a_prompt_the_scene_refuses_exits_2_before_any_episode(tmp_path, fake_env, capsys):
+    write_scene(tmp_path, "good", agents=[5])
+    cases = [
+        {"name": "fine", "scenario": "good.json", "prompts": ["@5 slows down"]},
+        {"name": "typo", "scenario": "good.json", "prompts": ["@5 slows down", "@55 brakes"]},
+    ]
+    path = tmp_path / "suite.yaml"
+    path.write_text(yaml.safe_dump({"name": "s", "cases": cases}))
+    out = tmp_path / "out"
+    code, stdout, err = run_cli(["test", path, "--planner", "suites.fakes:GoodPlanner", "--out", out], capsys)
+    assert_one_line_error(code, err, f"{path}: cases[1].prompts[1]: case typo, prompt '@55 brakes': unknown agent @55")
+    assert stdout == "" and not out.exists()
+
+
+def test_a_prompt_refused_at_reset_exits_2_leaving_whole_reports(tmp_path, fake_env, capsys):
+    write_scene(tmp_path, "good")
+    write_scene(tmp_path, "refused", refuse_at_reset="@6 is not among the agents the model drives")
+    cases = [
+        {"name": "fine", "scenario": "good.json"},
+        {"name": "b", "scenario": "refused.json", "prompts": ["@6 brakes"]},
+    ]
+    path = tmp_path / "suite.yaml"
+    path.write_text(yaml.safe_dump({"name": "s", "cases": cases}))
+    out = tmp_path / "out"
+    code, _, err = run_cli(["test", path, "--planner", "suites.fakes:GoodPlanner", "--out", out], capsys)
+    assert_one_line_error(code, err, f"{path}: cases[1].prompts[0]: case b, prompt '@6 brakes': @6 is not among")
+    assert json.loads((out / "results.json").read_text())["complete"]
+    assert not [p for p in out.rglob("*") if p.name.startswith(".")]  # no temporary file left
+
+
 def test_planner_flags_are_exclusive_and_one_is_required(tmp_path, suite_file, capsys):
     for args in (["--planner", "idm", "--planner-cmd", "x"], []):
         with pytest.raises(SystemExit) as raised:
@@ -125,3 +167,18 @@ def test_a_suite_through_the_real_env(real_data_dir, tmp_path, capsys, monkeypat
     assert lead["status"] == "fail" and lead["ego"] == 1101 and lead["reasons"][0].startswith("min TTC 5.00 s < 5.5 s")
     assert lead["video"] == "videos/braking-lead-seed0.mp4" and (out / lead["video"]).stat().st_size > 0
     assert "## braking-lead: FAIL" in (out / "report.md").read_text()
+
+
+@pytest.mark.real_data
+def test_a_prompt_naming_an_agent_not_in_the_real_scene_exits_2_before_any_episode(real_data_dir, tmp_path, capsys):
+    scene = str(real_data_dir / "sd_training.tfrecord-00000-of-01000_8a346109094cd5aa.pkl")
+    cases = [
+        {"name": "lead", "scenario": scene, "ego": 1101, "prompts": ["@738 slows down"]},
+        {"name": "typo", "scenario": scene, "ego": 1101, "prompts": ["@7380 slows down"]},
+    ]
+    path = tmp_path / "suite.yaml"
+    path.write_text(yaml.safe_dump({"name": "real", "cases": cases}))
+    out = tmp_path / "out"
+    code, _, err = run_cli(["test", path, "--planner", "constant_velocity", "--out", out], capsys)
+    assert_one_line_error(code, err, f"{path}: cases[1].prompts[0]: case typo, prompt '@7380 slows down': unknown")
+    assert not out.exists()

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sys
 import time
 from pathlib import Path
@@ -25,7 +26,8 @@ def write_scene(folder: Path, name: str, **behaviour: Any) -> Path:
     """A fake scene file: `scenario_id` = `name`; keys: steps (80), collide_at, collided_with ([7]), at_fault,
     contact (the collisions' own keys over the default front or rear, e.g. kind and right_of_way), offroad_at, ttc
     (5.0), min_ttc_at ([step, value]), progress (final fraction, 1.0), error_at (the env raises), exit_at (the process
-    dies)."""
+    dies), agents (the track ids a prompt may name, checked by `FakeEnv.check_case`; none: any), refuse_at_reset (a
+    message: reset raises it as an InputError at "prompt", as the sim refuses a prompt only the model can)."""
     path = folder / f"{name}.json"
     path.write_text(json.dumps({"scenario_id": name, **behaviour}))
     return path
@@ -65,7 +67,18 @@ class FakeEnv:
         FakeEnv.built.append({"index": index, "ego": ego, "prompts": list(prompts), "target": target})
         self.k = 0
 
+    @staticmethod
+    def check_case(case: Case) -> None:
+        """The suite's pre-flight (`suites.preflight`): a prompt naming an agent not in the scene's `agents`."""
+        agents = json.loads(Path(case.scenario).read_text()).get("agents")
+        for j, prompt in enumerate(case.prompts):
+            for mention in re.findall(r"@(\d+)", prompt):
+                if agents is not None and int(mention) not in agents:
+                    raise InputError(f"unknown agent @{mention}; the scene has agents {agents}", where=f"prompts[{j}]")
+
     def reset(self, *, seed: int | None = None, options: Any = None):
+        if self.data.get("refuse_at_reset"):
+            raise InputError(self.data["refuse_at_reset"], where="prompt")
         self.k = 0
         info = {
             "scenario_id": self.data["scenario_id"],

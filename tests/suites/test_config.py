@@ -107,7 +107,20 @@ def test_the_real_data_folder_is_the_one_given_else_the_variable_else_beside_the
         ("  - {name: a, scenario: scene.tfrecord, prompts: {a: 1}}", "cases[0].prompts: expected a list"),
         ("  - {name: a, scenario: scene.tfrecord, max_steps: 81}", "cases[0].max_steps: must be at most 80"),
         ("  - {name: a, scenario: scene.tfrecord, colour: red}", "cases[0]: unknown keys colour"),
-        ("  - {name: a, scenario: '${NO_SUCH_VARIABLE_X}/a'}", "the environment variable NO_SUCH_VARIABLE_X"),
+        (
+            "  - {name: a, scenario: '${NO_SUCH_VARIABLE_X}/a'}",
+            "cases[0].scenario: ${NO_SUCH_VARIABLE_X} is not a sweep parameter of this case (it has no sweep) nor an "
+            "environment variable",
+        ),
+        (
+            "  - {name: a, scenario: scene.tfrecord, prompts: ['@5 brakes at ${NO_SUCH_VARIABLE_X}']}",
+            "cases[0].prompts[0]: ${NO_SUCH_VARIABLE_X} is not a sweep parameter",
+        ),
+        (
+            "  - {name: a, scenario: scene.tfrecord, sweeps: {gap: [5]}}",
+            "cases[0]: unknown keys sweeps (did you mean sweep?); known: scenario, index, window, ego, prompts, "
+            "adversary, target, seeds, checkpoint, criteria, max_steps, name, sweep",
+        ),
         ("  - 3", "cases[0]: expected a mapping"),
         ("  []", "cases: expected a non-empty list"),
     ],
@@ -131,14 +144,21 @@ def test_errors_name_the_file_and_key(tmp_path, cases, message):
             "name: s\ndefaults: {criteria: {min_progress: -0.5}}\ncases: [{name: a, scenario: s}]",
             "defaults.criteria.min_progress: must be >= 0",
         ),
-        ("name: s\ndefaults: {seed: 3}\ncases: [{name: a, scenario: scene.tfrecord}]", "defaults: unknown keys seed"),
+        (
+            "name: s\ndefaults: {seed: 3}\ncases: [{name: a, scenario: scene.tfrecord}]",
+            "defaults: unknown keys seed (did you mean seeds?); known: seeds, criteria, checkpoint, max_steps",
+        ),
+        (
+            "name: s\ndefaults: {checkpoint: '${NO_SUCH_VARIABLE_X}/m.pt'}\ncases: [{name: a, scenario: s}]",
+            "defaults.checkpoint: ${NO_SUCH_VARIABLE_X} is not an environment variable",
+        ),
         ("name: s\ncolour: red\ncases: [{name: a, scenario: scene.tfrecord}]", "unknown keys colour"),
         ("name: s\ncases: [{name: a, scenario: scene.tfrecord]", "not valid YAML"),
     ],
 )
 def test_suite_level_errors(tmp_path, body, message):
     path = _suite(tmp_path, body)
-    with pytest.raises(InputError, match="^" + str(path).replace(".", r"\.") + ": .*" + message.replace(".", r"\.")):
+    with pytest.raises(InputError, match="^" + re.escape(str(path)) + ": .*" + re.escape(message)):
         load_suite(path)
 
 
@@ -190,3 +210,44 @@ def test_a_sweep_expands_a_case_into_one_per_combination_of_its_parameters(tmp_p
         bad = write_suite(tmp_path, [{"name": "c", "scenario": "scene.pkl", "sweep": sweep}])
         with pytest.raises(InputError, match=re.escape(message)):
             load_suite(bad)
+
+
+def test_a_placeholder_neither_swept_nor_set_is_an_error_naming_the_key(tmp_path, monkeypatch):
+    """A mistyped `${gapp}` would run every variant of the sweep alike, the prompt read with the text as it stands."""
+    monkeypatch.delenv("gapp", raising=False)
+    (tmp_path / "scene.pkl").write_bytes(b"x")
+    plain = {"name": "plain", "scenario": "scene.pkl"}
+    cut_in = {"name": "cut-in", "scenario": "scene.pkl", "sweep": {"gap": [5, 10]}}
+    for case, message in (
+        (
+            {**cut_in, "prompts": ["@52 cuts in front of @ego with a ${gapp} m gap"]},
+            "cases[1].prompts[0]: ${gapp} is not a sweep parameter of this case (its parameters: gap) nor an "
+            "environment variable; did you mean ${gap}?",
+        ),
+        (
+            {**cut_in, "prompts": ["@52 cuts in with a ${gap} m gap"], "criteria": {"min_ttc": "${ttc}"}},
+            "cases[1].criteria.min_ttc: ${ttc} is not a sweep parameter of this case (its parameters: gap) nor an "
+            "environment variable",
+        ),
+        ({**cut_in, "name": "cut-in-${gap m}"}, "cases[1].name: ${gap m} is not a sweep parameter"),
+        ({**plain, "name": "p2", "prompts": ["@5 brakes ${gap}"]}, "cases[1].prompts[0]: ${gap} is not a sweep"),
+    ):
+        path = write_suite(tmp_path, [plain, case])
+        with pytest.raises(InputError) as raised:
+            load_suite(path)
+        text = str(raised.value)
+        assert text.startswith(f"{path}: {message}") and "\n" not in text, text
+
+
+def test_environment_variables_are_replaced_in_every_text_and_sweep_parameters_first(tmp_path, monkeypatch):
+    monkeypatch.setenv("LEAD", "@738")
+    monkeypatch.setenv("gap", "99")
+    monkeypatch.setenv("SCENES", str(tmp_path))
+    (tmp_path / "scene.pkl").write_bytes(b"x")
+    cases = [
+        {"name": "a", "scenario": "${SCENES}/scene.pkl", "prompts": ["${LEAD} slows down"]},
+        {"name": "b", "scenario": "scene.pkl", "prompts": ["${LEAD} keeps a ${gap} m gap"], "sweep": {"gap": [5]}},
+    ]
+    a, b = load_suite(write_suite(tmp_path, cases)).cases
+    assert a.prompts == ("@738 slows down",) and a.scenario == tmp_path / "scene.pkl"
+    assert b.prompts == ("@738 keeps a 5 m gap",) and b.name == "b.gap-5"

@@ -104,6 +104,7 @@ def test_env_errors_are_errors_not_failures(tmp_path):
     unbuilt = run_episode(_task(tmp_path, behaviour={"error_at": 0}))
     assert unbuilt.status == "error" and "before the episode started" in unbuilt.reasons[0]
     assert "the fake scene cannot be built" in unbuilt.reasons[0]
+    assert unbuilt.input_error == ("the fake scene cannot be built", "scenario") and broken.input_error is None
 
 
 def test_a_failed_episode_gets_a_video(tmp_path):

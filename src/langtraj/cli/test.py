@@ -6,7 +6,9 @@ Runs a planner through every case of a scenario suite (docs/testing.md, 'Scenari
 receives `results.json` (rewritten after every finished episode), `report.md`, `junit.xml`,
 `videos/<case>-seed<k>.mp4` of the episodes that did not pass, and `planner-logs/` (the stderr of a --planner-cmd
 planner). Exit status 0 when every case passes, 1 when any fails, errors or its scenario did not happen, 2 for bad
-input (the suite file, the planner, the flags), found before anything is written.
+input (the suite file, the planner, the flags, a case the env refuses: its scene, ego or prompts, checked against
+the scene by `suites.preflight`), found before anything is written; a prompt only the model refuses, at its
+episode's reset, is bad input too, reported after the reports are written.
 
 See README.md.
 """

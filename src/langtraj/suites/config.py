@@ -33,20 +33,24 @@ prompts, `@adv` is the case's adversary and `@ego` the ego's track id (the env r
 known). A case is a `langtraj.cases.Case`, read by `read_case` (every key a `Case` has; `defaults` holds those of
 `DEFAULT_KEYS`). A case's `sweep` maps parameter names to lists of values, as OpenSCENARIO's parameter sets do: the
 case is expanded into one case per combination, `${NAME}` replaced by the value in every text of the case (a text
-that is only `${NAME}` takes the value itself, a number staying a number).
+that is only `${NAME}` takes the value itself, a number staying a number). A `${NAME}` that is neither a parameter
+of its case's sweep nor an environment variable is an error naming the key (a mistyped `${gapp}` would otherwise run
+every variant alike), as is an unknown key (with a did-you-mean: `sweeps` for `sweep`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import itertools
 import os
 import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from langtraj.cases import NAME, Case, read_case
+from langtraj.cases import CASE_KEYS, NAME, Case, read_case
 from langtraj.errors import InputError
 from langtraj.settings import read_yaml, require
 
@@ -57,15 +61,26 @@ DEFAULT_REAL_DATA = Path("..") / "shared" / "data" / "real"
 real scenes beside a checkout the README's commands run in (never the installed package's location)."""
 DEFAULT_KEYS = ("seeds", "criteria", "checkpoint", "max_steps")
 """The keys a suite's `defaults` may set for every case."""
+SUITE_KEYS = ("name", "defaults", "cases")
+"""The keys of a suite file."""
+SUITE_CASE_KEYS = (*CASE_KEYS, "sweep")
+"""The keys of a case in a suite file: every key of a `Case`, and its `sweep`."""
 
 
 @dataclass(frozen=True)
 class Suite:
-    """A scenario suite: its name, the file it was read from and its cases (each named), in file order."""
+    """A scenario suite: its name, the file it was read from and its cases (each named), in file order, with where
+    each was read."""
 
     name: str
     path: Path
     cases: tuple[Case, ...]
+    sources: tuple[str, ...] = ()
+    """Where each case was read in the file ("cases[3]"; the cases of one sweep share it), for errors found later."""
+
+    def source(self, index: int) -> str:
+        """Where the case at `index` of `cases` was read ("cases[3]")."""
+        return self.sources[index] if index < len(self.sources) else f"cases[{index}]"
 
     def with_seeds(self, count: int) -> Suite:
         """The suite with every case's seeds replaced by 0..count-1 (`langtraj test --seeds N`)."""
@@ -101,13 +116,34 @@ def real_data_folder(given: str | Path | None = None) -> Path:
 
 
 _PARAMETER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_PLACEHOLDER = re.compile(r"\$\{([^}]*)\}")
+"""`${NAME}` in a text: a sweep parameter or an environment variable (anything else between the braces is neither)."""
 
 
-def swept(raw: Any, where: str) -> list[Any]:
+def check_keys(data: Any, known: Sequence[str], where: str) -> None:
+    """Raise InputError at `where` when the mapping `data` has keys not in `known`, listing them (each with a
+    did-you-mean where one is close) and the known keys."""
+    if not isinstance(data, Mapping):
+        return
+    unknown = sorted((k for k in data if k not in known), key=str)
+    if not unknown:
+        return
+    named = []
+    for key in unknown:
+        close = difflib.get_close_matches(str(key), known, n=1, cutoff=0.75)
+        named.append(f"{key} (did you mean {close[0]}?)" if close else str(key))
+    raise InputError(f"unknown keys {', '.join(named)}; known: {', '.join(known)}", where=where)
+
+
+def swept(raw: Any, where: str, variables: Mapping[str, str] | None = None) -> list[Any]:
     """The cases a suite case stands for: itself, or with a `sweep` one per combination of its parameters' values,
-    named `NAME.PARAM-VALUE...` (see the module docstring)."""
-    if not isinstance(raw, dict) or "sweep" not in raw:
+    named `NAME.PARAM-VALUE...`; in each, `${NAME}` replaced by its sweep value, else by the environment variable
+    from `variables` (default: the environment), any other `${...}` an InputError naming the key (`expanded`)."""
+    variables = os.environ if variables is None else variables
+    if not isinstance(raw, dict):
         return [raw]
+    if "sweep" not in raw:
+        return [expanded(raw, where, variables, parameters={})]
     sweep, case = raw["sweep"], {k: v for k, v in raw.items() if k != "sweep"}
     require(isinstance(sweep, dict) and bool(sweep), f"{where}.sweep", "expected a mapping of parameters to values")
     for name, values in sweep.items():
@@ -119,43 +155,76 @@ def swept(raw: Any, where: str) -> list[Any]:
     out = []
     for combination in itertools.product(*sweep.values()):
         given = dict(zip(sweep, combination, strict=True))
-        one = _substituted(case, given)
+        one = expanded(case, where, variables, parameters=given)
         if isinstance(one.get("name"), str):
             one["name"] += "".join(f".{k}-{v}" for k, v in given.items())
         out.append(one)
     return out
 
 
-def _substituted(value: Any, given: dict[str, Any]) -> Any:
-    """`value` with `${NAME}` replaced by `given[NAME]` in every text (a whole `${NAME}` by the value itself)."""
+def expanded(
+    value: Any, where: str, variables: Mapping[str, str], *, parameters: Mapping[str, Any] | None = None
+) -> Any:
+    """`value` with every `${NAME}` in its texts replaced, in one pass: by `parameters[NAME]` (a case's sweep values;
+    a text that is only `${NAME}` takes the value itself), else by `variables[NAME]` (the environment). Any other
+    `${...}` raises InputError at the key it is in (`where.prompts[0]`): left in, it would be read as it stands.
+    `parameters`: None where there is no sweep (a suite's defaults), {} for a case without one."""
     if isinstance(value, dict):
-        return {k: _substituted(v, given) for k, v in value.items()}
+        return {k: expanded(v, f"{where}.{k}", variables, parameters=parameters) for k, v in value.items()}
     if isinstance(value, list):
-        return [_substituted(v, given) for v in value]
-    if isinstance(value, str):
-        whole = re.fullmatch(r"\$\{(\w+)\}", value)
-        if whole and whole.group(1) in given:
-            return given[whole.group(1)]
-        return re.sub(r"\$\{(\w+)\}", lambda m: str(given.get(m.group(1), m.group(0))), value)
-    return value
+        return [expanded(v, f"{where}[{j}]", variables, parameters=parameters) for j, v in enumerate(value)]
+    if not isinstance(value, str):
+        return value
+    given = parameters or {}
+    whole = _PLACEHOLDER.fullmatch(value)
+    if whole and whole.group(1) in given:
+        return given[whole.group(1)]
+
+    def one(match: re.Match) -> str:
+        name = match.group(1)
+        if name in given:
+            return str(given[name])
+        if name in variables:
+            return variables[name]
+        raise InputError(_not_replaced(match.group(0), name, parameters), where=where)
+
+    return _PLACEHOLDER.sub(one, value)
+
+
+def _not_replaced(placeholder: str, name: str, parameters: Mapping[str, Any] | None) -> str:
+    """Why `placeholder` stays: what it is not, the case's parameters, and the one it is closest to."""
+    if parameters is None:
+        return f"{placeholder} is not an environment variable"
+    if not parameters:
+        return f"{placeholder} is not a sweep parameter of this case (it has no sweep) nor an environment variable"
+    names = [str(p) for p in parameters]
+    message = (
+        f"{placeholder} is not a sweep parameter of this case (its parameters: {', '.join(names)}) "
+        "nor an environment variable"
+    )
+    close = difflib.get_close_matches(name, names, n=1, cutoff=0.6)
+    return f"{message}; did you mean ${{{close[0]}}}?" if close else message
 
 
 def _parse_suite(data: dict[str, Any], path: Path, variables: dict[str, str]) -> Suite:
-    unknown = sorted(set(data) - {"name", "defaults", "cases"})
-    require(not unknown, "", f"unknown keys {', '.join(map(str, unknown))}; known: name, defaults, cases")
+    check_keys(data, SUITE_KEYS, "")
     name = data.get("name")
     ok = isinstance(name, str) and bool(NAME.fullmatch(name))
     require(ok, "name", f"expected a name of letters, digits, '.', '_' and '-', got {name!r}")
     base = path.resolve().parent
     paths = {"base": base, "variables": variables}
-    defaults = read_case(data.get("defaults") or {}, where="defaults", keys=DEFAULT_KEYS, **paths)
+    raw_defaults = data.get("defaults") or {}
+    check_keys(raw_defaults, DEFAULT_KEYS, "defaults")
+    raw_defaults = expanded(raw_defaults, "defaults", variables)
+    defaults = read_case(raw_defaults, where="defaults", keys=DEFAULT_KEYS, **paths)
     raw_cases = data.get("cases")
     require(isinstance(raw_cases, list) and bool(raw_cases), "cases", "expected a non-empty list of cases")
-    cases = [
-        read_case(one, where=f"cases[{i}]", defaults=defaults, required=("name", "scenario"), **paths)
-        for i, raw in enumerate(raw_cases)
-        for one in swept(raw, f"cases[{i}]")
-    ]
+    cases, sources = [], []
+    for i, raw in enumerate(raw_cases):
+        check_keys(raw, SUITE_CASE_KEYS, f"cases[{i}]")
+        for one in swept(raw, f"cases[{i}]", variables):
+            cases.append(read_case(one, where=f"cases[{i}]", defaults=defaults, required=("name", "scenario"), **paths))
+            sources.append(f"cases[{i}]")
     seen: dict[str, int] = {}
     for i, case in enumerate(cases):
         require(
@@ -164,4 +233,4 @@ def _parse_suite(data: dict[str, Any], path: Path, variables: dict[str, str]) ->
             f"{case.name!r} is already the name of cases[{seen.get(case.name)}]",
         )
         seen[case.name] = i
-    return Suite(name=name, path=path, cases=tuple(cases))
+    return Suite(name=name, path=path, cases=tuple(cases), sources=tuple(sources))

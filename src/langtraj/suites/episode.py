@@ -4,7 +4,9 @@ docs/testing.md, 'Scenario suites').
 
 `run_episode` never raises for what a planner or the environment does: a planner that raises, hangs, or answers
 with an action of the wrong shape or non-finite values fails the episode with a one-line reason; an exception in
-the environment (LangTraj's side) makes it an error, its traceback kept in the result. Each call builds its own
+the environment (LangTraj's side) makes it an error, its traceback kept in the result. An InputError the env raises
+before the episode starts (the case refused at reset: a prompt naming an agent the model does not drive) is an error
+marked `input_error`, which makes the suite's run bad input (`suites.runner`). Each call builds its own
 planner and environment from the picklable `EpisodeTask`, so episodes run in any worker process.
 
 Time limits: an in-process planner (`--planner`) gets `step_timeout` seconds per call (construction, reset, each
@@ -26,7 +28,7 @@ import numpy as np
 
 from langtraj.cases import Case
 from langtraj.env.spaces import ActionError, checked_action
-from langtraj.errors import one_line
+from langtraj.errors import InputError, one_line
 from langtraj.registry import import_object
 from langtraj.suites.deadline import StepTimeout, deadline
 from langtraj.suites.happened import PromptVerdict, judge_prompts, not_happened
@@ -83,7 +85,9 @@ class EpisodeResult:
     time. reads_log: whether the planner declared itself a log-replay baseline and was given the ego's logged
     future (`planners.planner_reads_log`). video: the video's path relative to the output folder, or None.
     video_error: why the video could not be written, or None. traceback: the traceback of an error, or of the
-    planner's exception that failed the episode, or None.
+    planner's exception that failed the episode, or None. input_error: (message, the case's key or None) of an
+    InputError the env raised before the episode started, the case refused as bad input; None otherwise (not in
+    results.json: the run stops as bad input).
     """
 
     case: str
@@ -101,6 +105,7 @@ class EpisodeResult:
     video: str | None = None
     video_error: str | None = None
     traceback: str | None = None
+    input_error: tuple[str, str | None] | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -266,6 +271,9 @@ def run_episode(task: EpisodeTask, watch: Callable[[Any], None] | None = None) -
         where = f"at step {steps + 1}" if episode.ego is not None else "before the episode started"
         result.status, result.reasons = "error", [f"LangTraj raised {one_line(error)} {where}"]
         result.traceback = traceback.format_exc()
+        if isinstance(error, InputError) and episode.ego is None:  # the case, refused at reset: bad input
+            result.reasons = [f"bad input {where}: {error}"]
+            result.input_error = (error.detail, error.where) if error.path is None else (str(error), None)
     figures = episode_figures(episode.record)
     if result.status == "pass":
         verdicts = judge(task.case.criteria, figures)

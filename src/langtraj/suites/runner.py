@@ -2,11 +2,13 @@
 reports (docs/testing.md, 'Scenario suites').
 
 Every input is checked before anything is written (`check_run`: the planner spec imports, the planner command's
-program exists, the executor is known). Episodes are `EpisodeTask`s (picklable: the planner travels as its spec
-or command, each worker loads it and builds its own env) mapped by `langtraj.executors.EXECUTORS`; after each,
-`results.json` is rewritten atomically, so nothing already written is lost when the run dies. At the end
-`report.md` and `junit.xml` are written. A worker that dies takes its unfinished episodes with it: they are
-recorded as errors.
+program exists, the executor is known; `preflight.check_cases`: every case's scene, ego and prompts as the env
+checks them at reset). Episodes are `EpisodeTask`s (picklable: the planner travels as its spec or command, each
+worker loads it and builds its own env) mapped by `langtraj.executors.EXECUTORS`; after each, `results.json` is
+rewritten atomically, so nothing already written is lost when the run dies. At the end `report.md` and `junit.xml`
+are written. A case the env still refuses at reset (what only the model can refuse) makes the run bad input once
+the reports are written: one InputError naming the suite file, the case and the prompt. A worker that dies takes
+its unfinished episodes with it: they are recorded as errors.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from langtraj.planners.base import DEFAULT_STEP_TIMEOUT_S
 from langtraj.suites.config import Suite
 from langtraj.suites.episode import DEFAULT_ENV, EpisodeResult, EpisodeTask, run_episode
 from langtraj.suites.junit import write_junit
+from langtraj.suites.preflight import check_cases, refused
 from langtraj.suites.report import write_report
 from langtraj.suites.results import SuiteResults
 
@@ -97,8 +100,10 @@ def run_suite(
     suite: Suite, options: RunOptions, on_result: Callable[[EpisodeResult], None] | None = None
 ) -> SuiteResults:
     """Run every episode of `suite`; `on_result` is called with each as it finishes. Returns the results (also in
-    `options.out`: results.json, report.md, junit.xml, videos/)."""
+    `options.out`: results.json, report.md, junit.xml, videos/). Raises InputError for bad input: before anything is
+    written, or after the reports when the env refused a case at reset."""
     check_run(options)
+    check_cases(suite, options.env)
     out = Path(options.out)
     tasks = episode_tasks(suite, options)
     results = SuiteResults(
@@ -121,4 +126,8 @@ def run_suite(
         results.write(finished=results.complete)
         write_report(results, out)
         write_junit(results, out)
+    names = [case.name for case in suite.cases]
+    for result in results.ordered():  # a case refused at reset: bad input, as if the pre-flight had found it
+        if result.input_error is not None:
+            raise refused(suite, names.index(result.case), *result.input_error)
     return results
