@@ -12,15 +12,12 @@ import torch
 from langtraj.errors import InputError
 from langtraj.guidance import GuidanceTerm, NoCollisionCost, RouteCost, StationCost, TargetSpeedCost
 from langtraj.guidance.route import LeadCost, RoutePath
-from langtraj.guidance.steering import (
-    HOLD_WEIGHT,
-    KEEP_LANE_WEIGHT,
-    PULL_OUT_REACH_WEIGHT,
-    RED_LIGHT_ROUTE_WEIGHT,
-    ClearOfOthersCost,
-    Steering,
-)
+from langtraj.guidance.steering import ClearOfOthersCost, Steering
 from langtraj.interdrive.behaviour import Behaviour
+from langtraj.interdrive.behaviours.base import HOLD_WEIGHT
+from langtraj.interdrive.behaviours.brake_hard import KEEP_LANE_WEIGHT
+from langtraj.interdrive.behaviours.pull_out import PULL_OUT_REACH_WEIGHT
+from langtraj.interdrive.behaviours.run_red_light import RED_LIGHT_ROUTE_WEIGHT
 from langtraj.interdrive.targets import BehaviourTarget
 
 from .helpers import cost_gradient, make_scene

@@ -10,8 +10,9 @@ import pytest
 from roads.test_mapindex import line
 
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
+from langtraj.interdrive.behaviours.cut_in import CUT_IN_S
+from langtraj.interdrive.behaviours.pull_over import KERB_CLEARANCE, KERB_MIN_CLEARANCE, kerb_distance
 from langtraj.interdrive.targets import TargetUnavailable, behaviour_feasibility, derive_target, feasibility
-from langtraj.interdrive.targets.derive import CUT_IN_S, KERB_CLEARANCE, KERB_MIN_CLEARANCE, kerb_distance
 from langtraj.polylines import point_at
 from langtraj.roads import MapIndex
 from langtraj.scenario import AgentType, MapFeature, MapFeatureType, RoadMap

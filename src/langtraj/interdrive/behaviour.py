@@ -10,40 +10,93 @@ See docs/interdrive.md ('Counterfactual prompts and instruction following').
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import importlib
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from enum import StrEnum
-from typing import Literal
+from typing import Any, ClassVar, Literal
 
 from langtraj.errors import InputError
 from langtraj.interdrive.adherence import Fact, lane_change_key
 from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID, InteractionType
+from langtraj.registry import Registry
 from langtraj.scenario.types import AgentType
 
 Side = Literal["left", "right"]
 
 
-class Behaviour(StrEnum):
-    """The behaviour kinds a counterfactual prompt asks for."""
+def _load_builtin() -> None:
+    """Import the shipped behaviours, which register themselves (by name: the modules build on this one)."""
+    importlib.import_module("langtraj.interdrive.behaviours.builtin")
 
-    TURN_LEFT = "turn_left"
-    TURN_RIGHT = "turn_right"
-    GO_STRAIGHT = "go_straight"
-    LANE_CHANGE_LEFT = "lane_change_left"
-    LANE_CHANGE_RIGHT = "lane_change_right"
-    STOP = "stop"
-    SPEED_UP = "speed_up"
-    SLOW_DOWN = "slow_down"
-    PULL_OVER = "pull_over"
-    GO_FIRST = "go_first"
-    YIELD = "yield"
-    FOLLOW = "follow"
-    CUT_IN = "cut_in"
-    OVERTAKE_CUT_IN = "overtake_cut_in"
-    BRAKE_HARD = "brake_hard"
-    TAILGATE = "tailgate"
-    RUN_RED_LIGHT = "run_red_light"
-    PULL_OUT = "pull_out"
+
+KINDS: Registry[Any] = Registry("behaviour", loader=_load_builtin)
+"""Every behaviour (`interdrive.behaviours.BehaviourKind` classes, registered with `behaviours.register`), in the
+order alternatives are listed: the shipped ones first, in `behaviours.builtin`'s order."""
+
+
+class _Names(type):
+    """Iterating `Behaviour` gives the registered behaviours in order; calling it gives the one instance of a name."""
+
+    _interned: dict[str, Behaviour]
+
+    def __iter__(cls) -> Iterator[Behaviour]:
+        return iter([cls(name) for name in KINDS.names()])
+
+    def __call__(cls, value: object) -> Behaviour:
+        name = str(value)
+        found = cls._interned.get(name)
+        if found is None:
+            found = cls._interned[name] = super().__call__(name)
+        return found
+
+
+class Behaviour(str, metaclass=_Names):
+    """The name of a behaviour a prompt asks for: a string, one instance per name (so `is` compares), with the shipped
+    behaviours as constants. Every behaviour is a module of `interdrive.behaviours` registered in its `KINDS`;
+    iterating this class lists them (docs/design.md, 'Behaviours')."""
+
+    __slots__ = ()
+    _interned: ClassVar[dict[str, Behaviour]] = {}
+
+    @property
+    def value(self) -> str:
+        return str.__str__(self)
+
+    def __repr__(self) -> str:
+        return f"Behaviour({str.__str__(self)!r})"
+
+    def __str__(self) -> str:
+        return str.__str__(self)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (Behaviour, (str.__str__(self),))
+
+    TURN_LEFT: ClassVar[Behaviour]
+    TURN_RIGHT: ClassVar[Behaviour]
+    GO_STRAIGHT: ClassVar[Behaviour]
+    LANE_CHANGE_LEFT: ClassVar[Behaviour]
+    LANE_CHANGE_RIGHT: ClassVar[Behaviour]
+    STOP: ClassVar[Behaviour]
+    SPEED_UP: ClassVar[Behaviour]
+    SLOW_DOWN: ClassVar[Behaviour]
+    PULL_OVER: ClassVar[Behaviour]
+    GO_FIRST: ClassVar[Behaviour]
+    YIELD: ClassVar[Behaviour]
+    FOLLOW: ClassVar[Behaviour]
+    CUT_IN: ClassVar[Behaviour]
+    OVERTAKE_CUT_IN: ClassVar[Behaviour]
+    BRAKE_HARD: ClassVar[Behaviour]
+    TAILGATE: ClassVar[Behaviour]
+    RUN_RED_LIGHT: ClassVar[Behaviour]
+    PULL_OUT: ClassVar[Behaviour]
+
+
+for _name in (
+    "turn_left", "turn_right", "go_straight", "lane_change_left", "lane_change_right", "stop", "speed_up", "slow_down",
+    "pull_over", "go_first", "yield", "follow", "cut_in", "overtake_cut_in", "brake_hard", "tailgate",
+    "run_red_light", "pull_out",
+):  # fmt: skip
+    setattr(Behaviour, _name.upper(), Behaviour(_name))
 
 
 @dataclass(frozen=True)
@@ -71,6 +124,9 @@ class BehaviourSpec:
     typed words (running a red light across another agent's path, or pulling out in front of it: going first; braking
     hard in front of another agent: a stop; a cut-in, with or without an overtake first: a lane change, to the side
     its target takes; `sim.prompts.conditioning_sentence`)."""
+    first: bool = False
+    """Whether a pair behaviour's agent passes the conflict point first (going first, running a red light across the
+    other's way, pulling out in front of it: `BehaviourTarget.first`)."""
 
     @property
     def is_pair(self) -> bool:
@@ -104,130 +160,28 @@ class BehaviourSpec:
 
 
 _TURN_LABELS = ("turning_left", "turning_right", "going_straight")
-_AT_JUNCTION = ("crossing_intersection",)
+AT_JUNCTION = ("crossing_intersection",)
 """A turn or going straight is asked for at a junction: the labeler must also see the agent cross one."""
 
-BEHAVIOURS: Mapping[Behaviour, BehaviourSpec] = {
-    spec.behaviour: spec
-    for spec in (
-        BehaviourSpec(
-            Behaviour.TURN_LEFT,
-            "@{agent} turns left at the next intersection",
-            "turn left",
-            "turning_left",
-            also=_AT_JUNCTION,
-        ),
-        BehaviourSpec(
-            Behaviour.TURN_RIGHT,
-            "@{agent} turns right at the next intersection",
-            "turn right",
-            "turning_right",
-            also=_AT_JUNCTION,
-        ),
-        BehaviourSpec(
-            Behaviour.GO_STRAIGHT,
-            "@{agent} goes straight through the next intersection",
-            "go straight",
-            "going_straight",
-            also=_AT_JUNCTION,
-        ),
-        BehaviourSpec(
-            Behaviour.LANE_CHANGE_LEFT,
-            "@{agent} changes lanes to the left",
-            "change lanes to the left",
-            "changing_lanes",
-            "left",
-        ),
-        BehaviourSpec(
-            Behaviour.LANE_CHANGE_RIGHT,
-            "@{agent} changes lanes to the right",
-            "change lanes to the right",
-            "changing_lanes",
-            "right",
-        ),
-        BehaviourSpec(Behaviour.STOP, "@{agent} comes to a stop and stands still", "stop", "static"),
-        BehaviourSpec(Behaviour.SPEED_UP, "@{agent} speeds up", "speed up", "speeding_up"),
-        BehaviourSpec(Behaviour.SLOW_DOWN, "@{agent} slows down", "slow down", "slowing_down"),
-        BehaviourSpec(
-            Behaviour.PULL_OVER, "@{agent} pulls over to the side of the road and stops", "pull over", "pulling_over"
-        ),
-        BehaviourSpec(
-            Behaviour.GO_FIRST,
-            "@{agent} takes the right of way over @{other}",
-            "go first",
-            interaction=InteractionType.PASSING,
-            subtype="passing/intersection_with_yielding",
-        ),
-        BehaviourSpec(
-            Behaviour.YIELD,
-            "@{agent} yields to @{other}",
-            "yield",
-            interaction=InteractionType.YIELDING,
-            subtype="yielding/intersection",
-        ),
-        BehaviourSpec(
-            Behaviour.FOLLOW,
-            "@{agent} follows @{other}",
-            "follow",
-            interaction=InteractionType.FOLLOWING,
-            subtype="following/with_lead",
-        ),
-        BehaviourSpec(
-            Behaviour.CUT_IN,
-            "@{agent} cuts in front of @{other}",
-            "cut in front of",
-            interaction=InteractionType.LANE_CHANGE,
-            subtype="lane_change/cut_in",
-            exact=True,
-            conditioned_as=Behaviour.LANE_CHANGE_LEFT,
-        ),
-        BehaviourSpec(
-            Behaviour.OVERTAKE_CUT_IN,
-            "@{agent} overtakes @{other} and cuts in front of it",
-            "overtake and cut in front of",
-            interaction=InteractionType.OVERTAKING,
-            subtype="overtaking/cut_in",
-            exact=True,
-            conditioned_as=Behaviour.LANE_CHANGE_LEFT,
-        ),
-        BehaviourSpec(
-            Behaviour.BRAKE_HARD,
-            "@{agent} brakes hard in front of @{other}",
-            "brake hard in front of",
-            interaction=InteractionType.PASSING,
-            subtype="passing/braking_lead",
-            exact=True,
-            conditioned_as=Behaviour.STOP,
-        ),
-        BehaviourSpec(
-            Behaviour.TAILGATE,
-            "@{agent} tailgates @{other}",
-            "tailgate",
-            interaction=InteractionType.FOLLOWING,
-            subtype="following/tailgating",
-            exact=True,
-        ),
-        BehaviourSpec(
-            Behaviour.RUN_RED_LIGHT,
-            "@{agent} runs the red light across the path of @{other}",
-            "run the red light across the path of",
-            interaction=InteractionType.PASSING,
-            subtype="passing/red_light_running",
-            exact=True,
-            conditioned_as=Behaviour.GO_FIRST,
-        ),
-        BehaviourSpec(
-            Behaviour.PULL_OUT,
-            "@{agent} pulls out in front of @{other}",
-            "pull out in front of",
-            interaction=InteractionType.MERGING,
-            subtype="merging/pull_out",
-            exact=True,
-            conditioned_as=Behaviour.GO_FIRST,
-        ),
-    )
-}
-"""Every behaviour kind, in the order alternatives are listed."""
+
+class _Specs(Mapping[Behaviour, BehaviourSpec]):
+    """Every registered behaviour's spec (`BehaviourKind.spec`), in the order alternatives are listed."""
+
+    def __getitem__(self, behaviour: object) -> BehaviourSpec:
+        if str(behaviour) not in KINDS.names():
+            raise KeyError(behaviour)
+        return KINDS.get(str(behaviour)).spec
+
+    def __iter__(self) -> Iterator[Behaviour]:
+        return iter(Behaviour)
+
+    def __len__(self) -> int:
+        return len(KINDS.names())
+
+
+BEHAVIOURS: Mapping[Behaviour, BehaviourSpec] = _Specs()
+"""Every behaviour's spec, in the order alternatives are listed (each declared in its module of
+`interdrive.behaviours`)."""
 
 PAIR_SUBTYPES: tuple[tuple[str, str], ...] = (
     ("yielding/intersection", "passing/intersection_with_yielding"),

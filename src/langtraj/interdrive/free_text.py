@@ -66,13 +66,10 @@ def load_free_text_prompts(path: str | Path) -> tuple[FreeTextPrompt, ...]:
 def _free_text(obj: object, path: Path, where: str) -> FreeTextPrompt:
     if not isinstance(obj, Mapping) or not isinstance(obj.get("text"), str):
         raise InputError("expected a mapping with a string 'text'", path=path, where=where)
-    try:
-        behaviour = Behaviour(str(obj.get("behaviour")))
-    except ValueError:
+    if str(obj.get("behaviour")) not in BEHAVIOURS:
         known = ", ".join(b.value for b in Behaviour)
-        raise InputError(
-            f"unknown behaviour {obj.get('behaviour')!r}; known: {known}", path=path, where=where
-        ) from None
+        raise InputError(f"unknown behaviour {obj.get('behaviour')!r}; known: {known}", path=path, where=where)
+    behaviour = Behaviour(str(obj.get("behaviour")))
     prompt = FreeTextPrompt(" ".join(str(obj["text"]).split()), behaviour)
     if "{agent}" not in prompt.text:
         raise InputError("the text names no {agent}", path=path, where=where)

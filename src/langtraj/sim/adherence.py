@@ -5,9 +5,8 @@ candidates that follow its prompt (`sim.selection`, `first`). A candidate's futu
 followed by the candidate, up to the end of the simulated 8 s, exactly what the judge will read at the end
 (`metrics.instruction_following`). Single-agent behaviours are judged by the heuristic labelers themselves, on one
 scene holding a copy of the agent per candidate and rollout (one labelling per replan). Pair behaviours are judged by
-the interaction detector's own rule for one ordered pair (`PAIR_RUNS`: `interdrive.detector.yielding_runs`,
-`passing_runs`, `following_runs`, `cut_in_runs`, `overtake_cut_in_runs`, `braking_lead_runs`, `tailgating_runs`,
-`red_light_runs`, `pull_out_runs`, with the judge's
+the interaction detector's own rule for one ordered pair, which each behaviour declares (`BehaviourKind.pair_runs`:
+`interdrive.detector.yielding_runs`, `passing_runs`, `following_runs`, `cut_in_runs`, ..., with the judge's
 `DetectorConfig`), the one `detect_interactions` runs over every pair, on each candidate's scene: every agent's past
 up to the replan, the driven agents' candidates after it, the undriven agents' simulated tracks, speeds from
 positions as the judge reads a rollout (`metrics.instruction_following.rollout_scenario`), cut to the agents the rule
@@ -28,47 +27,19 @@ the logged future); traffic lights are held at their state at the start of the s
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from langtraj.interdrive.adherence import label_facts
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour, behaviour_facts
-from langtraj.interdrive.detector import (
-    DetectorConfig,
-    SceneGeometry,
-    braking_lead_runs,
-    cut_in_runs,
-    following_runs,
-    overtake_cut_in_runs,
-    pair_rows,
-    passing_runs,
-    pull_out_runs,
-    red_light_runs,
-    tailgating_runs,
-    yielding_runs,
-)
-from langtraj.interdrive.detector.parts import Pair
+from langtraj.interdrive.behaviours import kind
+from langtraj.interdrive.detector import DetectorConfig, SceneGeometry, pair_rows
 from langtraj.interdrive.heuristics import HeuristicConfig, label_agents
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import Agents, Scenario, TrafficLights
 from langtraj.scenario.types import StateField
 from langtraj.sim.world import SimWorld
-
-PAIR_RUNS: dict[Behaviour, Callable[[SceneGeometry, int, int], list[Pair]]] = {
-    Behaviour.YIELD: yielding_runs,
-    Behaviour.GO_FIRST: passing_runs,
-    Behaviour.FOLLOW: following_runs,
-    Behaviour.CUT_IN: cut_in_runs,
-    Behaviour.OVERTAKE_CUT_IN: overtake_cut_in_runs,
-    Behaviour.BRAKE_HARD: braking_lead_runs,
-    Behaviour.TAILGATE: tailgating_runs,
-    Behaviour.RUN_RED_LIGHT: red_light_runs,
-    Behaviour.PULL_OUT: pull_out_runs,
-}
-"""The detector's per-pair rule judging each pair behaviour: the runs of its interaction type toward the other agent
-(`BehaviourSpec.interaction`), or of its own subtype where the spec is `exact`."""
 
 
 @dataclass(frozen=True)
@@ -183,7 +154,8 @@ class CandidateJudge:
                 scene = SceneGeometry(scenario, (), self.detector, self.index)
                 at = {int(row): k for k, row in enumerate(rows)}
                 for k, ask in enumerate(asks):
-                    rule = PAIR_RUNS[ask.behaviour]
+                    rule = kind(ask.behaviour).pair_runs
+                    assert rule is not None, f"pair behaviour {ask.behaviour!s} declares no pair_runs"
                     out[k, i, r] = not rule(scene, at[ask.row], at[ask.other_row])  # type: ignore[index]
         return out
 

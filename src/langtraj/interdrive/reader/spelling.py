@@ -9,7 +9,7 @@ import re
 from functools import cache
 
 from langtraj.interdrive.reader.read import read_prompt
-from langtraj.interdrive.reader.rules import RULES
+from langtraj.interdrive.reader.rules import tables
 
 MIN_LETTERS = 4
 """Words shorter than this are never corrected ("at", "to", "the" are too close to too much)."""
@@ -19,10 +19,14 @@ _WORD = re.compile(r"[a-z]+")
 _REGEX_NAMES = frozenset({"other", "agent"})  # named groups of the patterns, not words
 
 
-@cache
 def reader_words() -> frozenset[str]:
     """Every word the reader's rule patterns spell out (their letter runs of `MIN_LETTERS` or more)."""
-    words = {w for rule in RULES for w in _WORD.findall(rule.pattern.pattern) if len(w) >= MIN_LETTERS}
+    return _words(tables()[0])
+
+
+@cache
+def _words(rules: tuple) -> frozenset[str]:
+    words = {w for rule in rules for w in _WORD.findall(rule.pattern.pattern) if len(w) >= MIN_LETTERS}
     return frozenset(words - _REGEX_NAMES)
 
 

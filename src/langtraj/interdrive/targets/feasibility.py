@@ -1,5 +1,5 @@
 """Feasibility: whether an agent can do a behaviour from where it is, which is whether the map gives it a target
-(`derive.TargetContext.target`); the reason is the target's. One search answers both, so a behaviour called feasible
+(`derive.target_of`); the reason is the target's. One search answers both, so a behaviour called feasible
 always has a target to steer toward (docs/interdrive.md, 'Targets and feasibility')."""
 
 from __future__ import annotations
@@ -9,7 +9,9 @@ from dataclasses import dataclass, replace
 from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.targets.config import CounterfactualConfig
-from langtraj.interdrive.targets.derive import BehaviourTarget, Status, TargetContext, TargetUnavailable, stop_after
+from langtraj.interdrive.targets.context import TargetContext
+from langtraj.interdrive.targets.derive import stop_after, target_of
+from langtraj.interdrive.targets.target import BehaviourTarget, Status, TargetUnavailable
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 
@@ -70,7 +72,7 @@ def _verdict(
 ) -> Feasibility:
     """The target `context` gives, as a verdict."""
     try:
-        target = context.target(track_id, behaviour, other_id, gap, deceleration)
+        target = target_of(context, track_id, behaviour, other_id, gap, deceleration)
     except TargetUnavailable as exc:
         return Feasibility(track_id, behaviour, exc.status, exc.reason)
     return Feasibility(track_id, behaviour, "feasible", target=target)

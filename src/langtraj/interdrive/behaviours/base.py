@@ -1,0 +1,210 @@
+"""The behaviour interface: everything LangTraj knows of one behaviour a prompt can ask, declared in one place.
+
+A `BehaviourKind` is one class in its own module of this package, registered in `KINDS` under its name: its words for
+the prompt reader, its parameters (name, unit, default, accepted range), where a scene lets an agent stage it and the
+target it steers to (`target`: the place, the gap, the stop point, or why there is none), its steering terms
+(`steer`, declared as `Steer` records that `guidance.steering` turns into costs), and its judges (the labelers'
+facts or the detector's per-pair rule, and by numbers: `judge`). The reader, feasibility, targets, steering,
+candidate adherence, the suites and the studio ask the registry. See docs/design.md, 'Behaviours'.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
+
+from langtraj.errors import InputError
+from langtraj.interdrive.behaviour import KINDS, BehaviourSpec
+from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS
+
+if TYPE_CHECKING:
+    from langtraj.interdrive.detector import SceneGeometry
+    from langtraj.interdrive.detector.parts import Pair
+    from langtraj.interdrive.judging import Judgement
+    from langtraj.interdrive.targets.context import AgentHere, TargetContext
+    from langtraj.interdrive.targets.target import BehaviourTarget
+    from langtraj.scenario.model import Scenario
+
+# ---------------------------------------------------------------------------------------------- parameters
+
+Figure = Literal["metres", "deceleration"]
+"""Which figure of a prompt's text a parameter takes (`PromptReading.metres`, `PromptReading.deceleration`)."""
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One number a behaviour may be asked with ("with a 15 m gap": `gap`, in m): its default, the range it is
+    accepted in (outside it the prompt is refused at load, `check`), and the figure of the text it is read from."""
+
+    name: str
+    unit: str
+    default: float
+    low: float
+    high: float
+    reads: Figure
+    doc: str = ""
+
+    def check(self, value: float, behaviour: str) -> float:
+        """`value` when it lies in [low, high]; else a one-line InputError saying the range."""
+        if not (math.isfinite(value) and self.low <= value <= self.high):
+            raise InputError(
+                f"{behaviour}'s {self.name} {value:g} {self.unit} is outside {self.low:g} to {self.high:g} "
+                f"{self.unit}{f' ({self.doc})' if self.doc else ''}",
+                where=self.name,
+            )
+        return value
+
+    def describe(self, value: float | None) -> str:
+        """ "gap 15 m", or "gap 10 m (default)" when the text gave none."""
+        if value is None:
+            return f"{self.name} {self.default:g} {self.unit} (default)"
+        return f"{self.name} {value:g} {self.unit}"
+
+
+# ---------------------------------------------------------------------------------------------- steering
+
+
+SteerKind = Literal["route", "station", "speed", "lead", "avoid"]
+
+ROUTE_WEIGHT = 1.0
+"""Per m^2 off the target's path."""
+REACH_WEIGHT = 1 / 5.0**2
+"""Per m^2 short of a goal station."""
+HOLD_WEIGHT = 1 / 2.0**2
+"""Per m^2 past a stop or conflict point."""
+
+
+@dataclass(frozen=True)
+class Steer:
+    """One steering term a behaviour asks for over simulated steps `first` ... `last` (1 = the first simulated step):
+    on its `route` (off it costs `weight` per m^2), at a `station` along it (`mode` "reach": not short of `value`
+    m; "hold": not past it), at a `speed` of `value` m/s, a `lead` of `value` m ahead of the other agent along the
+    path (`mode` as for a station), or clear of the other agent (`avoid`, `value` m of buffer). `weight` None is the
+    guidance library's weight for the kind (speed, avoid). `guidance.steering` makes each a cost on the plan steps
+    of a replan (docs/simulation.md, 'Prompts that steer')."""
+
+    kind: SteerKind
+    value: float = 0.0
+    first: int = 1
+    last: int = FUTURE_STEPS
+    weight: float | None = None
+    mode: Literal["reach", "hold"] = "reach"
+
+
+def steps(seconds: float) -> int:
+    """Simulated steps in `seconds`."""
+    return round(seconds / STEP_SECONDS)
+
+
+def route(first: int = 1, last: int = FUTURE_STEPS, weight: float = ROUTE_WEIGHT) -> list[Steer]:
+    return [Steer("route", 0.0, first, last, weight)]
+
+
+def station(value: float, mode: Literal["reach", "hold"], first: int, last: int, weight: float) -> list[Steer]:
+    return [Steer("station", float(value), first, last, weight, mode)]
+
+
+def speed(value: float, first: int, last: int = FUTURE_STEPS) -> list[Steer]:
+    return [Steer("speed", max(float(value), 0.0), first, last)]
+
+
+def lead(value: float, mode: Literal["reach", "hold"], first: int, last: int, weight: float) -> list[Steer]:
+    return [Steer("lead", float(value), first, last, weight, mode)]
+
+
+def avoid(buffer: float) -> list[Steer]:
+    return [Steer("avoid", float(buffer))]
+
+
+# ---------------------------------------------------------------------------------------------- the interface
+
+PairRuns = Callable[["SceneGeometry", int, int], "list[Pair]"]
+
+
+class BehaviourKind(ABC):
+    """One behaviour (see the module docstring). Subclasses set the class attributes and implement `target` and
+    `steer`; a pair behaviour sets `pair_runs`, and one judged by numbers overrides `judge`."""
+
+    name: ClassVar[str]
+    spec: ClassVar[BehaviourSpec]
+    """How it is worded and judged by the labelers (`interdrive.behaviour.BehaviourSpec`)."""
+    words: ClassVar[tuple[str, ...]] = ()
+    """The reader's regular expressions over the normalised prompt (`interdrive.reader.words` has the word
+    classes; a named group `other` marks the other agent, `agent` a request's object)."""
+    word_rank: ClassVar[float] = 100.0
+    """Where its words come in the reader's rule order, which breaks ties between equally long matches (a kind whose
+    phrases end with another's words comes first: overtaking and cutting in before cutting in)."""
+    subsumes: ClassVar[tuple[str, ...]] = ()
+    """Kinds that, asked with this one, are part of it ("pulls over and stops": stop)."""
+    then: ClassVar[tuple[str, ...]] = ()
+    """Kinds that may follow it in one clause, steered and judged after it ("turns left and then stops")."""
+    parameters: ClassVar[tuple[Parameter, ...]] = ()
+    pair_runs: ClassVar[PairRuns | None] = None
+    """The interaction detector's rule for one ordered pair judging a pair behaviour in a candidate's future
+    (`sim.adherence`): the runs of its interaction type, or of its own subtype where the spec is `exact`."""
+
+    def parameter(self, name: str) -> Parameter:
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise KeyError(f"{self.name} has no parameter {name!r}")
+
+    def asked(self, figures: Mapping[str, float | None]) -> dict[str, float]:
+        """The value of each parameter from the text's figures (`Parameter.reads`), its default where the text gives
+        none; a value outside its range raises (`Parameter.check`)."""
+        out = {}
+        for p in self.parameters:
+            given = figures.get(p.reads)
+            out[p.name] = p.default if given is None else p.check(float(given), self.name)
+        return out
+
+    @abstractmethod
+    def target(
+        self, ctx: TargetContext, agent: AgentHere, other: AgentHere | None, asked: Mapping[str, float]
+    ) -> BehaviourTarget:
+        """Where the behaviour takes `agent` (toward `other` for a pair behaviour) at the scene's current step, with
+        the parameters `asked`; raises `TargetUnavailable` with the reason where the scene gives none."""
+
+    @abstractmethod
+    def steer(self, target: BehaviourTarget, other_driven: bool) -> list[Steer]:
+        """The terms that steer the agent to `target`; `other_driven`: the model drives the other agent, so terms
+        relative to where it actually drives (`lead`, `avoid`) are available."""
+
+    def judge(self, scene: Scenario, agent: int, other: int | None, asked: Mapping[str, float]) -> Judgement | None:
+        """The realised numbers beside the asked ones on a played scene (`interdrive.judging`); None where the
+        behaviour is judged by the labelers' facts alone."""
+        return None
+
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready: the name, the template, whether it names another agent, and its parameters."""
+        return {
+            "name": self.name,
+            "template": self.spec.template,
+            "pair": self.spec.is_pair,
+            "parameters": [
+                {"name": p.name, "unit": p.unit, "default": p.default, "low": p.low, "high": p.high, "doc": p.doc}
+                for p in self.parameters
+            ],
+        }
+
+
+_INSTANCES: dict[str, BehaviourKind] = {}
+
+
+def kind(name: str, where: str | None = None) -> BehaviourKind:
+    """The behaviour called `name` (one instance each); an unknown name raises InputError listing the known."""
+    found = _INSTANCES.get(name)
+    if found is None:
+        cls = KINDS.get(str(name), where)
+        found = _INSTANCES.setdefault(str(name), cls())
+    return found
+
+
+def register(cls: type[BehaviourKind]) -> type[BehaviourKind]:
+    """Class decorator adding a behaviour to `KINDS` (after the shipped ones have registered, so the order of
+    alternatives stays theirs first)."""
+    KINDS.names()
+    return KINDS.register(cls)

@@ -1,0 +1,131 @@
+"""Braking hard in front of another agent (Euro NCAP's braking lead vehicle, CCRb): in its lane ahead of the other,
+braking at the asked deceleration to rest; judged by the detector's braking-lead rule and by its numbers (the peak
+deceleration, staying in the follower's path: `judge`). See docs/interdrive.md ('Targets and feasibility')."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
+from langtraj.interdrive.behaviours.base import (
+    HOLD_WEIGHT,
+    ROUTE_WEIGHT,
+    BehaviourKind,
+    Parameter,
+    Steer,
+    register,
+    route,
+    speed,
+    station,
+    steps,
+)
+from langtraj.interdrive.behaviours.recipes import settled
+from langtraj.interdrive.detector import braking_lead_runs
+from langtraj.interdrive.reader.words import IN_FRONT, OTHER, TIGHT_GAP, verb
+from langtraj.interdrive.targets.context import AgentHere, TargetContext, pair_gap
+from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
+from langtraj.interdrive.taxonomy import InteractionType
+from langtraj.scenario.model import FUTURE_STEPS
+
+BRAKE_HARD_DECELERATION = 4.0
+"""How hard a braking lead brakes unless the prompt says (m/s^2): Euro NCAP's braking-lead tests use 2 to 6."""
+BRAKE_HARD_LIMITS = (3.0, 10.0)
+"""The decelerations a braking lead may be asked for (m/s^2): at least the judge's hard braking
+(`DetectorConfig.hard_braking`), at most what tyres give on dry asphalt (about 1 g)."""
+BRAKE_HARD_AFTER_S = 1.0
+"""When a braking lead starts braking (s): the follower has a second of the scene as it was."""
+BRAKE_HARD_MIN_SPEED = 4.0
+"""The least speed a braking lead must have (m/s): slower, hard braking lasts too short to judge."""
+DECELERATION = Parameter(
+    "deceleration", "m/s^2", BRAKE_HARD_DECELERATION, *BRAKE_HARD_LIMITS, "deceleration",
+    "hard braking, and at most what tyres give on dry asphalt",
+)  # fmt: skip
+"""How hard a braking lead is asked to brake ("at 6 m/s^2", "at 0.5 g")."""
+KEEP_LANE_WEIGHT = 16.0 * ROUTE_WEIGHT
+"""Per m^2 off the lane, for a braking lead, which must not swerve: above the common range, as the model, conditioned
+on a stop, moves aside by 1.5-3 m at 1x; chosen on validation maps (docs/testing.md, 'The safety-critical
+vocabulary')."""
+
+# ---------------------------------------------------------------------------------------------- words
+
+_HARD = r"(?:hard|sharply|suddenly|abruptly|heavily|violently|harshly|fiercely|firmly|urgently|all\s+of\s+a\s+sudden)"
+_DECELERATION_WORDS = r"(?:\s+(?:at|with|by)\s+(?:a\s+deceleration\s+of\s+)?[\d.]+\s*(?:m/s\^?2|m/s²|m/s/s|g)(?!\w))"
+"""A deceleration the text gives ("at 6 m/s^2", "at 0.5 g"), read by `read.py`'s `_DECELERATION`."""
+_BRAKE_HARD = [
+    rf"\b{verb('brake', 'stop', 'decelerate')}(?:(?:\s+{_HARD})+(?:\s+and\s+{_HARD})?{_DECELERATION_WORDS}?"
+    rf"|{_DECELERATION_WORDS})\s+{IN_FRONT}\s+{OTHER}",
+    rf"\b{verb('slam on', 'stamp on', 'jam on', 'stand on', 'mash', 'hit', 'smash')}\s+(?:the|its|their|his|her)"
+    rf"\s+brakes?{TIGHT_GAP}\s+{IN_FRONT}\s+{OTHER}",
+    rf"\b{verb('do', 'make', 'perform', 'carry out', 'execute')}\s+an?\s+(?:emergency|hard|sudden|panic|abrupt)"
+    rf"\s+(?:stop|brake|braking\s+manoeuvre|braking\s+maneuver|braking){TIGHT_GAP}\s+{IN_FRONT}\s+{OTHER}",
+    rf"\b{verb('brake-check', 'brake check', 'brake test', 'brake-test')}\s+{OTHER}",
+    rf"\b{verb('force', 'make', 'cause')}\s+{OTHER}\s+to\s+(?:brake|slow\s+down|stop|slam\s+on\s+the\s+brakes)\b"
+    rf"(?:\s+{_HARD})?",
+]
+"""Braking hard in the other's lane just ahead of it (Euro NCAP's braking lead vehicle): "brakes hard in front of
+@7", "slams on the brakes ahead of @7", "brake-checks @7", "forces @7 to brake"."""
+
+# ---------------------------------------------------------------------------------------------- target
+
+
+def _brake_hard(ctx: TargetContext, agent: AgentHere, other: AgentHere, deceleration: float) -> BehaviourTarget:
+    """The agent's lane ahead and the stop that braking at `deceleration` from `BRAKE_HARD_AFTER_S` brings it to,
+    the other following within `FOLLOWER_RANGE_M` (Euro NCAP's braking lead vehicle). Infeasible for a deceleration
+    outside `BRAKE_HARD_LIMITS`, an agent slower than `BRAKE_HARD_MIN_SPEED`, or no such follower."""
+    behaviour, v = Behaviour.BRAKE_HARD, agent.here.speed
+    low, high = BRAKE_HARD_LIMITS
+    if not low <= deceleration <= high:
+        reason = f"braking at {deceleration:g} m/s^2 is outside {low:g} to {high:g} m/s^2 (hard, and what tyres give)"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    if v < BRAKE_HARD_MIN_SPEED:
+        reason = f"it is too slow to brake hard ({v:.1f} m/s; at least {BRAKE_HARD_MIN_SPEED:g})"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    gap = pair_gap(ctx, agent, other, behaviour, lead=agent, where="behind")
+    station = v * BRAKE_HARD_AFTER_S + v * v / (2.0 * deceleration)
+    return BehaviourTarget(
+        agent.track_id,
+        behaviour,
+        ctx.ahead(agent),
+        f"braking at {deceleration:g} m/s^2 from {BRAKE_HARD_AFTER_S:g} s to rest {station:.0f} m ahead, "
+        f"@{other.track_id} {gap:.0f} m behind",
+        station_of_goal=float(station),
+        speed=0.0,
+        other_id=other.track_id,
+        current_speed=v,
+        other_speed=other.here.speed,
+        settled_s=BRAKE_HARD_AFTER_S + v / deceleration,
+        deceleration=float(deceleration),
+    )
+
+
+@register
+class BrakeHard(BehaviourKind):
+    """Braking hard in front of another agent."""
+
+    name = "brake_hard"
+    spec = BehaviourSpec(
+        Behaviour.BRAKE_HARD, "@{agent} brakes hard in front of @{other}", "brake hard in front of",
+        interaction=InteractionType.PASSING, subtype="passing/braking_lead", exact=True,
+        conditioned_as=Behaviour.STOP,
+    )  # fmt: skip
+    words = tuple(_BRAKE_HARD)
+    word_rank = 13
+    subsumes = ("stop", "slow_down")
+    parameters = (DECELERATION,)
+    pair_runs = staticmethod(braking_lead_runs)
+
+    def target(
+        self, ctx: TargetContext, agent: AgentHere, other: AgentHere | None, asked: Mapping[str, float]
+    ) -> BehaviourTarget:
+        assert other is not None
+        return _brake_hard(ctx, agent, other, asked["deceleration"])
+
+    def steer(self, target: BehaviourTarget, other_driven: bool) -> list[Steer]:
+        """At its speed until braking starts, never past the stop point, standing still from when braking at the
+        asked deceleration gets there (`settled_s`); in its lane throughout (a braking lead does not swerve)."""
+        return (
+            speed(target.current_speed, 1, steps(BRAKE_HARD_AFTER_S))
+            + station(float(target.station_of_goal or 0.0), "hold", 1, FUTURE_STEPS, HOLD_WEIGHT)
+            + speed(0.0, settled(target))
+            + route(weight=KEEP_LANE_WEIGHT)
+        )

@@ -1,0 +1,126 @@
+"""Cutting in front of another agent (Euro NCAP's cut-in): into the other's lane, beside the agent's, settled the asked
+gap ahead of it; judged by the detector's cut-in rule and by its numbers (the gap when it settles: `judge`).
+See docs/interdrive.md ('Targets and feasibility') and docs/testing.md ('Judged by numbers')."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
+from langtraj.interdrive.behaviours.base import BehaviourKind, Parameter, Steer, register, route, steps
+from langtraj.interdrive.behaviours.recipes import gap_ahead
+from langtraj.interdrive.detector import cut_in_runs
+from langtraj.interdrive.reader.words import OTHER, verb
+from langtraj.interdrive.targets.context import (
+    GO_FIRST_ACCELERATION,
+    LANE_CHANGE_S,
+    AgentHere,
+    TargetContext,
+    into_lane,
+    lane_beside,
+    lead_of,
+)
+from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
+from langtraj.interdrive.taxonomy import InteractionType
+
+CUT_IN_GAP_M = 10.0
+"""The gap (bumper to bumper, m) a cut-in leaves in front of the other agent unless the prompt gives one."""
+CUT_IN_S = 1.0 + LANE_CHANGE_S
+"""When a cut-in has settled in the other's lane (s): begun within 1 s, settled `LANE_CHANGE_S` later."""
+GAP = Parameter(
+    "gap", "m", CUT_IN_GAP_M, 2.0, 30.0, "metres",
+    "bumper to bumper ahead of the other once settled: nearer is a collision, farther no cut-in",
+)  # fmt: skip
+"""The gap a cut-in (or an overtake and cut-in) is asked with ("with a 15 m gap")."""
+
+# ---------------------------------------------------------------------------------------------- words
+
+CUT_IN_VERBS = verb(
+    "cut", "nip", "dive", "swerve", "squeeze", "slot", "tuck", "merge", "slip", "jump", "weave", "change lanes",
+    "switch lanes", "move over", "pull in", "pull over", "barge", "force its way", "push in",
+)  # fmt: skip
+CUT_MANNER = r"(?:over|back|across|sharply|suddenly|right|just|closely|dangerously|abruptly|tightly|aggressively)"
+JUST_AHEAD = r"(?:in\s+front\s+of|ahead\s+of|just\s+ahead\s+of)"
+CUTS_IN = rf"{CUT_IN_VERBS}(?:\s+(?:in|{CUT_MANNER}))*\s+(?:{JUST_AHEAD}|in\s+on)"
+"""A cut in front of someone named next: "cuts in front of", "swerves sharply in ahead of", "cuts in on"."""
+_CUT_IN = [
+    rf"\b{CUTS_IN}\s+{OTHER}",
+    rf"\b{verb('cut', 'push', 'barge')}\s+in\s+on\s+{OTHER}",
+    rf"\b{verb('cut')}\s+(?:off|up)\s+{OTHER}",
+    rf"\b{verb('cut')}\s+{OTHER}\s+(?:off|up)\b",
+    rf"\b{verb('change lanes', 'switch lanes', 'move', 'merge', 'cut', 'pull', 'swerve', 'squeeze')}"
+    rf"(?:\s+(?:over|across))?\s+(?:in)?to\s+{OTHER}'s\s+lane\b"
+    r"(?:\s+(?:right\s+|just\s+)?(?:in\s+front\s+of|ahead\s+of)\s+(?:it|them|him|her))?",
+]
+"""Changing into the other's lane just ahead of it (Euro NCAP's cut-in); "pulls out in front of @7" is a pull-out
+(from a side road, not a lane beside it: `_PULL_OUT`)."""
+
+# ---------------------------------------------------------------------------------------------- target
+
+
+def _cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) -> BehaviourTarget:
+    """Into the other's lane when it lies beside the agent's (`_lane_beside`) at the agent or at a station of its
+    road ahead, from where a change can begin (1 s or 4 m ahead); the `speed` is the average that puts the agent's
+    rear `gap` m ahead of the other's front at `CUT_IN_S`, the other keeping its speed, and `station_of_goal` where
+    along the path that average takes it by then.
+    Infeasible where that needs more than `GO_FIRST_ACCELERATION` could add, or less than standing still."""
+    behaviour = Behaviour.CUT_IN
+    begin = max(4.0, 1.0 * agent.here.speed)
+    side, lane, level = lane_beside(ctx, agent, other, behaviour, begin + 20.0)
+    v, v_other = agent.here.speed, other.here.speed
+    lengths = 0.5 * (agent.length + other.length)
+    lead = lead_of(agent, other)
+    speed = (v_other * CUT_IN_S + gap + lengths - lead) / CUT_IN_S
+    most = v + 0.5 * GO_FIRST_ACCELERATION * CUT_IN_S
+    if speed > most:
+        reason = f"it cannot get {gap:g} m ahead of @{other.track_id} in {CUT_IN_S:g} s ({speed:.1f} m/s on average)"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    if speed < 0.0:
+        reason = f"it is {lead:.0f} m ahead of @{other.track_id}: too far to cut in {gap:g} m ahead of it"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    return BehaviourTarget(
+        agent.track_id,
+        behaviour,
+        into_lane(ctx.index, agent, lane, level + begin),
+        f"@{other.track_id}'s lane on its {side}, {gap:g} m ahead of it, at {speed:.1f} m/s",
+        station_of_goal=float(speed * CUT_IN_S),
+        speed=float(speed),
+        other_id=other.track_id,
+        current_speed=v,
+        other_speed=v_other,
+        side=side,
+        settled_s=CUT_IN_S,
+        lead_m=float(gap + lengths),
+    )
+
+
+CHANGE_AND_SPEED = ("lane_change_left", "lane_change_right", "speed_up", "slow_down")
+"""What a cut-in's words also say, as part of it: a lane change, speeding up or slowing down."""
+
+
+@register
+class CutIn(BehaviourKind):
+    """Cutting in front of another agent."""
+
+    name = "cut_in"
+    spec = BehaviourSpec(
+        Behaviour.CUT_IN, "@{agent} cuts in front of @{other}", "cut in front of",
+        interaction=InteractionType.LANE_CHANGE, subtype="lane_change/cut_in", exact=True,
+        conditioned_as=Behaviour.LANE_CHANGE_LEFT,
+    )  # fmt: skip
+    words = tuple(_CUT_IN)
+    word_rank = 12
+    subsumes = CHANGE_AND_SPEED
+    parameters = (GAP,)
+    pair_runs = staticmethod(cut_in_runs)
+
+    def target(
+        self, ctx: TargetContext, agent: AgentHere, other: AgentHere | None, asked: Mapping[str, float]
+    ) -> BehaviourTarget:
+        assert other is not None
+        return _cut_in(ctx, agent, other, asked["gap"])
+
+    def steer(self, target: BehaviourTarget, other_driven: bool) -> list[Steer]:
+        """The gap ahead of the other agent when the change has settled (`CUT_IN_S`) and after
+        (`recipes.gap_ahead`); in the other's lane from 2 s on."""
+        return gap_ahead(target, other_driven) + route(first=steps(2.0))
