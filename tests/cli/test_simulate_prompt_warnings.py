@@ -1,20 +1,24 @@
 """`langtraj simulate` warns about a typed prompt asking for a turn or lane change the map does not allow, records
 the warning in the summary, and simulates all the same; the warning is about the prompt as the reader reads it (the
-reading that steers), asked of the map index the simulation steers by."""
+reading that steers), asked of the map index the simulation steers by. Timing words the reader does not honour, a pair
+behaviour with no second agent and an overtake alone are refused in one line instead (exit 2)."""
 
 from __future__ import annotations
 
 import json
 
 import numpy as np
+import pytest
 from interdrive.test_counterfactual import LEFT_LANE_STRAIGHT, RIGHT_LANE_RIGHT, drive, four_way
 from interdrive.test_heuristics import scene
 
 from langtraj.cli.main import main
+from langtraj.errors import InputError
 from langtraj.roads import MapIndex
 from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.io import write_scenarios
 from langtraj.sim.config import ALL_LEVERS
+from langtraj.sim.prompt_checks import check_prompts
 from langtraj.sim.prompts import prompt_steering, read_prompts
 
 ORIGIN = (0.0, 0.0, 0.0)
@@ -44,10 +48,12 @@ def test_prompt_warnings_name_each_agent_and_manoeuvre_the_map_does_not_allow():
 
 def test_the_warning_is_about_the_agent_and_behaviour_the_prompt_steers():
     # The reader reads @2 as the one asked to turn left, though @1 is named first: the steering and the warning
-    # are both about @2.
+    # are both about @2. (A typed prompt is refused for its condition; a dataset sentence keeps it on the reading.)
     s = _junction_scene()
-    steering = prompt_steering(s, read_prompts(["After @1 passes, @2 turns left"]), np.arange(2), ORIGIN, ALL_LEVERS)
+    readings = read_prompts(["After @1 passes, @2 turns left"], strict=False)
+    steering = prompt_steering(s, readings, np.arange(2), ORIGIN, ALL_LEVERS)
     assert steering.readings[0].agent == 2 and steering.asks[0].track_id == 2
+    assert steering.readings[0].condition == "After @1 passes"
     assert list(steering.warnings) == [LEFT_TURN_WARNING]
 
 
@@ -77,3 +83,57 @@ def test_simulate_warns_on_stderr_records_the_warning_and_still_runs(tiny_run, t
                  "--out", str(quiet)])  # fmt: skip
     assert code == 0 and "warning:" not in capsys.readouterr().err
     assert json.loads((quiet / "summary.json").read_text())["prompt_warnings"] == []
+
+
+REFUSED = [
+    ("after 2 seconds @7 cuts in front of @17",
+     "prompt 'after 2 seconds @7 cuts in front of @17': the time 'after 2 seconds' is not read yet: LangTraj would run "
+     "the behaviour at once; remove it or stage it with the scenario's start"),
+    ("@7 cuts in front of @17 2 seconds from now", "the time '2 seconds from now' is not read yet"),
+    ("@7 brakes hard in front of @17 when @17 is 20 m behind",
+     "the condition 'when @17 is 20 m behind' is not read yet"),
+    ("when @17 is 20 m behind, @7 brakes hard", "the condition 'when @17 is 20 m behind' is not read yet"),
+    ("after @17 turns left, @7 goes first", "the condition 'after @17 turns left' is not read yet"),
+    ("@37 turns left, then @7 pulls out in front of @17",
+     "the sequence 'then' (clause '@7 pulls out in front of @17') is not read yet: LangTraj would run the clauses at "
+     "once"),
+    ("@7 runs the red light",
+     "clause '@7 runs the red light': run_red_light needs a second agent: name whose path it crosses, e.g. '@7 runs "
+     "the red light across the path of @Y'"),
+    ("@7 cuts in", "cut_in needs a second agent: name whom it cuts in front of, e.g. '@7 cuts in front of @Y'"),
+    ("@7 overtakes @17",
+     "clause '@7 overtakes @17' is not read: overtaking alone is not a behaviour LangTraj steers; say '@7 overtakes "
+     "@17 and cuts in front of it'"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("text", "message"), REFUSED)
+def test_timing_a_lone_pair_word_and_an_overtake_alone_are_one_line_errors(text, message):
+    with pytest.raises(InputError, match=r"^prompt: ") as refused:
+        read_prompts([text])
+    assert message in str(refused.value) and "\n" not in str(refused.value)
+    loose = read_prompts([text], strict=False)  # judging a played episode: kept on the reading, never refused
+    assert any(r.condition and r.condition in r.describe() for r in loose) or not any(r.read for r in loose)
+
+
+def test_one_agent_manoeuvre_then_stop_still_runs():
+    (reading,) = read_prompts(["@2 turns left and then stops"])
+    assert reading.then is not None and reading.condition == ""
+
+
+def test_the_prompt_check_names_the_timing_not_the_ego_it_mentions():
+    s = _junction_scene()  # the env's check: the ego named in a condition is no request to the ego
+    (check,) = check_prompts(s, ["when @1 is 20 m behind, @2 brakes hard"], ego=1, targets=False).prompts
+    assert check.error is not None and "the condition 'when @1 is 20 m behind' is not read yet" in check.error
+    (asked,) = check_prompts(s, ["@1 slows down"], ego=1, targets=False).prompts
+    assert asked.error == "'@1 slows down' asks something of the ego, which the planner drives"
+
+
+@pytest.mark.parametrize(("text", "message"), REFUSED)
+def test_simulate_refuses_them_in_one_line_with_exit_2(tiny_run, tmp_path, capsys, text, message):
+    checkpoint, scenes = tiny_run  # tracks 7, 17, 37 and 47 are valid at the current step
+    out = tmp_path / "sim"
+    code = main(["simulate", str(scenes), "--checkpoint", str(checkpoint), "--out", str(out), "--prompt", text])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()

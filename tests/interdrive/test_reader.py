@@ -168,7 +168,7 @@ def test_describe_to_json_and_the_words_of_the_typed_text():
     assert pair.describe() == 'read as: @12 yield @7 ("gives way to @7")'
     assert pair.to_json() == {
         "behaviour": "yield", "agent": 12, "other": 7, "words": "gives way to @7", "reason": "", "also": [],
-        "then": None, "clause": "", "metres": None, "deceleration": None,
+        "then": None, "clause": "", "metres": None, "deceleration": None, "condition": "",
     }  # fmt: skip
     assert read_prompt("@12 hums").to_json() == {
         "behaviour": None,
@@ -181,6 +181,7 @@ def test_describe_to_json_and_the_words_of_the_typed_text():
         "clause": "",
         "metres": None,
         "deceleration": None,
+        "condition": "",
     }
     assert read_prompt("@12 hums").describe() == (
         "not read: no behaviour phrase found; the prompt steers by text alone"
@@ -388,3 +389,79 @@ def test_a_manoeuvre_and_then_a_stop_is_read_as_the_two_in_order(text, first, wo
         assert reading.followed(turn | {("label", 7, "static")})
         assert not reading.followed(turn)  # turned, never stopped
         assert not reading.followed(frozenset({("label", 7, "static")}))  # stopped, never turned
+
+
+@pytest.mark.parametrize(
+    ("text", "expected", "condition"),
+    [
+        ("after 2 seconds @741 cuts in front of @1", (B.CUT_IN, 741, 1), "after 2 seconds"),
+        ("@741 cuts in front of @1 2 seconds from now", (B.CUT_IN, 741, 1), "2 seconds from now"),
+        ("@741 cuts in front of @1 after 2 s", (B.CUT_IN, 741, 1), "after 2 s"),
+        ("@12 turns left in 3 seconds", (B.TURN_LEFT, 12, None), "in 3 seconds"),
+        ("@12 turns left at 3 s", (B.TURN_LEFT, 12, None), "at 3 s"),
+        ("@12 turns left at t = 3", (B.TURN_LEFT, 12, None), "at t = 3"),
+        ("2 seconds later, @7 stops", (B.STOP, 7, None), "2 seconds later"),
+        ("@741 brakes hard in front of @1 when @1 is 20 m behind", (B.BRAKE_HARD, 741, 1), "when @1 is 20 m behind"),
+        ("when @1 is 20 m behind, @741 brakes hard", (B.SLOW_DOWN, 741, None), "when @1 is 20 m behind"),
+        ("when @1 is within 15.5 m @741 brakes hard in front of @1", (B.BRAKE_HARD, 741, 1),
+         "when @1 is within 15.5 m"),
+        ("after @7 turns left, @12 goes first", (B.GO_FIRST, 12, 7), "after @7 turns left"),
+        ("If @7 turns left, @12 should stop", (B.STOP, 12, None), "If @7 turns left"),
+        ("@12 turns left once @7 has stopped", (B.TURN_LEFT, 12, None), "once @7 has stopped"),
+        ("@12 follows @7 until the light turns green", (B.FOLLOW, 12, 7), "until the light turns green"),
+        ("@12 yields to @7 as soon as @7 slows down", (B.YIELD, 12, 7), "as soon as @7 slows down"),
+    ],
+)  # fmt: skip
+def test_timing_words_are_kept_on_the_reading_not_dropped(text, expected, condition):
+    reading = read_prompt(text)
+    assert (reading.behaviour, reading.agent, reading.other) == expected
+    assert reading.condition == condition
+    assert reading.describe().endswith(f"{condition!r} is not read (the behaviour runs at once)")
+    assert reading.to_json()["condition"] == condition
+    assert read_clauses(text)[0].condition == condition
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["@12 turns left and then stops", "@12 turns right, then comes to a stop", "@12 turns left and later stops",
+     "Please have @12 go left when it reaches the intersection", "Let @12 turn right when it gets to the junction",
+     "@12 holds back until @7 has gone by", "@12 waits until @7 has cleared the intersection",
+     "@12 yields to @7 until @7 has passed", "@12 gets through before @7 does", "@12 goes first before @7",
+     "@12 yields to @7 while @7 turns left", "@12 follows @7 at 2 s headway", "@12 stops at once",
+     "@12 slows down if needed", "I want @12 to come to a complete stop before the crosswalk",
+     "@12 cuts in front of @7 after overtaking it", "@12 gets through the junction first, with @7 after it"],
+)  # fmt: skip
+def test_words_a_behaviour_honours_are_no_timing(text):
+    assert all(r.read and r.condition == "" for r in read_clauses(text)), [r.describe() for r in read_clauses(text)]
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("@4 turns left, then @7 pulls out in front of @1", [(4, B.TURN_LEFT, ""), (7, B.PULL_OUT, "then")]),
+        ("@4 turns left and then @7 stops", [(4, B.TURN_LEFT, ""), (7, B.STOP, "and then")]),
+        ("@4 turns left, after that @7 stops", [(4, B.TURN_LEFT, ""), (7, B.STOP, "after that")]),
+        ("@4 turns left. Afterwards @7 stops.", [(4, B.TURN_LEFT, ""), (7, B.STOP, "Afterwards")]),
+        ("@4 turns left and @7 goes straight", [(4, B.TURN_LEFT, ""), (7, B.GO_STRAIGHT, "")]),  # at once: asked so
+        ("@4 turns left, then @4 stops", [(4, B.TURN_LEFT, ""), (4, B.STOP, "")]),  # one agent: asked twice
+        ("Then @7 stops", [(7, B.STOP, "Then")]),  # after something another prompt asks
+    ],
+)  # fmt: skip
+def test_a_sequence_across_agents_is_kept_on_the_later_clause(text, expected):
+    readings = read_clauses(text)
+    assert [(r.agent, r.behaviour, r.condition) for r in readings] == expected
+    for reading in readings:
+        assert ("the sequence" in reading.describe()) == bool(reading.condition)
+
+
+def test_pair_words_without_their_second_agent_and_an_overtake_alone_say_why():
+    assert read_prompt("@52 cuts in").reason == "cut_in needs exactly one other agent"
+    assert read_prompt("@52 tailgates").reason == "tailgate needs exactly one other agent"
+    alone = read_prompt("@52 overtakes @1")
+    assert alone.behaviour is None and alone.agent == 52
+    assert alone.reason == (
+        "overtaking alone is not a behaviour LangTraj steers; say '@52 overtakes @1 and cuts in front of it'"
+    )
+    assert alone.describe().startswith("not read: overtaking alone is not a behaviour LangTraj steers")
+    assert read_prompt("@52 overtakes @1 and cuts in front of it").behaviour is B.OVERTAKE_CUT_IN
+    assert read_prompt("@52 cuts in front of @1").behaviour is B.CUT_IN

@@ -154,7 +154,7 @@ def _check(
     if again:
         m = again[0]
         return PromptCheck(text, f"@{m} is named by prompt {named[m] + 1} too; describe each agent in one prompt")
-    if ego is not None and entry.mentions and entry.mentions[0] == ego:
+    if ego is not None and _asks_ego(read_prompts([text], strict=False), entry.mentions, ego):
         return PromptCheck(text, f"{text!r} asks something of the ego, which the planner drives")
     for m in entry.mentions:
         named[m] = number
@@ -169,6 +169,16 @@ def _check(
     warning = "; ".join(steering.warnings) or None
     feasible = {t.track_id for t in own} >= {r.agent for r in readings if r.read}
     return PromptCheck(text, None, readings, feasible, warning, own)
+
+
+def _asks_ego(readings: Sequence[PromptReading], mentions: Sequence[int], ego: int) -> bool:
+    """Whether a prompt asks something of the ego: a clause read as asking it, or, where no clause is read, the
+    first agent it names; not where it names the ego in timing words ("when @ego is 20 m behind, @7 brakes hard"),
+    which the strict reading refuses for what they are."""
+    asked = [r.agent for r in readings if r.read]
+    if asked:
+        return ego in asked
+    return not any(r.condition for r in readings) and bool(mentions) and mentions[0] == ego
 
 
 def _pair_error(adversary: int | None, target: int | None, sim_ids: list[int], ego: int | None) -> str | None:

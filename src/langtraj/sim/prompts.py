@@ -22,7 +22,9 @@ from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
 from langtraj.interdrive.prompts.compose import MENTION
 from langtraj.interdrive.reader import PromptReading, read_clauses
+from langtraj.interdrive.reader.alone import refusal
 from langtraj.interdrive.reader.spelling import did_you_mean
+from langtraj.interdrive.reader.timing import condition_note, kind_of
 from langtraj.interdrive.targets import (
     BehaviourTarget,
     Feasibility,
@@ -87,8 +89,9 @@ def check_prompt_driven(prompt: PromptEntry, driven_ids: Sequence[int], max_driv
 def read_prompts(texts: Sequence[str], *, strict: bool = True) -> tuple[PromptReading, ...]:
     """Each typed prompt read once, clause by clause (`interdrive.reader.read_clauses`): the readings its warnings,
     its guidance and its selection take. With `strict` (typed prompts), a clause of a prompt of several that cannot
-    be read, or an agent asked by two clauses, is an InputError naming the clause; a prompt of one clause that cannot
-    be read steers by its text alone. Without it (a dataset prompt's sentence), nothing is refused."""
+    be read, an agent asked by two clauses, or timing words the reader does not honour (`PromptReading.condition`)
+    are an InputError naming the clause or the words; a prompt of one clause that cannot be read steers by its text
+    alone, unless `_unread_problem` refuses it. Without it (a dataset prompt's sentence), nothing is refused."""
     readings: list[PromptReading] = []
     asked: dict[int, PromptReading] = {}
     for text in texts:
@@ -99,6 +102,8 @@ def read_prompts(texts: Sequence[str], *, strict: bool = True) -> tuple[PromptRe
             problem = None if reading.read else _unread_problem(reading)
             if problem is not None:
                 raise InputError(problem, where="prompt")
+            if reading.condition:
+                raise InputError(_timing_problem(text, reading), where="prompt")
             if len(clauses) > 1 and not reading.read:
                 raise InputError(
                     f"clause {reading.clause!r} of {text!r} cannot be read ({reading.reason}); write each agent's "
@@ -117,13 +122,28 @@ def read_prompts(texts: Sequence[str], *, strict: bool = True) -> tuple[PromptRe
     return tuple(readings)
 
 
+def _timing_problem(text: str, reading: PromptReading) -> str:
+    """The one line refusing timing words the reader does not honour: every behaviour runs from the start."""
+    kind = kind_of(reading.condition)
+    where = f" (clause {reading.clause!r})" if reading.clause and reading.clause != text else ""
+    runs = "the clauses at once" if kind == "sequence" else "the behaviour at once"
+    return (
+        f"prompt {text!r}: the {kind} {reading.condition!r}{where} is not read yet: LangTraj would run {runs}; "
+        "remove it or stage it with the scenario's start"
+    )
+
+
 def _unread_problem(reading: PromptReading) -> str | None:
     """Why an unread clause is refused even alone rather than steering by its text: an agent named as both sides of
-    a pair ("@5 yields to @5"), or a misspelt reader word ("yeilds", `reader.spelling.did_you_mean`), or None."""
+    a pair ("@5 yields to @5"), a pair behaviour with no second agent named or an overtake alone
+    (`reader.alone.refusal`), or a misspelt reader word ("yeilds", `reader.spelling.did_you_mean`), or None."""
     mentions = MENTION.findall(reading.clause)
     repeated = next((m for m in mentions if mentions.count(m) > 1), None)
     if repeated is not None:
         return f"clause {reading.clause!r} names @{repeated} twice; a behaviour between two agents needs two agents"
+    alone = refusal(reading.reason, reading.clause, len(set(mentions)), reading.agent)
+    if alone is not None:
+        return alone
     fixed = did_you_mean(reading.clause)
     if fixed is None:
         return None
@@ -242,6 +262,7 @@ def prompt_steering(
         if reading.behaviour is None or reading.agent is None:
             alone = "it steers by its text alone" if levers.text else "nothing steers it (the text lever is off)"
             head = f"not read: {reading.reason}" if reading.behaviour is None else reading.describe()
+            head += f"; {condition_note(reading.condition)}" if reading.condition and not reading.read else ""
             notes.append(f"{head}; {alone}")
             continue
         if reading.agent not in slots:

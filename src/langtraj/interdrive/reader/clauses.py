@@ -1,8 +1,10 @@
 """Reading a prompt clause by clause: `read_clauses` cuts the typed text where another agent starts a clause (a new
-sentence; a comma, "and", "but" or "then" before a mention and its verb), gives each agent of a coordinated subject
-("@12 and @7 stop", "@693 @625 @635 stop") the predicate on its own, and reads each part with `read_prompt`. A
-subordinate clause ("after @7 turns left, ...") stays with the clause it qualifies, and a bare "and" after a mention
-("lets @7 and @9 go first") joins objects, not clauses.
+sentence; a comma, "and", "but", "then" or "after that" before a mention and its verb), gives each agent of a
+coordinated subject ("@12 and @7 stop", "@693 @625 @635 stop") the predicate on its own, and reads each part with
+`read_prompt`. A subordinate clause ("after @7 turns left, ...") or a part naming no agent ("2 seconds later, ...")
+stays with the clause it qualifies, and a bare "and" after a mention ("lets @7 and @9 go first") joins objects, not
+clauses. A clause put after another agent's ("@4 turns left, then @7 stops") keeps its sequence words in its
+`condition` (`timing.py`): the clauses run at once.
 
 See docs/interdrive.md ('Reading a prompt').
 """
@@ -13,6 +15,7 @@ import re
 from dataclasses import replace
 
 from langtraj.interdrive.reader.read import PromptReading, read_prompt
+from langtraj.interdrive.reader.timing import SEQUENCE, joined, leading_sequence
 
 _MENTION = r"@\d+(?!\w)"
 _SUBJECTS = rf"{_MENTION}(?:\s*(?:,|and|&)?\s*{_MENTION})*"
@@ -20,11 +23,13 @@ _VERB_AFTER = r"\s+(?!(?:and|or|&)\b)[a-z']"
 """A mention starts a clause only when a word that is not a conjunction follows it."""
 _SENTENCE = re.compile(r"[.!?;]+(?=\s|$)")
 _JOIN = re.compile(
-    rf"(?P<comma>\s*,\s*(?:(?:and\s+then|and|but|then)\s+)?|\s+(?:and\s+then|and|but|then)\s+)(?={_SUBJECTS}{_VERB_AFTER})",
+    rf"(?P<comma>\s*,\s*(?:(?:(?P<seq>{SEQUENCE})|and|but)\s*,?\s+)?|\s+(?:(?P<seq2>{SEQUENCE})|and|but)\s*,?\s+)"
+    rf"(?={_SUBJECTS}{_VERB_AFTER})",
     re.IGNORECASE,
 )
 _SUBORDINATE = re.compile(
-    r"^\s*(?:after|before|once|when|whenever|while|whilst|until|till|if|unless|because|since|as\s+soon\s+as|as)\b",
+    r"^\s*(?:after(?!\s+(?:that|this)\b)|before|once|when|whenever|while|whilst|until|till|if|unless|because|since"
+    r"|as\s+soon\s+as|as)\b",
     re.IGNORECASE,
 )
 _ENDS_WITH_MENTION = re.compile(rf"{_MENTION}\s*$")
@@ -35,32 +40,37 @@ _COORDINATED = re.compile(
 
 def clauses(text: str) -> list[str]:
     """The parts of `text` read one by one (see the module): one per clause and agent, in order."""
-    parts: list[str] = []
+    return [part for _, part in _parts(text)]
+
+
+def _parts(text: str) -> list[tuple[str, str]]:
+    """(sequence words before it, part) for each part of `text`: "then" in "@4 turns left, then @7 stops"."""
+    parts: list[tuple[str, str]] = []
     for sentence in _SENTENCE.split(text):
         parts += _split_sentence(sentence)
-    out: list[str] = []
-    for part in parts:
-        out += _distribute(part)
-    return [p for p in out if p.strip()] or [text]
+    out = [(lead or leading_sequence(part), each) for lead, part in parts for each in _distribute(part)]
+    return [(lead, p) for lead, p in out if p.strip()] or [("", text)]
 
 
-def _split_sentence(sentence: str) -> list[str]:
-    pieces: list[str] = []
-    start = 0
+def _split_sentence(sentence: str) -> list[tuple[str, str]]:
+    pieces: list[tuple[str, str]] = []
+    start, lead = 0, ""
     for join in _JOIN.finditer(sentence):
         left = sentence[start : join.start()]
         if not join.group("comma").strip(" ").startswith(",") and _ENDS_WITH_MENTION.search(left):
             continue  # "lets @7 and @9 go first": a bare "and" after a mention joins objects
-        pieces.append(left)
-        start = join.end()
-    pieces.append(sentence[start:])
-    merged: list[str] = []
-    for piece in pieces:  # a subordinate clause goes with the clause after it
-        if merged and _SUBORDINATE.match(merged[-1]):
-            merged[-1] = f"{merged[-1]}, {piece}"
+        if left.strip():  # not a sentence's first words ("Afterwards @7 stops"): those lead the next piece
+            pieces.append((lead, left))
+            lead = ""
+        start, lead = join.end(), join.group("seq") or join.group("seq2") or lead
+    pieces.append((lead, sentence[start:]))
+    merged: list[tuple[str, str]] = []
+    for lead, piece in pieces:  # a subordinate clause, or a part naming nobody, goes with the clause after it
+        if merged and (_SUBORDINATE.match(merged[-1][1]) or "@" not in merged[-1][1]):
+            merged[-1] = (merged[-1][0], f"{merged[-1][1]}, {piece}")
         else:
-            merged.append(piece)
-    return [p.strip() for p in merged if p.strip()]
+            merged.append((lead, piece))
+    return [(lead, p.strip()) for lead, p in merged if p.strip()]
 
 
 def _distribute(part: str) -> list[str]:
@@ -76,8 +86,15 @@ def _distribute(part: str) -> list[str]:
 
 def read_clauses(text: str) -> tuple[PromptReading, ...]:
     """Each clause of `text` read (`clauses`, `read_prompt`), its `clause` the part read: one reading for a prompt of
-    one clause, as `read_prompt` gives it."""
-    parts = clauses(text)
+    one clause, as `read_prompt` gives it. A clause after another agent's with sequence words ("then", "after that"),
+    or a prompt starting with them, holds them in its `condition`."""
+    parts = _parts(text)
     if len(parts) == 1:
-        return (replace(read_prompt(text), clause=text),)
-    return tuple(replace(read_prompt(part), clause=part) for part in parts)
+        parts = [(leading_sequence(text), text)]
+    readings: list[PromptReading] = []
+    for lead, part in parts:
+        reading = replace(read_prompt(part), clause=part)
+        if lead and (not readings or reading.agent != readings[-1].agent):  # after another agent's clause
+            reading = replace(reading, condition=joined(lead, reading.condition))
+        readings.append(reading)
+    return tuple(readings)

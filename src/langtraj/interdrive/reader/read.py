@@ -11,22 +11,22 @@ from __future__ import annotations
 
 import re
 from collections.abc import Collection, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from langtraj.interdrive.adherence import Fact
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour, behaviour_facts
 from langtraj.interdrive.prompts.compose import MENTION, mentions_in
+from langtraj.interdrive.reader.alone import lone_reason
 from langtraj.interdrive.reader.rules import (
     CONTRAST,
     NEGATION,
     PASSIVE,
     PLACEHOLDER,
-    RULES,
     SLOT,
-    SUBSUMES,
-    THEN_KINDS,
+    tables,
     verb,
 )
+from langtraj.interdrive.reader.timing import condition_note, timing_spans
 from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID
 
 # ---------------------------------------------------------------------------------------------- clauses and subjects
@@ -79,6 +79,9 @@ class PromptReading:
     deceleration: float | None = None
     """A deceleration the text gives in m/s^2 ("at 6 m/s^2", "at 0.5 g"): how hard a braking lead brakes (None:
     none given)."""
+    condition: str = ""
+    """Timing words the reading does not honour, as typed (`timing.py`: "after 2 seconds", "when @1 is 20 m behind",
+    "then" before another agent's clause; several joined by " ... "); empty when none. A strict reading refuses them."""
 
     @property
     def read(self) -> bool:
@@ -119,12 +122,15 @@ class PromptReading:
 
     def describe(self) -> str:
         """One line: `read as: @12 turn_left ("hang a left")`, `read as: @12 yield @7 ("gives way to @7")` or
-        `not read: <reason>; the prompt steers by text alone`."""
+        `not read: <reason>; the prompt steers by text alone`; then timing words not read, if any (`; the time
+        'after 2 s' is not read (the behaviour runs at once)`)."""
         if self.behaviour is None:
-            return f"not read: {self.reason}; the prompt steers by text alone"
-        toward = f" @{self.other}" if self.other is not None else ""
-        then = f" then {self.then.value}" if self.then is not None else ""
-        return f'read as: @{self.agent} {self.behaviour.value}{toward}{then} ("{self.words}")'
+            line = f"not read: {self.reason}; the prompt steers by text alone"
+        else:
+            toward = f" @{self.other}" if self.other is not None else ""
+            then = f" then {self.then.value}" if self.then is not None else ""
+            line = f'read as: @{self.agent} {self.behaviour.value}{toward}{then} ("{self.words}")'
+        return f"{line}; {condition_note(self.condition)}" if self.condition else line
 
     def to_json(self) -> dict[str, object]:
         return {
@@ -138,6 +144,7 @@ class PromptReading:
             "clause": self.clause,
             "metres": self.metres,
             "deceleration": self.deceleration,
+            "condition": self.condition,
         }
 
 
@@ -203,7 +210,7 @@ def _slot(placeholder: str | None) -> int | None:
 def _candidates(text: str) -> list[_Match]:
     """Every rule's matches, longest first (ties: the earlier rule)."""
     found = []
-    for order, rule in enumerate(RULES):
+    for order, rule in enumerate(tables()[0]):
         for m in rule.pattern.finditer(text):
             if m.end() > m.start():
                 named = m.groupdict()
@@ -285,12 +292,36 @@ def _analyse(
 
 
 def read_prompt(text: str) -> PromptReading:
-    """The behaviour kind `text` asks of which agent (mentions are `@<track id>`), or None and why. See the module."""
+    """The behaviour kind `text` asks of which agent (mentions are `@<track id>`), or None and why, with the timing
+    words it does not honour (`condition`). See the module."""
     norm = _normalise(text)
     if not norm.ids:
         return _not_read("names no agent (@<track id>)")
+    candidates = _candidates(norm.text)
+    return _finish(text, norm, candidates, _read(text, norm, candidates))
+
+
+def _finish(text: str, norm: _Text, candidates: Sequence[_Match], reading: PromptReading) -> PromptReading:
+    """`reading` with its timing words (`timing.timing_spans`), and the reason a pair kind's words alone or an
+    overtake alone are not read (`alone.lone_reason`)."""
+    slots: dict[int | None, int] = {track: i for i, track in enumerate(norm.ids)}
+    asked, other = slots.get(reading.agent), slots.get(reading.other)
+    phrases = _select(candidates)
+    requests = [m for m in phrases if m.other is not None and m.other == asked]
+    phrases = _select(candidates, requests) if requests else phrases  # as `_read` reads "Let @7 turn left"
+    spans = [(m.start, m.end) for m in phrases]
+    kept = [m for m in phrases if reading.then is not None and m.behaviour in (reading.behaviour, reading.then)]
+    sequence = (min(m.start for m in kept), max(m.end for m in kept)) if kept else None  # "turns left, later stops"
+    if reading.reason == "no behaviour phrase found":
+        lone = lone_reason(norm.text, norm.ids, asked)
+        reading = reading if lone is None else replace(reading, reason=lone)
+    found = timing_spans(norm.text, spans, asked, other, reading.behaviour, sequence)
+    condition = " ... ".join(norm.span(text, s, e) for s, e in found)
+    return replace(reading, condition=condition) if condition else reading
+
+
+def _read(text: str, norm: _Text, candidates: Sequence[_Match]) -> PromptReading:
     low = norm.text
-    candidates = _candidates(low)
     matches, subjects, subject_slot = _analyse(low, candidates)
     requests = [m for m in matches if m.other is not None and m.other == subject_slot]
     if requests:  # "Let @7 turn left": a request to the agent it names, not a yield to it
@@ -308,7 +339,8 @@ def read_prompt(text: str) -> PromptReading:
         return _not_read("cannot tell which agent is asked", agent)
     matches = [m for m, s in zip(matches, subjects, strict=True) if not isinstance(s, int) or s == subject_slot]
     asked = {m.behaviour for m in matches}
-    kinds = asked - {k for kind in asked for k in SUBSUMES.get(kind, ())}
+    subsumes = tables()[1]
+    kinds = asked - {k for kind in asked for k in subsumes.get(kind, ())}
     if not kinds:
         return _not_read("no behaviour phrase found", agent)
     if len(kinds) > 1:
@@ -317,7 +349,7 @@ def read_prompt(text: str) -> PromptReading:
     decided = [m for m in matches if m.behaviour is kind]
     if not BEHAVIOURS[kind].is_pair:
         best = max(decided, key=lambda m: (m.end - m.start, -m.start))
-        also = tuple(b for b in Behaviour if b in asked and b in SUBSUMES.get(kind, ()))
+        also = tuple(b for b in Behaviour if b in asked and b in subsumes.get(kind, ()))
         return PromptReading(kind, agent, None, norm.span(text, best.start, best.end), also=also)
     return _pair_reading(text, norm, kind, decided, subject_slot)
 
@@ -328,7 +360,8 @@ def _sequence(
     """Two kinds asked of one agent: a manoeuvre and then what follows it (`THEN_KINDS`: "turns left and then
     stops"), in that order; anything else is not read, saying what is."""
     named = ", ".join(b.value for b in Behaviour if b in kinds)
-    pairs = [(first, then) for first in kinds for then in kinds if then in THEN_KINDS.get(first, ())]
+    then_kinds = tables()[2]
+    pairs = [(first, then) for first in kinds for then in kinds if then in then_kinds.get(first, ())]
     if len(kinds) != 2 or not pairs:
         return _not_read(
             f"asks for more than one behaviour ({named}); of two for one agent, only a turn or a lane change and then "
