@@ -25,6 +25,7 @@ from langtraj.cli import (
     simulate,
     studio,
     submit,
+    suggest,
     synth,
     test,
     train,
@@ -48,6 +49,7 @@ VERBS = (
     simulate,
     demo,
     experiment,
+    suggest,
     test,
     studio,
 )
