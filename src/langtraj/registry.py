@@ -56,6 +56,10 @@ class Registry(Generic[T]):
         self._classes[name] = cls
         return cls
 
+    def unregister(self, name: str) -> None:
+        """Remove the class registered under `name` (a test's or a plugin's own; unknown names are ignored)."""
+        self._classes.pop(name, None)
+
     def names(self) -> tuple[str, ...]:
         """Registered names, in registration order."""
         self._load()

@@ -119,3 +119,17 @@ def test_a_case_refused_at_reset_is_bad_input_after_whole_reports(tmp_path):
     assert saved["complete"] and [e["status"] for e in saved["episodes"]] == ["pass", "error"]
     assert saved["episodes"][1]["reasons"][0].startswith("bad input before the episode started: prompt: @4 is not")
     assert sorted(p.name for p in options.out.iterdir()) == ["junit.xml", "report.md", "results.json"]
+
+
+def test_a_pair_behaviour_the_scene_rules_out_is_warned_before_the_run(tmp_path, road):
+    """@3 drives beside the ego, not ahead of it in its lane: braking hard in front of it is ruled out, and said with
+    the map's reason before any episode; a cut-in from the next lane is allowed and not warned about."""
+    cases = [
+        {"name": "brake", "scenario": "road.pkl", "prompts": ["@3 brakes hard in front of @ego"]},
+        {"name": "cut", "scenario": "road.pkl", "prompts": ["@3 cuts in front of @ego with a 5 m gap"]},
+    ]
+    warnings = check_cases(load_suite(write_suite(tmp_path, cases)))
+    assert warnings == [
+        "case brake, prompt '@3 brakes hard in front of @ego': @3 cannot brake hard in front of @1: @1 is not behind it "
+        "in its lane"
+    ], warnings

@@ -16,6 +16,7 @@ See README.md.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from langtraj.executors import EXECUTORS
@@ -84,6 +85,9 @@ def run(args: argparse.Namespace) -> int:
             f"{result.status.upper():5} {result.case} seed {result.seed} ({result.seconds:.1f} s){reason}", flush=True
         )
 
-    results = run_suite(suite, options, on_result=show)
+    def warn(warning: str) -> None:
+        print(f"WARN  {warning}", file=sys.stderr, flush=True)
+
+    results = run_suite(suite, options, on_result=show, on_warning=warn)
     print(f"{summary_line(results)} -> {args.out}")
     return 0 if results.passed else 1

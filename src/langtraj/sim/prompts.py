@@ -18,6 +18,7 @@ from langtraj.errors import InputError
 from langtraj.frames import Origin
 from langtraj.guidance.steering import Steering
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
+from langtraj.interdrive.behaviours import kind
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
 from langtraj.interdrive.prompts.compose import MENTION
@@ -104,6 +105,7 @@ def read_prompts(texts: Sequence[str], *, strict: bool = True) -> tuple[PromptRe
                 raise InputError(problem, where="prompt")
             if reading.condition:
                 raise InputError(_timing_problem(text, reading), where="prompt")
+            _check_figures(text, reading)
             if len(clauses) > 1 and not reading.read:
                 raise InputError(
                     f"clause {reading.clause!r} of {text!r} cannot be read ({reading.reason}); write each agent's "
@@ -120,6 +122,23 @@ def read_prompts(texts: Sequence[str], *, strict: bool = True) -> tuple[PromptRe
                 asked[reading.agent] = reading
         readings += clauses
     return tuple(readings)
+
+
+def _check_figures(text: str, reading: PromptReading) -> None:
+    """A one-line InputError where the text asks a parameter outside its accepted range ("with a 50 m gap") or gives
+    a figure the behaviour takes none of ("tailgates @7 at 5 m"): refused before the run, never dropped."""
+    try:
+        reading.asked()
+    except InputError as exc:
+        raise InputError(f"prompt {text!r}: {exc.detail}", where="prompt") from None
+    unused = reading.unused_figures()
+    if unused:
+        raise InputError(
+            f"prompt {text!r}: {', '.join(repr(u) for u in unused)} is not read: {reading.behaviour} takes no such "
+            "figure (its parameters: "
+            f"{', '.join(p.name for p in kind(str(reading.behaviour)).parameters) or 'none'}); remove it",
+            where="prompt",
+        )
 
 
 def _timing_problem(text: str, reading: PromptReading) -> str:
@@ -184,12 +203,14 @@ def _fallback(
 
 
 def _warning(reading: PromptReading, verdict: Feasibility | None, kept: Feasibility | None = None) -> str | None:
-    """The warning about a reading: one line when it asks of its agent a single-agent behaviour the map does not
-    allow from where it is (a turn or lane change with no lane for it, a pull-over away from the kerb lane or too
-    near a junction, slowing down while stopped): "@12 cannot turn left: no left turn from its lane at the next
-    junction ...", saying what is `kept` instead. Where the map cannot tell (undecided), for a pair behaviour and for
-    a prompt not read, None. A warning does not stop a simulation: the model is conditioned on the prompt as typed."""
-    if verdict is None or BEHAVIOURS[verdict.behaviour].is_pair or verdict.status != "infeasible":
+    """The warning about a reading: one line when it asks of its agent a behaviour the map and the agents' states do
+    not allow from where they are (a turn or lane change with no lane for it, a pull-over away from the kerb lane,
+    slowing down while stopped, a cut-in onto a lane not beside its own, a red-light run where no signal shows red,
+    a braking lead with no follower): "@12 cannot turn left: no left turn from its lane at the next junction ...",
+    saying what is `kept` instead. Where the map cannot tell (undecided) and for a prompt not read, None. A warning
+    does not stop a simulation: the model is conditioned on the prompt as typed, and a suite reports the scenario as
+    not feasible rather than not followed."""
+    if verdict is None or verdict.status != "infeasible":
         return None
     if kept is not None and kept is not verdict:
         return f"{verdict.message}; its {BEHAVIOURS[kept.behaviour].manoeuvre} is kept on its own"

@@ -27,23 +27,28 @@ _PROMPT_KEY = re.compile(r"prompts?\[(\d+)\]")
 """How the env's prompt check names a prompt in its message ("prompts[0]: ...")."""
 
 
-def check_cases(suite: Suite, env: str = DEFAULT_ENV) -> None:
+def check_cases(suite: Suite, env: str = DEFAULT_ENV) -> list[str]:
     """Raise InputError (the suite file, `cases[i].key`, the case's name and prompt) for the first case of `suite`
-    the environment class `env` ("module:Class") would refuse at reset; scenes are read once each. Anything else
-    that goes wrong here is left to the episode, which reports it as LangTraj's error."""
+    the environment class `env` ("module:Class") would refuse at reset; scenes are read once each. Returns the
+    warnings about what the cases ask that their scenes rule out ("case cut-in, prompt '@52 cuts in front of @ego':
+    @52 cannot cut in front of: ..."), each once, so they are said before the run. Anything else that goes wrong here
+    is left to the episode, which reports it as LangTraj's error."""
     scenes: dict[tuple[str, int, int | None], Scenario] = {}
-    check: Callable[[Case], None] | None = lambda case: check_case(case, scenes)  # noqa: E731
+    check: Callable[[Case], list[str] | None] | None = lambda case: check_case(case, scenes)  # noqa: E731
     if env != DEFAULT_ENV:
         check = getattr(import_object(env, "env"), "check_case", None)
     if check is None:
-        return
+        return []
+    warnings: list[str] = []
     for i, case in enumerate(suite.cases):
         try:
-            check(case)
+            found = check(case) or []
         except InputError as exc:
             raise refused(suite, i, *_parts(exc)) from None
         except Exception:  # not bad input: the episode reports it as LangTraj's error, with its traceback
             continue
+        warnings += [w for w in found if w not in warnings]
+    return warnings
 
 
 def _parts(error: InputError) -> tuple[str, str | None]:
@@ -51,9 +56,10 @@ def _parts(error: InputError) -> tuple[str, str | None]:
     return (error.detail, error.where) if error.path is None else (str(error), None)
 
 
-def check_case(case: Case, scenes: dict[tuple[str, int, int | None], Scenario] | None = None) -> None:
+def check_case(case: Case, scenes: dict[tuple[str, int, int | None], Scenario] | None = None) -> list[str]:
     """Raise InputError at the key of `case` the default env refuses at reset (`where`: "ego", "window", "prompts[j]",
-    "adversary" or "target"); `scenes` caches the scenes read, by (file, index, window)."""
+    "adversary" or "target"); `scenes` caches the scenes read, by (file, index, window). Returns the warnings about
+    behaviours its scene rules out (`PromptCheck.warning`), each naming the case and the prompt."""
     from langtraj.env.environment import ego_row  # lazy: the env loads torch
     from langtraj.rollouts.agents import sim_agent_indices
     from langtraj.sim.prompt_checks import check_prompts
@@ -62,15 +68,19 @@ def check_case(case: Case, scenes: dict[tuple[str, int, int | None], Scenario] |
     scenario = _scene(case, {} if scenes is None else scenes)
     ego_id = int(scenario.agents.ids[ego_row(scenario, case.ego)])
     prompts = [p.replace(EGO_PLACEHOLDER, f"@{ego_id}") for p in case.prompts]
-    checks = check_prompts(scenario, prompts, ego=ego_id, targets=False)
+    checks = check_prompts(scenario, prompts, ego=ego_id, targets=True)
     for j, prompt in enumerate(checks.prompts):
         if prompt.error is not None:
             raise InputError(prompt.error, where=f"prompts[{j}]")
+    warnings = [
+        f"case {case.name}, prompt {case.prompts[j]!r}: {p.warning}" for j, p in enumerate(checks.prompts) if p.warning
+    ]
     target = ego_id if case.target == "ego" else case.target
     sim_ids = {int(i) for i in scenario.agents.ids[sim_agent_indices(scenario)]}
     problem = pair_problem(case.adversary, target, sim_ids=sim_ids, ego=ego_id)
     if problem is not None:
         raise InputError(problem[1], where=problem[0])
+    return warnings
 
 
 def _scene(case: Case, scenes: dict[tuple[str, int, int | None], Scenario]) -> Scenario:

@@ -97,13 +97,19 @@ def _lost(task: EpisodeTask, error: BaseException) -> EpisodeResult:
 
 
 def run_suite(
-    suite: Suite, options: RunOptions, on_result: Callable[[EpisodeResult], None] | None = None
+    suite: Suite,
+    options: RunOptions,
+    on_result: Callable[[EpisodeResult], None] | None = None,
+    on_warning: Callable[[str], None] | None = None,
 ) -> SuiteResults:
-    """Run every episode of `suite`; `on_result` is called with each as it finishes. Returns the results (also in
+    """Run every episode of `suite`; `on_result` is called with each as it finishes, `on_warning` before any runs with
+    each thing a case asks that its scene rules out (`preflight.check_cases`). Returns the results (also in
     `options.out`: results.json, report.md, junit.xml, videos/). Raises InputError for bad input: before anything is
     written, or after the reports when the env refused a case at reset."""
     check_run(options)
-    check_cases(suite, options.env)
+    for warning in check_cases(suite, options.env):
+        if on_warning is not None:
+            on_warning(warning)
     out = Path(options.out)
     tasks = episode_tasks(suite, options)
     results = SuiteResults(

@@ -60,8 +60,8 @@ class Parameter:
     def describe(self, value: float | None) -> str:
         """ "gap 15 m", or "gap 10 m (default)" when the text gave none."""
         if value is None:
-            return f"{self.name} {self.default:g} {self.unit} (default)"
-        return f"{self.name} {value:g} {self.unit}"
+            return f"{self.name} {self.default:.3g} {self.unit} (default)"
+        return f"{self.name} {value:.3g} {self.unit}"
 
 
 # ---------------------------------------------------------------------------------------------- steering
@@ -195,11 +195,12 @@ _INSTANCES: dict[str, BehaviourKind] = {}
 
 
 def kind(name: str, where: str | None = None) -> BehaviourKind:
-    """The behaviour called `name` (one instance each); an unknown name raises InputError listing the known."""
-    found = _INSTANCES.get(name)
-    if found is None:
-        cls = KINDS.get(str(name), where)
-        found = _INSTANCES.setdefault(str(name), cls())
+    """The behaviour called `name` (one instance per registered class); an unknown name raises InputError listing
+    the known."""
+    cls = KINDS.get(str(name), where)
+    found = _INSTANCES.get(str(name))
+    if type(found) is not cls:
+        found = _INSTANCES[str(name)] = cls()
     return found
 
 

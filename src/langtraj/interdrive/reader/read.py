@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 
 from langtraj.interdrive.adherence import Fact
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour, behaviour_facts
+from langtraj.interdrive.behaviours.base import kind
 from langtraj.interdrive.prompts.compose import MENTION, mentions_in
 from langtraj.interdrive.reader.alone import lone_reason
 from langtraj.interdrive.reader.rules import (
@@ -121,7 +122,8 @@ class PromptReading:
         return None
 
     def describe(self) -> str:
-        """One line: `read as: @12 turn_left ("hang a left")`, `read as: @12 yield @7 ("gives way to @7")` or
+        """One line: `read as: @12 turn_left ("hang a left")`, `read as: @12 cut_in @7, gap 15 m ("cuts in front of
+        @7")` (every parameter, "(default)" where the text gives none), or
         `not read: <reason>; the prompt steers by text alone`; then timing words not read, if any (`; the time
         'after 2 s' is not read (the behaviour runs at once)`)."""
         if self.behaviour is None:
@@ -129,8 +131,32 @@ class PromptReading:
         else:
             toward = f" @{self.other}" if self.other is not None else ""
             then = f" then {self.then.value}" if self.then is not None else ""
-            line = f'read as: @{self.agent} {self.behaviour.value}{toward}{then} ("{self.words}")'
+            figures = self.figures()
+            asked = "".join(f", {p.describe(figures[p.reads])}" for p in kind(self.behaviour).parameters)
+            line = f'read as: @{self.agent} {self.behaviour.value}{toward}{then}{asked} ("{self.words}")'
+            unused = self.unused_figures()
+            if unused:
+                line += f"; {', '.join(repr(u) for u in unused)} not read: {self.behaviour.value} takes no such figure"
         return f"{line}; {condition_note(self.condition)}" if self.condition else line
+
+    def figures(self) -> dict[str, float | None]:
+        """The figures the text gives, by kind (`Parameter.reads`): a distance, a deceleration."""
+        return {"metres": self.metres, "deceleration": self.deceleration}
+
+    def asked(self) -> dict[str, float]:
+        """The behaviour's parameters as the text asks them (`BehaviourKind.parameters`): each from its figure of the
+        text, its default where the text gives none; a figure outside its parameter's accepted range raises a
+        one-line InputError (`Parameter.check`). Empty when nothing was read."""
+        return {} if self.behaviour is None else kind(self.behaviour).asked(self.figures())
+
+    def unused_figures(self) -> list[str]:
+        """The figures of the text that no parameter of the behaviour reads ("5 m" asked of a tailgate): words that
+        would be dropped."""
+        if self.behaviour is None:
+            return []
+        taken = {p.reads for p in kind(self.behaviour).parameters}
+        units = {"metres": "m", "deceleration": "m/s^2"}
+        return [f"{v:g} {units[k]}" for k, v in self.figures().items() if v is not None and k not in taken]
 
     def to_json(self) -> dict[str, object]:
         return {

@@ -26,13 +26,17 @@ class Feasibility:
     status: Status
     reason: str = ""
     target: BehaviourTarget | None = None
+    other_id: int | None = None
+    """The other agent of a pair behaviour."""
 
     @property
     def message(self) -> str:
-        """The line a warning prints, "@12 cannot turn left: ..." (empty when feasible)."""
+        """The line a warning prints, "@12 cannot turn left: ...", "@12 cannot cut in front of @7: ..." (empty when
+        feasible)."""
         if self.status == "feasible":
             return ""
-        return f"@{self.track_id} cannot {BEHAVIOURS[self.behaviour].manoeuvre}: {self.reason}"
+        other = f" @{self.other_id}" if self.other_id is not None else ""
+        return f"@{self.track_id} cannot {BEHAVIOURS[self.behaviour].manoeuvre}{other}: {self.reason}"
 
 
 def feasibility(
@@ -74,8 +78,8 @@ def _verdict(
     try:
         target = target_of(context, track_id, behaviour, other_id, gap, deceleration)
     except TargetUnavailable as exc:
-        return Feasibility(track_id, behaviour, exc.status, exc.reason)
-    return Feasibility(track_id, behaviour, "feasible", target=target)
+        return Feasibility(track_id, behaviour, exc.status, exc.reason, other_id=other_id)
+    return Feasibility(track_id, behaviour, "feasible", target=target, other_id=other_id)
 
 
 def then_feasibility(verdict: Feasibility, then: Behaviour) -> Feasibility:
@@ -91,4 +95,6 @@ def then_feasibility(verdict: Feasibility, then: Behaviour) -> Feasibility:
     try:
         return replace(verdict, target=stop_after(verdict.target))
     except TargetUnavailable as exc:
-        return Feasibility(verdict.track_id, verdict.behaviour, exc.status, f"then {then.value}: {exc.reason}")
+        return Feasibility(
+            verdict.track_id, verdict.behaviour, exc.status, f"then {then.value}: {exc.reason}", other_id=verdict.other_id
+        )
