@@ -130,6 +130,6 @@ def test_a_pair_behaviour_the_scene_rules_out_is_warned_before_the_run(tmp_path,
     ]
     warnings = check_cases(load_suite(write_suite(tmp_path, cases)))
     assert warnings == [
-        "case brake, prompt '@3 brakes hard in front of @ego': @3 cannot brake hard in front of @1: @1 is not behind it "
-        "in its lane"
+        "case brake, prompt '@3 brakes hard in front of @ego': @3 cannot brake hard in front of @1: @1 is not "
+        "behind it in its lane"
     ], warnings

@@ -195,8 +195,8 @@ def _fallback(
     ("pulls over and comes to a stop" where no kerb is in reach: the stop, kept on its own); else `verdict`."""
     if verdict is None or verdict.target is not None or reading.agent is None:
         return verdict
-    for kind in reading.also:
-        kept = feasibility(scenario, reading.agent, kind, index)
+    for also in reading.also:
+        kept = feasibility(scenario, reading.agent, also, index)
         if kept.target is not None:
             return kept
     return verdict

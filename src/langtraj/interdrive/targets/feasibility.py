@@ -96,5 +96,9 @@ def then_feasibility(verdict: Feasibility, then: Behaviour) -> Feasibility:
         return replace(verdict, target=stop_after(verdict.target))
     except TargetUnavailable as exc:
         return Feasibility(
-            verdict.track_id, verdict.behaviour, exc.status, f"then {then.value}: {exc.reason}", other_id=verdict.other_id
+            verdict.track_id,
+            verdict.behaviour,
+            exc.status,
+            f"then {then.value}: {exc.reason}",
+            other_id=verdict.other_id,
         )
