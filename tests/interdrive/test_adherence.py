@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from roads.test_mapindex import three_lane_road
+from roads.test_index import three_lane_road
 
 from langtraj.interdrive.adherence import AdherenceChecker, prompt_facts, prompt_for_sentence
 from langtraj.interdrive.dataset import PromptEntry, WindowRecord

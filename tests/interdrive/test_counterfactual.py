@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from roads.test_mapindex import arc, line
+from roads.test_index import arc, line
 
 from langtraj.errors import InputError
 from langtraj.interdrive.adherence import label_facts, lane_change_key, lane_change_side, prompt_facts

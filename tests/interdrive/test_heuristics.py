@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from roads.test_mapindex import LANE_WIDTH, ROAD_X, arc, junction_map, line, three_lane_road
+from roads.test_index import LANE_WIDTH, ROAD_X, arc, junction_map, line, three_lane_road
 
 from langtraj.interdrive.heuristics import (
     LABEL_RULES,

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from roads.test_mapindex import line
+from roads.test_index import line
 
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.behaviours.cut_in import CUT_IN_S

@@ -12,7 +12,7 @@ from langtraj.roads.stop_lines import StopLines
 from langtraj.scenario import MapFeature, MapFeatureType, RoadMap, TrafficLights
 from langtraj.scenario.io import read_scenario
 
-from .test_mapindex import line
+from .test_index import line
 
 LANE = MapFeatureType.LANE_SURFACE_STREET
 

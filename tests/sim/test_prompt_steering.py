@@ -17,7 +17,7 @@ from interdrive.test_counterfactual import (
     four_way,
 )
 from interdrive.test_heuristics import TIME, along, scene
-from roads.test_mapindex import line
+from roads.test_index import line
 
 from langtraj.errors import InputError
 from langtraj.guidance import RouteCost

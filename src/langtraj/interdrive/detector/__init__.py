@@ -9,7 +9,8 @@ registered in `INTERACTION_RULES`; `detect_interactions` runs them all over one 
 merges, overtakes), `yields` (held vehicles, conflict points), `crosswalks` (pedestrians), `red_lights` (red lights
 run across another's path), `pull_outs` (pulling out in front of another), `rules` (the rules); each
 part imports only the parts it reads, so no module imports one that imports it back. Lane primitives shared
-with the heuristic labeler (`LaneChange`, neighbour lanes, the road-side test of parked cars) are in `mapindex`.
+with the heuristic labeler (`LaneChange`, neighbour lanes, the road-side test of parked cars) are in `roads`
+(`roads.records.LaneChange`, `MapIndex`).
 One ordered pair can be judged alone by the rules' own definitions: `yielding_runs`, `passing_runs`,
 `following_runs`, `cut_in_runs`, `overtake_cut_in_runs`, `braking_lead_runs`, `tailgating_runs`, `red_light_runs`
 and `pull_out_runs` give the runs of the pair's labels of that

@@ -1,7 +1,7 @@
 """Lane changes, merges and overtakes for the interaction detector (docs/interdrive.md, 'Interaction labels').
 
 A lane change is a switch of a mover's map lane (see `LaneGeometry.per_step`) to a neighbour lane
-(`MapIndex.neighbor_side`), confirmed as a manoeuvre; the record is the labeler's `mapindex.LaneChange`.
+(`MapIndex.neighbor_side`), confirmed as a manoeuvre; the record is the labeler's `roads.records.LaneChange`.
 """
 
 from __future__ import annotations

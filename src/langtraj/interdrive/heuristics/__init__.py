@@ -8,7 +8,7 @@ linearly, then smoothed), not from the velocity fields. Each label (or small fam
 registered in `LABEL_RULES`; `label_agents` runs them all. Where the map lacks what a rule needs (lanes,
 connectivity, neighbour lists, road edges, crosswalks) the rule returns `Undecided` naming it. Lane primitives
 shared with the interaction detector (`LaneChange`, neighbour lanes, the road-side test of parked vehicles) are in
-`mapindex`.
+`roads` (`roads.records.LaneChange`, `MapIndex`).
 
 Modules: `config` (`HeuristicConfig`, the thresholds), `kinematics` (speed, acceleration, course from positions),
 `runs` (per-step class sequences), `context` (`LabelContext`: what the rules share for one scene, lane matches,
