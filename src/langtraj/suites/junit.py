@@ -3,7 +3,8 @@ named after the suite, one `<testcase classname="SUITE" name="CASE[seedK]">` per
 shows which seed failed. A failed episode gets `<failure message="reason; reason">` (with the planner's traceback
 when it raised), an errored one `<error>` with LangTraj's traceback, one whose scenario did not happen `<skipped
 type="not_happened">` (not a pass: the case tested nothing), one that did not finish (an interrupted run)
-`<skipped>` (docs/testing.md, 'Scenario suites')."""
+`<skipped>`. Every finished episode's `<system-out>` is its status line, then one line per prompt judged by numbers
+with the asked and realised values side by side (docs/testing.md, 'Scenario suites' and 'Judged by numbers')."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from langtraj.fileio import atomic_path
+from langtraj.interdrive.judging import Measure
 from langtraj.suites.episode import EpisodeResult
 from langtraj.suites.results import SuiteResults
 
@@ -25,6 +27,17 @@ def junit_name(case: str, seed: int) -> str:
 def _line(result: EpisodeResult) -> str:
     reasons = f": {' / '.join(result.reasons)}" if result.reasons else ""
     return f"{result.status}{reasons}" + (f" (video: {result.video})" if result.video else "")
+
+
+def measure_lines(result: EpisodeResult) -> list[str]:
+    """One line per prompt of `result` judged by numbers: `PROMPT: gap 15 m asked, 2.5 m done (+-3 m) MISSED; ...`."""
+    lines = []
+    for prompt in result.prompts:
+        measures = [Measure.from_json(m) for m in prompt.get("measures", [])]
+        if measures:
+            said = "; ".join(m.describe() + (" MISSED" if m.ok is False else "") for m in measures)
+            lines.append(f"{prompt['text']}: {said}")
+    return lines
 
 
 def junit_tree(results: SuiteResults) -> ET.ElementTree:
@@ -54,7 +67,7 @@ def junit_tree(results: SuiteResults) -> ET.ElementTree:
                 child = ET.SubElement(element, "failure" if result.status == "fail" else "error", message=message)
                 child.set("type", result.status)
                 child.text = "\n".join(t for t in (_line(result), result.traceback) if t)
-            ET.SubElement(element, "system-out").text = _line(result)
+            ET.SubElement(element, "system-out").text = "\n".join([_line(result), *measure_lines(result)])
     for key, value in counts.items():
         suite.set(key, str(value))
     suite.set("time", f"{total:.3f}")

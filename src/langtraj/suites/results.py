@@ -6,8 +6,10 @@ results.json:
     suite, suite_file: the suite's name and file. planner / planner_cmd: what drove the ego (one is null).
     step_timeout: the per-call limit (s). started, finished: ISO 8601 times (finished null while running).
     complete: whether every episode has finished. summary: `summary()`. cases: each case as
-    `langtraj.cases.case_json` writes it (every key of a suite's case), with its `status` (`case_status`).
-    episodes: each finished episode's `EpisodeResult.to_json()`, in suite order (case, then seed).
+    `langtraj.cases.case_json` writes it (every key of a suite's case), with its `status` (`case_status`) and its
+    `measures` (`case_measures`: per prompt and number judged, the asked value beside each seed's realised one).
+    episodes: each finished episode's `EpisodeResult.to_json()`, in suite order (case, then seed); each of its
+    `prompts` carries that seed's `measures` (docs/testing.md, 'Judged by numbers').
 """
 
 from __future__ import annotations
@@ -35,6 +37,32 @@ def case_status(results: list[EpisodeResult], expected: int) -> str:
         if status in statuses:
             return status
     return "pass" if len(results) >= expected else "pending"
+
+
+def case_measures(episodes: list[EpisodeResult]) -> list[dict[str, Any]]:
+    """The numbers of a case's prompts judged by numbers, asked beside realised per seed: one row per clause and
+    measure (in the order the first episode holding it gives), `{prompt, reading, measure, unit, asked, tolerance,
+    seeds: [{seed, realised, ok, followed}]}`; the asked value and tolerance are the first seed's (every seed reads the
+    same text)."""
+    rows: dict[tuple[int, str], dict[str, Any]] = {}
+    for result in episodes:
+        for k, prompt in enumerate(result.prompts):
+            for m in prompt.get("measures", []):
+                row = rows.setdefault(
+                    (k, m["name"]),
+                    {
+                        "prompt": prompt["text"],
+                        "reading": prompt["reading"],
+                        "measure": m["name"],
+                        "unit": m["unit"],
+                        "asked": m["asked"],
+                        "tolerance": m["tolerance"],
+                        "seeds": [],
+                    },
+                )
+                seed = {"seed": result.seed, "realised": m["realised"], "ok": m["ok"], "followed": prompt["followed"]}
+                row["seeds"].append(seed)
+    return list(rows.values())
 
 
 def _now() -> str:
@@ -105,7 +133,10 @@ class SuiteResults:
 
     def to_json(self) -> dict[str, Any]:
         statuses = self.case_statuses()
-        cases = [{**case_json(c), "status": statuses[c.name]} for c in self.suite.cases]
+        cases = [
+            {**case_json(c), "status": statuses[c.name], "measures": case_measures(self.of_case(c.name))}
+            for c in self.suite.cases
+        ]
         return {
             **self.header,
             "complete": self.complete,

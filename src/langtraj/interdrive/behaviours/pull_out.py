@@ -25,6 +25,8 @@ from langtraj.interdrive.behaviours.base import (
 )
 from langtraj.interdrive.behaviours.recipes import settled
 from langtraj.interdrive.detector import pull_out_runs
+from langtraj.interdrive.judging import pull_out as judged
+from langtraj.interdrive.judging.base import Judgement
 from langtraj.interdrive.reader.words import IN_FRONT, OTHER, TIGHT_GAP, verb
 from langtraj.interdrive.targets.context import (
     HORIZON_S,
@@ -38,7 +40,7 @@ from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailabl
 from langtraj.interdrive.taxonomy import InteractionType
 from langtraj.polylines import arc_lengths, point_at, project_on_polyline, resample
 from langtraj.roads.routes import ROUTE_SPACING
-from langtraj.scenario.model import FUTURE_STEPS
+from langtraj.scenario.model import FUTURE_STEPS, Scenario
 from langtraj.scenario.types import AgentType
 
 PULL_OUT_MAX_SPEED = JUDGE.pull_out_speed
@@ -234,3 +236,8 @@ class PullOut(BehaviourKind):
         if t.lead_m is not None:
             terms += lead(t.lead_m, "reach", when, FUTURE_STEPS, REACH_WEIGHT)
         return terms
+
+    def judge(self, scene: Scenario, agent: int, other: int | None, asked: Mapping[str, float]) -> Judgement:
+        """By its numbers (`interdrive.judging.pull_out`; docs/testing.md, 'Judged by numbers')."""
+        assert other is not None
+        return judged.judge(scene, agent, other, asked)

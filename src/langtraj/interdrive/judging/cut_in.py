@@ -1,0 +1,146 @@
+"""A cut-in judged by its numbers: the agent, out of the other's path at first, settles in it ahead of the other, and
+the gap it leaves (bumper to bumper, along the other's driven path) when it settles is the gap asked, within
+tolerance, before any contact between the two (docs/testing.md, 'Judged by numbers').
+
+Settled: the agent's centre within `SETTLED_LATERAL_M` of the other's path, its heading within `SETTLED_HEADING`
+of the path's, ahead of the other, held `SETTLED_HOLD_S` (or until the other runs into it). The overtake and cut-in
+(`overtake_cut_in`) settles by the same rule.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from langtraj.interdrive.judging.base import (
+    Judgement,
+    Measure,
+    PairView,
+    asked_value,
+    at,
+    check_asked,
+    cut_short,
+    not_seen,
+    pair_view,
+    true_runs,
+)
+from langtraj.scenario.model import STEP_SECONDS, Scenario
+
+ASKED = ("gap",)
+"""What a prompt may ask of a cut-in: `gap`, bumper to bumper in metres ("with a 15 m gap")."""
+GAP_TOLERANCE_M = 3.0
+"""The least tolerance of the gap either side (m): the gap is read at the step the agent settles, when the two still
+differ in speed by 1 to 3 m/s, and where within a second it settles moves the gap by as much."""
+GAP_TOLERANCE_SHARE = 0.2
+"""Beyond 15 m the tolerance is this share of the asked gap: a 30-m gap is met at 24 to 36 m."""
+SETTLED_LATERAL_M = 1.0
+"""A settled agent's centre is at most this far (m) from the other's path: in a 3.5-m lane a 2-m-wide car this far
+off the other's line is wholly in the other's lane; half in it is 1.75 m or more."""
+SETTLED_HEADING = math.radians(8.0)
+"""A settled agent heads along the other's path within this (rad): a lane change turns 3 to 8 degrees, so a car
+still turned further is still changing lanes."""
+SETTLED_HOLD_S = 1.0
+"""How long the agent must stay settled (s), unless the other runs into it first: a car that crosses the other's path
+and goes on out of it does not cut in."""
+OUT_OF_PATH_M = 2.0
+"""Before settling, the agent's centre was this far (m) or more from the other's path at some step: a car already in
+the other's path leads it, it does not cut in (lanes are about 3.5 m apart)."""
+
+
+def gap_tolerance(asked_gap: float) -> float:
+    """The tolerance (m) of an asked gap either side: `GAP_TOLERANCE_M`, or `GAP_TOLERANCE_SHARE` of the gap."""
+    return max(GAP_TOLERANCE_M, GAP_TOLERANCE_SHARE * asked_gap)
+
+
+def settled(view: PairView) -> np.ndarray:
+    """bool [n]: the agent is settled in the other's path ahead of it at each step (without the hold)."""
+    with np.errstate(invalid="ignore"):
+        return (
+            view.both
+            & (np.abs(view.across) <= SETTLED_LATERAL_M)
+            & (np.abs(view.heading_off) <= SETTLED_HEADING)
+            & (view.gap_ahead > 0.0)
+        )
+
+
+def out_of_path_step(view: PairView) -> int | None:
+    """The first step at which the agent's centre was `OUT_OF_PATH_M` or more from the other's path, or None."""
+    with np.errstate(invalid="ignore"):
+        out = np.flatnonzero(view.both & (np.abs(view.across) >= OUT_OF_PATH_M))
+    return int(out[0]) if out.size else None
+
+
+def settling(view: PairView, after: int) -> int | None:
+    """The first step at or after `after` from which the agent stays settled for `SETTLED_HOLD_S`, or until a contact
+    between the two (the other ran into it), before that contact; None when there is none."""
+    hold = round(SETTLED_HOLD_S / STEP_SECONDS)
+    contact = view.contact_step
+    for start, end in true_runs(settled(view)):
+        if start < after or (contact is not None and start >= contact):
+            continue
+        if end - start >= hold or (contact is not None and start < contact <= end):
+            return start
+    return None
+
+
+def never_settled(view: PairView, after: int) -> str:
+    """Why the agent never settled in the other's path ahead of it after step `after` (one line)."""
+    other = f"@{view.other.track_id}"
+    steps = np.arange(view.steps) >= after
+    with np.errstate(invalid="ignore"):
+        ahead = steps & view.both & (view.gap_ahead > 0.0)
+    if not ahead.any():
+        return f"never ahead of {other} in its path"
+    runs = [end - start for start, end in true_runs(settled(view) & steps)]
+    if runs:
+        return (
+            f"in {other}'s path ahead of it for at most {at(max(runs))}, not the {SETTLED_HOLD_S:g} s that settles it"
+        )
+    closest = float(np.nanmin(np.abs(view.across[ahead])))
+    if closest <= SETTLED_LATERAL_M:
+        return f"never settled in {other}'s path: still turned across it when in it"
+    return f"never settled in {other}'s path ahead of it (at closest {closest:.1f} m to its side)"
+
+
+def judge_settling(view: PairView, asked_gap: float, after: int, extra: tuple[Measure, ...] = ()) -> Judgement:
+    """The cut-in's verdict once the agent was out of the other's path at step `after`: its gap when it settles
+    against `asked_gap`, and the time it took; `extra` measures (an overtake's) precede them, and any of them not ok
+    fails it too."""
+    other = f"@{view.other.track_id}"
+    contact = view.contact_step
+    step = settling(view, after)
+    tolerance = gap_tolerance(asked_gap)
+    gap = None if step is None else float(view.gap_ahead[step])
+    ok = None if gap is None else abs(gap - asked_gap) <= tolerance
+    measures = (
+        *extra,
+        Measure("gap", "m", asked_gap, gap, tolerance, bool(ok) if ok is not None else False),
+        Measure("time to settle", "s", None, None if step is None else step * STEP_SECONDS, None, None),
+    )
+    missed = [m.missed() for m in measures if m.ok is False and m.realised is not None]
+    if step is None:
+        why = cut_short(contact) if contact is not None else never_settled(view, after)
+        return Judgement(False, measures, "; ".join([why, *missed]), None, contact)
+    if missed:
+        return Judgement(False, measures, "; ".join(missed), step, contact)
+    why = f"settled {gap:.1f} m ahead of {other} in its path at {at(step)} ({measures[-2].describe()})"
+    return Judgement(True, measures, why, step, contact)
+
+
+def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -> Judgement:
+    """Whether track `agent` cut in front of track `other` in the played `scene` with the gap `asked` ("gap", m;
+    the behaviour's default when the prompt gives none), within `gap_tolerance`, before any contact between the two."""
+    check_asked(asked, ASKED)
+    asked_gap = asked_value(asked, "gap")
+    view = pair_view(scene, agent, other)
+    unseen = not_seen(view)
+    after = None if unseen else out_of_path_step(view)
+    if unseen or after is None:
+        why = unseen or f"@{agent} was in @{other}'s path from the start: it leads, it does not cut in"
+        gap = Measure("gap", "m", asked_gap, None, gap_tolerance(asked_gap), False)
+        return Judgement(
+            False, (gap, Measure("time to settle", "s", None, None, None, None)), why, None, view.contact_step
+        )
+    return judge_settling(view, asked_gap, after)
