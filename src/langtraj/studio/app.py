@@ -1,6 +1,6 @@
-"""LangTraj Studio's web app (FastAPI): the scene list and views, prompt checks, simulation jobs run in the
-background, their judged results, rollouts and video, and saving a job as a test-suite case. Every error is
-JSON `{"error": "one line"}`. See docs/studio.md ('The HTTP API')."""
+"""LangTraj Studio's web app (FastAPI): the scene list and views, prompt checks, what a scene can stage against an
+ego, simulation jobs run in the background, their judged results, rollouts and video, and saving a job as a
+test-suite case. Every error is JSON `{"error": "one line"}`. See docs/studio.md ('The HTTP API')."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import threading
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
-from fastapi import FastAPI, Request, Response
+from fastapi import FastAPI, Query, Request, Response
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, JSONResponse
 from pydantic import BaseModel, Field
@@ -26,6 +26,7 @@ from langtraj.studio.cases import DuplicateCase, case_of, save_case
 from langtraj.studio.catalog import Catalog
 from langtraj.studio.jobs import Job, JobBoard, JobSpec, JobStore, Runner
 from langtraj.studio.simulation import RESULT_FILE, ROLLOUTS_FILE, JobRunner, job_checks
+from langtraj.studio.stagings import StagingLists, behaviours_of, staging_json
 from langtraj.studio.views import scene_view
 from langtraj.web import mount_pages, with_security_headers
 
@@ -189,6 +190,20 @@ def _scene_routes(app: FastAPI, catalog: Catalog) -> None:
         if loaded is None:
             raise NotFound(f"no scene {key!r}")
         return _checks(loaded.scenario, body, loaded.map_index).to_json()
+
+    stagings_of = StagingLists()
+
+    @app.get("/api/scenes/{key}/stagings")
+    def stagings(
+        key: str, ego: int | None = None, behaviour: Annotated[list[str] | None, Query(max_length=16)] = None
+    ) -> dict[str, Any]:
+        """What the scene can stage against `ego` (default: the planner's), most natural first (`langtraj
+        suggest`); a plain def, so the search runs in the thread pool, off the event loop, as the prompt checks do."""
+        loaded = catalog.load(key)
+        if loaded is None:
+            raise NotFound(f"no scene {key!r}")
+        ego, found = stagings_of.find(loaded, ego, behaviours_of(behaviour or ()))
+        return {"ego": ego, "stagings": [staging_json(s) for s in found]}
 
 
 def _job_routes(app: FastAPI, catalog: Catalog, board: JobBoard, suites: Path, checkpoint: Path | None) -> None:

@@ -3,9 +3,10 @@ rollout whether it collides or leaves the road, the WOSAC realism of the rollout
 future, the rollouts themselves as the page replays them, and the prompted agents' speed and distance to their
 targets over time as it plots them (`studio.series`; docs/studio.md, 'GET /api/jobs/{id}').
 
-A prompt is judged as instruction following and the suites judge it: its reading's `PromptReading.followed` among
-the facts the labelers find in the rollout (`AdherenceChecker.facts` of `rollout_scenario`), as the simulation's
-own candidate judge counts it (docs/simulation.md, 'Prompts that steer')."""
+A prompt is judged as the suites judge it (`interdrive.behaviours.verdict`): its reading's `PromptReading.followed`
+among the facts the labelers find in the rollout (`AdherenceChecker.facts` of `rollout_scenario`), as the
+simulation's own candidate judge counts it (docs/simulation.md, 'Prompts that steer'), and for the safety-critical
+pair behaviours by their numbers too, asked beside realised (docs/testing.md, 'Judged by numbers')."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.interdrive.adherence import AdherenceChecker
+from langtraj.interdrive.behaviours.verdict import judge_reading
 from langtraj.interdrive.reader import PromptReading
 from langtraj.metrics.controllability import collision_events, offroad_first_steps
 from langtraj.metrics.instruction_following import rollout_scenario
@@ -47,24 +49,31 @@ def judge_prompts(
     readings: Sequence[PromptReading],
     checker: AdherenceChecker | None,
 ) -> list[dict[str, Any]]:
-    """Per prompt: its text, agents and behaviour, and whether each rollout follows it (the labelers run once
-    per rollout)."""
+    """Per prompt: its text, agents and behaviour, and per rollout the one verdict of the suites and the studio
+    (`behaviours.verdict.judge_reading`): whether it follows it, why not, and for a behaviour judged by numbers the
+    asked and realised numbers (the labelers run once per rollout)."""
     present = {int(i) for i in rollouts.object_id}
     judged = [r.unjudged(present) is None for r in readings]
-    found = []
+    played, found = [], []
     if any(judged):
         if checker is None:
             raise ValueError("prompts to judge need an adherence checker")
-        found = [checker.facts(rollout_scenario(scenario, rollouts, r)) for r in range(rollouts.num_rollouts)]
+        played = [rollout_scenario(scenario, rollouts, r) for r in range(rollouts.num_rollouts)]
+        found = [checker.facts(p) for p in played]
     out = []
     for text, reading, judge in zip(texts, readings, judged, strict=True):
+        verdicts = [judge_reading(reading, p, f) for p, f in zip(played, found, strict=True)] if judge else []
         out.append(
             {
                 "text": text,
                 "agent": reading.agent,
                 "other": reading.other,
                 "behaviour": None if reading.behaviour is None else reading.behaviour.value,
-                "followed": [reading.followed(f) for f in found] if judge else [None] * rollouts.num_rollouts,
+                "followed": [v.followed for v in verdicts] if judge else [None] * rollouts.num_rollouts,
+                "why": [v.why for v in verdicts] if judge else [None] * rollouts.num_rollouts,
+                "measures": [[m.to_json() for m in v.measures] for v in verdicts]
+                if judge
+                else [[] for _ in range(rollouts.num_rollouts)],
             }
         )
     return out

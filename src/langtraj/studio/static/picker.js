@@ -5,6 +5,7 @@ import { request as api } from '/common/api.js';
 import { $, h, say, showError, showIn } from '/common/dom.js';
 import { readPrompts, renderPrompts, resetPrompts } from './prompts.js';
 import { drawScene, resetSceneView } from './scene.js';
+import { showStagings } from './stagings.js';
 import { S, saveHash } from './state.js';
 
 /** The detail of scene `key` (fetched once). */
@@ -63,7 +64,7 @@ function renderScenes() {
 }
 
 /** Show scene `key`: the view fits it, the agent lists are its own, the prompts are read against it (and cleared,
- * with the old scene's errors, when another scene was picked before). */
+ * with the old scene's errors, when another scene was picked before), and what it can stage is listed. */
 export async function pickScene(key) {
   showError('');
   say('Loading the scene…');
@@ -91,5 +92,6 @@ export async function pickScene(key) {
   say(`Scene ${scene.scenario_id} loaded.${switched && typed ? ' The previous scene’s prompts were cleared: their @ids named its agents.' : ''}`);
   renderPrompts();
   readPrompts();
+  showStagings();
   drawScene();
 }

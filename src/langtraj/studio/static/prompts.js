@@ -44,6 +44,25 @@ export function insertAgent(id) {
   scheduleRead();
 }
 
+/** Write `text` into the prompt box last edited when it is empty or still holds what an earlier fill wrote, else
+ * into a new box (a typed prompt is never overwritten); the prompts are then read. Returns the box's index. */
+export function fillPrompt(text) {
+  let i = clamp(S.active, 0, S.prompts.length - 1);
+  const p = S.prompts[i];
+  if (p.text.trim() && p.text !== p.filled) {
+    S.prompts.push({ text: '', result: null });
+    i = S.prompts.length - 1;
+  }
+  Object.assign(S.prompts[i], { text, filled: text, result: null });
+  S.active = i;
+  renderPrompts();
+  const box = $(`prompt-${i}`);
+  box.focus();
+  box.setSelectionRange(text.length, text.length);
+  scheduleRead();
+  return i;
+}
+
 export function renderPrompts() {
   const items = S.prompts.map((p, i) => {
     const box = h('textarea', { id: `prompt-${i}`, rows: 2, 'aria-label': `Prompt ${i + 1}`, 'aria-describedby': `reading-${i}`,

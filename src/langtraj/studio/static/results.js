@@ -1,4 +1,4 @@
-/* Judge: a job's results as tables — each prompt followed or not per rollout (with the base rate without the
+/* Judge: a job's results as tables — each prompt followed or not per rollout, asked beside realised numbers (with the base rate without the
  * prompts), each agent's first contact with its time and partner and its first step off the road (buttons that
  * jump the replay there), the realism figures beside the table's own rates — and the contacts as ticks on the scrubber.
  * See docs/studio.md, 'The page'.
@@ -24,11 +24,22 @@ function fmtRate(value, run) {
   return fmt(value);
 }
 
+/** A rollout's verdict on a prompt: followed or not, with the asked and realised numbers of a behaviour judged by
+ * numbers (one line each, as the suites' report writes them) and why not. */
+function verdictCell(p, k) {
+  const td = cell((p.followed || [])[k], 'followed', 'not followed');
+  const measures = (p.measures || [])[k] || [];
+  const why = (p.why || [])[k];
+  if (measures.length) td.append(h('ul', { class: 'measures' }, measures.map((m) => h('li', { class: m.ok === false ? 'no' : '' }, m.describe))));
+  if (why && (p.followed || [])[k] === false) td.append(h('div', { class: 'why' }, why));
+  return td;
+}
+
 function followedTable(prompted, unprompted, heads, n) {
   const rows = (prompted.prompts || []).map((p, i) => {
     const base = unprompted && (unprompted.prompts || [])[i]; // both runs judge the same prompts, in order
     return h('tr', {}, h('th', { scope: 'row' }, p.text), h('td', {}, p.behaviour ? String(p.behaviour).replace(/_/g, ' ') : '—'),
-      ...Array.from({ length: n }, (_, k) => cell((p.followed || [])[k], 'followed', 'not followed')),
+      ...Array.from({ length: n }, (_, k) => verdictCell(p, k)),
       unprompted ? h('td', {}, base ? rate(base.followed) : '—') : null);
   });
   return h('table', { id: 'followed-table' }, h('caption', {}, 'Prompts: followed per rollout'),

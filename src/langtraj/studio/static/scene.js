@@ -1,6 +1,7 @@
 /* The scene view: the picked scene at its current step (the map, the logged history as fading trails, the
  * prompts' targets, lights, every agent labelled), with pan, zoom, hover and click-to-pick. What it marks comes
- * from the state (`S.marks`, set by prompts.js). See docs/studio.md, 'The page'.
+ * from the state (`S.marks`, set by prompts.js; `S.staged`, the agent of the staging clicked, by stagings.js). See
+ * docs/studio.md, 'The page'.
  */
 import { $, clamp, say } from '/common/dom.js';
 import { Frame, Surface, boxOf } from './canvas.js';
@@ -11,6 +12,7 @@ import {
 import { S } from './state.js';
 
 const HIT_TOL_PX = 6; // a click this close to an agent's box picks it
+const STAGED_PX = 6; // the outline of the staging's agent: twice a prompted agent's
 const HINT = 'Drag to pan, wheel to zoom; click an agent to insert its @id.';
 
 function initialFrame(scene, surf) {
@@ -73,7 +75,8 @@ function paintScene() {
     if (!p) continue;
     const id = String(a.id);
     const mark = prompted.has(id) ? TARGET : picked.has(id) ? PICKED : V.hover === id ? '#1d232b' : null;
-    drawAgent(ctx, a, p[0], p[1], p[2], frame, surf, { mark });
+    if (id === S.staged) drawAgent(ctx, a, p[0], p[1], p[2], frame, surf, { mark: TARGET, markPx: STAGED_PX });
+    else drawAgent(ctx, a, p[0], p[1], p[2], frame, surf, { mark });
   }
   for (const a of scene.agents) {
     const p = posAt(a, cur);

@@ -12,6 +12,7 @@ export const S = {
   scenes: [], kinds: new Set(), sceneKey: null, scene: null, sceneCache: new Map(),
   view: null, prompts: [{ text: '', result: null }], active: 0, readSeq: 0, reading: null,
   jobs: [], jobItems: new Map(), pollTimer: null, openJob: null, replay: null,
+  stagings: null, staged: null, // the picked ego's stagings ({ego, stagings}) and the agent of the one clicked
 };
 
 /** The replay's frame times (requestAnimationFrame timestamps, ms) and how long each frame took to paint (ms), for

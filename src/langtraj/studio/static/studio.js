@@ -10,6 +10,7 @@ import { loadScenes, pickScene } from './picker.js';
 import { addPrompt, insertAgent, renderPrompts, restorePrompts, scheduleRead } from './prompts.js';
 import { bindReplayView, layoutReplay, openJob, paintReplay, replayApi, scrubTo, setPlaying } from './replay.js';
 import { saveCase } from './keep.js';
+import { loadStagings, renderStagings } from './stagings.js';
 import { agentPoint, drawScene, setupSceneCanvas } from './scene.js';
 import { FILTER_DEBOUNCE_MS, S } from './state.js';
 
@@ -29,6 +30,8 @@ function start() {
   for (const id of ['adversary', 'target']) $(id).addEventListener('change', () => { drawScene(); scheduleRead(); });
   $('planner').addEventListener('change', scheduleRead); // with a planner, a prompt of the ego is refused
   $('run').addEventListener('click', run);
+  $('staging-ego').addEventListener('change', () => loadStagings());
+  $('staging-behaviour').addEventListener('change', renderStagings);
   onOpen(openJob);
   $('play').addEventListener('click', () => S.replay && setPlaying(!S.replay.playing));
   $('scrub').addEventListener('input', () => scrubTo(Number($('scrub').value)));
