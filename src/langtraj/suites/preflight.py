@@ -70,8 +70,9 @@ def check_case(case: Case, scenes: dict[tuple[str, int, int | None], Scenario] |
     prompts = [p.replace(EGO_PLACEHOLDER, f"@{ego_id}") for p in case.prompts]
     checks = check_prompts(scenario, prompts, ego=ego_id, targets=True)
     for j, prompt in enumerate(checks.prompts):
-        if prompt.error is not None:
-            raise InputError(prompt.error, where=f"prompts[{j}]")
+        if prompt.error is not None:  # the case's words name the prompt: not again as the check wrote it
+            message = prompt.error.removeprefix("prompt: ").removeprefix(f"prompt {prompts[j]!r}: ")
+            raise InputError(message, where=f"prompts[{j}]")
     warnings = [
         f"case {case.name}, prompt {case.prompts[j]!r}: {p.warning}" for j, p in enumerate(checks.prompts) if p.warning
     ]
