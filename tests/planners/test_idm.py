@@ -182,3 +182,20 @@ def test_repeated_route_points_change_nothing():
     np.testing.assert_array_equal(
         IDMPlanner().act(make_observation(route=route)), IDMPlanner().act(make_observation(route=left_curve()[:25]))
     )
+
+
+def test_the_cautious_planner_brakes_for_what_the_idm_passes_and_earlier():
+    """An agent straddling the lane line 2.4 m off the route, and one 4.5 m off drifting in at 1.2 m/s (in the
+    path within 2 s): the IDM lets both by, the cautious planner brakes; for the same leader it brakes harder."""
+    from langtraj.planners import CautiousPlanner, load_planner
+
+    assert load_planner("cautious") is CautiousPlanner
+
+    def cautious(**kwargs) -> float:
+        return float(CautiousPlanner().act(make_observation(**kwargs))[0])
+
+    straddling = [vehicle(15.0, y=2.4)]
+    assert accel(agents=straddling) == pytest.approx(FREE) and cautious(agents=straddling) < 0.0
+    merging = [vehicle(20.0, y=4.5, speed=8.0, heading=-0.15)]
+    assert accel(agents=merging) == pytest.approx(FREE) and cautious(agents=merging) < 0.0
+    assert cautious(agents=[vehicle(40.0, speed=10.0)]) < accel(agents=[vehicle(40.0, speed=10.0)])

@@ -1,0 +1,146 @@
+"""Whether a suite's cases tell a careless planner from a careful one: the suite run under the three planners to
+calibrate against (`CALIBRATION_PLANNERS`: the IDM, the cautious one that brakes for anything in its path and the
+careless constant-velocity one), and per case whether its scenario happened under each, the cautious planner passed
+and the careless one failed through the prompted agent (docs/testing.md, 'Planners to calibrate against').
+
+`langtraj test SUITE --calibrate --out DIR` writes each planner's reports to `DIR/<planner>/` and this comparison to
+`DIR/calibration.md` and `DIR/calibration.json`.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from langtraj.fileio import atomic_path
+from langtraj.suites.episode import EpisodeResult
+from langtraj.suites.results import SuiteResults
+
+CALIBRATION_PLANNERS = ("idm", "cautious", "constant_velocity")
+"""The planners a scenario is checked against: the reference, the careful end and the careless end."""
+CAREFUL, CARELESS = "cautious", "constant_velocity"
+CALIBRATION_FILE = "calibration"
+"""`calibration.md` and `calibration.json` in the output folder."""
+
+
+@dataclass(frozen=True)
+class PlannerTally:
+    """One case's episodes under one planner: how many, in how many the scenario happened (its prompts were followed;
+    not "not happened" nor an error), passed, failed, and failed by a collision with an agent a prompt names."""
+
+    planner: str
+    episodes: int
+    happened: int
+    passed: int
+    failed: int
+    failed_through_prompted: int
+
+    @classmethod
+    def of(cls, planner: str, results: Sequence[EpisodeResult]) -> PlannerTally:
+        happened = [r for r in results if r.status in ("pass", "fail")]
+        failed = [r for r in happened if r.status == "fail"]
+        return cls(
+            planner,
+            len(results),
+            len(happened),
+            sum(r.status == "pass" for r in happened),
+            len(failed),
+            sum(bool(_prompted(r) & set(r.figures.get("collided_with") or ())) for r in failed),
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        return dict(vars(self))
+
+
+def _prompted(result: EpisodeResult) -> set[int]:
+    """The agents an episode's prompts name (other than the ego)."""
+    named = {p.get(k) for p in result.prompts for k in ("agent", "other")}
+    return {int(a) for a in named if a is not None and a != result.ego}
+
+
+@dataclass(frozen=True)
+class CaseCalibration:
+    """One case under the three planners: each planner's tally, whether the case separates the careful planner from
+    the careless one (`separates`: None for a case that stages nothing, no prompt naming an agent), and one line
+    saying why not."""
+
+    case: str
+    tallies: tuple[PlannerTally, ...]
+    separates: bool | None
+    why: str
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "case": self.case,
+            "separates": self.separates,
+            "why": self.why,
+            "planners": {t.planner: t.to_json() for t in self.tallies},
+        }
+
+
+def calibrate(runs: Mapping[str, SuiteResults]) -> list[CaseCalibration]:
+    """Each case of the suite the `runs` (planner name -> its results) ran: it separates when its scenario happened in
+    every episode under every planner, the cautious planner passed every one and the careless one failed every one
+    through an agent a prompt names."""
+    first = next(iter(runs.values()))
+    out = []
+    for case in first.suite.cases:
+        tallies = tuple(PlannerTally.of(p, r.of_case(case.name)) for p, r in runs.items())
+        by = {t.planner: t for t in tallies}
+        staged = any(_prompted(e) for r in runs.values() for e in r.of_case(case.name))
+        if not staged:
+            out.append(CaseCalibration(case.name, tallies, None, "no prompt names an agent: nothing to separate"))
+            continue
+        why = [
+            f"did not happen in {t.episodes - t.happened} of {t.episodes} under {t.planner}"
+            for t in tallies
+            if t.happened < t.episodes
+        ]
+        careful, careless = by.get(CAREFUL), by.get(CARELESS)
+        if careful is not None and careful.passed < careful.happened:
+            why.append(f"the cautious planner failed {careful.happened - careful.passed} of {careful.happened}")
+        if careless is not None and careless.failed_through_prompted < careless.happened:
+            passed = careless.happened - careless.failed_through_prompted
+            why.append(
+                f"the careless planner did not fail through the prompted agent in {passed} of {careless.happened}"
+            )
+        out.append(CaseCalibration(case.name, tallies, not why, "; ".join(why) or "separates"))
+    return out
+
+
+def write_calibration(out: Path, rows: Sequence[CaseCalibration]) -> None:
+    """`calibration.json` and `calibration.md` in `out`, each written atomically."""
+    data = {"planners": list(CALIBRATION_PLANNERS), "cases": [r.to_json() for r in rows], "summary": summary(rows)}
+    with atomic_path(Path(out) / f"{CALIBRATION_FILE}.json") as tmp:
+        tmp.write_text(json.dumps(data, indent=2) + "\n")
+    with atomic_path(Path(out) / f"{CALIBRATION_FILE}.md") as tmp:
+        tmp.write_text(markdown(rows))
+
+
+def summary(rows: Sequence[CaseCalibration]) -> str:
+    staged = [r for r in rows if r.separates is not None]
+    return (
+        f"{sum(bool(r.separates) for r in staged)} of {len(staged)} cases that stage a scenario separate the planners"
+    )
+
+
+def markdown(rows: Sequence[CaseCalibration]) -> str:
+    """The comparison as a table: per case and planner, happened / passed / failed through the prompted agent."""
+    planners = [t.planner for t in rows[0].tallies] if rows else list(CALIBRATION_PLANNERS)
+    head = "| case | " + " | ".join(planners) + " | separates |"
+    lines = [
+        "# Calibration: does each case tell a careless planner from a careful one?",
+        "",
+        "Per planner: episodes where the scenario happened / passed / failed through the prompted agent, of all.",
+        "",
+        head,
+        "| --- " * (len(planners) + 2) + "|",
+    ]
+    for row in rows:
+        cells = [f"{t.happened} / {t.passed} / {t.failed_through_prompted} of {t.episodes}" for t in row.tallies]
+        verdict = "n/a" if row.separates is None else ("yes" if row.separates else f"no: {row.why}")
+        lines.append(f"| {row.case} | " + " | ".join(cells) + f" | {verdict} |")
+    return "\n".join([*lines, "", summary(rows), ""])
