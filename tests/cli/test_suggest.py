@@ -52,7 +52,7 @@ def test_json_and_the_suite_hold_one_case_per_staging_and_the_suite_loads(road_f
         assert case.ego == 1 and case.prompts == (staging["prompt"],) and case.seeds == (0,)
     assert "# @1's lane on its right, 10 m ahead of it, at 13.6 m/s (score 3.98)" in suite.read_text()
     names = [c.name for c in loaded.cases]
-    assert "straight-2-cut-in-gap_m-10" in names and "straight-3-brake-hard-deceleration-6" in names
+    assert "straight-2-cut-in-gap-10" in names and "straight-3-brake-hard-deceleration-6" in names
 
 
 def test_only_the_asked_behaviour_another_ego_and_a_window(road_file, capsys):

@@ -13,9 +13,9 @@ from scenario_builders import two_lane_road
 
 from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import Behaviour
+from langtraj.interdrive.behaviours import kind
 from langtraj.interdrive.reader import read_prompt
 from langtraj.interdrive.suggest import (
-    PARAMETER_VALUES,
     Staging,
     count_by_behaviour,
     ego_of,
@@ -53,7 +53,7 @@ def _verdict(s, staging: Staging, index: MapIndex):
         staging.behaviour,
         index,
         other_id=staging.other,
-        gap=staging.parameters.get("gap_m"),
+        gap=staging.parameters.get("gap"),
         deceleration=staging.parameters.get("deceleration"),
     )
 
@@ -63,7 +63,7 @@ def _assert_feasible_and_read_back(s, stagings, index: MapIndex) -> None:
         assert _verdict(s, staging, index).status == "feasible", staging
         reading = read_prompt(staging.typed_prompt)
         assert (reading.behaviour, reading.agent, reading.other) == (staging.behaviour, staging.agent, staging.other)
-        assert reading.metres == staging.parameters.get("gap_m"), staging.prompt
+        assert reading.metres == staging.parameters.get("gap"), staging.prompt
         assert reading.deceleration == staging.parameters.get("deceleration"), staging.prompt
     scores = [s.score for s in stagings]
     assert scores == sorted(scores)
@@ -88,7 +88,7 @@ def test_every_staging_the_two_lane_road_allows_is_listed_once_per_feasible_para
         "@3 brakes hard at 6 m/s^2 in front of @ego",
     ]
     assert [x.default for x in brake] == [True, False]
-    cut_in = {x.parameters["gap_m"]: x for x in stagings if x.behaviour is Behaviour.CUT_IN}
+    cut_in = {x.parameters["gap"]: x for x in stagings if x.behaviour is Behaviour.CUT_IN}
     assert cut_in[10.0].prompt == "@2 cuts in front of @ego with a 10 m gap" and cut_in[10.0].default
     # the closest needed speed to its own 10 m/s first: the 5 m gap (12.4 m/s) before 10 m (13.6) and 15 m (14.9)
     assert cut_in[5.0].score < cut_in[10.0].score < cut_in[15.0].score
@@ -101,8 +101,8 @@ def test_the_default_parameters_are_those_feasibility_takes_without_one():
     s = _road()
     index = MapIndex.build(s.road_map)
     for behaviour, agent in ((Behaviour.CUT_IN, 2), (Behaviour.OVERTAKE_CUT_IN, 2), (Behaviour.BRAKE_HARD, 3)):
-        name, _, default = PARAMETER_VALUES[behaviour]
-        given = {"gap": default} if name == "gap_m" else {"deceleration": default}
+        parameter = kind(behaviour).parameters[0]
+        given = {parameter.name: parameter.default}
         plain = feasibility(s, agent, behaviour, index, other_id=1)
         explicit = feasibility(s, agent, behaviour, index, other_id=1, **given)
         assert plain.status == explicit.status == "feasible", behaviour
@@ -145,7 +145,7 @@ def test_the_ego_is_the_self_driving_car_unless_named_and_must_be_in_the_scene_a
 
 
 def test_prompts_write_the_parameters_out_and_the_vocabulary_sentence_otherwise():
-    assert prompt_text(Behaviour.OVERTAKE_CUT_IN, 7, {"gap_m": 15.0}) == (
+    assert prompt_text(Behaviour.OVERTAKE_CUT_IN, 7, {"gap": 15.0}) == (
         "@7 overtakes @ego and cuts in front of it with a 15 m gap"
     )
     assert prompt_text(Behaviour.YIELD, 7) == "@7 yields to @ego"

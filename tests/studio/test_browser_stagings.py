@@ -117,7 +117,7 @@ def test_pick_the_ego_see_what_it_can_stage_and_write_one(site: str, browser: Br
     page.select_option("#staging-behaviour", "")
 
     # click a cut-in: its prompt, the ego named by its @id, is in the prompt box and read; its agent outlined
-    k = next(i for i, s in enumerate(expected) if s["behaviour"] == "cut_in" and s["parameters"]["gap_m"] == 10)
+    k = next(i for i, s in enumerate(expected) if s["behaviour"] == "cut_in" and s["parameters"]["gap"] == 10)
     staging = expected[k]
     agent = staging["agent"]
     point = page.evaluate(f"() => window.studio.agentPoint({agent})")

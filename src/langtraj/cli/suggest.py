@@ -173,7 +173,7 @@ def write_suite(out: Path, stagings: Sequence[Staging]) -> None:
 
 
 def _case_name(s: Staging, taken: set[str]) -> str:
-    """A unique case name: scene, window, agent, behaviour and parameters ("8a346109094cd5aa-741-cut-in-gap_m-10")."""
+    """A unique case name: scene, window, agent, behaviour and parameters ("8a346109094cd5aa-741-cut-in-gap-10")."""
     parts = [_slug(s.scenario_id), *([f"w{s.window}"] if s.window is not None else []), str(s.agent)]
     parts.append(s.behaviour.value.replace("_", "-"))
     parts += [f"{k}-{v:g}" for k, v in s.parameters.items()]

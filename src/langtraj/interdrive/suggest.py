@@ -23,6 +23,7 @@ import numpy as np
 from langtraj.angles import wrap_angle
 from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
+from langtraj.interdrive.behaviours import kind
 from langtraj.interdrive.targets import BehaviourTarget, CounterfactualConfig, feasibility
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
@@ -42,16 +43,16 @@ DEFAULT_RADIUS_M = 80.0
 """The radius of the other behaviours: a cut-in from well ahead or behind, a crossing, a red light, a pull-out."""
 CYCLISTS: frozenset[Behaviour] = frozenset({Behaviour.PULL_OUT, Behaviour.YIELD, Behaviour.GO_FIRST, Behaviour.FOLLOW})
 """The behaviours asked of cyclists too (a cyclist pulls out, yields, goes first, follows); the rest of vehicles."""
-PARAMETER_VALUES: Mapping[Behaviour, tuple[str, tuple[float, ...], float]] = {
-    Behaviour.CUT_IN: ("gap_m", (5.0, 10.0, 15.0), 10.0),
-    Behaviour.OVERTAKE_CUT_IN: ("gap_m", (5.0, 10.0, 15.0), 10.0),
-    Behaviour.BRAKE_HARD: ("deceleration", (4.0, 6.0), 4.0),
+PARAMETER_VALUES: Mapping[Behaviour, tuple[float, ...]] = {
+    Behaviour.CUT_IN: (5.0, 10.0, 15.0),
+    Behaviour.OVERTAKE_CUT_IN: (5.0, 10.0, 15.0),
+    Behaviour.BRAKE_HARD: (4.0, 6.0),
 }
-"""Per parameterised behaviour: the parameter's name, the values tried (m; m/s^2, Euro NCAP's braking-lead range)
-and the default `feasibility` takes when a prompt gives none (a test pins that they agree)."""
+"""Per parameterised behaviour, the values of its parameter tried (its first, `BehaviourKind.parameters`: a gap in m;
+a deceleration in m/s^2, Euro NCAP's braking-lead range); its default is the registry's."""
 PROMPTS: Mapping[Behaviour, str] = {
-    Behaviour.CUT_IN: "@{agent} cuts in front of @{other} with a {gap_m:g} m gap",
-    Behaviour.OVERTAKE_CUT_IN: "@{agent} overtakes @{other} and cuts in front of it with a {gap_m:g} m gap",
+    Behaviour.CUT_IN: "@{agent} cuts in front of @{other} with a {gap:g} m gap",
+    Behaviour.OVERTAKE_CUT_IN: "@{agent} overtakes @{other} and cuts in front of it with a {gap:g} m gap",
     Behaviour.BRAKE_HARD: "@{agent} brakes hard at {deceleration:g} m/s^2 in front of @{other}",
 }
 """The prompts of parameterised behaviours, the parameter written out (the reader reads it back); the others are the
@@ -69,7 +70,7 @@ YIELD_MARGIN_S = 1.0
 @dataclass(frozen=True)
 class Staging:
     """One thing a scene can stage: `agent` doing `behaviour` toward `other` (the ego) with `parameters` (a cut-in's
-    `gap_m`, a braking lead's `deceleration`; empty for the others), which `feasibility` calls feasible; `prompt`
+    `gap`, a braking lead's `deceleration`; empty for the others), which `feasibility` calls feasible; `prompt`
     stages it (the ego written `@ego`), `reason` is the target's (where and when). `change` is how far the staging
     moves the agent from what it does now (m/s: the speed it needs against its own, a braking lead's deceleration),
     `distance_m` its distance to the ego, and `score` their sum with metres weighed by `DISTANCE_WEIGHT_M`: lower is
@@ -190,14 +191,16 @@ def suggest_stagings(
     scene_ = _Scene.of(scenario, ego)
     found: list[Staging] = []
     for behaviour in asked:
-        name, values, default = PARAMETER_VALUES.get(behaviour, ("", (), 0.0))
+        values = PARAMETER_VALUES.get(behaviour, ())
+        parameter = kind(behaviour).parameters[0] if values else None
+        name, default = ("", 0.0) if parameter is None else (parameter.name, parameter.default)
         for row in scene_.candidates(behaviour):
             agent = int(scenario.agents.ids[row])
             for value in values or (None,):
                 parameters = {} if value is None else {name: value}
                 verdict = feasibility(
                     scenario, agent, behaviour, index_, other_id=ego, config=config,
-                    gap=parameters.get("gap_m"), deceleration=parameters.get("deceleration"),
+                    gap=parameters.get("gap"), deceleration=parameters.get("deceleration"),
                 )  # fmt: skip
                 if verdict.status != "feasible" or verdict.target is None or not scene_.stages(row, verdict.target):
                     continue
@@ -284,7 +287,7 @@ def _change(target: BehaviourTarget, parameters: Mapping[str, float]) -> float:
     v = target.current_speed
     b = target.behaviour
     if b is Behaviour.BRAKE_HARD:
-        return float(target.deceleration or parameters.get("deceleration", PARAMETER_VALUES[b][2]))
+        return float(target.deceleration or parameters.get("deceleration", kind(b).parameter("deceleration").default))
     if b in (Behaviour.YIELD, Behaviour.GO_FIRST):
         if target.station_of_goal is None or target.other_eta is None:
             return 0.0

@@ -1,8 +1,8 @@
 """Planners: what drives the ego of the LangTraj environment under test (docs/testing.md, 'Planners').
 
 The protocol (`Planner`, `PLANNERS`, `load_planner`), the built-in planners (IDM lane follower, the cautious one,
-constant velocity, log replay) and the JSON-lines protocol for planners in another process. Importing this package registers the
-built-in planners.
+constant velocity, log replay) and the JSON-lines protocol for planners in another process. Importing this package
+registers the built-in planners.
 """
 
 from langtraj.planners.base import (

@@ -10,7 +10,7 @@ import { fillPrompt } from './prompts.js';
 import { drawScene } from './scene.js';
 import { S } from './state.js';
 
-const UNITS = { gap_m: (v) => `${v} m gap`, deceleration: (v) => `${v} m/s²` };
+const UNITS = { gap: (v) => `${v} m gap`, deceleration: (v) => `${v} m/s²` };
 const words = (name) => String(name).replace(/_/g, ' ');
 const plural = (n, one) => `${n} ${one}${n === 1 ? '' : 's'}`;
 
