@@ -8,6 +8,7 @@ import os
 import re
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +28,10 @@ def write_scene(folder: Path, name: str, **behaviour: Any) -> Path:
     contact (the collisions' own keys over the default front or rear, e.g. kind and right_of_way), offroad_at, ttc
     (5.0), min_ttc_at ([step, value]), progress (final fraction, 1.0), error_at (the env raises), exit_at (the process
     dies), agents (the track ids a prompt may name, checked by `FakeEnv.check_case`; none: any), refuse_at_reset (a
-    message: reset raises it as an InputError at "prompt", as the sim refuses a prompt only the model can)."""
+    message: reset raises it as an InputError at "prompt", as the sim refuses a prompt only the model can), traffic
+    (what the other agents do in `played`: a list of `{"move": ID, "at": STEP, "onto": ID, "dx": M, "dy": M}`, the
+    agent placed from that step on at `onto`'s centre (default: its own) shifted by dx, dy; given, the toy scene has
+    five vehicles, 7 to 47, all valid)."""
     path = folder / f"{name}.json"
     path.write_text(json.dumps({"scenario_id": name, **behaviour}))
     return path
@@ -136,10 +140,28 @@ class FakeEnv:
         sys.path.insert(0, str(TESTS_DIR))
         from scenario_builders import make_scenario
 
-        return make_scenario(num_steps=11 + self.k, scenario_id=self.data["scenario_id"])
+        traffic = self.data.get("traffic")
+        if traffic is None:
+            return make_scenario(num_steps=11 + self.k, scenario_id=self.data["scenario_id"])
+        return with_traffic(make_scenario(5, 11 + self.k, scenario_id=self.data["scenario_id"]), traffic)
 
     def close(self) -> None:
         pass
+
+
+def with_traffic(scene: Any, moves: list[dict[str, Any]]) -> Any:
+    """The toy `scene` with every agent a valid vehicle, each of `moves` applied (`write_scene`'s traffic)."""
+    from langtraj.scenario.types import AgentType
+
+    agents = scene.agents
+    states, ids = agents.states.copy(), [int(i) for i in agents.ids]
+    for move in moves:
+        row, onto = ids.index(move["move"]), ids.index(move.get("onto", move["move"]))
+        later = slice(scene.current_index + move["at"], None)
+        states[row, later, :2] = states[onto, later, :2] + [move.get("dx", 0.0), move.get("dy", 0.0)]
+    types = np.full(len(ids), int(AgentType.VEHICLE), np.int8)
+    changed = replace(agents, states=states, valid=np.ones_like(agents.valid), types=types)
+    return replace(scene, agents=changed)
 
 
 class GoodPlanner:

@@ -102,6 +102,8 @@ def test_seeds_cases_and_errors_in_the_reports(tmp_path):
     assert saved["summary"] | {"seconds": 0} == {
         "episodes": 6, "finished": 6, "passed": 3, "failed": 2, "errors": 1, "not_happened": 0,
         "cases": 3, "cases_passed": 1, "cases_failed": 1, "cases_errors": 1, "cases_not_happened": 0, "seconds": 0,
+        "traffic_collisions": 0, "traffic_offroad": 0, "traffic_episodes": 0, "traffic_flagged": 0,
+        "traffic_flagged_failed": 0,
     }  # fmt: skip
     crash = saved["episodes"][3]
     assert crash["figures"]["first_at_fault_step"] == 5 and crash["figures"]["at_fault_with"] == [42]

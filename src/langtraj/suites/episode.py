@@ -32,6 +32,7 @@ from langtraj.errors import InputError, one_line
 from langtraj.registry import import_object
 from langtraj.suites.deadline import StepTimeout, deadline
 from langtraj.suites.happened import PromptVerdict, judge_prompts, not_happened
+from langtraj.suites.traffic import ego_failures, follows_traffic_fault, traffic_faults
 from langtraj.suites.verdict import StepRecord, episode_figures, judge
 
 DEFAULT_ENV = "langtraj.env:LangTrajEnv"
@@ -102,6 +103,9 @@ class EpisodeResult:
     steps: dict[str, list] = field(default_factory=dict)
     seconds: float = 0.0
     reads_log: bool = False
+    traffic: dict[str, Any] | None = None
+    traffic_fault: bool = False
+    traffic_fault_reason: str | None = None
     video: str | None = None
     video_error: str | None = None
     traceback: str | None = None
@@ -121,6 +125,9 @@ class EpisodeResult:
             "steps": dict(self.steps),
             "seconds": round(self.seconds, 3),
             "reads_log": self.reads_log,
+            "traffic": self.traffic,
+            "traffic_fault": self.traffic_fault,
+            "traffic_fault_reason": self.traffic_fault_reason,
             "video": self.video,
             "video_error": self.video_error,
             "traceback": self.traceback,
@@ -149,6 +156,7 @@ class _Episode:
         self.reads_log = False
         self.prompts: list[str] = []
         self.prompt_warnings: list[str] = []
+        self.staged: set[int] = set()  # the prompted agents and the adversary
 
     def call_planner(self, fn: Callable[[], Any], when: str) -> Any:
         """`fn()` (a planner call) under the step limit; whatever goes wrong fails the episode, naming `when`."""
@@ -204,6 +212,10 @@ class _Episode:
         self.ego = int(info["ego_id"])
         self.prompts = [str(p) for p in info.get("prompts", [])]
         self.prompt_warnings = [str(w) for w in info.get("prompt_warnings", [])]
+        adversary = info.get("adversary")
+        self.staged = {int(i) for i in info.get("prompted_ids", [])} | (
+            {int(adversary)} if adversary is not None else set()
+        )
         self.call_planner(lambda: reset_planner(self.planner, observation, info), "in reset")
         for step in range(1, case.steps + 1):
             action = self.call_planner(lambda obs=observation: self.planner.act(obs), f"at step {step}")
@@ -218,6 +230,16 @@ class _Episode:
         if self.env is None or not self.record.steps or not self.prompts:
             return []
         return judge_prompts(self.env.played(), self.prompts)
+
+    def judge_traffic(self, result: EpisodeResult) -> None:
+        """Record the other agents' collisions and off-road in `result`, and flag an ego failure that follows one
+        (`suites.traffic`); nothing before the first step."""
+        if self.env is None or self.ego is None or not self.record.steps:
+            return
+        traffic = traffic_faults(self.env.played(), self.ego, self.record.collided_with)
+        result.traffic = traffic.to_json()
+        reason = follows_traffic_fault(traffic, ego_failures(result.figures, result.criteria), self.staged)
+        result.traffic_fault, result.traffic_fault_reason = reason is not None, reason
 
     def close(self) -> None:
         """Close the planner (its failures to close are ignored) and the env."""
@@ -300,6 +322,13 @@ def run_episode(task: EpisodeTask, watch: Callable[[Any], None] | None = None) -
         "planner_max_step_seconds": round(episode.planner_max, 4),
     }
     result.steps = episode.record.to_json()
+    try:
+        episode.judge_traffic(result)
+    except Exception as error:
+        if result.status != "error":
+            result.status = "error"
+            result.reasons.append(f"LangTraj raised {one_line(error)} when judging the other agents' traffic")
+            result.traceback = traceback.format_exc()
     if (
         task.video
         and (result.status != "pass" or figures["collision"])

@@ -4,7 +4,8 @@ shows which seed failed. A failed episode gets `<failure message="reason; reason
 when it raised), an errored one `<error>` with LangTraj's traceback, one whose scenario did not happen `<skipped
 type="not_happened">` (not a pass: the case tested nothing), one that did not finish (an interrupted run)
 `<skipped>`. Every finished episode's `<system-out>` is its status line, then one line per prompt judged by numbers
-with the asked and realised values side by side (docs/testing.md, 'Scenario suites' and 'Judged by numbers')."""
+with the asked and realised values side by side, then its traffic: the other agents' collisions and off-road, and
+why the ego's failure follows one (docs/testing.md, 'Scenario suites', 'Judged by numbers' and 'Traffic faults')."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from langtraj.fileio import atomic_path
 from langtraj.interdrive.judging import Measure
 from langtraj.suites.episode import EpisodeResult
 from langtraj.suites.results import SuiteResults
+from langtraj.suites.traffic import traffic_text
 
 JUNIT_FILE = "junit.xml"
 
@@ -38,6 +40,13 @@ def measure_lines(result: EpisodeResult) -> list[str]:
             said = "; ".join(m.describe() + (" MISSED" if m.ok is False else "") for m in measures)
             lines.append(f"{prompt['text']}: {said}")
     return lines
+
+
+def traffic_lines(result: EpisodeResult) -> list[str]:
+    """`traffic: ...` (the other agents' collisions and off-road) and `traffic fault: ...` (why the ego's failure
+    follows one), where recorded."""
+    lines = [] if result.traffic is None else [f"traffic: {traffic_text(result.traffic)}"]
+    return lines + ([f"traffic fault: {result.traffic_fault_reason}"] if result.traffic_fault else [])
 
 
 def junit_tree(results: SuiteResults) -> ET.ElementTree:
@@ -67,7 +76,8 @@ def junit_tree(results: SuiteResults) -> ET.ElementTree:
                 child = ET.SubElement(element, "failure" if result.status == "fail" else "error", message=message)
                 child.set("type", result.status)
                 child.text = "\n".join(t for t in (_line(result), result.traceback) if t)
-            ET.SubElement(element, "system-out").text = "\n".join([_line(result), *measure_lines(result)])
+            out = [_line(result), *measure_lines(result), *traffic_lines(result)]
+            ET.SubElement(element, "system-out").text = "\n".join(out)
     for key, value in counts.items():
         suite.set(key, str(value))
     suite.set("time", f"{total:.3f}")

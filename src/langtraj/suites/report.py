@@ -1,9 +1,10 @@
 """`report.md`: a suite run for people: a summary line, then per case a Markdown table of its episodes (seed,
 status, at-fault collision, collision with whom, offroad, min TTC, progress, seconds, reason; videos of those that
 did not pass linked), one of its prompts (how each was read, and per seed whether the episode followed it, and why
-not), with the simulation's warnings, and one of the numbers judged (asked beside each seed's realised value); after
-the cases of a sweep, a table of its parameters against the realised numbers and the outcome (docs/testing.md,
-'Scenario suites' and 'Judged by numbers')."""
+not), with the simulation's warnings, and one of the numbers judged (asked beside each seed's realised value); per
+seed a line of the other agents' collisions and off-road, and of an ego failure that follows one; after the cases of
+a sweep, a table of its parameters against the realised numbers and the outcome (docs/testing.md, 'Scenario
+suites', 'Judged by numbers' and 'Traffic faults')."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from langtraj.fileio import atomic_path
 from langtraj.interdrive.judging.base import amount
 from langtraj.suites.episode import EpisodeResult
 from langtraj.suites.results import SuiteResults, case_measures
+from langtraj.suites.traffic import traffic_text
 
 REPORT_FILE = "report.md"
 COLUMNS = (
@@ -69,7 +71,7 @@ def _row(result: EpisodeResult) -> list[str]:
 
 def summary_line(results: SuiteResults) -> str:
     """`PASS` / `FAIL`: cases and episodes counted, e.g. `FAIL: 1 of 3 cases failed, 0 errors (5 of 6 episodes
-    passed) in 12.3 s`."""
+    passed) in 12.3 s`, then the traffic faults, when any (`suites.traffic`)."""
     s = results.summary()
     verdict = "PASS" if results.passed else "FAIL"
     missed = f", {s['cases_not_happened']} whose scenario did not happen" if s["cases_not_happened"] else ""
@@ -79,6 +81,12 @@ def summary_line(results: SuiteResults) -> str:
     )
     if not results.complete:
         line += f"; only {s['finished']} of {s['episodes']} episodes finished"
+    if s["traffic_episodes"] or s["traffic_flagged"]:
+        line += (
+            f"; traffic faults in {s['traffic_episodes']} episodes ({s['traffic_collisions']} collisions among other "
+            f"agents, {s['traffic_offroad']} off-road), {s['traffic_flagged']} ego failures following one "
+            f"({s['traffic_flagged_failed']} failed)"
+        )
     return line
 
 
@@ -93,6 +101,19 @@ def _collision_lines(episodes: list[EpisodeResult]) -> list[str]:
             lines.append(
                 f"Collision, seed {result.seed}: step {c['step']} with {c['with']} ({c['kind']}{way}, {fault}){video}  "
             )
+    return [""] + lines if lines else []
+
+
+def _traffic_lines(episodes: list[EpisodeResult]) -> list[str]:
+    """Per seed, the other agents' collisions and off-road, and why the ego's failure follows a traffic fault."""
+    lines = []
+    for result in episodes:
+        if result.traffic is not None:
+            lines.append(f"Traffic, seed {result.seed}: {_cell(traffic_text(result.traffic))}  ")
+        if result.traffic_fault:
+            status = result.status.upper().replace("_", " ")
+            why = _cell(result.traffic_fault_reason)
+            lines.append(f"**Traffic fault, seed {result.seed}** (status {status} kept): {why}  ")
     return [""] + lines if lines else []
 
 
@@ -241,6 +262,7 @@ def render_report(results: SuiteResults) -> str:
         for result in results.of_case(case.name):
             lines.append("| " + " | ".join(_cell(c) for c in _row(result)) + " |")
         lines += _collision_lines(results.of_case(case.name))
+        lines += _traffic_lines(results.of_case(case.name))
         lines += _prompt_lines(results.of_case(case.name))
         lines += _measure_lines(results.of_case(case.name))
         missing = [s for s in case.seeds if (case.name, s) not in results.episodes]

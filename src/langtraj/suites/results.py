@@ -9,7 +9,9 @@ results.json:
     `langtraj.cases.case_json` writes it (every key of a suite's case), with its `status` (`case_status`) and its
     `measures` (`case_measures`: per prompt and number judged, the asked value beside each seed's realised one).
     episodes: each finished episode's `EpisodeResult.to_json()`, in suite order (case, then seed); each of its
-    `prompts` carries that seed's `measures` (docs/testing.md, 'Judged by numbers').
+    `prompts` carries that seed's `measures` (docs/testing.md, 'Judged by numbers'), its `traffic` the other
+    agents' collisions and off-road, `traffic_fault` and `traffic_fault_reason` whether the ego's failure follows
+    one (docs/testing.md, 'Traffic faults').
 """
 
 from __future__ import annotations
@@ -113,8 +115,13 @@ class SuiteResults:
 
     def summary(self) -> dict[str, Any]:
         """Counts: `episodes` (in the suite), `finished`, `passed`, `failed`, `errors`, `not_happened`; `cases`,
-        `cases_passed`, `cases_failed`, `cases_errors`, `cases_not_happened`; and `seconds` of wall time so far."""
+        `cases_passed`, `cases_failed`, `cases_errors`, `cases_not_happened`; the traffic faults (`suites.traffic`):
+        `traffic_collisions` and `traffic_offroad` among the other agents, `traffic_episodes` (episodes with one),
+        `traffic_flagged` (episodes whose ego failure follows one) and `traffic_flagged_failed` (those that failed);
+        and `seconds` of wall time so far."""
         statuses = [r.status for r in self.episodes.values()]
+        traffic = [r.traffic for r in self.episodes.values() if r.traffic is not None]
+        flagged = [r.status for r in self.episodes.values() if r.traffic_fault]
         cases = list(self.case_statuses().values())
         return {
             "episodes": self.suite.episodes,
@@ -128,6 +135,11 @@ class SuiteResults:
             "cases_failed": cases.count("fail"),
             "cases_errors": cases.count("error"),
             "cases_not_happened": cases.count("not_happened"),
+            "traffic_collisions": sum(t["collisions"] for t in traffic),
+            "traffic_offroad": sum(t["offroad"] for t in traffic),
+            "traffic_episodes": sum(1 for t in traffic if t["faults"]),
+            "traffic_flagged": len(flagged),
+            "traffic_flagged_failed": flagged.count("fail"),
             "seconds": round(self.seconds, 2),
         }
 
