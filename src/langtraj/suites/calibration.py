@@ -15,7 +15,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from langtraj.cases import Case
 from langtraj.fileio import atomic_path
+from langtraj.interdrive.behaviour import KINDS
+from langtraj.interdrive.behaviours import kind
 from langtraj.suites.episode import EpisodeResult
 from langtraj.suites.results import SuiteResults
 
@@ -39,7 +42,8 @@ class PlannerTally:
     failed_through_prompted: int
 
     @classmethod
-    def of(cls, planner: str, results: Sequence[EpisodeResult]) -> PlannerTally:
+    def of(cls, planner: str, results: Sequence[EpisodeResult], staged: set[int]) -> PlannerTally:
+        """The tally of `results`, failing "through the prompted agent" by a collision with one of `staged`."""
         happened = [r for r in results if r.status in ("pass", "fail")]
         failed = [r for r in happened if r.status == "fail"]
         return cls(
@@ -48,24 +52,32 @@ class PlannerTally:
             len(happened),
             sum(r.status == "pass" for r in happened),
             len(failed),
-            sum(bool(_prompted(r) & set(r.figures.get("collided_with") or ())) for r in failed),
+            sum(bool(staged & set(r.figures.get("collided_with") or ())) for r in failed),
         )
 
     def to_json(self) -> dict[str, Any]:
         return dict(vars(self))
 
 
-def _prompted(result: EpisodeResult) -> set[int]:
-    """The agents an episode's prompts name (other than the ego)."""
-    named = {p.get(k) for p in result.prompts for k in ("agent", "other")}
-    return {int(a) for a in named if a is not None and a != result.ego}
+def _staged(case: Case, results: Sequence[EpisodeResult]) -> set[int]:
+    """The agents a case puts in the ego's path: those a prompt asks a behaviour that ends in the other's path
+    (`BehaviourKind.in_path`: a cut-in, a braking lead, ...) toward the ego, and the case's adversary driven at the
+    ego by collision guidance."""
+    staged = {int(case.adversary)} if case.adversary is not None and case.target in ("ego", None) else set()
+    for result in results:
+        for prompt in result.prompts:
+            behaviour, agent = prompt.get("behaviour"), prompt.get("agent")
+            toward_ego = prompt.get("other") in (None, result.ego)
+            if behaviour in KINDS.names() and kind(behaviour).in_path and agent is not None and toward_ego:
+                staged.add(int(agent))
+    return staged
 
 
 @dataclass(frozen=True)
 class CaseCalibration:
     """One case under the three planners: each planner's tally, whether the case separates the careful planner from
-    the careless one (`separates`: None for a case that stages nothing, no prompt naming an agent), and one line
-    saying why not."""
+    the careless one (`separates`: None for a case that puts no agent in the ego's path), and one line saying why
+    not."""
 
     case: str
     tallies: tuple[PlannerTally, ...]
@@ -84,15 +96,16 @@ class CaseCalibration:
 def calibrate(runs: Mapping[str, SuiteResults]) -> list[CaseCalibration]:
     """Each case of the suite the `runs` (planner name -> its results) ran: it separates when its scenario happened in
     every episode under every planner, the cautious planner passed every one and the careless one failed every one
-    through an agent a prompt names."""
+    through the agent the case puts in the ego's path (`_staged`)."""
     first = next(iter(runs.values()))
     out = []
     for case in first.suite.cases:
-        tallies = tuple(PlannerTally.of(p, r.of_case(case.name)) for p, r in runs.items())
+        staged = _staged(case, [e for r in runs.values() for e in r.of_case(case.name)])
+        tallies = tuple(PlannerTally.of(p, r.of_case(case.name), staged) for p, r in runs.items())
         by = {t.planner: t for t in tallies}
-        staged = any(_prompted(e) for r in runs.values() for e in r.of_case(case.name))
         if not staged:
-            out.append(CaseCalibration(case.name, tallies, None, "no prompt names an agent: nothing to separate"))
+            why = "puts no agent in the ego's path (no adversary, no cut-in, braking lead, ...): nothing to separate"
+            out.append(CaseCalibration(case.name, tallies, None, why))
             continue
         why = [
             f"did not happen in {t.episodes - t.happened} of {t.episodes} under {t.planner}"

@@ -142,6 +142,9 @@ class BehaviourKind(ABC):
     then: ClassVar[tuple[str, ...]] = ()
     """Kinds that may follow it in one clause, steered and judged after it ("turns left and then stops")."""
     parameters: ClassVar[tuple[Parameter, ...]] = ()
+    in_path: ClassVar[bool] = False
+    """Whether the agent ends in the other agent's path (a cut-in, a braking lead, a pull-out, a red-light run): a
+    planner driving the other that ignores it should hit it (`suites.calibration`)."""
     pair_runs: ClassVar[PairRuns | None] = None
     """The interaction detector's rule for one ordered pair judging a pair behaviour in a candidate's future
     (`sim.adherence`): the runs of its interaction type, or of its own subtype where the spec is `exact`."""

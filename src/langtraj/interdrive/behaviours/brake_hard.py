@@ -113,6 +113,7 @@ class BrakeHard(BehaviourKind):
     words = tuple(_BRAKE_HARD)
     word_rank = 13
     subsumes = ("stop", "slow_down")
+    in_path = True
     parameters = (DECELERATION,)
     pair_runs = staticmethod(braking_lead_runs)
 

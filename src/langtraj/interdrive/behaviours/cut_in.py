@@ -114,6 +114,7 @@ class CutIn(BehaviourKind):
     words = tuple(_CUT_IN)
     word_rank = 12
     subsumes = CHANGE_AND_SPEED
+    in_path = True
     parameters = (GAP,)
     pair_runs = staticmethod(cut_in_runs)
 

@@ -175,6 +175,7 @@ class OvertakeCutIn(BehaviourKind):
     words = tuple(_OVERTAKE_CUT_IN)
     word_rank = 11
     subsumes = ("cut_in", "go_first", *CHANGE_AND_SPEED)
+    in_path = True
     parameters = (GAP,)
     pair_runs = staticmethod(overtake_cut_in_runs)
 

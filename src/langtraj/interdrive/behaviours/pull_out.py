@@ -213,6 +213,7 @@ class PullOut(BehaviourKind):
     words = tuple(_PULL_OUT)
     word_rank = 16
     subsumes = ("go_first", "speed_up", "turn_left", "turn_right")
+    in_path = True
     pair_runs = staticmethod(pull_out_runs)
 
     def target(

@@ -130,6 +130,7 @@ class RunRedLight(BehaviourKind):
     words = tuple(_RUN_RED_LIGHT)
     word_rank = 15
     subsumes = ("go_first", "speed_up", "go_straight")
+    in_path = True
     pair_runs = staticmethod(red_light_runs)
 
     def target(
