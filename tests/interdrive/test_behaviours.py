@@ -16,7 +16,7 @@ from langtraj.guidance.costs import TargetSpeedCost
 from langtraj.guidance.route import RouteCost
 from langtraj.guidance.steering import Steering
 from langtraj.interdrive.adherence import AdherenceChecker
-from langtraj.interdrive.behaviour import BEHAVIOURS, KINDS, Behaviour, BehaviourSpec
+from langtraj.interdrive.behaviour import BEHAVIOURS, KINDS, SHIPPED, Behaviour, BehaviourSpec, names
 from langtraj.interdrive.behaviours import BehaviourKind, kind, register
 from langtraj.interdrive.behaviours.base import Steer, route, speed
 from langtraj.interdrive.judging import Judgement, Measure
@@ -28,15 +28,12 @@ from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import StateField
 from langtraj.sim.prompts import read_prompts
 
-SHIPPED = (
-    "turn_left", "turn_right", "go_straight", "lane_change_left", "lane_change_right", "stop", "speed_up", "slow_down",
-    "pull_over", "go_first", "yield", "follow", "cut_in", "overtake_cut_in", "brake_hard", "tailgate",
-    "run_red_light", "pull_out",
-)  # fmt: skip
-
 
 def test_every_shipped_behaviour_is_registered_in_the_order_alternatives_are_listed():
-    assert tuple(KINDS.names()[: len(SHIPPED)]) == SHIPPED
+    """Whichever module is imported first (a test importing `brake_hard`'s constants before anything asked the
+    registry), the alternatives are listed in the shipped order."""
+    assert set(KINDS.names()) >= set(SHIPPED)
+    assert names()[: len(SHIPPED)] == SHIPPED and tuple(BEHAVIOURS)[: len(SHIPPED)] == SHIPPED
     for name in SHIPPED:
         behaviour = kind(name)
         assert behaviour.spec.behaviour == name and behaviour.words, name

@@ -30,8 +30,22 @@ def _load_builtin() -> None:
 
 
 KINDS: Registry[Any] = Registry("behaviour", loader=_load_builtin)
-"""Every behaviour (`interdrive.behaviours.BehaviourKind` classes, registered with `behaviours.register`), in the
-order alternatives are listed: the shipped ones first, in `behaviours.builtin`'s order."""
+"""Every behaviour (`interdrive.behaviours.BehaviourKind` classes, registered with `behaviours.register`); in the
+order alternatives are listed: `names()`."""
+
+SHIPPED: tuple[str, ...] = (
+    "turn_left", "turn_right", "go_straight", "lane_change_left", "lane_change_right", "stop", "speed_up", "slow_down",
+    "pull_over", "go_first", "yield", "follow", "cut_in", "overtake_cut_in", "brake_hard", "tailgate",
+    "run_red_light", "pull_out",
+)  # fmt: skip
+"""The shipped behaviours, in the order alternatives are listed."""
+
+
+def names() -> tuple[str, ...]:
+    """Every registered behaviour in the order alternatives are listed: the shipped ones in `SHIPPED`'s order, then
+    any other in the order it registered (whichever module was imported first)."""
+    registered = KINDS.names()
+    return (*(n for n in SHIPPED if n in registered), *(n for n in registered if n not in SHIPPED))
 
 
 class _Names(type):
@@ -40,7 +54,7 @@ class _Names(type):
     _interned: dict[str, Behaviour]
 
     def __iter__(cls) -> Iterator[Behaviour]:
-        return iter([cls(name) for name in KINDS.names()])
+        return iter([cls(name) for name in names()])
 
     def __call__(cls, value: object) -> Behaviour:
         name = str(value)
@@ -91,11 +105,7 @@ class Behaviour(str, metaclass=_Names):
     PULL_OUT: ClassVar[Behaviour]
 
 
-for _name in (
-    "turn_left", "turn_right", "go_straight", "lane_change_left", "lane_change_right", "stop", "speed_up", "slow_down",
-    "pull_over", "go_first", "yield", "follow", "cut_in", "overtake_cut_in", "brake_hard", "tailgate",
-    "run_red_light", "pull_out",
-):  # fmt: skip
+for _name in SHIPPED:
     setattr(Behaviour, _name.upper(), Behaviour(_name))
 
 
@@ -168,7 +178,7 @@ class _Specs(Mapping[Behaviour, BehaviourSpec]):
     """Every registered behaviour's spec (`BehaviourKind.spec`), in the order alternatives are listed."""
 
     def __getitem__(self, behaviour: object) -> BehaviourSpec:
-        if str(behaviour) not in KINDS.names():
+        if str(behaviour) not in KINDS.names():  # membership: order does not matter
             raise KeyError(behaviour)
         return KINDS.get(str(behaviour)).spec
 

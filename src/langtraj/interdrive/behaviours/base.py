@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 from langtraj.errors import InputError
-from langtraj.interdrive.behaviour import KINDS, BehaviourSpec
+from langtraj.interdrive.behaviour import KINDS, BehaviourSpec, names
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS
 
 if TYPE_CHECKING:
@@ -200,6 +200,8 @@ _INSTANCES: dict[str, BehaviourKind] = {}
 def kind(name: str, where: str | None = None) -> BehaviourKind:
     """The behaviour called `name` (one instance per registered class); an unknown name raises InputError listing
     the known."""
+    if str(name) not in KINDS.names():
+        raise InputError(f"unknown behaviour {str(name)!r}; known: {', '.join(names())}", where=where)
     cls = KINDS.get(str(name), where)
     found = _INSTANCES.get(str(name))
     if type(found) is not cls:
@@ -208,7 +210,5 @@ def kind(name: str, where: str | None = None) -> BehaviourKind:
 
 
 def register(cls: type[BehaviourKind]) -> type[BehaviourKind]:
-    """Class decorator adding a behaviour to `KINDS` (after the shipped ones have registered, so the order of
-    alternatives stays theirs first)."""
-    KINDS.names()
+    """Class decorator adding a behaviour to `KINDS` (listed after the shipped ones: `behaviour.names`)."""
     return KINDS.register(cls)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
-from langtraj.interdrive.behaviour import Behaviour
+from langtraj.interdrive.behaviour import Behaviour, names
 from langtraj.interdrive.reader.words import OBJ, OTHER, PLACEHOLDER, SLOT, verb
 
 __all__ = ["CONTRAST", "NEGATION", "OBJ", "OTHER", "PASSIVE", "PLACEHOLDER", "SLOT", "Rule", "tables", "verb"]
@@ -44,9 +44,7 @@ def _tables(
 
 def tables() -> tuple[tuple[Rule, ...], dict[Behaviour, frozenset[Behaviour]], dict[Behaviour, frozenset[Behaviour]]]:
     """`RULES`, `SUBSUMES` and `THEN_KINDS` as the registry holds now (a behaviour registered later joins them)."""
-    from langtraj.interdrive.behaviours import KINDS
-
-    return _tables(KINDS.names())
+    return _tables(names())
 
 
 def __getattr__(name: str) -> Any:
