@@ -14,7 +14,7 @@ from scenario_builders import two_lane_road
 
 from langtraj.suites import RunOptions, load_suite, run_suite
 from langtraj.suites.episode import EpisodeResult
-from langtraj.suites.happened import judge_prompts, not_happened
+from langtraj.suites.happened import PromptVerdict, judge_prompts, not_happened
 from langtraj.suites.junit import junit_tree
 from langtraj.suites.report import render_report, sweep_values
 from langtraj.suites.results import SuiteResults
@@ -147,3 +147,12 @@ def test_sweep_values_are_read_from_the_case_names():
     two = sweep_values(["a.b.g-0.5.d-1", "a.b.g-2.d-1"])
     assert two == [{"g": "0.5", "d": "1"}, {"g": "2", "d": "1"}]
     assert sweep_values(["plain", "other"]) is None
+
+
+def test_a_prompt_the_scene_ruled_out_reads_apart_from_one_not_followed():
+    verdict = PromptVerdict("@5 brakes hard in front of @1", "read as: @5 brake_hard @1", "brake_hard", 5, 1, False)
+    warning = "@5 cannot brake hard in front of @1: it is too slow to brake hard (0.0 m/s; at least 4)"
+    (ruled_out,) = not_happened([verdict], [warning, "@7 cannot turn left: no junction"])
+    assert ruled_out.startswith("scenario could not happen: '@5 brakes hard in front of @1'") and warning in ruled_out
+    (plain,) = not_happened([verdict], ["@7 cannot turn left: no junction"])
+    assert plain.startswith("scenario did not happen: ") and plain.endswith(" not followed")

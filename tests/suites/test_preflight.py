@@ -133,3 +133,11 @@ def test_a_pair_behaviour_the_scene_rules_out_is_warned_before_the_run(tmp_path,
         "case brake, prompt '@3 brakes hard in front of @ego': @3 cannot brake hard in front of @1: @1 is not "
         "behind it in its lane"
     ], warnings
+
+
+def test_a_red_light_run_in_a_scene_without_signals_is_warned_as_undecided(tmp_path, road):
+    cases = [{"name": "red", "scenario": "road.pkl", "prompts": ["@3 runs the red light across the path of @ego"]}]
+    (warning,) = check_cases(load_suite(write_suite(tmp_path, cases)))
+    assert warning.endswith(
+        "@3 cannot run the red light across the path of @1: the scene has no traffic lights (the scene cannot tell)"
+    ), warning

@@ -207,14 +207,18 @@ def _warning(reading: PromptReading, verdict: Feasibility | None, kept: Feasibil
     not allow from where they are (a turn or lane change with no lane for it, a pull-over away from the kerb lane,
     slowing down while stopped, a cut-in onto a lane not beside its own, a red-light run where no signal shows red,
     a braking lead with no follower): "@12 cannot turn left: no left turn from its lane at the next junction ...",
-    saying what is `kept` instead. Where the map cannot tell (undecided) and for a prompt not read, None. A warning
+    saying what is `kept` instead; for a pair behaviour also where the scene cannot tell ("... the scene has no
+    traffic lights (the scene cannot tell)"). Where the map cannot tell a single-agent behaviour, and for a prompt
+    not read, None. A warning
     does not stop a simulation: the model is conditioned on the prompt as typed, and a suite reports the scenario as
     not feasible rather than not followed."""
-    if verdict is None or verdict.status != "infeasible":
+    if verdict is None or verdict.status == "feasible":
         return None
     if kept is not None and kept is not verdict:
         return f"{verdict.message}; its {BEHAVIOURS[kept.behaviour].manoeuvre} is kept on its own"
-    return verdict.message
+    if verdict.status == "undecided" and BEHAVIOURS[verdict.behaviour].is_pair:  # the scene lacks what it takes
+        return f"{verdict.message} (the scene cannot tell)"
+    return verdict.message if verdict.status == "infeasible" else None
 
 
 @dataclass(frozen=True)

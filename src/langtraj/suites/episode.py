@@ -312,7 +312,7 @@ def run_episode(task: EpisodeTask, watch: Callable[[Any], None] | None = None) -
             result.traceback = traceback.format_exc()
         else:
             result.prompts = [p.to_json() for p in prompts]
-            missed = not_happened(prompts)
+            missed = not_happened(prompts, episode.prompt_warnings)
             if result.status == "pass" and missed:
                 result.status, result.reasons = "not_happened", missed
     result.prompt_warnings = episode.prompt_warnings

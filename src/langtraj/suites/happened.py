@@ -77,11 +77,19 @@ def judge_prompts(played: Scenario, texts: Sequence[str]) -> list[PromptVerdict]
     return out
 
 
-def not_happened(verdicts: Sequence[PromptVerdict]) -> list[str]:
+def not_happened(verdicts: Sequence[PromptVerdict], warnings: Sequence[str] = ()) -> list[str]:
     """One reason per prompt the played episode did not follow, with why where known (empty: the scenario happened,
-    as far as judged)."""
-    return [
-        f"scenario did not happen: {v.text!r} ({v.reading}) not followed" + (f": {v.why}" if v.why else "")
-        for v in verdicts
-        if v.followed is False
-    ]
+    as far as judged). A prompt the scene ruled out before the run (one of the simulation's `warnings` about its
+    agent: "@12 cannot ...") says so first, so that it reads apart from a model that failed."""
+    out = []
+    for v in verdicts:
+        if v.followed is not False:
+            continue
+        ruled_out = next((w for w in warnings if v.agent is not None and w.startswith(f"@{v.agent} ")), None)
+        head = (
+            f"scenario could not happen: {v.text!r} ({v.reading}): the scene ruled it out before the run ({ruled_out})"
+            if ruled_out
+            else f"scenario did not happen: {v.text!r} ({v.reading}) not followed"
+        )
+        out.append(head + (f": {v.why}" if v.why else ""))
+    return out
