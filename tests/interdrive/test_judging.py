@@ -5,7 +5,6 @@ positions alone (its own geometry, no shared helpers) that must give the same ve
 
 from __future__ import annotations
 
-import importlib
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
@@ -16,7 +15,7 @@ import pytest
 
 from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import KINDS
-from langtraj.interdrive.behaviours import BehaviourKind, kind
+from langtraj.interdrive.behaviours import kind
 from langtraj.interdrive.judging import Measure
 from langtraj.interdrive.judging.base import boxes_overlap
 from langtraj.scenario import Agents, AgentType, RoadMap, Scenario, TrafficLights
@@ -402,13 +401,11 @@ def test_each_judge_and_the_reference_agree_on_every_constructed_episode(name):
 
 
 def test_every_behaviour_has_a_judge_and_episodes_of_each_kind():
-    judged = {name for name in KINDS.names() if type(kind(name)).judge is not BehaviourKind.judge}
+    judged = {name for name in KINDS.names() if kind(name).judged is not None}
     assert (
         judged == set(REFERENCE) == {"cut_in", "overtake_cut_in", "brake_hard", "tailgate", "pull_out", "run_red_light"}
     )
     for behaviour in judged:
-        module = importlib.import_module(f"langtraj.interdrive.judging.{behaviour}")
-        assert set(module.ASKED) == {p.name for p in kind(behaviour).parameters}, behaviour
         kinds = {c.what for c in EPISODES.values() if c.behaviour == behaviour}
         assert len(kinds) >= 5, behaviour
 

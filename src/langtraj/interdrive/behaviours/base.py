@@ -14,7 +14,7 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar, Literal
+from typing import TYPE_CHECKING, ClassVar, Literal
 
 from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import KINDS, BehaviourSpec, names
@@ -23,7 +23,7 @@ from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS
 if TYPE_CHECKING:
     from langtraj.interdrive.detector import SceneGeometry
     from langtraj.interdrive.detector.parts import Pair
-    from langtraj.interdrive.judging import Judgement
+    from langtraj.interdrive.judging import Judge, Judgement
     from langtraj.interdrive.targets.context import AgentHere, TargetContext
     from langtraj.interdrive.targets.target import BehaviourTarget
     from langtraj.scenario.model import Scenario
@@ -145,6 +145,9 @@ class BehaviourKind(ABC):
     in_path: ClassVar[bool] = False
     """Whether the agent ends in the other agent's path (a cut-in, a braking lead, a pull-out, a red-light run): a
     planner driving the other that ignores it should hit it (`suites.calibration`)."""
+    judged: ClassVar[Judge | None] = None
+    """Its judge by numbers (`interdrive.judging`: `judge(scene, agent, other, asked)`), None where the labelers'
+    facts alone judge it."""
     pair_runs: ClassVar[PairRuns | None] = None
     """The interaction detector's rule for one ordered pair judging a pair behaviour in a candidate's future
     (`sim.adherence`): the runs of its interaction type, or of its own subtype where the spec is `exact`."""
@@ -177,21 +180,18 @@ class BehaviourKind(ABC):
         relative to where it actually drives (`lead`, `avoid`) are available."""
 
     def judge(self, scene: Scenario, agent: int, other: int | None, asked: Mapping[str, float]) -> Judgement | None:
-        """The realised numbers beside the asked ones on a played scene (`interdrive.judging`); None where the
-        behaviour is judged by the labelers' facts alone."""
-        return None
-
-    def describe(self) -> dict[str, Any]:
-        """JSON-ready: the name, the template, whether it names another agent, and its parameters."""
-        return {
-            "name": self.name,
-            "template": self.spec.template,
-            "pair": self.spec.is_pair,
-            "parameters": [
-                {"name": p.name, "unit": p.unit, "default": p.default, "low": p.low, "high": p.high, "doc": p.doc}
-                for p in self.parameters
-            ],
-        }
+        """The realised numbers beside the asked ones on a played scene (`judged`); None where the behaviour is judged
+        by the labelers' facts alone. `asked` holds its parameters by name (`asked`); another name is an
+        InputError."""
+        if self.judged is None:
+            return None
+        unknown = sorted(set(asked) - {p.name for p in self.parameters})
+        if unknown:
+            known = ", ".join(p.name for p in self.parameters) or "none"
+            raise InputError(f"unknown asked values {', '.join(unknown)}; known: {known}", where="asked")
+        if other is None:
+            raise InputError(f"{self.name} is judged toward another agent", where="asked")
+        return self.judged(scene, agent, other, asked)
 
 
 _INSTANCES: dict[str, BehaviourKind] = {}

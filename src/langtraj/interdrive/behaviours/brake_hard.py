@@ -21,13 +21,12 @@ from langtraj.interdrive.behaviours.base import (
 )
 from langtraj.interdrive.behaviours.recipes import settled
 from langtraj.interdrive.detector import braking_lead_runs
-from langtraj.interdrive.judging import brake_hard as judged
-from langtraj.interdrive.judging.base import Judgement
+from langtraj.interdrive.judging import brake_hard as judged_by
 from langtraj.interdrive.reader.words import IN_FRONT, OTHER, TIGHT_GAP, verb
 from langtraj.interdrive.targets.context import AgentHere, TargetContext, pair_gap
 from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
 from langtraj.interdrive.taxonomy import InteractionType
-from langtraj.scenario.model import FUTURE_STEPS, Scenario
+from langtraj.scenario.model import FUTURE_STEPS
 
 BRAKE_HARD_DECELERATION = 4.0
 """How hard a braking lead brakes unless the prompt says (m/s^2): Euro NCAP's braking-lead tests use 2 to 6."""
@@ -115,6 +114,7 @@ class BrakeHard(BehaviourKind):
     subsumes = ("stop", "slow_down")
     in_path = True
     parameters = (DECELERATION,)
+    judged = staticmethod(judged_by.judge)
     pair_runs = staticmethod(braking_lead_runs)
 
     def target(
@@ -132,8 +132,3 @@ class BrakeHard(BehaviourKind):
             + speed(0.0, settled(target))
             + route(weight=KEEP_LANE_WEIGHT)
         )
-
-    def judge(self, scene: Scenario, agent: int, other: int | None, asked: Mapping[str, float]) -> Judgement:
-        """By its numbers (`interdrive.judging.brake_hard`; docs/testing.md, 'Judged by numbers')."""
-        assert other is not None
-        return judged.judge(scene, agent, other, asked)

@@ -10,8 +10,7 @@ from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
 from langtraj.interdrive.behaviours.base import BehaviourKind, Parameter, Steer, register, route, steps
 from langtraj.interdrive.behaviours.recipes import gap_ahead
 from langtraj.interdrive.detector import cut_in_runs
-from langtraj.interdrive.judging import cut_in as judged
-from langtraj.interdrive.judging.base import Judgement
+from langtraj.interdrive.judging import cut_in as judged_by
 from langtraj.interdrive.reader.words import OTHER, verb
 from langtraj.interdrive.targets.context import (
     GO_FIRST_ACCELERATION,
@@ -24,7 +23,6 @@ from langtraj.interdrive.targets.context import (
 )
 from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
 from langtraj.interdrive.taxonomy import InteractionType
-from langtraj.scenario.model import Scenario
 
 CUT_IN_GAP_M = 10.0
 """The gap (bumper to bumper, m) a cut-in leaves in front of the other agent unless the prompt gives one."""
@@ -116,6 +114,7 @@ class CutIn(BehaviourKind):
     subsumes = CHANGE_AND_SPEED
     in_path = True
     parameters = (GAP,)
+    judged = staticmethod(judged_by.judge)
     pair_runs = staticmethod(cut_in_runs)
 
     def target(
@@ -128,8 +127,3 @@ class CutIn(BehaviourKind):
         """The gap ahead of the other agent when the change has settled (`CUT_IN_S`) and after
         (`recipes.gap_ahead`); in the other's lane from 2 s on."""
         return gap_ahead(target, other_driven) + route(first=steps(2.0))
-
-    def judge(self, scene: Scenario, agent: int, other: int | None, asked: Mapping[str, float]) -> Judgement:
-        """By its numbers (`interdrive.judging.cut_in`; docs/testing.md, 'Judged by numbers')."""
-        assert other is not None
-        return judged.judge(scene, agent, other, asked)

@@ -14,8 +14,7 @@ from langtraj.interdrive.behaviours.base import BehaviourKind, Steer, register, 
 from langtraj.interdrive.behaviours.cut_in import CHANGE_AND_SPEED, CUT_IN_VERBS, CUT_MANNER, CUTS_IN, GAP, JUST_AHEAD
 from langtraj.interdrive.behaviours.recipes import gap_ahead, settled
 from langtraj.interdrive.detector import overtake_cut_in_runs
-from langtraj.interdrive.judging import overtake_cut_in as judged
-from langtraj.interdrive.judging.base import Judgement
+from langtraj.interdrive.judging import overtake_cut_in as judged_by
 from langtraj.interdrive.reader.words import OTHER, verb
 from langtraj.interdrive.targets.context import (
     FOLLOWER_RANGE_M,
@@ -32,7 +31,7 @@ from langtraj.interdrive.taxonomy import InteractionType
 from langtraj.polylines import resample
 from langtraj.roads.routes import ROUTE_SPACING
 from langtraj.roads.routes import route as lane_route
-from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
+from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS
 
 OVERTAKE_GAIN = 4.0
 """How much faster than the other agent an overtake passes it (m/s), unless the agent is faster already."""
@@ -177,6 +176,7 @@ class OvertakeCutIn(BehaviourKind):
     subsumes = ("cut_in", "go_first", *CHANGE_AND_SPEED)
     in_path = True
     parameters = (GAP,)
+    judged = staticmethod(judged_by.judge)
     pair_runs = staticmethod(overtake_cut_in_runs)
 
     def target(
@@ -195,8 +195,3 @@ class OvertakeCutIn(BehaviourKind):
             + route()
             + gap_ahead(target, other_driven)
         )
-
-    def judge(self, scene: Scenario, agent: int, other: int | None, asked: Mapping[str, float]) -> Judgement:
-        """By its numbers (`interdrive.judging.overtake_cut_in`; docs/testing.md, 'Judged by numbers')."""
-        assert other is not None
-        return judged.judge(scene, agent, other, asked)

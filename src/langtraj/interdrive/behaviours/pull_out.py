@@ -25,8 +25,7 @@ from langtraj.interdrive.behaviours.base import (
 )
 from langtraj.interdrive.behaviours.recipes import settled
 from langtraj.interdrive.detector import pull_out_runs
-from langtraj.interdrive.judging import pull_out as judged
-from langtraj.interdrive.judging.base import Judgement
+from langtraj.interdrive.judging import pull_out as judged_by
 from langtraj.interdrive.reader.words import IN_FRONT, OTHER, TIGHT_GAP, verb
 from langtraj.interdrive.targets.context import (
     HORIZON_S,
@@ -40,7 +39,7 @@ from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailabl
 from langtraj.interdrive.taxonomy import InteractionType
 from langtraj.polylines import arc_lengths, point_at, project_on_polyline, resample
 from langtraj.roads.routes import ROUTE_SPACING
-from langtraj.scenario.model import FUTURE_STEPS, Scenario
+from langtraj.scenario.model import FUTURE_STEPS
 from langtraj.scenario.types import AgentType
 
 PULL_OUT_MAX_SPEED = JUDGE.pull_out_speed
@@ -214,6 +213,7 @@ class PullOut(BehaviourKind):
     word_rank = 16
     subsumes = ("go_first", "speed_up", "turn_left", "turn_right")
     in_path = True
+    judged = staticmethod(judged_by.judge)
     pair_runs = staticmethod(pull_out_runs)
 
     def target(
@@ -237,8 +237,3 @@ class PullOut(BehaviourKind):
         if t.lead_m is not None:
             terms += lead(t.lead_m, "reach", when, FUTURE_STEPS, REACH_WEIGHT)
         return terms
-
-    def judge(self, scene: Scenario, agent: int, other: int | None, asked: Mapping[str, float]) -> Judgement:
-        """By its numbers (`interdrive.judging.pull_out`; docs/testing.md, 'Judged by numbers')."""
-        assert other is not None
-        return judged.judge(scene, agent, other, asked)

@@ -12,8 +12,7 @@ from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
 from langtraj.interdrive.behaviours.base import ROUTE_WEIGHT, BehaviourKind, Steer, register, speed, steps
 from langtraj.interdrive.behaviours.go_first import go_first_terms
 from langtraj.interdrive.detector import red_light_runs
-from langtraj.interdrive.judging import run_red_light as judged
-from langtraj.interdrive.judging.base import Judgement
+from langtraj.interdrive.judging import run_red_light as judged_by
 from langtraj.interdrive.reader.words import OTHER, TIGHT_GAP, verb
 from langtraj.interdrive.targets.context import (
     NOT_GO_STATES,
@@ -28,7 +27,7 @@ from langtraj.interdrive.targets.context import (
 from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
 from langtraj.interdrive.taxonomy import InteractionType
 from langtraj.polylines import arc_lengths, project_on_polyline
-from langtraj.scenario.model import FUTURE_STEPS, Scenario
+from langtraj.scenario.model import FUTURE_STEPS
 from langtraj.scenario.types import RED_STATES
 
 RED_LIGHT_SPEED = 8.0
@@ -131,6 +130,7 @@ class RunRedLight(BehaviourKind):
     word_rank = 15
     subsumes = ("go_first", "speed_up", "go_straight")
     in_path = True
+    judged = staticmethod(judged_by.judge)
     pair_runs = staticmethod(red_light_runs)
 
     def target(
@@ -145,8 +145,3 @@ class RunRedLight(BehaviourKind):
         at red lights, is held to it."""
         by = int(np.clip(steps((target.other_eta or 0.0) - 1.0), 10, FUTURE_STEPS))
         return go_first_terms(target, RED_LIGHT_ROUTE_WEIGHT) + speed(float(target.speed or 0.0), steps(1.0), by)
-
-    def judge(self, scene: Scenario, agent: int, other: int | None, asked: Mapping[str, float]) -> Judgement:
-        """By its numbers (`interdrive.judging.run_red_light`; docs/testing.md, 'Judged by numbers')."""
-        assert other is not None
-        return judged.judge(scene, agent, other, asked)

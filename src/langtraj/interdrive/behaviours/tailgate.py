@@ -10,13 +10,11 @@ from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
 from langtraj.interdrive.behaviours.base import BehaviourKind, Steer, register, route
 from langtraj.interdrive.behaviours.recipes import at_station_then_speed
 from langtraj.interdrive.detector import tailgating_runs
-from langtraj.interdrive.judging import tailgate as judged
-from langtraj.interdrive.judging.base import Judgement
+from langtraj.interdrive.judging import tailgate as judged_by
 from langtraj.interdrive.reader.words import OTHER, verb
 from langtraj.interdrive.targets.context import AgentHere, TargetContext, pair_gap
 from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
 from langtraj.interdrive.taxonomy import InteractionType
-from langtraj.scenario.model import Scenario
 
 TAILGATE_HEADWAY_S = 0.4
 """The time gap a tailgater closes to (s): under the judge's 0.6 s (`DetectorConfig.tailgating_headway_s`)."""
@@ -86,6 +84,7 @@ class Tailgate(BehaviourKind):
     words = tuple(_TAILGATE)
     word_rank = 14
     subsumes = ("follow", "speed_up", "slow_down")
+    judged = staticmethod(judged_by.judge)
     pair_runs = staticmethod(tailgating_runs)
 
     def target(
@@ -98,8 +97,3 @@ class Tailgate(BehaviourKind):
         """At the station that closes the gap behind the other agent when the target says, not past it before; at
         the other's speed after; in its lane throughout."""
         return at_station_then_speed(target) + route()
-
-    def judge(self, scene: Scenario, agent: int, other: int | None, asked: Mapping[str, float]) -> Judgement:
-        """By its numbers (`interdrive.judging.tailgate`; docs/testing.md, 'Judged by numbers')."""
-        assert other is not None
-        return judged.judge(scene, agent, other, asked)

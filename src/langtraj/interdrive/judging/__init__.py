@@ -4,9 +4,9 @@ before any contact between the two agents; each returns the realised values besi
 (docs/testing.md, 'Judged by numbers').
 
 One module per behaviour (`cut_in`, `overtake_cut_in`, `brake_hard`, `tailgate`, `pull_out`, `run_red_light`), each
-a `judge(scene, agent, other, asked) -> Judgement` (track ids; `asked`: the behaviour's parameters by name, its
-`ASKED`), which the behaviour's module declares as its judge (`BehaviourKind.judge`); `base` holds the records and
-the shared geometry.
+a `judge(scene, agent, other, asked) -> Judgement` (track ids; `asked`: the behaviour's parameters by name,
+checked by `BehaviourKind.judge`), which the behaviour's module declares as its judge (`BehaviourKind.judged`);
+`base` holds the records and the shared geometry.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ steps do.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -148,14 +148,6 @@ def cut_short(contact_step: int) -> str:
     return f"cut short by a contact at {at(contact_step)}"
 
 
-def check_asked(asked: Mapping[str, float], known: Sequence[str]) -> None:
-    """Raise InputError naming every asked value a judge does not know (not in `known`)."""
-    unknown = sorted(str(k) for k in asked if k not in known)
-    if unknown:
-        knows = ", ".join(known) if known else "none"
-        raise InputError(f"unknown asked values {', '.join(unknown)}; known: {knows}", where="asked")
-
-
 def asked_value(asked: Mapping[str, float], key: str) -> float:
     """`asked[key]`, a finite number >= 0 (the behaviour's parameter, its default where the prompt gives none:
     `BehaviourKind.asked`); a missing or bad one is an InputError naming the key."""
@@ -165,13 +157,6 @@ def asked_value(asked: Mapping[str, float], key: str) -> float:
     if not math.isfinite(value) or value < 0:
         raise InputError(f"must be a finite number >= 0, got {value}", where=f"asked.{key}")
     return value
-
-
-def true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """The runs [start, end) of True in a bool [n] array, in order."""
-    padded = np.concatenate([[False], np.asarray(mask, bool), [False]])
-    edges = np.flatnonzero(np.diff(padded.astype(np.int8)))
-    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
 def smoothed(values: np.ndarray, width: int = SMOOTH_STEPS) -> np.ndarray:

@@ -23,16 +23,14 @@ from langtraj.interdrive.judging.base import (
     PairView,
     asked_value,
     at,
-    check_asked,
     cut_short,
     decelerations,
     not_seen,
     pair_view,
-    true_runs,
 )
+from langtraj.runs import true_runs
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 
-ASKED = ("deceleration",)
 """What a prompt may ask of a braking lead: `deceleration` in m/s^2 ("at 6 m/s^2", "at 0.5 g")."""
 DECELERATION_TOLERANCE = 1.5
 """The least tolerance of the peak deceleration either side (m/s^2): positions at 10 Hz read over 0.5 s give the
@@ -75,7 +73,6 @@ def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -
     """Whether track `agent` braked hard in front of track `other` in the played `scene` at the deceleration `asked`
     ("deceleration", m/s^2; the behaviour's default when the prompt gives none), within `deceleration_tolerance`,
     staying in the other's path while braking, before any contact between the two."""
-    check_asked(asked, ASKED)
     wanted = asked_value(asked, "deceleration")
     tolerance = deceleration_tolerance(wanted)
     view = pair_view(scene, agent, other)

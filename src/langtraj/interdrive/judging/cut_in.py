@@ -20,15 +20,13 @@ from langtraj.interdrive.judging.base import (
     PairView,
     asked_value,
     at,
-    check_asked,
     cut_short,
     not_seen,
     pair_view,
-    true_runs,
 )
+from langtraj.runs import true_runs
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 
-ASKED = ("gap",)
 """What a prompt may ask of a cut-in: `gap`, bumper to bumper in metres ("with a 15 m gap")."""
 GAP_TOLERANCE_M = 3.0
 """The least tolerance of the gap either side (m): the gap is read at the step the agent settles, when the two still
@@ -132,7 +130,6 @@ def judge_settling(view: PairView, asked_gap: float, after: int, extra: tuple[Me
 def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -> Judgement:
     """Whether track `agent` cut in front of track `other` in the played `scene` with the gap `asked` ("gap", m;
     the behaviour's default when the prompt gives none), within `gap_tolerance`, before any contact between the two."""
-    check_asked(asked, ASKED)
     asked_gap = asked_value(asked, "gap")
     view = pair_view(scene, agent, other)
     unseen = not_seen(view)

@@ -17,7 +17,6 @@ from langtraj.interdrive.judging.base import (
     Judgement,
     Measure,
     asked_value,
-    check_asked,
     not_seen,
     pair_view,
 )
@@ -30,8 +29,6 @@ from langtraj.interdrive.judging.cut_in import (
 )
 from langtraj.scenario.model import Scenario
 
-ASKED = ("gap",)
-"""What a prompt may ask of an overtake and cut-in: `gap` once back in the lane, bumper to bumper in metres."""
 FAR_SIDE_M = SETTLED_LATERAL_M
 """How far (m) the agent's centre may go past the other's path to its far side before it settles: as far as a settled
 car may be off that path either way. Further, it crossed the other's lane: it did not pass on its own side."""
@@ -51,7 +48,6 @@ def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -
     """Whether track `agent` overtook track `other` on its own side and cut in front of it in the played `scene` with
     the gap `asked` ("gap", m; the behaviour's default when the prompt gives none), within `gap_tolerance`, before
     any contact."""
-    check_asked(asked, ASKED)
     asked_gap = asked_value(asked, "gap")
     view = pair_view(scene, agent, other)
     name = f"@{other}"

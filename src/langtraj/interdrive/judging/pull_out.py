@@ -18,16 +18,13 @@ from langtraj.interdrive.judging.base import (
     Judgement,
     Measure,
     at,
-    check_asked,
     cut_short,
     not_seen,
     pair_view,
-    true_runs,
 )
+from langtraj.runs import true_runs
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 
-ASKED = ()
-"""A prompt asks no number of a pull-out."""
 TARGET_MARGIN_S = 2.0
 """The margin a pull-out is judged against (s): the simulation sets the agent off to be on the other's way this long
 before the other gets there (the two-second rule, broken for the other)."""
@@ -61,7 +58,6 @@ def _measures(margin: float | None, speed: float | None, gap: float | None) -> t
 def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -> Judgement:
     """Whether track `agent` pulled out in front of track `other` in the played `scene` (`asked` must be empty) with a
     margin of `TARGET_MARGIN_S` within `MARGIN_TOLERANCE_S`, before any contact between the two."""
-    check_asked(asked, ASKED)
     view = pair_view(scene, agent, other)
     name, contact = f"@{other}", view.contact_step
     with np.errstate(invalid="ignore"):

@@ -21,7 +21,6 @@ from langtraj.interdrive.judging.base import (
     PairView,
     Track,
     at,
-    check_asked,
     cut_short,
     not_seen,
     pair_view,
@@ -29,8 +28,6 @@ from langtraj.interdrive.judging.base import (
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.types import RED_STATES, TrafficLightState
 
-ASKED = ()
-"""A prompt asks no number of a red-light run."""
 STOP_LINE_LATERAL_M = 2.0
 """A stop point this close (m) to the agent's heading line is on its way (the detector's `red_lateral`; lanes are
 about 3.5 m apart)."""
@@ -128,7 +125,6 @@ def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -
     """Whether track `agent` ran a red light across track `other`'s path in the played `scene` (`asked` must be
     empty): over a red stop line, then across the other's path before the other, before any contact between the
     two."""
-    check_asked(asked, ASKED)
     view = pair_view(scene, agent, other)
     name, contact = f"@{other}", view.contact_step
     crossings = stop_line_crossings(scene, view.agent)

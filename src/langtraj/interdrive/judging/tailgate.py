@@ -18,16 +18,13 @@ from langtraj.interdrive.judging.base import (
     Judgement,
     Measure,
     at,
-    check_asked,
     cut_short,
     not_seen,
     pair_view,
-    true_runs,
 )
+from langtraj.runs import true_runs
 from langtraj.scenario.model import STEP_SECONDS, Scenario
 
-ASKED = ()
-"""A prompt asks no number of a tailgater."""
 TARGET_HEADWAY_S = 0.4
 """The headway a tailgater is asked for (s): the one the simulation steers it to."""
 HEADWAY_TOLERANCE_S = 0.2
@@ -54,7 +51,6 @@ def _measures(median: float | None, under: float, shortest: float | None) -> tup
 def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -> Judgement:
     """Whether track `agent` tailgated track `other` in the played `scene` (`asked` must be empty): under 0.6 s of
     headway for a second at a median of 0.4 s within `HEADWAY_TOLERANCE_S`, before any contact between the two."""
-    check_asked(asked, ASKED)
     view = pair_view(scene, agent, other)
     name, contact = f"@{other}", view.contact_step
     speed = view.agent.speed
