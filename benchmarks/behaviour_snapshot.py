@@ -27,7 +27,13 @@ import numpy as np
 from langtraj.guidance.steering import Steering
 from langtraj.interdrive.behaviour import BEHAVIOURS
 from langtraj.interdrive.reader import read_clauses
-from langtraj.interdrive.reader.rules import RULES, SUBSUMES, THEN_KINDS
+
+try:  # the rule tables as the registry gathers them; the commit before the behaviour modules had them as constants
+    from langtraj.interdrive.reader.rules import tables
+
+    RULES, SUBSUMES, THEN_KINDS = tables()
+except ImportError:
+    from langtraj.interdrive.reader.rules import RULES, SUBSUMES, THEN_KINDS  # type: ignore[attr-defined,no-redef]
 from langtraj.interdrive.targets import behaviour_feasibility, feasibility
 from langtraj.roads import MapIndex
 from langtraj.scenario.io import read_scenarios

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from langtraj.interdrive.suggest import count_by_behaviour, suggest_stagings
+from langtraj.interdrive.suggest import DEFAULT_RADIUS_M, count_by_behaviour, suggest_stagings
 from langtraj.roads import MapIndex
 from langtraj.scenario import Agents, AgentType, LaneNeighbor, MapFeature, MapFeatureType, RoadMap, Scenario
 from langtraj.scenario.io import expand_scenario_paths, read_scenario
@@ -98,7 +98,7 @@ def _report(name: str, scenario: Scenario, repeats: int, read_s: float | None = 
     c = scenario.current_index
     ego = scenario.agents.states[scenario.sdc_index, c, :2]
     valid = scenario.agents.valid[:, c]
-    near = valid & (np.linalg.norm(scenario.agents.states[:, c, :2] - ego, axis=1) <= 80.0)
+    near = valid & (np.linalg.norm(scenario.agents.states[:, c, :2] - ego, axis=1) <= DEFAULT_RADIUS_M)
     median = statistics.median(seconds)
     read = "" if read_s is None else f", read {read_s:.2f} s"
     kinds = ", ".join(f"{k} {v}" for k, v in counts[0].items() if v) or "none"

@@ -59,6 +59,8 @@ def _verdict(s, staging: Staging, index: MapIndex):
 
 
 def _assert_feasible_and_read_back(s, stagings, index: MapIndex) -> None:
+    """Each staging is feasible when asked alone (a fresh read of the map, where the search shares one across
+    agents), reads back as staged, and the list is sorted."""
     for staging in stagings:
         assert _verdict(s, staging, index).status == "feasible", staging
         reading = read_prompt(staging.typed_prompt)

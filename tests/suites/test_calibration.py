@@ -17,7 +17,8 @@ PROMPT = [{"agent": 7, "other": 1, "behaviour": "cut_in", "followed": True}]
 
 def _episode(case: str, seed: int, status: str, hit: tuple[int, ...] = ()) -> EpisodeResult:
     prompts = [] if case == "drive" else PROMPT
-    return EpisodeResult(case, seed, status, prompts=prompts, ego=1, figures={"collided_with": list(hit)})
+    contacts = [{"step": 10, "with": 3}] + [{"step": 20 + k, "with": a} for k, a in enumerate(hit)]  # @3: a bystander
+    return EpisodeResult(case, seed, status, prompts=prompts, ego=1, figures={"collisions": contacts})
 
 
 def _runs(tmp_path, outcomes: dict[str, dict[str, list[tuple[str, tuple[int, ...]]]]]):

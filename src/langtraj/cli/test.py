@@ -74,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
     from langtraj.suites import RunOptions, load_suite, run_suite
     from langtraj.suites.calibration import CALIBRATION_PLANNERS, calibrate, summary, write_calibration
     from langtraj.suites.episode import DEFAULT_ENV, EpisodeResult
+    from langtraj.suites.preflight import check_cases
     from langtraj.suites.report import summary_line
 
     suite = load_suite(args.suite, real_data=args.real_data)
@@ -93,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
         return RunOptions(
             out=out,
             planner=planner,
-            planner_cmd=None if args.calibrate else args.planner_cmd,
+            planner_cmd=args.planner_cmd,
             workers=args.workers,
             executor=args.executor,
             video=not args.no_video,
@@ -105,10 +106,12 @@ def run(args: argparse.Namespace) -> int:
         results = run_suite(suite, options(args.out, args.planner), on_result=show, on_warning=warn)
         print(f"{summary_line(results)} -> {args.out}")
         return 0 if results.passed else 1
+    for warning in check_cases(suite, DEFAULT_ENV):  # once, for the three runs
+        warn(warning)
     runs = {}
     for planner in CALIBRATION_PLANNERS:
         print(f"== {planner}", flush=True)
-        runs[planner] = run_suite(suite, options(args.out / planner, planner), on_result=show, on_warning=warn)
+        runs[planner] = run_suite(suite, options(args.out / planner, planner), on_result=show, checked=True)
         print(f"{summary_line(runs[planner])} -> {args.out / planner}", flush=True)
     rows = calibrate(runs)
     write_calibration(args.out, rows)

@@ -24,7 +24,7 @@ from langtraj.angles import wrap_angle
 from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.behaviours import kind
-from langtraj.interdrive.targets import BehaviourTarget, CounterfactualConfig, feasibility
+from langtraj.interdrive.targets import BehaviourTarget, CounterfactualConfig, TargetContext, feasibility
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType, StateField
@@ -189,6 +189,7 @@ def suggest_stagings(
             raise InputError(f"{behaviour.value!r} is not a behaviour toward another agent", where="behaviour")
     index_ = map_index if map_index is not None else MapIndex.build(scenario.road_map)
     scene_ = _Scene.of(scenario, ego)
+    context = TargetContext(scenario, index_, config)  # each agent's lane and roads ahead found once
     found: list[Staging] = []
     for behaviour in asked:
         values = PARAMETER_VALUES.get(behaviour, ())
@@ -199,8 +200,7 @@ def suggest_stagings(
             for value in values or (None,):
                 parameters = {} if value is None else {name: value}
                 verdict = feasibility(
-                    scenario, agent, behaviour, index_, other_id=ego, config=config,
-                    gap=parameters.get("gap"), deceleration=parameters.get("deceleration"),
+                    scenario, agent, behaviour, index_, other_id=ego, context=context, **parameters
                 )  # fmt: skip
                 if verdict.status != "feasible" or verdict.target is None or not scene_.stages(row, verdict.target):
                     continue
@@ -287,7 +287,8 @@ def _change(target: BehaviourTarget, parameters: Mapping[str, float]) -> float:
     v = target.current_speed
     b = target.behaviour
     if b is Behaviour.BRAKE_HARD:
-        return float(target.deceleration or parameters.get("deceleration", kind(b).parameter("deceleration").default))
+        assert target.deceleration is not None, "a braking lead's target says how hard it brakes"
+        return float(target.deceleration)
     if b in (Behaviour.YIELD, Behaviour.GO_FIRST):
         if target.station_of_goal is None or target.other_eta is None:
             return 0.0

@@ -143,11 +143,11 @@ def _check_figures(text: str, reading: PromptReading) -> None:
 
 def _timing_problem(text: str, reading: PromptReading) -> str:
     """The one line refusing timing words the reader does not honour: every behaviour runs from the start."""
-    kind = kind_of(reading.condition)
+    timing = kind_of(reading.condition)
     where = f" (clause {reading.clause!r})" if reading.clause and reading.clause != text else ""
-    runs = "the clauses at once" if kind == "sequence" else "the behaviour at once"
+    runs = "the clauses at once" if timing == "sequence" else "the behaviour at once"
     return (
-        f"prompt {text!r}: the {kind} {reading.condition!r}{where} is not read yet: LangTraj would run {runs}; "
+        f"prompt {text!r}: the {timing} {reading.condition!r}{where} is not read yet: LangTraj would run {runs}; "
         "remove it or stage it with the scenario's start"
     )
 

@@ -43,7 +43,8 @@ class PlannerTally:
 
     @classmethod
     def of(cls, planner: str, results: Sequence[EpisodeResult], staged: set[int]) -> PlannerTally:
-        """The tally of `results`, failing "through the prompted agent" by a collision with one of `staged`."""
+        """The tally of `results`, failing "through the prompted agent" by any collision with one of `staged`
+        (`verdict.contacts`: every contact, not only the first)."""
         happened = [r for r in results if r.status in ("pass", "fail")]
         failed = [r for r in happened if r.status == "fail"]
         return cls(
@@ -52,7 +53,7 @@ class PlannerTally:
             len(happened),
             sum(r.status == "pass" for r in happened),
             len(failed),
-            sum(bool(staged & set(r.figures.get("collided_with") or ())) for r in failed),
+            sum(bool(staged & {c["with"] for c in r.figures.get("collisions") or ()}) for r in failed),
         )
 
     def to_json(self) -> dict[str, Any]:

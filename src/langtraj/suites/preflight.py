@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from langtraj.cases import EGO_PLACEHOLDER, Case
-from langtraj.errors import InputError
+from langtraj.errors import InputError, one_line
 from langtraj.registry import import_object
 from langtraj.scenario.model import Scenario
 from langtraj.suites.config import Suite
@@ -32,7 +32,7 @@ def check_cases(suite: Suite, env: str = DEFAULT_ENV) -> list[str]:
     the environment class `env` ("module:Class") would refuse at reset; scenes are read once each. Returns the
     warnings about what the cases ask that their scenes rule out ("case cut-in, prompt '@52 cuts in front of @ego':
     @52 cannot cut in front of: ..."), each once, so they are said before the run. Anything else that goes wrong here
-    is left to the episode, which reports it as LangTraj's error."""
+    is said among them and left to the episode, which reports it as LangTraj's error."""
     scenes: dict[tuple[str, int, int | None], Scenario] = {}
     check: Callable[[Case], list[str] | None] | None = lambda case: check_case(case, scenes)  # noqa: E731
     if env != DEFAULT_ENV:
@@ -45,7 +45,8 @@ def check_cases(suite: Suite, env: str = DEFAULT_ENV) -> list[str]:
             found = check(case) or []
         except InputError as exc:
             raise refused(suite, i, *_parts(exc)) from None
-        except Exception:  # not bad input: the episode reports it as LangTraj's error, with its traceback
+        except Exception as error:  # not bad input: the episode reports it as LangTraj's error, with its traceback
+            warnings.append(f"case {case.name} not checked before the run: LangTraj raised {one_line(error)}")
             continue
         warnings += [w for w in found if w not in warnings]
     return warnings

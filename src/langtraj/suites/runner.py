@@ -101,13 +101,15 @@ def run_suite(
     options: RunOptions,
     on_result: Callable[[EpisodeResult], None] | None = None,
     on_warning: Callable[[str], None] | None = None,
+    checked: bool = False,
 ) -> SuiteResults:
     """Run every episode of `suite`; `on_result` is called with each as it finishes, `on_warning` before any runs with
     each thing a case asks that its scene rules out (`preflight.check_cases`). Returns the results (also in
     `options.out`: results.json, report.md, junit.xml, videos/). Raises InputError for bad input: before anything is
-    written, or after the reports when the env refused a case at reset."""
+    written, or after the reports when the env refused a case at reset. `checked`: the caller has run
+    `preflight.check_cases` on the suite already (one suite under several planners)."""
     check_run(options)
-    for warning in check_cases(suite, options.env):
+    for warning in [] if checked else check_cases(suite, options.env):
         if on_warning is not None:
             on_warning(warning)
     out = Path(options.out)

@@ -72,7 +72,7 @@ class PromptReading:
     simulation steers by where the map gives `behaviour` no target (`sim.prompts`)."""
     then: Behaviour | None = None
     """A kind asked after `behaviour` is done ("turns left and then stops": stop), steered and judged with it (a
-    turn or a lane change, then a stop: `THEN_KINDS`)."""
+    turn or a lane change, then a stop: `rules.tables()`)."""
     clause: str = ""
     """The part of the typed prompt read (`clauses.read_clauses`; the whole text for a prompt of one clause)."""
     metres: float | None = None
@@ -383,7 +383,7 @@ def _read(text: str, norm: _Text, candidates: Sequence[_Match]) -> PromptReading
 def _sequence(
     text: str, norm: _Text, kinds: set[Behaviour], matches: Sequence[_Match], agent: int | None
 ) -> PromptReading:
-    """Two kinds asked of one agent: a manoeuvre and then what follows it (`THEN_KINDS`: "turns left and then
+    """Two kinds asked of one agent: a manoeuvre and then what follows it (`rules.tables()`: "turns left and then
     stops"), in that order; anything else is not read, saying what is."""
     named = ", ".join(b.value for b in Behaviour if b in kinds)
     then_kinds = tables()[2]

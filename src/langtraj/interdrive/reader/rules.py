@@ -1,6 +1,6 @@
-"""The prompt reader's rules: the rule table (`RULES`, every behaviour's phrases, `BehaviourKind.words`, in their
-`word_rank` order), the kinds one kind subsumes (`SUBSUMES`) and those that may follow it in one clause
-(`THEN_KINDS`), all gathered from the behaviours' registry (`interdrive.behaviours.KINDS`) when first asked; and the
+"""The prompt reader's rules: the rule table (every behaviour's phrases, `BehaviourKind.words`, in their
+`word_rank` order), the kinds one kind subsumes and those that may follow it in one clause (`tables()`), gathered
+from the behaviours' registry (`interdrive.behaviours.KINDS`) when asked; and the
 negation, 'instead of' and passive patterns that stop a reading. The word classes are `words.py`'s.
 
 See docs/interdrive.md ('Reading a prompt').
@@ -11,7 +11,6 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from functools import cache
-from typing import Any
 
 from langtraj.interdrive.behaviour import Behaviour, names
 from langtraj.interdrive.reader.words import OBJ, OTHER, PLACEHOLDER, SLOT, verb
@@ -31,7 +30,8 @@ class Rule:
 def _tables(
     names: tuple[str, ...],
 ) -> tuple[tuple[Rule, ...], dict[Behaviour, frozenset[Behaviour]], dict[Behaviour, frozenset[Behaviour]]]:
-    """The rule table, `SUBSUMES` and `THEN_KINDS` of the behaviours `names` (the registry's, in its order)."""
+    """The rule table, the kinds each subsumes and those that may follow each of the behaviours `names` (the
+    registry's, in its order)."""
     from langtraj.interdrive.behaviours import kind
 
     kinds = [kind(n) for n in names]
@@ -43,17 +43,8 @@ def _tables(
 
 
 def tables() -> tuple[tuple[Rule, ...], dict[Behaviour, frozenset[Behaviour]], dict[Behaviour, frozenset[Behaviour]]]:
-    """`RULES`, `SUBSUMES` and `THEN_KINDS` as the registry holds now (a behaviour registered later joins them)."""
+    """(rules, subsumes, then) as the registry holds now (a behaviour registered later joins them)."""
     return _tables(names())
-
-
-def __getattr__(name: str) -> Any:
-    """`RULES`, `SUBSUMES` and `THEN_KINDS`, gathered from the registry when first read (its modules import the word
-    classes of this package, so they cannot be gathered while it is imported)."""
-    at = {"RULES": 0, "SUBSUMES": 1, "THEN_KINDS": 2}
-    if name in at:
-        return tables()[at[name]]
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 NEGATION = re.compile(

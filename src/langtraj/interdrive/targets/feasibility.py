@@ -49,11 +49,14 @@ def feasibility(
     config: CounterfactualConfig | None = None,
     gap: float | None = None,
     deceleration: float | None = None,
+    context: TargetContext | None = None,
 ) -> Feasibility:
     """Whether `track_id` can do `behaviour` (toward `other_id` for a pair behaviour; a cut-in `gap` m ahead of it; a
     braking lead at `deceleration` m/s^2) at the current step: feasible with its target, or infeasible / undecided
-    with the reason the map gives no target."""
-    return _verdict(TargetContext(scenario, index, config), track_id, behaviour, other_id, gap, deceleration)
+    with the reason the map gives no target. `context`: the scene's map as read for earlier questions (its agents'
+    lanes, junctions and roads ahead, each found once), for a caller asking many."""
+    context = context if context is not None else TargetContext(scenario, index, config)
+    return _verdict(context, track_id, behaviour, other_id, gap, deceleration)
 
 
 def behaviour_feasibility(
