@@ -10,6 +10,7 @@ import pytest
 from langtraj.interdrive.adherence import lane_change_side
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.prompts.phrases import OTHER_SLOT, interaction_phrases, label_phrases, label_variants
+from langtraj.interdrive.triggers import AfterDone
 from langtraj.interdrive.reader import PromptReading, file_figures, main, read_clauses, read_prompt
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -168,7 +169,7 @@ def test_describe_to_json_and_the_words_of_the_typed_text():
     assert pair.describe() == 'read as: @12 yield @7 ("gives way to @7")'
     assert pair.to_json() == {
         "behaviour": "yield", "agent": 12, "other": 7, "words": "gives way to @7", "reason": "", "also": [],
-        "then": None, "clause": "", "metres": None, "deceleration": None, "condition": "",
+        "then": None, "clause": "", "metres": None, "deceleration": None, "condition": "", "trigger": None,
     }  # fmt: skip
     assert read_prompt("@12 hums").to_json() == {
         "behaviour": None,
@@ -182,6 +183,7 @@ def test_describe_to_json_and_the_words_of_the_typed_text():
         "metres": None,
         "deceleration": None,
         "condition": "",
+        "trigger": None,
     }
     assert read_prompt("@12 hums").describe() == (
         "not read: no behaviour phrase found; the prompt steers by text alone"
@@ -416,7 +418,8 @@ def test_timing_words_are_kept_on_the_reading_not_dropped(text, expected, condit
     reading = read_prompt(text)
     assert (reading.behaviour, reading.agent, reading.other) == expected
     assert reading.condition == condition
-    assert reading.describe().endswith(f"{condition!r} is not read (the behaviour runs at once)")
+    said = reading.describe()  # read as a start, or named as not read: never dropped
+    assert said.endswith(f"({condition!r})" if reading.trigger else f"{condition!r} is not read (the behaviour runs at once)")
     assert reading.to_json()["condition"] == condition
     assert read_clauses(text)[0].condition == condition
 
@@ -450,8 +453,14 @@ def test_words_a_behaviour_honours_are_no_timing(text):
 def test_a_sequence_across_agents_is_kept_on_the_later_clause(text, expected):
     readings = read_clauses(text)
     assert [(r.agent, r.behaviour, r.condition) for r in readings] == expected
-    for reading in readings:
-        assert ("the sequence" in reading.describe()) == bool(reading.condition)
+    for before, reading in zip([None, *readings], readings):
+        if not reading.condition:
+            assert "starts" not in reading.describe() and "sequence" not in reading.describe()
+        elif before is not None:  # after another agent's clause: started when its behaviour is done
+            assert reading.trigger == AfterDone(before.agent)
+            assert f"starts after @{before.agent}'s behaviour" in reading.describe()
+        else:  # after nothing this prompt asks: no start LangTraj reads, named
+            assert reading.trigger is None and "the sequence" in reading.describe()
 
 
 def test_pair_words_without_their_second_agent_and_an_overtake_alone_say_why():

@@ -47,9 +47,18 @@ class Steering:
     target: BehaviourTarget
     slot: int
     other_slot: int | None = None
+    declared: tuple[Steer, ...] | None = None
+    """The steering to apply in place of the behaviour's own (`BehaviourKind.steer`): a staged behaviour keeping
+    its place until it starts (`sim.staging`)."""
 
     @classmethod
-    def of(cls, target: BehaviourTarget, origin: Origin, slots: dict[int, int]) -> Steering:
+    def of(
+        cls,
+        target: BehaviourTarget,
+        origin: Origin,
+        slots: dict[int, int],
+        declared: tuple[Steer, ...] | None = None,
+    ) -> Steering:
         """`target` (world frame) moved into the scene frame of `origin`; `slots` maps track ids to slots."""
         moved = replace(
             target,
@@ -57,7 +66,7 @@ class Steering:
             conflict=None if target.conflict is None else points_to_frame(target.conflict, origin),
         )
         other = None if target.other_id is None else slots.get(target.other_id)
-        return cls(moved, slots[target.track_id], other)
+        return cls(moved, slots[target.track_id], other, declared)
 
     @cached_property
     def route(self) -> RoutePath:
@@ -67,7 +76,9 @@ class Steering:
     def terms(self, elapsed: int, horizon: int) -> list[GuidanceTerm]:
         """The terms for a plan of `horizon` steps made after `elapsed` simulated steps: toward the target, and
         clear of every other agent (so that a step toward the target does not drive into someone)."""
-        declared = kind(self.target.behaviour).steer(self.target, self.other_slot is not None)
+        declared = self.declared
+        if declared is None:
+            declared = tuple(kind(self.target.behaviour).steer(self.target, self.other_slot is not None))
         clock = _Clock(elapsed, horizon)
         terms = [term for steer in declared for term in self._term(steer, clock)]
         if not terms:

@@ -111,8 +111,9 @@ class CandidatePlanning:
             )
         chunk = self.rollout_batch or world.num_rollouts
         plans = [
-            self._plan_rollouts(world, state, step, list(range(lo, min(lo + chunk, world.num_rollouts))))
+            self._plan_rollouts(world, state, step, group)
             for lo in range(0, world.num_rollouts, chunk)
+            for group in state.prompt.grouped(list(range(lo, min(lo + chunk, world.num_rollouts))))
         ]
         return np.concatenate(plans, axis=0)[:, :, : max(horizon, 1)]
 
@@ -126,8 +127,12 @@ class CandidatePlanning:
         sample = scene_sample(scenario, state.data, agents=world.driven, origin=state.origin, map_arrays=map_arrays)
         if self.prompt is not None and self.request.levers.text:
             ids = sample["agent_id"][: len(world.driven)].tolist()
+            waiting = state.prompt.waiting_slots(rollout)  # a staged behaviour not started: as if unprompted
+            started = state.prompt.started_sentences(rollout)
             for slot, sentence in self.prompt.sentences(ids).items():
-                sample["text"][slot] = state.prompt.steering.sentences.get(int(ids[slot]), sentence)
+                if slot not in waiting:
+                    sentence = state.prompt.steering.sentences.get(int(ids[slot]), sentence)
+                    sample["text"][slot] = started.get(int(ids[slot]), sentence)
             sample["interaction_labelled"] = np.bool_(self.prompt.subtype is not None)
         return sample
 
@@ -142,8 +147,9 @@ class CandidatePlanning:
             drawn = torch.stack(per_rollout, dim=1).reshape(shape).to(device)
             return drawn if self.request.temperature == 1.0 else drawn * self.request.temperature
 
-        elapsed, horizon = step - world.start, self.model.horizon_steps  # what the model plans
-        steered = state.prompt.terms(elapsed, horizon)
+        horizon = self.model.horizon_steps  # what the model plans
+        state.prompt.stage(world, step, rollouts)
+        steered = state.prompt.terms(step, world.start, horizon, rollouts[0] if len(rollouts) == 1 else None)
         accel = external_acceleration(world, state.external, step, rollouts).to(device)
         prompt_terms = tuple(t for group in steered for t in group)
         terms = state.terms + prompt_terms + state.clearance

@@ -57,6 +57,7 @@ from langtraj.sim.parked import parked_in_history
 from langtraj.sim.prompt_replan import PromptReplans
 from langtraj.sim.prompts import PromptSteering, check_prompt_driven, merged_prompt, prompt_steering, read_prompts
 from langtraj.sim.selection import SELECTORS
+from langtraj.sim.staging import Stagings, keeping
 from langtraj.sim.terms import collision_terms, scene_wide_terms
 from langtraj.sim.world import SimWorld
 
@@ -425,12 +426,27 @@ class LangTrajPolicy(CandidatePlanning, Policy):
             terms=terms,
             selector=selector,
             generators=[torch.Generator().manual_seed(seed * 1_000_003 + r) for r in range(world.num_rollouts)],
-            prompt=PromptReplans(steering, judge),
+            prompt=PromptReplans(steering, judge, stagings=self._stagings(steering, origin, slots, index, world)),
             external=external,
             clearance=self.external_terms(len(world.driven), external),
             kept_on_road=None if kept_on_road is None else kept_on_road.to(device),
             held=self.held_slots(start, world, external),
         )
+
+    @staticmethod
+    def _stagings(
+        steering: PromptSteering, origin: Origin, slots: dict[int, int], index: MapIndex | None, world: SimWorld
+    ) -> Stagings | None:
+        """The behaviours that start at their trigger (`sim.staging`), or None where none does."""
+        if not steering.staged or index is None:
+            return None
+        start = world.scenario_at(0, world.start)
+        keep = {
+            k: s
+            for k, staged in enumerate(steering.staged)
+            if (s := keeping(start, staged.reading, index, origin, slots))
+        }
+        return Stagings(steering.staged, origin, slots, index, world.start, started=steering.targets, keep=keep)
 
     def held_slots(self, start: Scenario, world: SimWorld, external: tuple[int, ...]) -> tuple[int, ...]:
         """With `hold_parked`, the slots of the driven agents parked in the log (`sim.parked.parked_in_history`:
@@ -507,6 +523,8 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         out: dict[str, Any] = {"map_pieces": int(state.map_arrays[1].any(-1).sum()), "map_coverage": coverage}
         if self.prompt is not None:
             out["prompt"] = state.prompt.steering.to_json()
+            if state.prompt.stagings:
+                out["prompt"]["staged"] = state.prompt.stagings.report(world.num_rollouts)
         if self.prompt_texts:
             out["prompt_warnings"] = list(state.prompt.steering.warnings)
         return out

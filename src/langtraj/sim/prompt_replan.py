@@ -19,9 +19,12 @@ from torch import Tensor
 
 from langtraj.frames import Origin, poses_to_world
 from langtraj.guidance import GuidanceScene, GuidanceTerm
+from langtraj.guidance.steering import Steering
+from langtraj.interdrive.behaviour import BEHAVIOURS
 from langtraj.model.diffusion import Guidance
 from langtraj.sim.adherence import CandidateJudge
-from langtraj.sim.prompts import PromptSteering
+from langtraj.sim.prompts import PromptSteering, conditioning_sentence
+from langtraj.sim.staging import Stagings
 from langtraj.sim.world import SimWorld
 
 PROMPT_MAX_GRAD_NORM = 2.0
@@ -65,11 +68,49 @@ class PromptReplans:
     steering: PromptSteering = field(default_factory=PromptSteering)
     judge: CandidateJudge | None = None
     kept: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
+    stagings: Stagings | None = None
+    """The behaviours that start at their trigger and where each started per rollout (`sim.staging`); None: none."""
 
-    def terms(self, elapsed: int, horizon: int) -> list[list[GuidanceTerm]]:
-        """The guidance terms toward each target (one list per `steering.steerings`) for a replan `elapsed` simulated
-        steps after the start, over the `horizon` steps the model plans."""
-        return [s.terms(elapsed, horizon) for s in self.steering.steerings]
+    def stage(self, world: SimWorld, step: int, rollouts: list[int]) -> None:
+        """Start the staged behaviours whose trigger holds at `step` in `rollouts` (`Stagings.update`)."""
+        if self.stagings:
+            self.stagings.update(world.scenario_at, step, rollouts)
+
+    def steerings(self, rollout: int | None = None) -> list[tuple[Steering, int]]:
+        """Each steering toward a target with the step it is timed from: those anchored at the start (`start` given
+        as -1: the caller's start) and, in `rollout`, the staged ones started there (`Stagings.started_in`)."""
+        out = [(s, -1) for s in self.steering.steerings]
+        if self.stagings and rollout is not None:
+            out += [(anchor.steering, anchor.step) for _, anchor in self.stagings.started_in(rollout)]
+            out += [(keep, -1) for keep in self.stagings.keeping_in(rollout)]
+        return out
+
+    def terms(self, step: int, start: int, horizon: int, rollout: int | None = None) -> list[list[GuidanceTerm]]:
+        """The guidance terms toward each target (one list per `steerings(rollout)`) for a replan at `step` of a
+        simulation started at `start`, over the `horizon` steps the model plans: timed from the start, or from where a
+        staged behaviour started."""
+        return [s.terms(step - (start if since < 0 else since), horizon) for s, since in self.steerings(rollout)]
+
+    def grouped(self, rollouts: list[int]) -> list[list[int]]:
+        """`rollouts` in groups that share their prompts' guidance: all together, or one by one where behaviours are
+        staged (each rollout's targets are its own)."""
+        return [[r] for r in rollouts] if self.stagings else [rollouts]
+
+    def started_sentences(self, rollout: int) -> dict[int, str]:
+        """Track id -> the sentence a staged behaviour started in `rollout` conditions the model on: its kind's own
+        (`conditioning_sentence`, else the spec's), never the typed timing words, which are the staging's job."""
+        if not self.stagings:
+            return {}
+        out = {}
+        for _, anchor in self.stagings.started_in(rollout):
+            target = anchor.target
+            own = BEHAVIOURS[target.behaviour].text(target.track_id, target.other_id)
+            out[target.track_id] = conditioning_sentence(target) or own
+        return out
+
+    def waiting_slots(self, rollout: int) -> set[int]:
+        """The slots whose staged behaviour has not started in `rollout`: conditioned as if unprompted."""
+        return self.stagings.waiting_slots(rollout) if self.stagings else set()
 
     def judged_slots(self) -> list[int]:
         """The slots whose kept plan `offer_kept_plans` offers: each prompted agent, and a pair behaviour's other
@@ -130,9 +171,16 @@ class PromptReplans:
             return None
         m, r = states.shape[:2]
         plans = poses_to_world(states[:, :, : len(world.driven)].detach().double().cpu().numpy(), origin)
-        misses = torch.as_tensor(self.judge.misses(rollouts, step, plans), dtype=states.dtype)  # [K, M, R]
+        found = self.judge.misses(rollouts, step, plans)  # [K, M, R]
+        if self.stagings:  # a staged behaviour not started yet is not missed
+            for k, staged in enumerate(self.stagings.staged):
+                for column, rollout in enumerate(rollouts):
+                    if staged.ask is not None and self.stagings.is_waiting(rollout, k):
+                        found[staged.ask, :, column] = False
+        misses = torch.as_tensor(found, dtype=states.dtype)
         first = states.new_zeros(states.shape[:3])
-        by_slot = {s.slot: terms for s, terms in zip(self.steering.steerings, steered, strict=True)}
+        steerings = self.steerings(rollouts[0] if len(rollouts) == 1 else None)
+        by_slot = {s.slot: terms for (s, _), terms in zip(steerings, steered, strict=True)}
         flat = states.reshape(m * r, *states.shape[2:])
         with torch.no_grad():
             for ask, miss in zip(self.judge.asks, misses, strict=True):

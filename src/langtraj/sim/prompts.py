@@ -26,6 +26,7 @@ from langtraj.interdrive.reader import PromptReading, read_clauses
 from langtraj.interdrive.reader.alone import refusal
 from langtraj.interdrive.reader.spelling import did_you_mean
 from langtraj.interdrive.reader.timing import condition_note, kind_of
+from langtraj.interdrive.reader.when import trigger_of
 from langtraj.interdrive.targets import (
     BehaviourTarget,
     Feasibility,
@@ -38,6 +39,7 @@ from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 from langtraj.sim.adherence import Ask
 from langtraj.sim.config import PromptLevers
+from langtraj.sim.staging import Staged
 
 
 def user_prompt_entry(scenario: Scenario, text: str) -> PromptEntry:
@@ -97,14 +99,15 @@ def read_prompts(texts: Sequence[str], *, strict: bool = True) -> tuple[PromptRe
     asked: dict[int, PromptReading] = {}
     for text in texts:
         clauses = read_clauses(text)
-        for reading in clauses:
+        for i, reading in enumerate(clauses):
             if not strict:
                 continue
             problem = None if reading.read else _unread_problem(reading)
             if problem is not None:
                 raise InputError(problem, where="prompt")
-            if reading.condition:
-                raise InputError(_timing_problem(text, reading), where="prompt")
+            if reading.condition and reading.trigger is None:
+                previous = clauses[i - 1].agent if i else None
+                raise InputError(_timing_problem(text, reading, previous), where="prompt")
             _check_figures(text, reading)
             if len(clauses) > 1 and not reading.read:
                 raise InputError(
@@ -141,15 +144,17 @@ def _check_figures(text: str, reading: PromptReading) -> None:
         )
 
 
-def _timing_problem(text: str, reading: PromptReading) -> str:
-    """The one line refusing timing words the reader does not honour: every behaviour runs from the start."""
-    timing = kind_of(reading.condition)
+def _timing_problem(text: str, reading: PromptReading, previous: int | None) -> str:
+    """The one line refusing timing words that say no start LangTraj reads, after a clause asking `previous`
+    (`reader.when.trigger_of` says why)."""
     where = f" (clause {reading.clause!r})" if reading.clause and reading.clause != text else ""
-    runs = "the clauses at once" if timing == "sequence" else "the behaviour at once"
-    return (
-        f"prompt {text!r}: the {timing} {reading.condition!r}{where} is not read yet: LangTraj would run {runs}; "
-        "remove it or stage it with the scenario's start"
-    )
+    if reading.agent is None:
+        return f"prompt {text!r}{where}: the {kind_of(reading.condition)} {reading.condition!r} starts no behaviour"
+    try:
+        trigger_of(reading.condition, reading.agent, previous)
+    except ValueError as exc:
+        return f"prompt {text!r}{where}: {exc}"
+    return f"prompt {text!r}{where}: the timing {reading.condition!r} is not read"
 
 
 def _unread_problem(reading: PromptReading) -> str | None:
@@ -238,6 +243,8 @@ class PromptSteering:
     sentences: dict[int, str] = field(default_factory=dict)
     """Track id -> the sentence the model is conditioned on in place of the typed words, for a read behaviour it never
     saw in training (`conditioning_sentence`)."""
+    staged: tuple[Staged, ...] = ()
+    """The read behaviours that start at their trigger (`sim.staging`), steered from the replan where it holds."""
 
     @property
     def kerb_slots(self) -> tuple[int, ...]:
@@ -250,6 +257,7 @@ class PromptSteering:
         """Slots a prompt steers or judges (with a pair behaviour's other agent): their manoeuvre is the prompt's, which
         the hard constraints' polish leaves as the projection made it (`HardConstraints.polish`)."""
         slots = {s.slot for s in self.steerings} | {a.slot for a in self.asks} | {a.other_slot for a in self.asks}
+        slots |= {s.slot for s in self.staged}
         return tuple(sorted(slot for slot in slots if slot is not None))
 
     def to_json(self) -> dict[str, Any]:
@@ -279,7 +287,21 @@ def prompt_steering(
     steerings, asks, notes, targets, warnings = [], [], [], [], []
     sentences: dict[int, str] = {}
     asked = {r.agent for r in readings if r.read}
+    staged: list[Staged] = []
     for reading in readings:
+        if reading.trigger is not None and reading.read and reading.agent in slots:
+            if not BEHAVIOURS[reading.behaviour].is_pair:  # the map's verdict on a manoeuvre holds later too
+                verdict = _verdict(scenario, reading, index)
+                if (warning := _warning(reading, verdict, _fallback(scenario, reading, verdict, index))) is not None:
+                    warnings.append(warning)
+            staged.append(_staged(scenario, reading, slots, levers, len(asks)))
+            if levers.selection:
+                asks.append(staged[-1].ask_of)
+            notes.append(
+                f"{reading.describe()}; staged {reading.trigger.describe()}: its target from the agents' state then"
+                + (", adherence-first selection from then" if levers.selection else "")
+            )
+            continue
         verdict = _verdict(scenario, reading, index)
         steered = _fallback(scenario, reading, verdict, index)
         if (warning := _warning(reading, verdict, steered)) is not None:
@@ -329,8 +351,27 @@ def prompt_steering(
             used.append("adherence-first selection")
         notes.append(f"{reading.describe()}; steered by {', '.join(used) or 'nothing'}")
     return PromptSteering(
-        readings, tuple(steerings), tuple(asks), tuple(notes), tuple(targets), tuple(warnings), sentences
+        readings, tuple(steerings), tuple(asks), tuple(notes), tuple(targets), tuple(warnings), sentences, tuple(staged)
     )
+
+
+def _staged(scenario: Scenario, reading: PromptReading, slots: dict[int, int], levers: PromptLevers, at: int) -> Staged:
+    """A read behaviour that starts at its trigger (`sim.staging`): its ask (index `at`) judged from then."""
+    assert reading.trigger is not None and reading.agent is not None and reading.behaviour is not None
+    for track in reading.trigger.agents:
+        scenario.agents.index_of(track)  # an unknown agent in the timing words is bad input, named
+    other_row = None if reading.other is None else scenario.agents.index_of(reading.other)
+    ask = Ask(
+        reading.agent,
+        scenario.agents.index_of(reading.agent),
+        slots[reading.agent],
+        reading.behaviour,
+        reading.other,
+        other_row,
+        None if reading.other is None else slots.get(reading.other),
+        then=reading.then,
+    )
+    return Staged(reading, reading.trigger, slots[reading.agent], at if levers.selection else None, ask)
 
 
 def conditioning_sentence(target: BehaviourTarget) -> str | None:

@@ -30,6 +30,7 @@ from langtraj.cases import Case
 from langtraj.env.spaces import ActionError, checked_action
 from langtraj.errors import InputError, one_line
 from langtraj.registry import import_object
+from langtraj.sim.staging import starts_of
 from langtraj.suites.deadline import StepTimeout, deadline
 from langtraj.suites.happened import PromptVerdict, judge_prompts, not_happened
 from langtraj.suites.traffic import ego_failures, follows_traffic_fault, traffic_faults
@@ -229,7 +230,7 @@ class _Episode:
         """Each prompt judged on the episode as played (none before the first step)."""
         if self.env is None or not self.record.steps or not self.prompts:
             return []
-        return judge_prompts(self.env.played(), self.prompts)
+        return judge_prompts(self.env.played(), self.prompts, starts_of(self.env.simulation_report()))
 
     def judge_traffic(self, result: EpisodeResult) -> None:
         """Record the other agents' collisions and off-road in `result`, and flag an ego failure that follows one

@@ -8,12 +8,12 @@ suites' and 'Judged by numbers')."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from langtraj.interdrive.adherence import AdherenceChecker
-from langtraj.interdrive.behaviours.verdict import judge_reading
+from langtraj.interdrive.behaviours.verdict import Start, judge_reading
 from langtraj.interdrive.judging import Measure
 from langtraj.scenario.model import Scenario
 from langtraj.sim.prompts import read_prompts
@@ -50,10 +50,14 @@ class PromptVerdict:
         }
 
 
-def judge_prompts(played: Scenario, texts: Sequence[str]) -> list[PromptVerdict]:
+def judge_prompts(
+    played: Scenario, texts: Sequence[str], starts: Mapping[int, Start] | None = None
+) -> list[PromptVerdict]:
     """Each clause of `texts` (the prompts as the env ran them, `@ego` replaced) judged on `played` (the history and
-    the simulated steps: `LangTrajEnv.played()`) by the one verdict (`behaviours.verdict.judge_reading`); the
-    labelers run once, and only when some clause can be judged."""
+    the simulated steps: `LangTrajEnv.played()`) by the one verdict (`behaviours.verdict.judge_reading`), a staged
+    clause from when it started (`starts`, by agent: `sim.staging.starts_of`); the labelers run once, and only when
+    some clause can be judged."""
+    starts = starts or {}
     read = [(text, reading) for text in texts for reading in read_prompts([text], strict=False)]
     present = {int(i) for i in played.agents.ids}
     found = frozenset()
@@ -61,7 +65,8 @@ def judge_prompts(played: Scenario, texts: Sequence[str]) -> list[PromptVerdict]
         found = AdherenceChecker.build(played, logged=False).facts(played)
     out = []
     for text, reading in read:
-        verdict = judge_reading(reading, played, found)
+        start = starts.get(reading.agent) if reading.agent is not None else None
+        verdict = judge_reading(reading, played, found, start)
         out.append(
             PromptVerdict(
                 text=text,

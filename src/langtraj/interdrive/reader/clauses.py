@@ -12,10 +12,12 @@ See docs/interdrive.md ('Reading a prompt').
 from __future__ import annotations
 
 import re
+from contextlib import suppress
 from dataclasses import replace
 
 from langtraj.interdrive.reader.read import PromptReading, read_prompt
 from langtraj.interdrive.reader.timing import SEQUENCE, joined, leading_sequence
+from langtraj.interdrive.reader.when import trigger_of
 
 _MENTION = r"@\d+(?!\w)"
 _SUBJECTS = rf"{_MENTION}(?:\s*(?:,|and|&)?\s*{_MENTION})*"
@@ -36,6 +38,21 @@ _ENDS_WITH_MENTION = re.compile(rf"{_MENTION}\s*$")
 _COORDINATED = re.compile(
     rf"^\s*(?:both\s+|all\s+of\s+|all\s+)?(?P<subjects>{_SUBJECTS})\s+(?P<rest>\S.*)$", re.IGNORECASE | re.DOTALL
 )
+
+
+_LEADING_CONDITION = re.compile(
+    r"^\s*(?P<when>(?:when|whenever|once|as\s+soon\s+as|the\s+moment|the\s+instant|after(?!\s+(?:that|this)\b)|if)"
+    rf"\b[^,;]*?{_MENTION}[^,;]*?)\s*,\s*(?P<rest>{_MENTION}.*)$",
+    re.IGNORECASE | re.DOTALL,
+)
+
+
+def leading_condition(part: str) -> tuple[str, str]:
+    """A part's leading condition clause and the rest ("When @1 is within 20 m of @7, @7 brakes hard": the "When ..."
+    clause and "@7 brakes hard"), read apart so that the condition's mentions are not taken for the subject; ("",
+    part) when it has none."""
+    found = _LEADING_CONDITION.match(part)
+    return ("", part) if found is None else (found.group("when").strip(), found.group("rest"))
 
 
 def clauses(text: str) -> list[str]:
@@ -93,8 +110,15 @@ def read_clauses(text: str) -> tuple[PromptReading, ...]:
         parts = [(leading_sequence(text), text)]
     readings: list[PromptReading] = []
     for lead, part in parts:
-        reading = replace(read_prompt(part), clause=part)
-        if lead and (not readings or reading.agent != readings[-1].agent):  # after another agent's clause
+        when, rest = leading_condition(part)
+        reading = replace(read_prompt(rest), clause=part)
+        if when:
+            reading = replace(reading, condition=joined(when, reading.condition))
+        previous = readings[-1].agent if readings else None
+        if lead and (not readings or reading.agent != previous):  # after another agent's clause
             reading = replace(reading, condition=joined(lead, reading.condition))
+        if reading.condition and reading.agent is not None:
+            with suppress(ValueError):  # a start LangTraj does not read: a strict reading refuses it (`trigger_of`)
+                reading = replace(reading, trigger=trigger_of(reading.condition, reading.agent, previous))
         readings.append(reading)
     return tuple(readings)

@@ -10,6 +10,7 @@ See docs/interdrive.md ('Reading a prompt').
 from __future__ import annotations
 
 import re
+from contextlib import suppress
 from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass, replace
 
@@ -28,7 +29,9 @@ from langtraj.interdrive.reader.rules import (
     verb,
 )
 from langtraj.interdrive.reader.timing import condition_note, timing_spans
+from langtraj.interdrive.reader.when import trigger_of
 from langtraj.interdrive.taxonomy import SUBTYPES_BY_ID
+from langtraj.interdrive.triggers import Trigger
 
 # ---------------------------------------------------------------------------------------------- clauses and subjects
 
@@ -81,8 +84,11 @@ class PromptReading:
     """A deceleration the text gives in m/s^2 ("at 6 m/s^2", "at 0.5 g"): how hard a braking lead brakes (None:
     none given)."""
     condition: str = ""
-    """Timing words the reading does not honour, as typed (`timing.py`: "after 2 seconds", "when @1 is 20 m behind",
-    "then" before another agent's clause; several joined by " ... "); empty when none. A strict reading refuses them."""
+    """Timing words, as typed (`timing.py`: "after 2 seconds", "when @1 is 20 m behind", "then" before another agent's
+    clause; several joined by " ... "); empty when none."""
+    trigger: Trigger | None = None
+    """When the behaviour starts, as its `condition` says (`when.trigger_of`); None when it starts at once, or when
+    the condition says no start LangTraj reads (a strict reading refuses it: `when.trigger_of` says why)."""
 
     @property
     def read(self) -> bool:
@@ -137,6 +143,8 @@ class PromptReading:
             unused = self.unused_figures()
             if unused:
                 line += f"; {', '.join(repr(u) for u in unused)} not read: {self.behaviour.value} takes no such figure"
+        if self.trigger is not None:
+            return f"{line}; starts {self.trigger.describe()} ({self.condition!r})"
         return f"{line}; {condition_note(self.condition)}" if self.condition else line
 
     def figures(self) -> dict[str, float | None]:
@@ -171,6 +179,7 @@ class PromptReading:
             "metres": self.metres,
             "deceleration": self.deceleration,
             "condition": self.condition,
+            "trigger": None if self.trigger is None else self.trigger.describe(),
         }
 
 
@@ -343,7 +352,16 @@ def _finish(text: str, norm: _Text, candidates: Sequence[_Match], reading: Promp
         reading = reading if lone is None else replace(reading, reason=lone)
     found = timing_spans(norm.text, spans, asked, other, reading.behaviour, sequence)
     condition = " ... ".join(norm.span(text, s, e) for s, e in found)
-    return replace(reading, condition=condition) if condition else reading
+    if not condition:
+        return reading
+    if reading.metres is not None:  # a distance in the timing words is the trigger's, not the behaviour's
+        outside = [m for m in _METRES.finditer(norm.text) if not any(s <= m.start() < e for s, e in found)]
+        reading = replace(reading, metres=float(outside[0].group(1)) if outside else None)
+    trigger = None
+    if reading.agent is not None:
+        with suppress(ValueError):  # a start LangTraj does not read: a strict reading refuses it (`trigger_of`)
+            trigger = trigger_of(condition, reading.agent, None)
+    return replace(reading, condition=condition, trigger=trigger)
 
 
 def _read(text: str, norm: _Text, candidates: Sequence[_Match]) -> PromptReading:

@@ -1,0 +1,75 @@
+"""Behaviours staged at their trigger (`sim.staging`) in closed loop with the shipped checkpoint, on a constructed
+junction: a stop asked "after 3 s" starts at the replan at 3 s with its target derived from where the car is then,
+the car drives on as unprompted before it, and the judge reads the manoeuvre from that step on."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from interdrive.test_counterfactual import LEFT_LANE_STRAIGHT, RIGHT_LANE_STRAIGHT, drive, four_way
+from interdrive.test_heuristics import scene
+
+from langtraj.interdrive.adherence import AdherenceChecker
+from langtraj.interdrive.behaviours.verdict import Start, judge_reading
+from langtraj.interdrive.dataset import PromptEntry
+from langtraj.interdrive.prompts import parse_user_prompt
+from langtraj.interdrive.reader import read_clauses
+from langtraj.model.checkpoint import load_model
+from langtraj.scenario.types import StateField
+from langtraj.sim.checkpoints import shipped_checkpoint
+from langtraj.sim.config import PromptLevers, SimConfig, SimRequest
+from langtraj.sim.engine import simulate
+from langtraj.sim.policies import LangTrajPolicy
+from langtraj.sim.staging import starts_of
+
+LEVERS = PromptLevers(text=True, guidance=True, selection=True)
+
+
+@pytest.fixture(scope="module")
+def loaded():
+    return load_model(shipped_checkpoint())
+
+
+@pytest.fixture(scope="module")
+def junction():
+    return scene(four_way(), drive(LEFT_LANE_STRAIGHT, speed=6.0), drive(RIGHT_LANE_STRAIGHT, speed=6.0, start=20.0))
+
+
+def _run(loaded, s, text: str | None):
+    model, data = loaded
+    prompt = None if text is None else PromptEntry.of(parse_user_prompt(text, [1, 2]))
+    policy = LangTrajPolicy(model, data, SimRequest(candidates=2, levers=LEVERS, selector="first"), prompt=prompt)
+    return simulate(s, policy, SimConfig(rollouts=2, replan_s=1.0, seed=0))
+
+
+def _speeds(result, s) -> np.ndarray:
+    """@1's speed [R, T] over the simulated steps."""
+    states = result.world.states[:, 0, s.current_index + 1 :]
+    return np.hypot(states[..., StateField.VX], states[..., StateField.VY])
+
+
+def test_a_stop_after_3_s_starts_at_3_s_from_where_the_car_is_then(loaded, junction):
+    free, at_once = _run(loaded, junction, None), _run(loaded, junction, "@1 stops")
+    staged = _run(loaded, junction, "@1 stops after 3 s")
+    (entry,) = staged.report["prompt"]["staged"]
+    assert entry["agent"] == 1 and entry["trigger"] == "from 3 s"
+    assert [r["started_s"] for r in entry["rollouts"]] == [3.0, 3.0]
+    starts = starts_of(staged.report)
+    assert starts[1] == Start(junction.current_index + 30, 3.0)
+    early, late = slice(0, 25), slice(60, 80)
+    v_free, v_now, v_staged = (_speeds(r, junction) for r in (free, at_once, staged))
+    # before its start it does not begin to stop (as the stop asked at once does); after, it stops
+    assert v_staged[:, early].mean() > v_now[:, early].mean() + 0.5
+    assert v_staged[:, early].min() >= 0.8 * 6.0
+    assert v_staged[:, late].mean() < 0.5 * v_free[:, late].mean()
+    # judged from its start: followed, with when it started among the measures
+    (reading,) = read_clauses("@1 stops after 3 s")
+    played = staged.world.played(0)
+    verdict = judge_reading(reading, played, AdherenceChecker.build(played, logged=False).facts(played), starts[1])
+    assert verdict.followed is not False
+
+
+def test_a_start_that_never_holds_is_not_followed_and_says_why(junction):
+    (reading,) = read_clauses("@1 stops when @2 is within 1 m of @1")
+    verdict = judge_reading(reading, junction, frozenset(), Start(None, None, "its start never held: @2 9 m from @1"))
+    assert verdict.followed is False and verdict.why == "it never started: its start never held: @2 9 m from @1"
