@@ -10,8 +10,8 @@ import pytest
 from langtraj.interdrive.adherence import lane_change_side
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.prompts.phrases import OTHER_SLOT, interaction_phrases, label_phrases, label_variants
-from langtraj.interdrive.triggers import AfterDone
 from langtraj.interdrive.reader import PromptReading, file_figures, main, read_clauses, read_prompt
+from langtraj.interdrive.triggers import AfterDone
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 FREE_TEXT = DATA / "free_text_prompts.yaml"
@@ -419,7 +419,8 @@ def test_timing_words_are_kept_on_the_reading_not_dropped(text, expected, condit
     assert (reading.behaviour, reading.agent, reading.other) == expected
     assert reading.condition == condition
     said = reading.describe()  # read as a start, or named as not read: never dropped
-    assert said.endswith(f"({condition!r})" if reading.trigger else f"{condition!r} is not read (the behaviour runs at once)")
+    named = f"{condition!r} is not read (the behaviour runs at once)"
+    assert said.endswith(f"({condition!r})" if reading.trigger else named)
     assert reading.to_json()["condition"] == condition
     assert read_clauses(text)[0].condition == condition
 
@@ -453,7 +454,7 @@ def test_words_a_behaviour_honours_are_no_timing(text):
 def test_a_sequence_across_agents_is_kept_on_the_later_clause(text, expected):
     readings = read_clauses(text)
     assert [(r.agent, r.behaviour, r.condition) for r in readings] == expected
-    for before, reading in zip([None, *readings], readings):
+    for before, reading in zip([None, *readings[:-1]], readings, strict=True):
         if not reading.condition:
             assert "starts" not in reading.describe() and "sequence" not in reading.describe()
         elif before is not None:  # after another agent's clause: started when its behaviour is done

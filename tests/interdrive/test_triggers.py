@@ -8,9 +8,9 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+
 from interdrive.test_counterfactual import two_lane_road
 from interdrive.test_heuristics import scene
-
 from langtraj.interdrive.reader.when import trigger_of
 from langtraj.interdrive.triggers import AfterDone, AtTime, Now, Passed, Stopped, Within
 from langtraj.scenario.types import AgentType

@@ -10,8 +10,8 @@ See docs/interdrive.md ('Reading a prompt').
 from __future__ import annotations
 
 import re
-from contextlib import suppress
 from collections.abc import Collection, Iterable, Sequence
+from contextlib import suppress
 from dataclasses import dataclass, replace
 
 from langtraj.interdrive.adherence import Fact
