@@ -199,3 +199,16 @@ class AfterDone(Trigger):
     @property
     def agents(self) -> tuple[int, ...]:
         return (self.subject,)
+
+
+@dataclass(frozen=True)
+class WhenReady(Trigger):
+    """As soon as the scene allows the behaviour: its target derived from the agents as they are now, and ready
+    (`BehaviourKind.ready`). The start of a behaviour put in an external agent's path (an ego under a planner) whose
+    prompt says no time: staged on that agent's live state, wherever the planner has driven it."""
+
+    def holds(self, now: Now) -> bool:
+        return True
+
+    def describe(self) -> str:
+        return "as soon as the scene allows it"

@@ -241,6 +241,11 @@ def _check_request(model: LangTraj, request: SimRequest) -> None:
     )
 
 
+def external_ids(world: SimWorld) -> set[int]:
+    """Track ids of the world's external agents (an ego under a planner)."""
+    return {int(world.scenario.agents.ids[row]) for row in world.external}
+
+
 def slots_of(scenario: Scenario, driven: np.ndarray) -> dict[int, int]:
     """Track id -> model slot of every driven agent (what guidance terms and prompts refer to)."""
     return {int(scenario.agents.ids[row]): slot for slot, row in enumerate(driven)}
@@ -396,7 +401,9 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         scene = GuidanceScene.from_scenario(start, origin, world.driven, num_agents=data.max_agents)
         index = MapIndex.build(start.road_map) if self.prompt_texts else None
         steering = (
-            prompt_steering(start, self.readings, world.driven, origin, self.request.levers, index)
+            prompt_steering(
+                start, self.readings, world.driven, origin, self.request.levers, index, external=external_ids(world)
+            )
             if self.prompt_texts
             else PromptSteering()
         )

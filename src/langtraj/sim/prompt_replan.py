@@ -97,15 +97,19 @@ class PromptReplans:
         return [[r] for r in rollouts] if self.stagings else [rollouts]
 
     def started_sentences(self, rollout: int) -> dict[int, str]:
-        """Track id -> the sentence a staged behaviour started in `rollout` conditions the model on: its kind's own
-        (`conditioning_sentence`, else the spec's), never the typed timing words, which are the staging's job."""
+        """Track id -> the sentence a staged behaviour started in `rollout` conditions the model on in place of the
+        typed one: for a kind the model never saw, the one it is conditioned as (`conditioning_sentence`); for words
+        with timing, the kind's own sentence, never the timing words, which are the staging's job."""
         if not self.stagings:
             return {}
         out = {}
-        for _, anchor in self.stagings.started_in(rollout):
+        for staged, anchor in self.stagings.started_in(rollout):
             target = anchor.target
-            own = BEHAVIOURS[target.behaviour].text(target.track_id, target.other_id)
-            out[target.track_id] = conditioning_sentence(target) or own
+            sentence = conditioning_sentence(target)
+            if sentence is None and staged.reading.condition:  # typed with timing words: the kind's own sentence
+                sentence = BEHAVIOURS[target.behaviour].text(target.track_id, target.other_id)
+            if sentence is not None:
+                out[target.track_id] = sentence
         return out
 
     def waiting_slots(self, rollout: int) -> set[int]:

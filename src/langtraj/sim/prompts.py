@@ -8,8 +8,8 @@ simulation: each behaviour's target and the criteria selection judges by (`promp
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from collections.abc import Collection, Sequence
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -35,6 +35,7 @@ from langtraj.interdrive.targets import (
     feasibility,
     then_feasibility,
 )
+from langtraj.interdrive.triggers import WhenReady
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 from langtraj.sim.adherence import Ask
@@ -275,6 +276,7 @@ def prompt_steering(
     origin: Origin,
     levers: PromptLevers,
     index: MapIndex | None = None,
+    external: Collection[int] = (),
 ) -> PromptSteering:
     """From each typed prompt's reading (`read_prompts`): its behaviour's target, derived from the map (`index`,
     built here when not given) at the current step (`interdrive.targets`), as guidance and selection criteria for
@@ -289,6 +291,7 @@ def prompt_steering(
     asked = {r.agent for r in readings if r.read}
     staged: list[Staged] = []
     for reading in readings:
+        reading = on_live_state(reading, external)
         if reading.trigger is not None and reading.read and reading.agent in slots:
             if not BEHAVIOURS[reading.behaviour].is_pair:  # the map's verdict on a manoeuvre holds later too
                 verdict = _verdict(scenario, reading, index)
@@ -353,6 +356,16 @@ def prompt_steering(
     return PromptSteering(
         readings, tuple(steerings), tuple(asks), tuple(notes), tuple(targets), tuple(warnings), sentences, tuple(staged)
     )
+
+
+def on_live_state(reading: PromptReading, external: Collection[int]) -> PromptReading:
+    """`reading`, staged as soon as the scene allows it (`WhenReady`) where it puts its agent in the path of an
+    `external` agent (an ego under a planner: `BehaviourKind.in_path`) and says no time: its target is then derived
+    from where the planner has driven that agent, not where it was at the start (docs/simulation.md, 'Timing in
+    words')."""
+    if reading.trigger is not None or reading.condition or not reading.read or reading.other not in external:
+        return reading
+    return replace(reading, trigger=WhenReady()) if kind(str(reading.behaviour)).in_path else reading
 
 
 def _staged(scenario: Scenario, reading: PromptReading, slots: dict[int, int], levers: PromptLevers, at: int) -> Staged:

@@ -18,13 +18,13 @@ import numpy as np
 
 from langtraj.frames import Origin
 from langtraj.guidance.steering import Steering
-from langtraj.interdrive.behaviours.base import HOLD_WEIGHT, REACH_WEIGHT, route
+from langtraj.interdrive.behaviours.base import HOLD_WEIGHT, REACH_WEIGHT, kind, route
 from langtraj.interdrive.behaviours.base import lead as lead_steer
 from langtraj.interdrive.behaviours.verdict import Start
 from langtraj.interdrive.reader import PromptReading
 from langtraj.interdrive.targets import BehaviourTarget, TargetUnavailable, derive_target
 from langtraj.interdrive.targets.context import TargetContext, lead_of
-from langtraj.interdrive.triggers import STOPPED_MPS, AfterDone, AtTime, Now, Trigger
+from langtraj.interdrive.triggers import STOPPED_MPS, AfterDone, AtTime, Now, Trigger, WhenReady
 from langtraj.polylines import project_on_polyline
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
@@ -180,10 +180,21 @@ class Stagings:
                         deceleration=reading.deceleration,
                     )
                 except TargetUnavailable as exc:
-                    wait.unavailable = f"its trigger held at {elapsed:.1f} s but {exc.detail}"
+                    wait.unavailable = self._not_yet(staged, elapsed, str(exc.detail))
+                    continue
+                why = kind(reading.behaviour).ready(target)
+                if why is not None:
+                    wait.unavailable = self._not_yet(staged, elapsed, why)
                     continue
                 anchors[k] = Anchor(step, target, Steering.of(target, self.origin, self.slots))
                 self.waiting[r].pop(k, None)
+
+    @staticmethod
+    def _not_yet(staged: Staged, elapsed: float, why: str) -> str:
+        """Why a staged behaviour whose trigger held did not start at a replan `elapsed` s after the start."""
+        if isinstance(staged.trigger, WhenReady):
+            return f"not stageable at {elapsed:.1f} s: {why}"
+        return f"its trigger held at {elapsed:.1f} s but {why}"
 
     def _mark_done(self, rollout: int, scene: Scenario, elapsed: float) -> None:
         done = self.done.setdefault(rollout, {})

@@ -230,7 +230,8 @@ class _Episode:
         """Each prompt judged on the episode as played (none before the first step)."""
         if self.env is None or not self.record.steps or not self.prompts:
             return []
-        return judge_prompts(self.env.played(), self.prompts, starts_of(self.env.simulation_report()))
+        report = getattr(self.env, "simulation_report", None)  # an env of another make may keep none
+        return judge_prompts(self.env.played(), self.prompts, starts_of(report() if callable(report) else {}))
 
     def judge_traffic(self, result: EpisodeResult) -> None:
         """Record the other agents' collisions and off-road in `result`, and flag an ego failure that follows one

@@ -179,6 +179,13 @@ class BehaviourKind(ABC):
         """The terms that steer the agent to `target`; `other_driven`: the model drives the other agent, so terms
         relative to where it actually drives (`lead`, `avoid`) are available."""
 
+    def ready(self, target: BehaviourTarget) -> str | None:
+        """Why the behaviour should not start yet from `target`, derived from the agents as they are now (a cut-in
+        that would need its agent to brake hard to let the other catch up; a braking lead with its follower far
+        behind), or None when it may start now. A staged behaviour waits until it may (`sim.staging`); by default
+        at once."""
+        return None
+
     def judge(self, scene: Scenario, agent: int, other: int | None, asked: Mapping[str, float]) -> Judgement | None:
         """The realised numbers beside the asked ones on a played scene (`judged`); None where the behaviour is judged
         by the labelers' facts alone. `asked` holds its parameters by name (`asked`); another name is an

@@ -37,6 +37,9 @@ BRAKE_HARD_AFTER_S = 1.0
 """When a braking lead starts braking (s): the follower has a second of the scene as it was."""
 BRAKE_HARD_MIN_SPEED = 4.0
 """The least speed a braking lead must have (m/s): slower, hard braking lasts too short to judge."""
+BRAKE_HARD_READY_S = 3.0
+"""The time headway (s) its follower must be within for a braking lead staged on the follower's live state to start
+braking (`BrakeHard.ready`)."""
 DECELERATION = Parameter(
     "deceleration", "m/s^2", BRAKE_HARD_DECELERATION, *BRAKE_HARD_LIMITS, "deceleration",
     "hard braking, and at most what tyres give on dry asphalt",
@@ -96,6 +99,7 @@ def _brake_hard(ctx: TargetContext, agent: AgentHere, other: AgentHere, decelera
         other_speed=other.here.speed,
         settled_s=BRAKE_HARD_AFTER_S + v / deceleration,
         deceleration=float(deceleration),
+        other_gap_m=float(gap),
     )
 
 
@@ -122,6 +126,18 @@ class BrakeHard(BehaviourKind):
     ) -> BehaviourTarget:
         assert other is not None
         return _brake_hard(ctx, agent, other, asked["deceleration"])
+
+    def ready(self, target: BehaviourTarget) -> str | None:
+        """Not before its follower is within `BRAKE_HARD_READY_S` of time headway (Euro NCAP's braking lead brakes
+        with its follower 12-40 m behind at 50 km/h: 0.9-2.9 s): braking with the follower far behind tests nothing."""
+        speed = max(float(target.other_speed or 0.0), 0.1)
+        gap = float(target.other_gap_m or 0.0)
+        if gap > BRAKE_HARD_READY_S * speed:
+            return (
+                f"@{target.other_id} is {gap:.0f} m behind at {speed:.1f} m/s ({gap / speed:.1f} s; it brakes within "
+                f"{BRAKE_HARD_READY_S:g} s)"
+            )
+        return None
 
     def steer(self, target: BehaviourTarget, other_driven: bool) -> list[Steer]:
         """At its speed until braking starts, never past the stop point, standing still from when braking at the

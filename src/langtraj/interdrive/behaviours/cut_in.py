@@ -95,6 +95,27 @@ def _cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) 
     )
 
 
+CUT_IN_READY_SLOWER = 2.0
+"""How much slower (m/s, on average over `CUT_IN_S`) than it drives a cut-in staged on the other's live state may ask
+its agent to go: more, and it would brake to let the other catch up; it waits until the other has come nearer."""
+CUT_IN_READY_MIN_SPEED = 3.0
+"""The least speed (m/s) of the agent cut in on for a staged cut-in to start: in front of a car standing in a queue
+there is nothing to cut in on."""
+
+
+def ready(target: BehaviourTarget) -> str | None:
+    """Why a cut-in (or an overtake and cut-in) should wait (see `CUT_IN_READY_SLOWER`), or None."""
+    other_speed = float(target.other_speed or 0.0)
+    if other_speed < CUT_IN_READY_MIN_SPEED:
+        return f"@{target.other_id} drives at {other_speed:.1f} m/s (a cut-in needs {CUT_IN_READY_MIN_SPEED:g} or more)"
+    if target.speed is not None and target.speed < target.current_speed - CUT_IN_READY_SLOWER:
+        return (
+            f"it would slow from {target.current_speed:.1f} to {target.speed:.1f} m/s for @{target.other_id} to catch "
+            "up (it waits for it)"
+        )
+    return None
+
+
 CHANGE_AND_SPEED = ("lane_change_left", "lane_change_right", "speed_up", "slow_down")
 """What a cut-in's words also say, as part of it: a lane change, speeding up or slowing down."""
 
@@ -122,6 +143,9 @@ class CutIn(BehaviourKind):
     ) -> BehaviourTarget:
         assert other is not None
         return _cut_in(ctx, agent, other, asked["gap"])
+
+    def ready(self, target: BehaviourTarget) -> str | None:
+        return ready(target)
 
     def steer(self, target: BehaviourTarget, other_driven: bool) -> list[Steer]:
         """The gap ahead of the other agent when the change has settled (`CUT_IN_S`) and after

@@ -40,13 +40,13 @@ def judge_reading(
     reading: PromptReading, played: Scenario, found: frozenset[Fact], start: Start | None = None
 ) -> Verdict:
     """The verdict on `reading` in `played` (the history and the simulated steps), the labelers having `found` the
-    facts `found` there (`AdherenceChecker.facts`). A staged reading (one with a trigger) is judged by its numbers
-    from its `start` on, the manoeuvre after its trigger, with when it started among the measures; one that never
-    started is not followed, with why."""
+    facts `found` there (`AdherenceChecker.facts`). A staged reading (`start` given: `sim.staging`) is judged by its
+    numbers from its start on, the manoeuvre after its trigger, with when it started among the measures; one that
+    never started is not followed, with why."""
     why = reading.unjudged({int(i) for i in played.agents.ids})
     if why is not None:
         return Verdict(None, why)
-    if reading.trigger is not None and start is not None:
+    if start is not None:
         if start.step is None:
             return Verdict(False, f"it never started: {start.why}")
         started = Measure("started", "s", _asked_start(reading), start.seconds, None, None)

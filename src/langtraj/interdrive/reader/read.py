@@ -144,7 +144,7 @@ class PromptReading:
             if unused:
                 line += f"; {', '.join(repr(u) for u in unused)} not read: {self.behaviour.value} takes no such figure"
         if self.trigger is not None:
-            return f"{line}; starts {self.trigger.describe()} ({self.condition!r})"
+            return f"{line}; starts {self.trigger.describe()}" + (f" ({self.condition!r})" if self.condition else "")
         return f"{line}; {condition_note(self.condition)}" if self.condition else line
 
     def figures(self) -> dict[str, float | None]:

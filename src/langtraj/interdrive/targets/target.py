@@ -49,6 +49,9 @@ class BehaviourTarget:
     """How far the agent's centre is ahead of the other's along the path once settled (m), where the target says (a
     cut-in, an overtake and cut-in: the gap and the half lengths), so that steering can keep it relative to where
     the other actually drives."""
+    other_gap_m: float | None = None
+    """The bumper gap to the other agent along the lane at the current step (m), where the target reads it (a braking
+    lead: its follower's gap)."""
     starts_s: float | None = None
     """When the agent sets off (s), where the target has it wait first (a pull-out waiting for its moment)."""
     joins_m: float | None = None
