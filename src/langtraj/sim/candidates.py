@@ -6,6 +6,7 @@ what it keeps for a simulation (`LangTrajRun`) are `sim.policies`'; this module 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -31,6 +32,7 @@ from langtraj.model.config import SampleConfig
 from langtraj.model.features import MapArrays, collate_scenes, sample_map, scene_sample
 from langtraj.model.langtraj import LangTraj
 from langtraj.model.scene_encoder import MapContext
+from langtraj.polylines import arc_lengths, point_at, project_on_polyline
 from langtraj.scenario.model import STEP_SECONDS
 from langtraj.sim.config import SimRequest
 from langtraj.sim.external import CLEARANCE_ITERATIONS, accelerations_only, external_acceleration, pin_external
@@ -154,7 +156,8 @@ class CandidatePlanning:
         prompt_terms = tuple(t for group in steered for t in group)
         terms = state.terms + prompt_terms + state.clearance
         hook = None
-        integrate = self._integrator(state, batch, accel, m)
+        scripted = self._scripted(world, state, step, rollouts, batch.current_state)
+        integrate = self._integrator(state, batch, accel, m, scripted)
         if terms:
 
             def by(rollout: Callable[[Tensor], Tensor]) -> GuidanceOf:
@@ -198,6 +201,10 @@ class CandidatePlanning:
                 start_steps=None if start is None else self.request.warm_steps,
                 **common,
             )
+        if scripted is not None:  # the scripted speeds as executed, not as the model's own integration had them
+            actions = with_script(actions, scripted)
+            units = self.model.to_units(actions).reshape(-1, *actions.shape[2:])
+            states = integrate(units).reshape(*actions.shape[:2], *states.shape[2:])
         states = hold(pin_external(states, batch.current_state, state.external, accel), batch.current_state, state.held)
         states, actions = state.prompt.offer_kept_plans(
             step,
@@ -205,7 +212,7 @@ class CandidatePlanning:
             states,
             actions,
             self.model.dynamics.steps_per_action,
-            self._realiser(state, batch, accel, exempt),
+            self._realiser(state, batch, accel, exempt, scripted=scripted),
         )
         first = state.prompt.adherence(world, state.origin, state.scene, step, rollouts, states, steered)
         choice = state.selector.select(states, state.scene, terms, first)  # states [M, R, A, T, 4], scene frame
@@ -213,7 +220,7 @@ class CandidatePlanning:
         config = self.constraints
         if config is not None and config.on_choice and choice.dim() == 2:  # assembled from different candidates
             fixed = state.prompt.judged_slots()  # what a prompted agent chose to do what it is asked is kept
-            realise = self._realiser(state, batch, accel, exempt, fixed=fixed, as_given=False)
+            realise = self._realiser(state, batch, accel, exempt, fixed=fixed, as_given=False, scripted=scripted)
             executed, chosen_actions = (made[0] for made in realise(chosen_actions))
         state.prompt.keep(step, rollouts, chosen_actions)
         if self.request.warm_steps is not None:
@@ -221,17 +228,52 @@ class CandidatePlanning:
         chosen = executed[:, : len(world.driven)].double().cpu().numpy()
         return poses_to_world(chosen, state.origin)
 
+    def _scripted(
+        self, world: SimWorld, state: LangTrajRun, step: int, rollouts: list[int], initial: Tensor
+    ) -> Tensor | None:
+        """The actions [R, A, N, 2] (physical; NaN: the model's) that the behaviours executing a speed exactly set in
+        this replan's plans of `rollouts` from their current states `initial` [R, A, 4] (scene frame;
+        `PromptReplans.scripts`: a braking lead at the asked deceleration, action by action from when its script
+        applies, and along its lane meanwhile); None where none does."""
+        dynamics = self.model.dynamics
+        per_action, n = dynamics.steps_per_action, self.model.config.num_actions
+        out = torch.full((len(rollouts), initial.shape[1], n, 2), float("nan"))
+        for column, rollout in enumerate(rollouts):
+            for steering, since, script in state.prompt.scripts(rollout):
+                began = world.start if since < 0 else since
+                times = [(step - began + k * per_action) * STEP_SECONDS for k in range(n)]
+                accel = [script.acceleration(t) for t in times]
+                if all(a is None for a in accel):
+                    continue
+                slot = steering.slot
+                out[column, slot, :, 0] = torch.tensor([float("nan") if a is None else a for a in accel])
+                if script.keeps_lane and len(steering.target.path) >= 2:
+                    speeds = [a if a is not None else 0.0 for a in accel]
+                    out[column, slot, :, 1] = lane_keeping(
+                        initial[column, slot].detach().double().cpu().numpy(),
+                        steering.target.path,
+                        speeds,
+                        per_action,
+                        float(getattr(dynamics, "dt", STEP_SECONDS)),
+                        float(getattr(dynamics, "max_yaw_rate", 1.5)),
+                    )
+        return None if torch.isnan(out).all() else out.to(next(self.model.parameters()).device)
+
     def _integrator(
-        self, state: LangTrajRun, batch: SceneBatch, accel: Tensor, copies: int
+        self, state: LangTrajRun, batch: SceneBatch, accel: Tensor, copies: int, scripted: Tensor | None = None
     ) -> Callable[[Tensor], Tensor]:
         """States [copies * R, A, T, 4] from network-unit actions of `copies` candidates of each of the batch's R
-        rollouts (sample-major rows): external agents at their forecast (`accel` [R, A]), not the model's guess, and
-        held agents where they stand."""
+        rollouts (sample-major rows): external agents at their forecast (`accel` [R, A]), not the model's guess, held
+        agents where they stand, and the actions a script sets (`scripted` [R, A, N, 2], `_scripted`) in place of the
+        model's, so that guidance and selection see the speeds that will be executed."""
         initial = batch.current_state.repeat(copies, 1, 1)
         types, lengths = batch.agent_type.repeat(copies, 1), batch.agent_size[..., 0].repeat(copies, 1)
         external_accel, model = accel.repeat(copies, 1), self.model
+        script = None if scripted is None else scripted.repeat(copies, 1, 1, 1)
 
         def integrate(x: Tensor) -> Tensor:
+            if script is not None:
+                x = model.to_units(with_script(model.from_units(x), script))
             pinned = pin_external(model.integrate(initial, types, lengths, x), initial, state.external, external_accel)
             return hold(pinned, initial, state.held)
 
@@ -245,23 +287,25 @@ class CandidatePlanning:
         exempt: Tensor | None,
         fixed: Sequence[int] = (),
         as_given: bool = True,
+        scripted: Tensor | None = None,
     ) -> Callable[[Tensor], tuple[Tensor, Tensor]]:
         """Makes candidates of each rollout from physical actions [R, A, N, 2]: states [K, R, A, T, 4] and actions
         [K, R, A, N, 2] of the plan as sampling makes one (projected onto the road and apart, and refitted, when the
         hard constraints are on, `exempt` being `_exempt`'s pairs; the `fixed` slots neither moved nor kept on the
         road) and, with `as_given`, of the plan as given. Offering both keeps a plan that follows a prompt on offer
         where its projection no longer does (docs/simulation.md, 'Prompts that steer')."""
-        integrate = self._integrator(state, batch, accel, 1)
+        integrate = self._integrator(state, batch, accel, 1, scripted)
 
         def realise(actions: Tensor) -> tuple[Tensor, Tensor]:
-            given = self.model.to_units(actions)
+            given = self.model.to_units(actions if scripted is None else with_script(actions, scripted))
             plans = [given] if as_given or exempt is None else []
             if exempt is not None:
                 assert self.constraints is not None
                 agents, initial, invert, drive = self._constraints(state, batch, exempt, 1, fixed)
                 config, scene = self.constraints, state.scene
                 plans.insert(0, project_plans(config, scene, agents, initial, integrate, invert, given, drive))
-            return torch.stack([integrate(x) for x in plans]), torch.stack([self.model.from_units(x) for x in plans])
+            made = torch.stack([self.model.from_units(x) for x in plans])
+            return torch.stack([integrate(x) for x in plans]), made if scripted is None else with_script(made, scripted)
 
         return realise
 
@@ -383,3 +427,38 @@ class CandidatePlanning:
                 return None
             shifted.append(left)
         return torch.stack(shifted)
+
+
+def with_script(actions: Tensor, scripted: Tensor) -> Tensor:
+    """Physical actions [..., R, A, N, 2] with those `scripted` [R, A, N, 2] sets (NaN: kept)."""
+    script = scripted.to(actions)
+    return torch.where(torch.isnan(script), actions, torch.nan_to_num(script))
+
+
+LOOK_AHEAD_S = 1.0
+"""Pure pursuit's look-ahead of a scripted agent keeping its lane (s of its speed, at least `LOOK_AHEAD_MIN_M`)."""
+LOOK_AHEAD_MIN_M = 4.0
+
+
+def lane_keeping(
+    current: np.ndarray, path: np.ndarray, accelerations: Sequence[float], per_action: int, dt: float, most: float
+) -> Tensor:
+    """Yaw rates [N] (rad/s, within +-`most`) that keep an agent at `current` (x, y, heading, speed) on `path` [P, 2]
+    (same frame) by pure pursuit while it drives with `accelerations` [N] (m/s^2, each held `per_action` steps of
+    `dt`), integrated as the unicycle dynamics integrate (`model.dynamics.Unicycle`)."""
+    x, y, heading, speed = (float(v) for v in current)
+    rates = []
+    for a in accelerations:
+        ahead = max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * speed)
+        station = float(project_on_polyline(np.array([[x, y]]), path).station[0])
+        goal = point_at(path, min(station + ahead, float(arc_lengths(path)[-1])))
+        bearing = math.atan2(goal[1] - y, goal[0] - x) - heading
+        alpha = math.atan2(math.sin(bearing), math.cos(bearing))
+        curvature = 2.0 * math.sin(alpha) / max(math.hypot(goal[0] - x, goal[1] - y), 1e-3)
+        rate = float(np.clip(curvature * max(speed, 0.5), -most, most))
+        rates.append(rate)
+        for _ in range(per_action):
+            speed = max(speed + a * dt, 0.0)
+            heading += rate * dt
+            x, y = x + speed * math.cos(heading) * dt, y + speed * math.sin(heading) * dt
+    return torch.tensor(rates)

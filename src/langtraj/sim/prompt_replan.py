@@ -21,6 +21,7 @@ from langtraj.frames import Origin, poses_to_world
 from langtraj.guidance import GuidanceScene, GuidanceTerm
 from langtraj.guidance.steering import Steering
 from langtraj.interdrive.behaviour import BEHAVIOURS
+from langtraj.interdrive.behaviours import Script, kind
 from langtraj.model.diffusion import Guidance
 from langtraj.sim.adherence import CandidateJudge
 from langtraj.sim.prompts import PromptSteering, conditioning_sentence
@@ -90,6 +91,15 @@ class PromptReplans:
         simulation started at `start`, over the `horizon` steps the model plans: timed from the start, or from where a
         staged behaviour started."""
         return [s.terms(step - (start if since < 0 else since), horizon) for s, since in self.steerings(rollout)]
+
+    def scripts(self, rollout: int) -> list[tuple[Steering, int, Script]]:
+        """(steering, step it is timed from, script) of each behaviour in `rollout` that executes a speed exactly
+        (`BehaviourKind.script`): anchored at the start (step -1: the caller's start) or where a staged one started."""
+        out = []
+        for steering, since in self.steerings(rollout):
+            if steering.declared is None and (script := kind(steering.target.behaviour).script(steering.target)):
+                out.append((steering, since, script))
+        return out
 
     def grouped(self, rollouts: list[int]) -> list[list[int]]:
         """`rollouts` in groups that share their prompts' guidance: all together, or one by one where behaviours are

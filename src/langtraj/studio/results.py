@@ -29,6 +29,7 @@ from langtraj.scenario.drivable import road_edges_derived_from
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType
 from langtraj.sim.parked import parked_in_history
+from langtraj.sim.staging import starts_of
 from langtraj.studio.series import prompted_series
 
 REALISM_FIELDS = {
@@ -48,10 +49,12 @@ def judge_prompts(
     texts: Sequence[str],
     readings: Sequence[PromptReading],
     checker: AdherenceChecker | None,
+    report: dict[str, Any] | None = None,
 ) -> list[dict[str, Any]]:
     """Per prompt: its text, agents and behaviour, and per rollout the one verdict of the suites and the studio
     (`behaviours.verdict.judge_reading`): whether it follows it, why not, and for a behaviour judged by numbers the
-    asked and realised numbers (the labelers run once per rollout)."""
+    asked and realised numbers (the labelers run once per rollout); a behaviour staged at its trigger is judged from
+    when it started in that rollout (the simulation's `report`, `sim.staging.starts_of`)."""
     present = {int(i) for i in rollouts.object_id}
     judged = [r.unjudged(present) is None for r in readings]
     played, found = [], []
@@ -61,8 +64,12 @@ def judge_prompts(
         played = [rollout_scenario(scenario, rollouts, r) for r in range(rollouts.num_rollouts)]
         found = [checker.facts(p) for p in played]
     out = []
+    starts = [starts_of(report or {}, r) for r in range(len(played))]
     for text, reading, judge in zip(texts, readings, judged, strict=True):
-        verdicts = [judge_reading(reading, p, f) for p, f in zip(played, found, strict=True)] if judge else []
+        verdicts = []
+        if judge:
+            for p, f, start in zip(played, found, starts, strict=True):
+                verdicts.append(judge_reading(reading, p, f, start.get(reading.agent) if reading.agent else None))
         out.append(
             {
                 "text": text,
@@ -195,7 +202,7 @@ def run_json(
     named = [i for r in readings for i in (r.agent, r.other) if i is not None]
     return {
         "rollouts": rollouts_json(rollouts),
-        "prompts": judge_prompts(scenario, rollouts, texts, readings, checker),
+        "prompts": judge_prompts(scenario, rollouts, texts, readings, checker, report),
         "agents": agents,
         "rates": table_rates(agents),
         "road_edges": road_edges(scenario),

@@ -94,6 +94,22 @@ class Steer:
     mode: Literal["reach", "hold"] = "reach"
 
 
+@dataclass(frozen=True)
+class Script:
+    """A speed a behaviour executes exactly rather than steers toward (OpenSCENARIO's SpeedAction): from `start_s`
+    after the behaviour starts, its agent slows at `deceleration` m/s^2 to rest and stands, and with `keeps_lane` it
+    follows its target's path meanwhile (a lane-keeping controller, as a scenario's scripted actor). The simulation
+    sets these in the agent's plans before guidance and selection see them (`sim.candidates`)."""
+
+    start_s: float
+    deceleration: float
+    keeps_lane: bool = False
+
+    def acceleration(self, seconds: float) -> float | None:
+        """The acceleration the script sets `seconds` after the behaviour started (None: not yet, the model's)."""
+        return -self.deceleration if seconds >= self.start_s - 1e-6 else None
+
+
 def steps(seconds: float) -> int:
     """Simulated steps in `seconds`."""
     return round(seconds / STEP_SECONDS)
@@ -178,6 +194,11 @@ class BehaviourKind(ABC):
     def steer(self, target: BehaviourTarget, other_driven: bool) -> list[Steer]:
         """The terms that steer the agent to `target`; `other_driven`: the model drives the other agent, so terms
         relative to where it actually drives (`lead`, `avoid`) are available."""
+
+    def script(self, target: BehaviourTarget) -> Script | None:
+        """The speed the behaviour executes exactly from its `target` (`Script`), or None where guidance alone steers
+        it (by default)."""
+        return None
 
     def ready(self, target: BehaviourTarget) -> str | None:
         """Why the behaviour should not start yet from `target`, derived from the agents as they are now (a cut-in

@@ -12,6 +12,7 @@ from langtraj.interdrive.behaviours.base import (
     ROUTE_WEIGHT,
     BehaviourKind,
     Parameter,
+    Script,
     Steer,
     register,
     route,
@@ -126,6 +127,12 @@ class BrakeHard(BehaviourKind):
     ) -> BehaviourTarget:
         assert other is not None
         return _brake_hard(ctx, agent, other, asked["deceleration"])
+
+    def script(self, target: BehaviourTarget) -> Script | None:
+        """Braking at the asked deceleration from `BRAKE_HARD_AFTER_S` to rest in its lane, executed exactly:
+        guidance alone let the model, conditioned on a stop, brake at 5.5-13 m/s^2 when 4 was asked, and swerve
+        (docs/testing.md, 'Scenarios staged on the ego's live state')."""
+        return Script(BRAKE_HARD_AFTER_S, float(target.deceleration or BRAKE_HARD_DECELERATION), keeps_lane=True)
 
     def ready(self, target: BehaviourTarget) -> str | None:
         """Not before its follower is within `BRAKE_HARD_READY_S` of time headway (Euro NCAP's braking lead brakes

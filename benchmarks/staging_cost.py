@@ -1,0 +1,88 @@
+"""What staging costs an episode: real episodes of the example suite's safety-critical cases (a planner as ego, the
+shipped checkpoint driving the others), each timed whole, with the time spent staging its behaviours on the ego's
+live state (`sim.staging.Stagings.update`: the triggers checked at every replan, each rollout's scene read, the
+target derived where a trigger holds and its readiness asked), as a share of the episode (docs/benchmarks.md,
+'Staging on the live state: its cost'; the issue's target: at most 10 %).
+
+    python benchmarks/staging_cost.py [--cases waymo-8a34-cut-in-by-name,...] [--planner idm] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+from langtraj.cases import Case
+from langtraj.sim.staging import Stagings
+from langtraj.suites import RunOptions, load_suite
+from langtraj.suites.episode import run_episode
+from langtraj.suites.runner import episode_tasks
+
+REPO = Path(__file__).resolve().parents[1]
+CASES = (
+    "waymo-8a34-brake-hard.decel-6,waymo-8a34-overtake-cut-in,womd-637f-pull-out,synth-onramp-cut-in-by-name.gap_m-10"
+)
+TIMED = (
+    "@742 cuts in front of @ego with a 10 m gap after 3 s",
+    "When @ego is within 15 m of @738, @738 brakes hard in front of @ego",
+)
+"""Prompts with timing words on the example suite's real scene 8a34 (ego 1101), timed as well."""
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--suite", type=Path, default=REPO / "configs" / "suites" / "example.yaml")
+    parser.add_argument("--cases", default=CASES, help="comma-separated case names of the suite")
+    parser.add_argument("--planner", default="idm")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    suite = load_suite(args.suite)
+    wanted = args.cases.split(",")
+    missing = sorted(set(wanted) - {c.name for c in suite.cases})
+    if missing:
+        print(f"error: no case {', '.join(missing)} in {args.suite}", file=sys.stderr)
+        return 2
+    cases = [replace(c, seeds=(args.seed,)) for c in suite.cases if c.name in wanted]
+    scene = next(c for c in suite.cases if c.name == "waymo-8a34-brake-hard.decel-6")
+    cases += [replace(scene, name=f"timed-{k}", prompts=(text,), seeds=(args.seed,)) for k, text in enumerate(TIMED)]
+    suite = replace(suite, cases=tuple(cases))
+    spent = {"staging": 0.0}
+    update = Stagings.update
+
+    def timed(self: Stagings, scenario_at, step: int, rollouts: list[int]) -> None:
+        start = time.perf_counter()
+        update(self, scenario_at, step, rollouts)
+        spent["staging"] += time.perf_counter() - start
+
+    Stagings.update = timed  # type: ignore[method-assign]
+    rows = []
+    with tempfile.TemporaryDirectory() as out:
+        options = RunOptions(out=out, planner=args.planner, video=False)
+        for task in episode_tasks(suite, options):
+            spent["staging"] = 0.0
+            start = time.perf_counter()
+            result = run_episode(task)
+            whole = time.perf_counter() - start
+            rows.append((task.case.name, whole, spent["staging"]))
+            print(
+                f"{_label(task.case)}: {result.status}, episode {whole:.1f} s, "
+                f"staging {1000 * spent['staging']:.0f} ms ({100 * spent['staging'] / whole:.2f} %)",
+                flush=True,
+            )
+    shares = [r[2] / r[1] for r in rows]
+    median, most = 100 * statistics.median(shares), 100 * max(shares)
+    print(f"share of the episode spent staging: median {median:.2f} %, most {most:.2f} %")
+    return 0
+
+
+def _label(case: Case) -> str:
+    return f"{case.name} ({case.prompts[0]!r})" if case.prompts else case.name
+
+
+if __name__ == "__main__":
+    sys.exit(main())
