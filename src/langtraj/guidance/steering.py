@@ -64,6 +64,8 @@ class Steering:
             target,
             path=points_to_frame(target.path, origin) if len(target.path) else target.path,
             conflict=None if target.conflict is None else points_to_frame(target.conflict, origin),
+            own_lane=None if target.own_lane is None else points_to_frame(target.own_lane, origin),
+            new_lane=None if target.new_lane is None else points_to_frame(target.new_lane, origin),
         )
         other = None if target.other_id is None else slots.get(target.other_id)
         return cls(moved, slots[target.track_id], other, declared)

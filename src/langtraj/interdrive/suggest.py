@@ -270,8 +270,11 @@ class _Scene:
         return rows[np.argsort(self.distance[rows], kind="stable")].tolist()
 
     def stages(self, row: int, target: BehaviourTarget) -> bool:
-        """Whether a feasible target stages something: a yield needs a crossing, a follower must be behind the ego
-        heading its way; every other feasible target does."""
+        """Whether a feasible target stages something now: a yield needs a crossing, a follower must be behind the
+        ego heading its way, and a behaviour staged on the ego's live state must be ready to start
+        (`BehaviourKind.ready`: no cut-in in front of a standing ego); every other feasible target does."""
+        if kind(target.behaviour).in_path and kind(target.behaviour).ready(target) is not None:
+            return False
         if target.behaviour is Behaviour.YIELD:
             return target.conflict is not None
         if target.behaviour is Behaviour.FOLLOW:

@@ -6,7 +6,6 @@ what it keeps for a simulation (`LangTrajRun`) are `sim.policies`'; this module 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -26,13 +25,13 @@ from langtraj.guidance.projection import (
     project_plans,
     projection_hook,
 )
+from langtraj.interdrive.behaviours import ScriptState
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.model.batch import SceneBatch
 from langtraj.model.config import SampleConfig
 from langtraj.model.features import MapArrays, collate_scenes, sample_map, scene_sample
 from langtraj.model.langtraj import LangTraj
 from langtraj.model.scene_encoder import MapContext
-from langtraj.polylines import arc_lengths, point_at, project_on_polyline
 from langtraj.scenario.model import STEP_SECONDS
 from langtraj.sim.config import SimRequest
 from langtraj.sim.external import CLEARANCE_ITERATIONS, accelerations_only, external_acceleration, pin_external
@@ -156,7 +155,7 @@ class CandidatePlanning:
         prompt_terms = tuple(t for group in steered for t in group)
         terms = state.terms + prompt_terms + state.clearance
         hook = None
-        scripted = self._scripted(world, state, step, rollouts, batch.current_state)
+        scripted = self._scripted(world, state, step, rollouts, batch, accel)
         integrate = self._integrator(state, batch, accel, m, scripted)
         if terms:
 
@@ -229,34 +228,35 @@ class CandidatePlanning:
         return poses_to_world(chosen, state.origin)
 
     def _scripted(
-        self, world: SimWorld, state: LangTrajRun, step: int, rollouts: list[int], initial: Tensor
+        self, world: SimWorld, state: LangTrajRun, step: int, rollouts: list[int], batch: SceneBatch, accel: Tensor
     ) -> Tensor | None:
-        """The actions [R, A, N, 2] (physical; NaN: the model's) that the behaviours executing a speed exactly set in
-        this replan's plans of `rollouts` from their current states `initial` [R, A, 4] (scene frame;
-        `PromptReplans.scripts`: a braking lead at the asked deceleration, action by action from when its script
-        applies, and along its lane meanwhile); None where none does."""
-        dynamics = self.model.dynamics
-        per_action, n = dynamics.steps_per_action, self.model.config.num_actions
+        """The actions [R, A, N, 2] (physical; NaN: the model's) that the behaviours executing a manoeuvre exactly set
+        in this replan's plans of `rollouts` (`PromptReplans.scripts`, `BehaviourKind.script`: a braking lead, a
+        cut-in), planned from the agents' current states (scene frame) and the external agents' accelerations
+        `accel` [R, A_e]; None where none does."""
+        dynamics, initial = self.model.dynamics, batch.current_state.detach().double().cpu().numpy()
+        n = self.model.config.num_actions
         out = torch.full((len(rollouts), initial.shape[1], n, 2), float("nan"))
+        external = list(state.external)
         for column, rollout in enumerate(rollouts):
             for steering, since, script in state.prompt.scripts(rollout):
-                began = world.start if since < 0 else since
-                times = [(step - began + k * per_action) * STEP_SECONDS for k in range(n)]
-                accel = [script.acceleration(t) for t in times]
-                if all(a is None for a in accel):
-                    continue
-                slot = steering.slot
-                out[column, slot, :, 0] = torch.tensor([float("nan") if a is None else a for a in accel])
-                if script.keeps_lane and len(steering.target.path) >= 2:
-                    speeds = [a if a is not None else 0.0 for a in accel]
-                    out[column, slot, :, 1] = lane_keeping(
-                        initial[column, slot].detach().double().cpu().numpy(),
-                        steering.target.path,
-                        speeds,
-                        per_action,
-                        float(getattr(dynamics, "dt", STEP_SECONDS)),
-                        float(getattr(dynamics, "max_yaw_rate", 1.5)),
-                    )
+                other = steering.other_slot
+                other_accel = float(accel[column, external.index(other)]) if other in external else 0.0
+                now = ScriptState(
+                    agent=initial[column, steering.slot],
+                    other=None if other is None else initial[column, other],
+                    other_accel=other_accel,
+                    path=steering.target.path,
+                    elapsed_s=(step - (world.start if since < 0 else since)) * STEP_SECONDS,
+                    count=n,
+                    per_action=dynamics.steps_per_action,
+                    dt=float(getattr(dynamics, "dt", STEP_SECONDS)),
+                    max_yaw_rate=float(getattr(dynamics, "max_yaw_rate", 1.5)),
+                    own_lane=steering.target.own_lane,
+                    new_lane=steering.target.new_lane,
+                )
+                if len(now.path) >= 2:
+                    out[column, steering.slot] = torch.as_tensor(script.plan(now), dtype=out.dtype)
         return None if torch.isnan(out).all() else out.to(next(self.model.parameters()).device)
 
     def _integrator(
@@ -433,32 +433,3 @@ def with_script(actions: Tensor, scripted: Tensor) -> Tensor:
     """Physical actions [..., R, A, N, 2] with those `scripted` [R, A, N, 2] sets (NaN: kept)."""
     script = scripted.to(actions)
     return torch.where(torch.isnan(script), actions, torch.nan_to_num(script))
-
-
-LOOK_AHEAD_S = 1.0
-"""Pure pursuit's look-ahead of a scripted agent keeping its lane (s of its speed, at least `LOOK_AHEAD_MIN_M`)."""
-LOOK_AHEAD_MIN_M = 4.0
-
-
-def lane_keeping(
-    current: np.ndarray, path: np.ndarray, accelerations: Sequence[float], per_action: int, dt: float, most: float
-) -> Tensor:
-    """Yaw rates [N] (rad/s, within +-`most`) that keep an agent at `current` (x, y, heading, speed) on `path` [P, 2]
-    (same frame) by pure pursuit while it drives with `accelerations` [N] (m/s^2, each held `per_action` steps of
-    `dt`), integrated as the unicycle dynamics integrate (`model.dynamics.Unicycle`)."""
-    x, y, heading, speed = (float(v) for v in current)
-    rates = []
-    for a in accelerations:
-        ahead = max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * speed)
-        station = float(project_on_polyline(np.array([[x, y]]), path).station[0])
-        goal = point_at(path, min(station + ahead, float(arc_lengths(path)[-1])))
-        bearing = math.atan2(goal[1] - y, goal[0] - x) - heading
-        alpha = math.atan2(math.sin(bearing), math.cos(bearing))
-        curvature = 2.0 * math.sin(alpha) / max(math.hypot(goal[0] - x, goal[1] - y), 1e-3)
-        rate = float(np.clip(curvature * max(speed, 0.5), -most, most))
-        rates.append(rate)
-        for _ in range(per_action):
-            speed = max(speed + a * dt, 0.0)
-            heading += rate * dt
-            x, y = x + speed * math.cos(heading) * dt, y + speed * math.sin(heading) * dt
-    return torch.tensor(rates)

@@ -1,8 +1,8 @@
 """The behaviours a prompt can ask, one module each: their words, parameters, targets, steering and judges, behind one
 interface and registry (`BehaviourKind`, `KINDS`, `kind`; docs/design.md, 'Behaviours').
 
-`base` the interface, `Parameter`, the declarative steering terms (`Steer`) and speeds executed exactly
-(`Script`); `recipes` steering several
+`base` the interface, `Parameter` and the declarative steering terms (`Steer`); `scripts` manoeuvres executed
+exactly (`Script`); `recipes` steering several
 behaviours share; one module per behaviour (`turn`: left, right and straight; `lane_change`: left and right; `stop`,
 `speed_change`: up and down; `pull_over`, `go_first`, `yield_`, `follow`, `cut_in`, `overtake_cut_in`, `brake_hard`,
 `tailgate`, `run_red_light`, `pull_out`), imported by `builtin`. A new behaviour is one module with one registered
@@ -13,10 +13,10 @@ from langtraj.interdrive.behaviours.base import (
     KINDS,
     BehaviourKind,
     Parameter,
-    Script,
     Steer,
     kind,
     register,
 )
+from langtraj.interdrive.behaviours.scripts import Script, ScriptState
 
-__all__ = ["KINDS", "BehaviourKind", "Parameter", "Script", "Steer", "kind", "register"]
+__all__ = ["KINDS", "BehaviourKind", "Parameter", "Script", "ScriptState", "Steer", "kind", "register"]

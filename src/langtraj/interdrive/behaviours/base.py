@@ -21,6 +21,7 @@ from langtraj.interdrive.behaviour import KINDS, BehaviourSpec, names
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS
 
 if TYPE_CHECKING:
+    from langtraj.interdrive.behaviours.scripts import Script
     from langtraj.interdrive.detector import SceneGeometry
     from langtraj.interdrive.detector.parts import Pair
     from langtraj.interdrive.judging import Judge, Judgement
@@ -92,22 +93,6 @@ class Steer:
     last: int = FUTURE_STEPS
     weight: float | None = None
     mode: Literal["reach", "hold"] = "reach"
-
-
-@dataclass(frozen=True)
-class Script:
-    """A speed a behaviour executes exactly rather than steers toward (OpenSCENARIO's SpeedAction): from `start_s`
-    after the behaviour starts, its agent slows at `deceleration` m/s^2 to rest and stands, and with `keeps_lane` it
-    follows its target's path meanwhile (a lane-keeping controller, as a scenario's scripted actor). The simulation
-    sets these in the agent's plans before guidance and selection see them (`sim.candidates`)."""
-
-    start_s: float
-    deceleration: float
-    keeps_lane: bool = False
-
-    def acceleration(self, seconds: float) -> float | None:
-        """The acceleration the script sets `seconds` after the behaviour started (None: not yet, the model's)."""
-        return -self.deceleration if seconds >= self.start_s - 1e-6 else None
 
 
 def steps(seconds: float) -> int:
@@ -196,8 +181,8 @@ class BehaviourKind(ABC):
         relative to where it actually drives (`lead`, `avoid`) are available."""
 
     def script(self, target: BehaviourTarget) -> Script | None:
-        """The speed the behaviour executes exactly from its `target` (`Script`), or None where guidance alone steers
-        it (by default)."""
+        """The manoeuvre the behaviour executes exactly from its `target` (`scripts.Script`), or None where guidance
+        alone steers it (by default)."""
         return None
 
     def ready(self, target: BehaviourTarget) -> str | None:

@@ -12,7 +12,6 @@ from langtraj.interdrive.behaviours.base import (
     ROUTE_WEIGHT,
     BehaviourKind,
     Parameter,
-    Script,
     Steer,
     register,
     route,
@@ -21,6 +20,7 @@ from langtraj.interdrive.behaviours.base import (
     steps,
 )
 from langtraj.interdrive.behaviours.recipes import settled
+from langtraj.interdrive.behaviours.scripts import Braking, Script
 from langtraj.interdrive.detector import braking_lead_runs
 from langtraj.interdrive.judging import brake_hard as judged_by
 from langtraj.interdrive.reader.words import IN_FRONT, OTHER, TIGHT_GAP, verb
@@ -132,7 +132,7 @@ class BrakeHard(BehaviourKind):
         """Braking at the asked deceleration from `BRAKE_HARD_AFTER_S` to rest in its lane, executed exactly:
         guidance alone let the model, conditioned on a stop, brake at 5.5-13 m/s^2 when 4 was asked, and swerve
         (docs/testing.md, 'Scenarios staged on the ego's live state')."""
-        return Script(BRAKE_HARD_AFTER_S, float(target.deceleration or BRAKE_HARD_DECELERATION), keeps_lane=True)
+        return Braking(BRAKE_HARD_AFTER_S, float(target.deceleration or BRAKE_HARD_DECELERATION))
 
     def ready(self, target: BehaviourTarget) -> str | None:
         """Not before its follower is within `BRAKE_HARD_READY_S` of time headway (Euro NCAP's braking lead brakes

@@ -9,6 +9,7 @@ from collections.abc import Mapping
 from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
 from langtraj.interdrive.behaviours.base import BehaviourKind, Parameter, Steer, register, route, steps
 from langtraj.interdrive.behaviours.recipes import gap_ahead
+from langtraj.interdrive.behaviours.scripts import CuttingIn, Script
 from langtraj.interdrive.detector import cut_in_runs
 from langtraj.interdrive.judging import cut_in as judged_by
 from langtraj.interdrive.reader.words import OTHER, verb
@@ -23,6 +24,7 @@ from langtraj.interdrive.targets.context import (
 )
 from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
 from langtraj.interdrive.taxonomy import InteractionType
+from langtraj.roads.routes import route as lane_route
 
 CUT_IN_GAP_M = 10.0
 """The gap (bumper to bumper, m) a cut-in leaves in front of the other agent unless the prompt gives one."""
@@ -92,6 +94,8 @@ def _cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) 
         side=side,
         settled_s=CUT_IN_S,
         lead_m=float(gap + lengths),
+        own_lane=ctx.ahead(agent),
+        new_lane=lane_route(ctx.index, [lane], level, agent.reach + begin),
     )
 
 
@@ -101,6 +105,17 @@ its agent to go: more, and it would brake to let the other catch up; it waits un
 CUT_IN_READY_MIN_SPEED = 3.0
 """The least speed (m/s) of the agent cut in on for a staged cut-in to start: in front of a car standing in a queue
 there is nothing to cut in on."""
+
+
+CUT_IN_SLOWER = 6.0
+"""How much slower than the other agent drove at the start (m/s) a scripted cut-in drives on once settled: a slower
+vehicle cutting in (Euro NCAP's cut-in tests a slower target), closing a 10-m gap on a follower that keeps its speed
+in under 2 s, within a scenario's 8 s (3 m/s left it 3 s, past the end)."""
+
+
+def cruise(target: BehaviourTarget) -> float:
+    """The speed a scripted cut-in drives on at once settled (`CUT_IN_SLOWER`)."""
+    return max(float(target.other_speed or target.current_speed) - CUT_IN_SLOWER, 0.0)
 
 
 def ready(target: BehaviourTarget) -> str | None:
@@ -146,6 +161,14 @@ class CutIn(BehaviourKind):
 
     def ready(self, target: BehaviourTarget) -> str | None:
         return ready(target)
+
+    def script(self, target: BehaviourTarget) -> Script | None:
+        """Into the other's lane ahead of it, settling the asked gap wherever the other drives, then on at
+        `CUT_IN_SLOWER` below the other's speed at the start (`CuttingIn`); guidance alone left most cut-ins
+        unsettled or turned across the lane (docs/testing.md, 'Scenarios staged on the ego's live state')."""
+        if target.lead_m is None:
+            return None
+        return CuttingIn(float(target.lead_m), float(target.settled_s or CUT_IN_S), cruise(target))
 
     def steer(self, target: BehaviourTarget, other_driven: bool) -> list[Steer]:
         """The gap ahead of the other agent when the change has settled (`CUT_IN_S`) and after

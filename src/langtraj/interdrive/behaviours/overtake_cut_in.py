@@ -11,8 +11,18 @@ import numpy as np
 
 from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
 from langtraj.interdrive.behaviours.base import BehaviourKind, Steer, register, route, speed, steps
-from langtraj.interdrive.behaviours.cut_in import CHANGE_AND_SPEED, CUT_IN_VERBS, CUT_MANNER, CUTS_IN, GAP, JUST_AHEAD
+from langtraj.interdrive.behaviours.cut_in import (
+    CHANGE_AND_SPEED,
+    CUT_IN_VERBS,
+    CUT_MANNER,
+    CUTS_IN,
+    GAP,
+    JUST_AHEAD,
+    cruise,
+)
+from langtraj.interdrive.behaviours.cut_in import ready as cut_in_ready
 from langtraj.interdrive.behaviours.recipes import gap_ahead, settled
+from langtraj.interdrive.behaviours.scripts import CuttingIn, Script
 from langtraj.interdrive.detector import overtake_cut_in_runs
 from langtraj.interdrive.judging import overtake_cut_in as judged_by
 from langtraj.interdrive.reader.words import OTHER, verb
@@ -138,6 +148,8 @@ def _overtake_cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap
         current_speed=v,
         other_speed=v_other,
         side=side,
+        own_lane=ctx.ahead(agent),
+        new_lane=lane_route(ctx.index, [lane], level, goal + agent.reach),
         settled_s=settle,
         lead_m=float(gap + lengths),
     )
@@ -184,6 +196,17 @@ class OvertakeCutIn(BehaviourKind):
     ) -> BehaviourTarget:
         assert other is not None
         return _overtake_cut_in(ctx, agent, other, asked["gap"])
+
+    def ready(self, target: BehaviourTarget) -> str | None:
+        """As a cut-in's (`cut_in.ready`): not in front of a car standing still."""
+        return cut_in_ready(target)
+
+    def script(self, target: BehaviourTarget) -> Script | None:
+        """Past the other and into its lane ahead of it, settling the asked gap wherever the other drives, then on
+        slower than it (a cut-in's script, `CuttingIn`: straight on until clear ahead of it)."""
+        if target.lead_m is None:
+            return None
+        return CuttingIn(float(target.lead_m), float(target.settled_s or 0.0), cruise(target))
 
     def steer(self, target: BehaviourTarget, other_driven: bool) -> list[Steer]:
         """At the passing speed from 1 s until the change begins (`LANE_CHANGE_S` before it settles), on its way

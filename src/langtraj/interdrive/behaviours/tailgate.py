@@ -9,6 +9,7 @@ from collections.abc import Mapping
 from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
 from langtraj.interdrive.behaviours.base import BehaviourKind, Steer, register, route
 from langtraj.interdrive.behaviours.recipes import at_station_then_speed
+from langtraj.interdrive.behaviours.scripts import Following, Script
 from langtraj.interdrive.detector import tailgating_runs
 from langtraj.interdrive.judging import tailgate as judged_by
 from langtraj.interdrive.reader.words import OTHER, verb
@@ -64,6 +65,7 @@ def _tailgate(ctx: TargetContext, agent: AgentHere, other: AgentHere) -> Behavio
         ctx.ahead(agent),
         f"{want:.0f} m behind @{other.track_id} ({TAILGATE_HEADWAY_S:g} s at {v_other:.1f} m/s) within {within:.1f} s",
         station_of_goal=float(v_other * within + gap - want),
+        lead_m=-float(want + 0.5 * (agent.length + other.length)),
         speed=float(v_other),
         other_id=other.track_id,
         current_speed=agent.here.speed,
@@ -92,6 +94,12 @@ class Tailgate(BehaviourKind):
     ) -> BehaviourTarget:
         assert other is not None
         return _tailgate(ctx, agent, other)
+
+    def script(self, target: BehaviourTarget) -> Script | None:
+        """Closing in behind the other to `TAILGATE_HEADWAY_S` and staying there wherever the other drives, in its
+        lane (`Following`); guidance alone kept the model's 1.6-1.7 s of headway (docs/testing.md, 'Scenarios
+        staged on the ego's live state')."""
+        return None if target.lead_m is None else Following(float(target.lead_m))
 
     def steer(self, target: BehaviourTarget, other_driven: bool) -> list[Steer]:
         """At the station that closes the gap behind the other agent when the target says, not past it before; at

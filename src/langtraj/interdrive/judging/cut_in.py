@@ -1,6 +1,7 @@
 """A cut-in judged by its numbers: the agent, out of the other's path at first, settles in it ahead of the other, and
-the gap it leaves (bumper to bumper, along the other's driven path) when it settles is the gap asked, within
-tolerance, before any contact between the two (docs/testing.md, 'Judged by numbers').
+the gap it leaves (bumper to bumper, along the other's driven path) when it enters the other's lane on its way to
+settling is the gap asked, within tolerance, before any contact between the two (docs/testing.md, 'Judged by
+numbers').
 
 Settled: the agent's centre within `SETTLED_LATERAL_M` of the other's path, its heading within `SETTLED_HEADING`
 of the path's, ahead of the other, held `SETTLED_HOLD_S` (or until the other runs into it). The overtake and cut-in
@@ -42,6 +43,10 @@ still turned further is still changing lanes."""
 SETTLED_HOLD_S = 1.0
 """How long the agent must stay settled (s), unless the other runs into it first: a car that crosses the other's path
 and goes on out of it does not cut in."""
+ENTERED_LATERAL_M = 1.75
+"""A cut-in has entered the other's lane when its centre is this near (m) the other's path (half a 3.5-m lane): the gap
+it leaves is read then, when it cuts in (as Euro NCAP reads a cut-in at the lane crossing), not when it has
+settled, by which time the follower may have braked for it."""
 OUT_OF_PATH_M = 2.0
 """Before settling, the agent's centre was this far (m) or more from the other's path at some step: a car already in
 the other's path leads it, it does not cut in (lanes are about 3.5 m apart)."""
@@ -83,6 +88,15 @@ def settling(view: PairView, after: int) -> int | None:
     return None
 
 
+def entered(view: PairView, after: int, settled_at: int) -> int:
+    """The step at which the agent, settled from `settled_at`, entered the other's lane (`ENTERED_LATERAL_M`) ahead
+    of it: the first of the steps up to `settled_at` it has since stayed in the lane, not before `after`."""
+    with np.errstate(invalid="ignore"):
+        outside = ~(view.both & (np.abs(view.across) <= ENTERED_LATERAL_M) & (view.gap_ahead > 0.0))
+    before = np.flatnonzero(outside[after : settled_at + 1])
+    return after + int(before[-1]) + 1 if before.size else after
+
+
 def never_settled(view: PairView, after: int) -> str:
     """Why the agent never settled in the other's path ahead of it after step `after` (one line)."""
     other = f"@{view.other.track_id}"
@@ -110,7 +124,7 @@ def judge_settling(view: PairView, asked_gap: float, after: int, extra: tuple[Me
     contact = view.contact_step
     step = settling(view, after)
     tolerance = gap_tolerance(asked_gap)
-    gap = None if step is None else float(view.gap_ahead[step])
+    gap = None if step is None else float(view.gap_ahead[entered(view, after, step)])
     ok = None if gap is None else abs(gap - asked_gap) <= tolerance
     measures = (
         *extra,

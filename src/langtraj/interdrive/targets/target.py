@@ -49,6 +49,12 @@ class BehaviourTarget:
     """How far the agent's centre is ahead of the other's along the path once settled (m), where the target says (a
     cut-in, an overtake and cut-in: the gap and the half lengths), so that steering can keep it relative to where
     the other actually drives."""
+    own_lane: np.ndarray | None = None
+    """The agent's own lane ahead [M, 2] (world frame), where the target's `path` leaves it (a cut-in: where it keeps
+    to until it moves across)."""
+    new_lane: np.ndarray | None = None
+    """The lane it moves into [M, 2] (world frame) from beside the agent on (a cut-in, an overtake and cut-in), where
+    the target's `path` leads into one: what a scripted change follows (`behaviours.scripts`)."""
     other_gap_m: float | None = None
     """The bumper gap to the other agent along the lane at the current step (m), where the target reads it (a braking
     lead: its follower's gap)."""

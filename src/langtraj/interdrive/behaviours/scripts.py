@@ -1,0 +1,190 @@
+"""Manoeuvres a behaviour executes exactly rather than steers toward, as a scenario's scripted actor does
+(OpenSCENARIO's SpeedAction and LaneChangeAction; CARLA's ScenarioRunner): a braking lead at the asked deceleration in
+its lane, a cut-in settling the asked gap ahead of the other agent wherever that agent drives. A `Script` plans its
+agent's actions (acceleration, yaw rate) block by block from the agents' states at a replan; the simulation puts them
+in the agent's plans before guidance and selection see them (`sim.candidates`), and the model drives the agent again
+where a script gives none. Plain numpy: the layer below guidance (docs/simulation.md, 'Scripted manoeuvres').
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from langtraj.polylines import arc_lengths, point_at, project_on_polyline
+
+LOOK_AHEAD_S = 1.0
+"""Pure pursuit's look-ahead keeping a lane (s of speed, at least `LOOK_AHEAD_MIN_M`)."""
+LOOK_AHEAD_MIN_M = 4.0
+
+
+@dataclass(frozen=True)
+class ScriptState:
+    """What a script plans from: its agent's and the other agent's state (x, y, heading, speed; one frame) and the
+    other's acceleration (m/s^2), the target's path [P, 2] in that frame, the seconds since the behaviour started,
+    the dynamics' blocks (`count` actions of `per_action` steps of `dt` s, yaw rate within +-`max_yaw_rate`), and
+    the agent's own lane and the lane it moves into [M, 2] where the target has them (None: none; the path then)."""
+
+    agent: np.ndarray
+    other: np.ndarray | None
+    other_accel: float
+    path: np.ndarray
+    elapsed_s: float
+    count: int
+    per_action: int
+    dt: float
+    max_yaw_rate: float
+    own_lane: np.ndarray | None = None
+    new_lane: np.ndarray | None = None
+
+
+class Script(ABC):
+    """A manoeuvre executed exactly (see the module)."""
+
+    @abstractmethod
+    def plan(self, now: ScriptState) -> np.ndarray:
+        """Actions [count, 2] (acceleration m/s^2, yaw rate rad/s) from `now`; NaN where the model's stand."""
+
+
+def pursuit_rate(
+    x: float, y: float, heading: float, speed: float, path: np.ndarray, ahead: float, most: float
+) -> float:
+    """The yaw rate (rad/s, within +-`most`) pure pursuit steers to reach the point `ahead` m along `path` past the
+    agent's nearest point."""
+    station = float(project_on_polyline(np.array([[x, y]]), path).station[0])
+    goal = point_at(path, min(station + ahead, float(arc_lengths(path)[-1])))
+    bearing = math.atan2(goal[1] - y, goal[0] - x) - heading
+    alpha = math.atan2(math.sin(bearing), math.cos(bearing))
+    curvature = 2.0 * math.sin(alpha) / max(math.hypot(goal[0] - x, goal[1] - y), 1e-3)
+    return float(np.clip(curvature * max(speed, 0.5), -most, most))
+
+
+def _step(state: list[float], accel: float, rate: float, dt: float) -> None:
+    """One step of the unicycle dynamics (`model.dynamics.Unicycle`), in place: speed, heading, then position."""
+    state[3] = max(state[3] + accel * dt, 0.0)
+    state[2] += rate * dt
+    state[0] += state[3] * math.cos(state[2]) * dt
+    state[1] += state[3] * math.sin(state[2]) * dt
+
+
+@dataclass(frozen=True)
+class Braking(Script):
+    """From `start_s`, slowing at `deceleration` m/s^2 to rest and standing (the model's acceleration before), and
+    keeping to its path throughout (pure pursuit)."""
+
+    start_s: float
+    deceleration: float
+
+    def plan(self, now: ScriptState) -> np.ndarray:
+        out = np.full((now.count, 2), np.nan)
+        state = [float(v) for v in now.agent]
+        for k in range(now.count):
+            t = now.elapsed_s + k * now.per_action * now.dt
+            accel = -self.deceleration if t >= self.start_s - 1e-6 else np.nan
+            ahead = max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3])
+            rate = pursuit_rate(*state, now.path, ahead, now.max_yaw_rate)
+            out[k] = (accel, rate)
+            for _ in range(now.per_action):
+                _step(state, 0.0 if np.isnan(accel) else accel, rate, now.dt)
+        return out
+
+
+CUT_IN_LOOK_AHEAD_S = 2.0
+"""A scripted cut-in's pure-pursuit look-ahead (s of speed, at least 10 m): the change into the lane over about 2-3 s,
+as drivers change lanes, not a swerve."""
+CUT_IN_GAP_GAIN = 1.0
+"""Per second squared: the acceleration per metre a scripted cut-in is short of (or past) its lead on the other."""
+CUT_IN_SPEED_GAIN = 1.6
+"""Per second: the acceleration per m/s the cut-in is slower (or faster) than the other (with `CUT_IN_GAP_GAIN`: a
+damping ratio of 0.8, within 2 m of its lead in about 3 s where the acceleration limits allow; at 0.4 and 1.0 it
+took 8 s, longer than a scenario)."""
+CUT_IN_ACCELERATIONS = (-3.5, 2.5)
+"""What a scripted cut-in may brake and accelerate (m/s^2): firm, not an emergency."""
+CUT_IN_CLEAR_M = 5.5
+"""How far ahead of the other's centre a cut-in's centre gets before it moves across (two car lengths' halves and a
+metre: its rear past the other's front): it pulls in ahead of the other, never across it from beside (a side-swipe)."""
+
+
+CUT_IN_GAP_SLACK_M = 2.0
+"""How much nearer than its lead a cut-in may be when it moves across (m): it pulls in at about the asked gap, not
+the first moment it could (3 m ahead of a follower's bumper made the planners brake hard and the gap it settled at
+20-27 m); farther, it moves across and closes in while it does."""
+CUT_IN_IN_LANE_M = 0.7
+"""How near its path (m) a cut-in is once in the lane: from then (and its settling time) it drives on slower."""
+
+
+def _lead_and_offset(state: list[float], other: list[float], path: np.ndarray) -> tuple[float, float]:
+    """How far the agent's centre is ahead of the other's along `path` (m), and how far the agent is off it (m)."""
+    found = project_on_polyline(np.array([state[:2], other[:2]]), path)
+    return float(found.station[0] - found.station[1]), float(found.distance[0])
+
+
+def _keep_lead(lead_m: float, lead: float, state: list[float], other: list[float]) -> float:
+    """The acceleration (m/s^2, within `CUT_IN_ACCELERATIONS`) that brings the agent to `lead_m` ahead of the other
+    (behind it where negative) and to its speed."""
+    accel = CUT_IN_GAP_GAIN * (lead_m - lead) + CUT_IN_SPEED_GAIN * (other[3] - state[3])
+    return float(np.clip(accel, *CUT_IN_ACCELERATIONS))
+
+
+@dataclass(frozen=True)
+class CuttingIn(Script):
+    """Into the other's lane (its `new_lane`, else its path; pure pursuit) once clear ahead of the other
+    (`CUT_IN_CLEAR_M`) and at about its lead (`CUT_IN_GAP_SLACK_M`; in its own lane until then), its speed set to
+    reach and keep `lead_m` (centre to centre along the path) ahead of the other wherever the other drives; once in
+    the lane and `settle_s` has passed, on at `cruise_mps`: a slower vehicle cutting in (Euro NCAP's cut-in), which
+    a follower that ignores it runs into."""
+
+    lead_m: float
+    settle_s: float
+    cruise_mps: float
+
+    def plan(self, now: ScriptState) -> np.ndarray:
+        out = np.full((now.count, 2), np.nan)
+        if now.other is None:
+            return out
+        into = now.new_lane if now.new_lane is not None and len(now.new_lane) >= 2 else now.path
+        own = now.own_lane if now.own_lane is not None and len(now.own_lane) >= 2 else None
+        state, other = [float(v) for v in now.agent], [float(v) for v in now.other]
+        for k in range(now.count):
+            t = now.elapsed_s + k * now.per_action * now.dt
+            lead, off = _lead_and_offset(state, other, into)
+            if t >= self.settle_s and off <= CUT_IN_IN_LANE_M:
+                accel = float(np.clip(CUT_IN_SPEED_GAIN * (self.cruise_mps - state[3]), *CUT_IN_ACCELERATIONS))
+            else:
+                accel = _keep_lead(self.lead_m, lead, state, other)
+            across = lead >= max(CUT_IN_CLEAR_M, self.lead_m - CUT_IN_GAP_SLACK_M)
+            if across or off <= CUT_IN_IN_LANE_M or own is None:  # into the lane over about 2-3 s, or in it
+                rate = pursuit_rate(*state, into, max(10.0, CUT_IN_LOOK_AHEAD_S * state[3]), now.max_yaw_rate)
+            else:  # its own lane until it moves across
+                rate = pursuit_rate(*state, own, max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), now.max_yaw_rate)
+            out[k] = (accel, rate)
+            for _ in range(now.per_action):
+                _step(state, accel, rate, now.dt)
+                _step(other, now.other_accel, 0.0, now.dt)
+        return out
+
+
+@dataclass(frozen=True)
+class Following(Script):
+    """Keeping `lead_m` (negative: behind) on the other agent along its path, wherever the other drives, in its lane
+    (pure pursuit): a tailgater closing in to a short headway and sitting there."""
+
+    lead_m: float
+
+    def plan(self, now: ScriptState) -> np.ndarray:
+        out = np.full((now.count, 2), np.nan)
+        if now.other is None:
+            return out
+        state, other = [float(v) for v in now.agent], [float(v) for v in now.other]
+        for k in range(now.count):
+            lead, _ = _lead_and_offset(state, other, now.path)
+            accel = _keep_lead(self.lead_m, lead, state, other)
+            rate = pursuit_rate(*state, now.path, max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), now.max_yaw_rate)
+            out[k] = (accel, rate)
+            for _ in range(now.per_action):
+                _step(state, accel, rate, now.dt)
+                _step(other, now.other_accel, 0.0, now.dt)
+        return out

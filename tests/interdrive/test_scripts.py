@@ -1,0 +1,101 @@
+"""Manoeuvres executed exactly (`interdrive.behaviours.scripts`): a braking lead slows at the asked deceleration to
+rest and keeps to its lane; a cut-in pulls in ahead of the other agent, never across it from beside, and settles the
+asked lead wherever the other drives."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from langtraj.interdrive.behaviour import Behaviour
+from langtraj.interdrive.behaviours import ScriptState, kind
+from langtraj.interdrive.behaviours.cut_in import CUT_IN_SLOWER
+from langtraj.interdrive.behaviours.scripts import CUT_IN_CLEAR_M, Braking, CuttingIn, _step
+from langtraj.interdrive.targets import BehaviourTarget
+
+LANE = np.stack([np.linspace(-50, 400, 451), np.zeros(451)], axis=1)  # eastbound, y = 0
+BESIDE = np.stack([np.linspace(-50, 400, 451), np.full(451, 3.5)], axis=1)
+
+
+def _state(agent, other=None, path=LANE, elapsed=0.0, other_accel=0.0, own=None):
+    return ScriptState(np.asarray(agent, float), None if other is None else np.asarray(other, float), other_accel,
+                       path, elapsed, 16, 5, 0.1, 1.5, own_lane=own)  # fmt: skip
+
+
+def _roll(actions: np.ndarray, start, per_action=5, dt=0.1) -> np.ndarray:
+    """States [N * per_action, 4] the unicycle reaches with `actions` (NaN acceleration: 0)."""
+    state, out = [float(v) for v in start], []
+    for accel, rate in actions:
+        for _ in range(per_action):
+            _step(state, 0.0 if np.isnan(accel) else float(accel), float(rate), dt)
+            out.append(list(state))
+    return np.asarray(out)
+
+
+def test_a_braking_lead_brakes_at_the_asked_deceleration_from_its_start_and_keeps_its_lane():
+    start = [0.0, 0.8, 0.05, 15.0]  # 0.8 m left of its lane, turned 3 degrees off it
+    actions = Braking(start_s=1.0, deceleration=4.0).plan(_state(start))
+    assert np.isnan(actions[:2, 0]).all() and (actions[2:, 0] == -4.0).all()  # the model's for the first second
+    states = _roll(actions, start)
+    speeds = states[:, 3]
+    assert speeds[-1] == 0.0 and speeds[9] == pytest.approx(15.0)
+    assert np.diff(speeds[10:40]).min() == pytest.approx(-0.4)  # 4 m/s^2 at 10 Hz
+    assert abs(states[30, 1]) < 0.2  # back on the lane within 3 s
+
+
+def test_a_cut_in_from_beside_waits_to_be_ahead_then_settles_the_lead_in_the_lane():
+    lead = 10.0 + 4.5  # a 10 m gap between two 4.5 m cars
+    other = [0.0, 0.0, 0.0, 12.0]  # the other agent, in the lane, keeps 12 m/s
+    agent = [0.0, 3.5, 0.0, 12.0]  # alongside it, in the lane beside
+    script = CuttingIn(lead_m=lead, settle_s=10.0, cruise_mps=9.0)
+    plan = script.plan(_state(agent, other, path=LANE, own=BESIDE))
+    assert abs(plan[0, 1]) < 0.05 and plan[0, 0] > 0  # alongside: on in its lane, speeding up, never across it
+    state, other_state, worst = [float(v) for v in agent], [float(v) for v in other], math.inf
+    for replan in range(10):  # replanned every second from where both are, as a simulation does
+        actions = script.plan(_state(state, other_state, elapsed=float(replan), own=BESIDE))
+        for accel, rate in actions[:2]:
+            for _ in range(5):
+                _step(state, float(accel), float(rate), 0.1)
+                _step(other_state, 0.0, 0.0, 0.1)
+                if abs(state[1]) < 2.0:  # in the other's lane: always clear ahead of it
+                    worst = min(worst, state[0] - other_state[0])
+    assert worst >= CUT_IN_CLEAR_M - 0.5
+    assert abs(state[1]) < 0.3 and abs(state[2]) < 0.05  # settled in the lane, aligned
+    assert state[0] - other_state[0] == pytest.approx(lead, abs=1.5)
+
+
+def test_a_cut_in_ahead_of_an_other_that_brakes_to_rest_slows_too_never_closing_in_on_it():
+    lead = 14.5
+    script = CuttingIn(lead_m=lead, settle_s=20.0, cruise_mps=9.0)
+    state, other, closest = [lead, 0.0, 0.0, 12.0], [0.0, 0.0, 0.0, 12.0], math.inf
+    for replan in range(9):  # the other brakes at 2 m/s^2 to rest (6 s), then stands
+        braking = -2.0 if other[3] > 0 else 0.0
+        actions = script.plan(_state(state, other, elapsed=float(replan), other_accel=braking))
+        for accel, rate in actions[:2]:
+            for _ in range(5):
+                _step(state, float(accel), float(rate), 0.1)
+                _step(other, braking, 0.0, 0.1)
+                closest = min(closest, state[0] - other[0])
+    assert other[3] == pytest.approx(0.0) and state[3] == pytest.approx(0.0)  # both at rest
+    assert closest >= lead - 1.0 and state[0] - other[0] < lead + 6.0  # it matches speeds first: never brake-checks
+
+
+def test_the_script_of_a_behaviour_comes_from_its_target():
+    target = BehaviourTarget(1, Behaviour.BRAKE_HARD, LANE, "", current_speed=12.0, deceleration=6.0, settled_s=3.0)
+    assert kind("brake_hard").script(target) == Braking(1.0, 6.0)
+    cut = BehaviourTarget(1, Behaviour.CUT_IN, BESIDE, "", lead_m=14.5, settled_s=4.0, other_speed=12.0)
+    assert kind("cut_in").script(cut) == CuttingIn(14.5, 4.0, 12.0 - CUT_IN_SLOWER)
+    assert kind("stop").script(BehaviourTarget(1, Behaviour.STOP, LANE, "")) is None  # guidance alone
+
+
+def test_once_settled_a_cut_in_drives_on_slower_so_that_a_follower_keeping_its_speed_closes_in():
+    script = CuttingIn(lead_m=14.5, settle_s=0.0, cruise_mps=9.0)
+    state, other = [14.5, 0.0, 0.0, 12.0], [0.0, 0.0, 0.0, 12.0]
+    for replan in range(4):
+        for accel, rate in script.plan(_state(state, other, elapsed=float(replan)))[:2]:
+            for _ in range(5):
+                _step(state, float(accel), float(rate), 0.1)
+                _step(other, 0.0, 0.0, 0.1)
+    assert state[3] == pytest.approx(9.0, abs=0.3) and state[0] - other[0] < 14.5 - 6.0
