@@ -182,7 +182,10 @@ class Stagings:
                 except TargetUnavailable as exc:
                     wait.unavailable = self._not_yet(staged, elapsed, str(exc.detail))
                     continue
-                why = kind(reading.behaviour).ready(target)
+                behaviour = kind(reading.behaviour)
+                if not isinstance(staged.trigger, WhenReady):  # the prompt says when: at once from then
+                    target = behaviour.at_trigger(target)
+                why = behaviour.ready(target)
                 if why is not None:
                     wait.unavailable = self._not_yet(staged, elapsed, why)
                     continue

@@ -185,6 +185,11 @@ class BehaviourKind(ABC):
         alone steers it (by default)."""
         return None
 
+    def at_trigger(self, target: BehaviourTarget) -> BehaviourTarget:
+        """The target when a trigger the prompt gives starts the behaviour ("when @ego is within 20 m"): the moment
+        is the prompt's, so a behaviour that otherwise waits a little first starts at once; unchanged by default."""
+        return target
+
     def ready(self, target: BehaviourTarget) -> str | None:
         """Why the behaviour should not start yet from `target`, derived from the agents as they are now (a cut-in
         that would need its agent to brake hard to let the other catch up; a braking lead with its follower far

@@ -5,6 +5,7 @@ deceleration, staying in the follower's path: `judge`). See docs/interdrive.md (
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 
 from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
 from langtraj.interdrive.behaviours.base import (
@@ -132,7 +133,13 @@ class BrakeHard(BehaviourKind):
         """Braking at the asked deceleration from `BRAKE_HARD_AFTER_S` to rest in its lane, executed exactly:
         guidance alone let the model, conditioned on a stop, brake at 5.5-13 m/s^2 when 4 was asked, and swerve
         (docs/testing.md, 'Scenarios staged on the ego's live state')."""
-        return Braking(BRAKE_HARD_AFTER_S, float(target.deceleration or BRAKE_HARD_DECELERATION))
+        start = BRAKE_HARD_AFTER_S if target.starts_s is None else target.starts_s
+        return Braking(start, float(target.deceleration or BRAKE_HARD_DECELERATION))
+
+    def at_trigger(self, target: BehaviourTarget) -> BehaviourTarget:
+        """Braking at once: the prompt's trigger says when ("when @ego is within 20 m of @738, ..."), not the second
+        the follower otherwise has of the scene as it was (`BRAKE_HARD_AFTER_S`)."""
+        return replace(target, starts_s=0.0)
 
     def ready(self, target: BehaviourTarget) -> str | None:
         """Not before its follower is within `BRAKE_HARD_READY_S` of time headway (Euro NCAP's braking lead brakes
