@@ -1,38 +1,24 @@
 """Behaviours staged at their trigger (`sim.staging`) in closed loop with the shipped checkpoint, on a constructed
 junction: a stop asked "after 3 s" starts at the replan at 3 s with its target derived from where the car is then,
-the car drives on as unprompted before it, and the judge reads the manoeuvre from that step on."""
+the car drives on as unprompted before it, and the judge reads the manoeuvre from that step on (the fixtures:
+`conftest.py`)."""
 
 from __future__ import annotations
 
 import numpy as np
-import pytest
-from interdrive.test_counterfactual import LEFT_LANE_STRAIGHT, RIGHT_LANE_STRAIGHT, drive, four_way
-from interdrive.test_heuristics import scene
 
 from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.behaviours.verdict import Start, judge_reading
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
 from langtraj.interdrive.reader import read_clauses
-from langtraj.model.checkpoint import load_model
 from langtraj.scenario.types import StateField
-from langtraj.sim.checkpoints import shipped_checkpoint
 from langtraj.sim.config import PromptLevers, SimConfig, SimRequest
 from langtraj.sim.engine import simulate
 from langtraj.sim.policies import LangTrajPolicy
 from langtraj.sim.staging import starts_of
 
 LEVERS = PromptLevers(text=True, guidance=True, selection=True)
-
-
-@pytest.fixture(scope="module")
-def loaded():
-    return load_model(shipped_checkpoint())
-
-
-@pytest.fixture(scope="module")
-def junction():
-    return scene(four_way(), drive(LEFT_LANE_STRAIGHT, speed=6.0), drive(RIGHT_LANE_STRAIGHT, speed=6.0, start=20.0))
 
 
 def _run(loaded, s, text: str | None):

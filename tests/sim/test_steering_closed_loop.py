@@ -6,32 +6,17 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-import pytest
-from interdrive.test_counterfactual import LEFT_LANE_STRAIGHT, RIGHT_LANE_STRAIGHT, drive, four_way
-from interdrive.test_heuristics import scene
 
 from langtraj.guidance.steering import Steering
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
 from langtraj.model import LangTraj
-from langtraj.model.checkpoint import load_model
 from langtraj.scenario.types import StateField
-from langtraj.sim.checkpoints import shipped_checkpoint
 from langtraj.sim.config import PromptLevers, SimConfig, SimRequest
 from langtraj.sim.engine import simulate
 from langtraj.sim.policies import LangTrajPolicy
 
 GUIDANCE_ONLY = PromptLevers(text=False, guidance=True, selection=False)
-
-
-@pytest.fixture(scope="module")
-def loaded():
-    return load_model(shipped_checkpoint())
-
-
-@pytest.fixture(scope="module")
-def junction():
-    return scene(four_way(), drive(LEFT_LANE_STRAIGHT, speed=6.0), drive(RIGHT_LANE_STRAIGHT, speed=6.0, start=20.0))
 
 
 def _run(loaded, s, text: str | None, levers: PromptLevers = GUIDANCE_ONLY) -> np.ndarray:
