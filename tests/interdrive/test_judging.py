@@ -296,7 +296,13 @@ def _ref_settled_at(f: dict[str, Any], since: int) -> int | None:
 
 
 def _ref_gap_ok(f: dict[str, Any], k: int | None, gap: float) -> bool:
-    return k is not None and abs(f["ahead"][k] - gap) <= max(3.0, 0.2 * gap)
+    """The gap when the agent entered the lane (its centre within 1.75 m, ahead) on its way to settling at `k`."""
+    if k is None:
+        return False
+    entry = k
+    while entry > 0 and abs(f["lat"][entry - 1]) <= 1.75 and f["ahead"][entry - 1] > 0:
+        entry -= 1
+    return abs(f["ahead"][entry] - gap) <= max(3.0, 0.2 * gap)
 
 
 def ref_cut_in(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -> bool:
@@ -429,6 +435,21 @@ def test_a_cut_in_reports_its_gap_beside_the_asked_one():
     assert "1.8 m to its side" in away.why and away.measures[0].realised is None
     lead = _judge("cut_in", episode({1: track(10 * t, 0.0), 2: track(20 + 10 * t, 0.2)}), 2, 1, {})
     assert "from the start" in lead.why
+
+
+def test_a_cut_ins_gap_is_read_when_it_enters_the_lane_and_a_follower_that_fell_back_is_named():
+    # the ego brakes from 10 to 6 m/s from 2.5 s, as the cutter (10 m ahead) enters its lane: the gap opens after
+    ego_speed = 10.0 - 4.0 * np.clip((t - 2.5) / 2.0, 0.0, 1.0)
+    lateral = 3.5 - 3.5 * smooth(1.0, 3.0)
+    braking = episode({1: track(travelled(ego_speed), 0.0), 2: track(LENGTH + 10.0 + 10 * t, lateral)})
+    entered_then = _judge("cut_in", braking, 2, 1, {"gap": 10.0})
+    assert entered_then.happened and _measure(entered_then, "gap").realised == pytest.approx(10.6, abs=0.6)
+    assert ref_cut_in(braking, 2, 1, {"gap": 10.0})
+    # the ego brakes from the start: by the time the cutter enters its lane the gap has grown, the ego's doing
+    early = 10.0 - 4.0 * np.clip(t / 1.5, 0.0, 1.0)
+    fell_back = episode({1: track(travelled(early), 0.0), 2: track(LENGTH + 10.0 + 10 * t, lateral)})
+    wide = _judge("cut_in", fell_back, 2, 1, {"gap": 10.0})
+    assert not wide.happened and wide.why.endswith("@1 had slowed from 9.9 to 6.0 m/s by then (its own doing)")
 
 
 def test_an_overtake_reports_its_passing_speed_and_passes_on_its_own_side():

@@ -97,6 +97,24 @@ def entered(view: PairView, after: int, settled_at: int) -> int:
     return after + int(before[-1]) + 1 if before.size else after
 
 
+FELL_BACK_MPS = 2.0
+"""How much slower (m/s) than at the start the other must be when a cut-in enters its lane for a gap wider than asked
+to be said to be the other's doing: it braked or fell back before the cut-in."""
+
+
+def slowed(view: PairView, step: int) -> str | None:
+    """One line saying the other had slowed by `step` (`FELL_BACK_MPS` or more below its first known speed), else
+    None: a gap wider than asked that a follower braking early opened, not the cut-in."""
+    speed = view.other.speed
+    known = np.flatnonzero(np.isfinite(speed[: step + 1]))
+    if known.size < 2:
+        return None
+    first, now = float(speed[known[0]]), float(speed[known[-1]])
+    if now > first - FELL_BACK_MPS:
+        return None
+    return f"@{view.other.track_id} had slowed from {first:.1f} to {now:.1f} m/s by then (its own doing)"
+
+
 def never_settled(view: PairView, after: int) -> str:
     """Why the agent never settled in the other's path ahead of it after step `after` (one line)."""
     other = f"@{view.other.track_id}"
@@ -132,6 +150,8 @@ def judge_settling(view: PairView, asked_gap: float, after: int, extra: tuple[Me
         Measure("time to settle", "s", None, None if step is None else step * STEP_SECONDS, None, None),
     )
     missed = [m.missed() for m in measures if m.ok is False and m.realised is not None]
+    if gap is not None and step is not None and gap > asked_gap + tolerance:
+        missed += [fell_back] if (fell_back := slowed(view, entered(view, after, step))) else []
     if step is None:
         why = cut_short(contact) if contact is not None else never_settled(view, after)
         return Judgement(False, measures, "; ".join([why, *missed]), None, contact)
