@@ -99,3 +99,26 @@ def test_once_settled_a_cut_in_drives_on_slower_so_that_a_follower_keeping_its_s
                 _step(state, float(accel), float(rate), 0.1)
                 _step(other, 0.0, 0.0, 0.1)
     assert state[3] == pytest.approx(9.0, abs=0.3) and state[0] - other[0] < 14.5 - 6.0
+
+
+def test_a_red_light_runner_is_past_the_crossing_before_the_other_gets_there_as_it_drives():
+    from langtraj.interdrive.behaviours.scripts import CROSSING_AHEAD_S, Crossing
+
+    # its path runs east along y = 0 from x = -50: the crossing at x = 40 is 90 m along it; the other comes north
+    # along x = 40 from 60 m south at 10 m/s (6 s away); the runner is at x = 0 at 8 m/s
+    script = Crossing(conflict_m=90.0, clear_m=5.0, least_mps=5.0)
+    state, other = [0.0, 0.0, 0.0, 8.0], [40.0, -60.0, math.pi / 2, 10.0]
+    for replan in range(8):
+        for accel, rate in script.plan(_state(state, other, elapsed=float(replan)))[:2]:
+            for _ in range(5):
+                _step(state, float(accel), float(rate), 0.1)
+                _step(other, 0.0, 0.0, 0.1)
+                if state[0] >= 45.0:
+                    break
+            if state[0] >= 45.0:
+                break
+        if state[0] >= 45.0:
+            break
+    assert state[0] >= 45.0 and other[1] <= -(CROSSING_AHEAD_S * 10.0) + 2.0  # across, the other still ~2 s away
+    assert kind("run_red_light").script(BehaviourTarget(1, Behaviour.RUN_RED_LIGHT, LANE, "", station_of_goal=90.0,
+                                                        speed=8.0)) == Crossing(90.0, 5.0, 8.0)  # fmt: skip
