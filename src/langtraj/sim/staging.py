@@ -11,6 +11,7 @@ next clause.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -151,7 +152,7 @@ class Stagings:
     def __bool__(self) -> bool:
         return bool(self.staged)
 
-    def update(self, scenario_at: Any, step: int, rollouts: list[int]) -> None:
+    def update(self, scenario_at: Callable[[int, int], Scenario], step: int, rollouts: list[int]) -> None:
         """Check every staged behaviour not started in `rollouts` at `step` (`scenario_at(rollout, step)`: the
         rollout's scene as it is then) and start those whose trigger holds and whose target the scene gives."""
         for r in rollouts:
