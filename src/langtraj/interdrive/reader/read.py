@@ -130,8 +130,9 @@ class PromptReading:
     def describe(self) -> str:
         """One line: `read as: @12 turn_left ("hang a left")`, `read as: @12 cut_in @7, gap 15 m ("cuts in front of
         @7")` (every parameter, "(default)" where the text gives none), or
-        `not read: <reason>; the prompt steers by text alone`; then timing words not read, if any (`; the time
-        'after 2 s' is not read (the behaviour runs at once)`)."""
+        `not read: <reason>; the prompt steers by text alone`; then its start where its timing words give one
+        (`; starts from 3 s ('after 3 s')`), else the timing words not read, if any (`; the time 'eventually' is not
+        read (the behaviour runs at once)`)."""
         if self.behaviour is None:
             line = f"not read: {self.reason}; the prompt steers by text alone"
         else:

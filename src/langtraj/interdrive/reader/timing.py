@@ -1,8 +1,8 @@
-"""Timing words the reader does not honour, found so that they are never dropped: a time ("after 2 seconds", "in 3 s",
-"2 seconds from now", "at 4 s", "at t = 4"), a condition ("when @1 is 20 m behind", "once @7 has turned left", "if @7
-stops", "until @7 turns") and a sequence across agents ("then", "after that", "afterwards" before another agent's
-clause: `SEQUENCE`, found by `clauses.py`). Every behaviour runs from the scenario's start, so these words are kept
-on the reading (`PromptReading.condition`): a strict reading refuses them, a description names them.
+"""Timing words found, so that they are never dropped: a time ("after 2 seconds", "in 3 s", "2 seconds from now", "at
+4 s", "at t = 4"), a condition ("when @1 is 20 m behind", "once @7 has turned left", "if @7 stops", "until @7 turns")
+and a sequence across agents ("then", "after that", "afterwards" before another agent's clause: `SEQUENCE`, found by
+`clauses.py`). They are kept on the reading (`PromptReading.condition`); `when.py` reads those that say a start as
+its trigger, and a strict reading refuses the others, saying why; a description names them either way.
 
 Not a timing: words inside a behaviour's own phrase ("waits until @7 has gone by", "goes before @7"), a turn's or a
 stop's place ("turns left when it reaches the junction"), a yield's "until @7 has passed", hedges ("if needed",
