@@ -9,7 +9,8 @@ reason), so that a prompt it cannot read steers by its text alone rather than by
 
 The package holds `rules.py` (verb forms and the regular-expression rule tables), `read.py` (normalisation,
 matching, subject finding and `read_prompt`, one clause), `clauses.py` (`read_clauses`: a prompt cut into its
-clauses and agents, each read), `timing.py` (timing words it does not honour, kept in `PromptReading.condition`),
+clauses and agents, each read), `timing.py` (timing words found, kept in `PromptReading.condition`), `when.py`
+(those that say a start, read as its trigger: `interdrive.triggers`),
 `alone.py` (a pair kind's words with no second agent, an overtake alone) and `figures.py` (reading figures and the
 command line).
 
