@@ -17,6 +17,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import langtraj.suites.episode as episode_module
+from langtraj.errors import InputError
 from langtraj.interdrive.behaviours import kind
 from langtraj.sim.prompts import read_prompts
 from langtraj.suites import RunOptions, load_suite
@@ -35,13 +36,8 @@ def main() -> int:
     parser.add_argument("--planner", default="idm")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    suite = load_suite(args.suite)
-    wanted = args.cases.split(",")
-    missing = sorted(set(wanted) - {c.name for c in suite.cases})
-    if missing:
-        print(f"error: no case {', '.join(missing)} in {args.suite}", file=sys.stderr)
-        return 2
-    suite = replace(suite, cases=tuple(replace(c, seeds=(args.seed,)) for c in suite.cases if c.name in wanted))
+    suite = load_suite(args.suite).only(args.cases.split(","))
+    suite = replace(suite, cases=tuple(replace(c, seeds=(args.seed,)) for c in suite.cases))
     spent: dict[str, float] = {}
 
     def timed(played, texts):
@@ -78,4 +74,8 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except InputError as exc:  # an unknown case: one line, exit 2, as the command line says it
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(2)

@@ -19,6 +19,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from langtraj.cases import Case
+from langtraj.errors import InputError
 from langtraj.sim.candidates import CandidatePlanning
 from langtraj.sim.staging import Stagings
 from langtraj.suites import RunOptions, load_suite
@@ -34,6 +35,8 @@ TIMED = (
     "When @ego is within 15 m of @738, @738 brakes hard in front of @ego",
 )
 """Prompts with timing words on the example suite's real scene 8a34 (ego 1101), timed as well."""
+TIMED_ON = "waymo-8a34-brake-hard.decel-6"
+"""The case whose scene and ego the timed prompts take."""
 
 
 def main() -> int:
@@ -43,14 +46,10 @@ def main() -> int:
     parser.add_argument("--planner", default="idm")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    suite = load_suite(args.suite)
-    wanted = args.cases.split(",")
-    missing = sorted(set(wanted) - {c.name for c in suite.cases})
-    if missing:
-        print(f"error: no case {', '.join(missing)} in {args.suite}", file=sys.stderr)
-        return 2
-    cases = [replace(c, seeds=(args.seed,)) for c in suite.cases if c.name in wanted]
-    scene = next(c for c in suite.cases if c.name == "waymo-8a34-brake-hard.decel-6")
+    full = load_suite(args.suite)
+    suite = full.only(args.cases.split(","))
+    (scene,) = full.only([TIMED_ON]).cases
+    cases = [replace(c, seeds=(args.seed,)) for c in suite.cases]
     cases += [replace(scene, name=f"timed-{k}", prompts=(text,), seeds=(args.seed,)) for k, text in enumerate(TIMED)]
     suite = replace(suite, cases=tuple(cases))
     spent = {"staging": 0.0}
@@ -96,4 +95,8 @@ def _label(case: Case) -> str:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except InputError as exc:  # an unknown case: one line, exit 2, as the command line says it
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(2)

@@ -12,12 +12,12 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from langtraj.errors import InputError
 from langtraj.scenario.types import StateField
 from langtraj.sim.staging import starts_of
 from langtraj.suites import RunOptions, load_suite
@@ -56,8 +56,7 @@ def main() -> int:
     args = parser.parse_args()
     suite = load_suite(args.suite)
     wanted = [c for c in args.cases.split(",") if c]
-    cases = [replace(c, seeds=tuple(range(args.seeds))) for c in suite.cases if not wanted or c.name in wanted]
-    suite = replace(suite, cases=tuple(cases))
+    suite = (suite.only(wanted) if wanted else suite).with_seeds(args.seeds)
     with tempfile.TemporaryDirectory() as out:
         for task in episode_tasks(suite, RunOptions(out=out, planner=args.planner, video=False)):
             seen: dict[str, Any] = {}
@@ -84,4 +83,8 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except InputError as exc:  # an unknown case: one line, exit 2, as the command line says it
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(2)

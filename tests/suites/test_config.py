@@ -57,6 +57,10 @@ def test_reads_cases_with_defaults_and_placeholders(tmp_path, monkeypatch):
     assert (cut_in.adversary, cut_in.target, cut_in.seeds, cut_in.max_steps) == (12, "ego", (3, 5), None)
     assert cut_in.criteria == Criteria(no_collision=True, min_ttc=0.5, min_progress=0.2, terminate_on_collision=False)
     assert [c.seeds for c in suite.with_seeds(3).cases] == [(0, 1, 2), (0, 1, 2)]
+    (only,) = suite.only([cut_in.name]).cases
+    assert only == cut_in and suite.only([cut_in.name]).source(0) == suite.source(1)
+    with pytest.raises(InputError, match=r"^cases: no case nope in "):
+        suite.only([cut_in.name, "nope"])
 
 
 def test_the_real_data_folder_is_the_one_given_else_the_variable_else_beside_the_working_directory(

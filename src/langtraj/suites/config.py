@@ -89,6 +89,16 @@ class Suite:
         seeds = tuple(range(count))
         return dataclasses.replace(self, cases=tuple(dataclasses.replace(c, seeds=seeds) for c in self.cases))
 
+    def only(self, names: Sequence[str]) -> Suite:
+        """The suite with only the cases called `names` (in file order, with where each was read); an InputError
+        naming those it has no case of."""
+        missing = sorted(set(names) - {c.name for c in self.cases})
+        if missing:
+            raise InputError(f"no case {', '.join(missing)} in {self.path}", where="cases")
+        kept = [k for k, c in enumerate(self.cases) if c.name in names]
+        sources = tuple(self.source(k) for k in kept)
+        return dataclasses.replace(self, cases=tuple(self.cases[k] for k in kept), sources=sources)
+
     @property
     def episodes(self) -> int:
         return sum(len(c.seeds) for c in self.cases)
