@@ -34,17 +34,22 @@ class Now:
 
     def pose(self, track_id: int) -> tuple[np.ndarray, float, float, float] | None:
         """(xy [2], heading, speed, length) of `track_id` at the current step, or None where it is absent there."""
-        agents, t = self.scene.agents, int(self.scene.current_index)
-        ids = agents.ids.tolist()
-        if track_id not in ids:
-            return None
-        row = ids.index(track_id)
-        if not agents.valid[row, t]:
-            return None
-        s = agents.states[row, t]
-        xy = np.array([s[StateField.X], s[StateField.Y]], dtype=float)
-        speed = float(np.hypot(s[StateField.VX], s[StateField.VY]))
-        return xy, float(s[StateField.HEADING]), speed, float(s[StateField.LENGTH])
+        return pose_at(self.scene, track_id)
+
+
+def pose_at(scene: Scenario, track_id: int) -> tuple[np.ndarray, float, float, float] | None:
+    """(xy [2], heading, speed, length) of `track_id` at the scene's current step, or None where it is absent or not
+    valid there."""
+    agents, t = scene.agents, int(scene.current_index)
+    try:
+        row = agents.index_of(track_id)
+    except KeyError:
+        return None
+    if not agents.valid[row, t]:
+        return None
+    xy = agents.xy[row, t].astype(float)
+    length = float(agents.states[row, t, StateField.LENGTH])
+    return xy, float(agents.heading[row, t]), float(agents.speed[row, t]), length
 
 
 class Trigger(ABC):

@@ -29,6 +29,7 @@ from langtraj.interdrive.behaviours import ScriptState
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.model.batch import SceneBatch
 from langtraj.model.config import SampleConfig
+from langtraj.model.dynamics import Unicycle
 from langtraj.model.features import MapArrays, collate_scenes, sample_map, scene_sample
 from langtraj.model.langtraj import LangTraj
 from langtraj.model.scene_encoder import MapContext
@@ -234,12 +235,17 @@ class CandidatePlanning:
         in this replan's plans of `rollouts` (`PromptReplans.scripts`, `BehaviourKind.script`: a braking lead, a
         cut-in), planned from the agents' current states (scene frame) and the external agents' accelerations
         `accel` [R, A_e]; None where none does."""
+        scripts = [state.prompt.scripts(world.start, rollout) for rollout in rollouts]
+        if not any(scripts):
+            return None
         dynamics, initial = self.model.dynamics, batch.current_state.detach().double().cpu().numpy()
+        if not isinstance(dynamics, Unicycle):  # a script plans acceleration and yaw rate
+            raise InputError(f"scripted manoeuvres need the unicycle dynamics, not {dynamics.name!r}", where="dynamics")
         n = self.model.config.num_actions
         out = torch.full((len(rollouts), initial.shape[1], n, 2), float("nan"))
         external = list(state.external)
-        for column, rollout in enumerate(rollouts):
-            for steering, since, script in state.prompt.scripts(rollout):
+        for column, planned in enumerate(scripts):
+            for steering, since, script in planned:
                 other = steering.other_slot
                 other_accel = float(accel[column, external.index(other)]) if other in external else 0.0
                 now = ScriptState(
@@ -247,11 +253,11 @@ class CandidatePlanning:
                     other=None if other is None else initial[column, other],
                     other_accel=other_accel,
                     path=steering.target.path,
-                    elapsed_s=(step - (world.start if since < 0 else since)) * STEP_SECONDS,
+                    elapsed_s=(step - since) * STEP_SECONDS,
                     count=n,
                     per_action=dynamics.steps_per_action,
-                    dt=float(getattr(dynamics, "dt", STEP_SECONDS)),
-                    max_yaw_rate=float(getattr(dynamics, "max_yaw_rate", 1.5)),
+                    dt=dynamics.dt,
+                    max_yaw_rate=dynamics.max_yaw_rate,
                     own_lane=steering.target.own_lane,
                     new_lane=steering.target.new_lane,
                 )

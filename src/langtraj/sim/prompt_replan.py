@@ -77,26 +77,27 @@ class PromptReplans:
         if self.stagings:
             self.stagings.update(world.scenario_at, step, rollouts)
 
-    def steerings(self, rollout: int | None = None) -> list[tuple[Steering, int]]:
-        """Each steering toward a target with the step it is timed from: those anchored at the start (`start` given
-        as -1: the caller's start) and, in `rollout`, the staged ones started there (`Stagings.started_in`)."""
-        out = [(s, -1) for s in self.steering.steerings]
+    def steerings(self, start: int, rollout: int | None = None) -> list[tuple[Steering, int]]:
+        """Each steering toward a target with the step it is timed from: those anchored at the simulation's `start`
+        and, in `rollout`, the staged ones started there (`Stagings.started_in`) and those keeping a staged agent's
+        place until it starts (timed from the start)."""
+        out = [(s, start) for s in self.steering.steerings]
         if self.stagings and rollout is not None:
             out += [(anchor.steering, anchor.step) for _, anchor in self.stagings.started_in(rollout)]
-            out += [(keep, -1) for keep in self.stagings.keeping_in(rollout)]
+            out += [(keep, start) for keep in self.stagings.keeping_in(rollout)]
         return out
 
     def terms(self, step: int, start: int, horizon: int, rollout: int | None = None) -> list[list[GuidanceTerm]]:
-        """The guidance terms toward each target (one list per `steerings(rollout)`) for a replan at `step` of a
-        simulation started at `start`, over the `horizon` steps the model plans: timed from the start, or from where a
-        staged behaviour started."""
-        return [s.terms(step - (start if since < 0 else since), horizon) for s, since in self.steerings(rollout)]
+        """The guidance terms toward each target (one list per `steerings(start, rollout)`) for a replan at `step` of
+        a simulation started at `start`, over the `horizon` steps the model plans: timed from the start, or from where
+        a staged behaviour started."""
+        return [s.terms(step - since, horizon) for s, since in self.steerings(start, rollout)]
 
-    def scripts(self, rollout: int) -> list[tuple[Steering, int, Script]]:
-        """(steering, step it is timed from, script) of each behaviour in `rollout` that executes a speed exactly
-        (`BehaviourKind.script`): anchored at the start (step -1: the caller's start) or where a staged one started."""
+    def scripts(self, start: int, rollout: int) -> list[tuple[Steering, int, Script]]:
+        """(steering, step it is timed from, script) of each behaviour in `rollout` that executes a manoeuvre exactly
+        (`BehaviourKind.script`), anchored at the simulation's `start` or where a staged one started."""
         out = []
-        for steering, since in self.steerings(rollout):
+        for steering, since in self.steerings(start, rollout):
             if steering.declared is None and (script := kind(steering.target.behaviour).script(steering.target)):
                 out.append((steering, since, script))
         return out
@@ -193,7 +194,7 @@ class PromptReplans:
                         found[staged.ask, :, column] = False
         misses = torch.as_tensor(found, dtype=states.dtype)
         first = states.new_zeros(states.shape[:3])
-        steerings = self.steerings(rollouts[0] if len(rollouts) == 1 else None)
+        steerings = self.steerings(world.start, rollouts[0] if len(rollouts) == 1 else None)
         by_slot = {s.slot: terms for (s, _), terms in zip(steerings, steered, strict=True)}
         flat = states.reshape(m * r, *states.shape[2:])
         with torch.no_grad():

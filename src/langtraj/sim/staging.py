@@ -15,8 +15,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 from langtraj.frames import Origin
 from langtraj.guidance.steering import Steering
 from langtraj.interdrive.behaviours.base import HOLD_WEIGHT, REACH_WEIGHT, kind, route
@@ -25,11 +23,10 @@ from langtraj.interdrive.behaviours.verdict import Start
 from langtraj.interdrive.reader import PromptReading
 from langtraj.interdrive.targets import BehaviourTarget, TargetUnavailable, derive_target
 from langtraj.interdrive.targets.context import TargetContext, lead_of
-from langtraj.interdrive.triggers import STOPPED_MPS, AfterDone, AtTime, Now, Trigger, WhenReady
+from langtraj.interdrive.triggers import STOPPED_MPS, AfterDone, AtTime, Now, Trigger, WhenReady, pose_at
 from langtraj.polylines import project_on_polyline
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
-from langtraj.scenario.types import StateField
 from langtraj.sim.adherence import Ask
 
 DONE_FALLBACK_S = 3.0
@@ -51,13 +48,12 @@ class Staged:
 
 @dataclass
 class Anchor:
-    """Where a staged behaviour started in one rollout: the step, its target then (world frame), its steering (scene
-    frame) and the sentence the model is conditioned on from then (None: the typed words)."""
+    """Where a staged behaviour started in one rollout: the step, its target then (world frame) and its steering
+    (scene frame)."""
 
     step: int
     target: BehaviourTarget
     steering: Steering
-    sentence: str | None = None
 
 
 @dataclass
@@ -116,17 +112,12 @@ def target_done(target: BehaviourTarget, since: int, scene: Scenario) -> bool:
         return elapsed >= target.settled_s
     if target.station_of_goal is None or len(target.path) < 2:
         return elapsed >= DONE_FALLBACK_S
-    ids = scene.agents.ids.tolist()
-    if target.track_id not in ids:
+    pose = pose_at(scene, target.track_id)
+    if pose is None:
         return False
-    row = ids.index(target.track_id)
-    if not scene.agents.valid[row, step]:
-        return False
-    state = scene.agents.states[row, step]
-    xy = np.array([[state[StateField.X], state[StateField.Y]]])
-    station = float(project_on_polyline(xy, target.path).station[0])
+    xy, _, speed, _ = pose
+    station = float(project_on_polyline(xy[None], target.path).station[0])
     if target.stop:
-        speed = float(np.hypot(state[StateField.VX], state[StateField.VY]))
         return speed <= STOPPED_MPS and station >= target.station_of_goal - 5.0
     return station >= target.station_of_goal
 
@@ -156,6 +147,8 @@ class Stagings:
         """Check every staged behaviour not started in `rollouts` at `step` (`scenario_at(rollout, step)`: the
         rollout's scene as it is then) and start those whose trigger holds and whose target the scene gives."""
         for r in rollouts:
+            if len(self.anchors.get(r, {})) == len(self.staged):  # all started: nothing waits, nothing to read
+                continue
             scene = scenario_at(r, step)
             elapsed = (step - self.start) * STEP_SECONDS
             self._mark_done(r, scene, elapsed)
