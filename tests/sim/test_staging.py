@@ -52,7 +52,7 @@ def test_a_stop_after_3_s_starts_at_3_s_from_where_the_car_is_then(loaded, junct
     (reading,) = read_clauses("@1 stops after 3 s")
     played = staged.world.played(0)
     verdict = judge_reading(reading, played, AdherenceChecker.build(played, logged=False).facts(played), starts[1])
-    assert verdict.followed is not False
+    assert verdict.followed is True and verdict.measures[0].name == "started" and verdict.measures[0].realised == 3.0
 
 
 def test_a_start_that_never_holds_is_not_followed_and_says_why(junction):
