@@ -16,7 +16,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "langtraj"
 
 LAYERS = (
     ("errors",),
-    ("angles", "frames", "polylines", "fileio", "registry", "settings", "web"),
+    ("angles", "car_following", "frames", "polylines", "fileio", "registry", "settings", "web"),
     ("executors", "runs"),
     ("scenario",),
     ("roads",),

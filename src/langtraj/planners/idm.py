@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from langtraj.angles import wrap_angle
+from langtraj.car_following import idm_interaction
 from langtraj.env.spaces import MAX_ACCEL, MAX_YAW_RATE, AgentColumn, EgoColumn
 from langtraj.planners.base import PLANNERS, Planner
 from langtraj.polylines import arc_lengths, point_at, project_on_polyline
@@ -26,7 +27,6 @@ CAUTION_STATES = tuple(int(state) for state in TrafficLightState if state.is_cau
 """Light states that mean caution (`TrafficLightState.is_caution`: arrow, plain and flashing): stop only where a
 comfortable stop is still possible."""
 _BEHIND_M = 50.0  # the route is extended this far behind its first point, so agents alongside get signed stations
-_MIN_GAP_M = 0.1  # the IDM gap never divides by less
 CUT_IN_SAMPLES = 5
 """Times along `IDMConfig.cut_in_horizon` at which the agents' forecasts are checked against the corridor."""
 
@@ -117,13 +117,17 @@ class IDMPlanner(Planner):
         return max(-c.comfortable_decel, c.max_accel * (1.0 - (speed / desired) ** c.exponent))
 
     def _interaction(self, speed: float, gaps: np.ndarray, lead_speeds: np.ndarray) -> np.ndarray:
-        """The IDM's interaction term -a (s* / s)^2 per obstacle, s* = s0 + max(0, v T + v dv / (2 sqrt(a b)))."""
+        """The IDM's interaction term per obstacle (`car_following.idm_interaction`) with this planner's parameters."""
         c = self.config
-        approach = speed - lead_speeds
-        wanted = c.min_gap + np.maximum(
-            0.0, speed * c.time_headway + speed * approach / (2.0 * math.sqrt(c.max_accel * c.comfortable_decel))
+        return idm_interaction(
+            speed,
+            gaps,
+            lead_speeds,
+            max_accel=c.max_accel,
+            comfortable_decel=c.comfortable_decel,
+            time_headway=c.time_headway,
+            min_gap=c.min_gap,
         )
-        return -c.max_accel * (wanted / np.maximum(gaps, _MIN_GAP_M)) ** 2
 
     def _limit_speed(self, route: np.ndarray, limits: np.ndarray) -> float:
         """The desired speed the speed limits give: the limit where the ego is (`desired_speed` where none is
