@@ -12,16 +12,25 @@ import pytest
 from langtraj.interdrive.behaviour import Behaviour
 from langtraj.interdrive.behaviours import ScriptState, kind
 from langtraj.interdrive.behaviours.cut_in import CUT_IN_SLOWER
-from langtraj.interdrive.behaviours.scripts import CUT_IN_CLEAR_M, Braking, CuttingIn, _step
+from langtraj.interdrive.behaviours.scripts import (
+    CUT_IN_CLEAR_M,
+    CUT_IN_MATCHED_MPS,
+    KEEP_BEHIND,
+    Braking,
+    Crossing,
+    CuttingIn,
+    Following,
+    unicycle_step,
+)
 from langtraj.interdrive.targets import BehaviourTarget
 
 LANE = np.stack([np.linspace(-50, 400, 451), np.zeros(451)], axis=1)  # eastbound, y = 0
 BESIDE = np.stack([np.linspace(-50, 400, 451), np.full(451, 3.5)], axis=1)
 
 
-def _state(agent, other=None, path=LANE, elapsed=0.0, other_accel=0.0, own=None):
+def _state(agent, other=None, path=LANE, elapsed=0.0, other_accel=0.0, own=None, traffic=None, count=16, per=5):
     return ScriptState(np.asarray(agent, float), None if other is None else np.asarray(other, float), other_accel,
-                       path, elapsed, 16, 5, 0.1, 1.5, own_lane=own)  # fmt: skip
+                       path, elapsed, count, per, 0.1, 1.5, own_lane=own, traffic=traffic)  # fmt: skip
 
 
 def _roll(actions: np.ndarray, start, per_action=5, dt=0.1) -> np.ndarray:
@@ -29,7 +38,7 @@ def _roll(actions: np.ndarray, start, per_action=5, dt=0.1) -> np.ndarray:
     state, out = [float(v) for v in start], []
     for accel, rate in actions:
         for _ in range(per_action):
-            _step(state, 0.0 if np.isnan(accel) else float(accel), float(rate), dt)
+            unicycle_step(state, 0.0 if np.isnan(accel) else float(accel), float(rate), dt)
             out.append(list(state))
     return np.asarray(out)
 
@@ -57,8 +66,8 @@ def test_a_cut_in_from_beside_waits_to_be_ahead_then_settles_the_lead_in_the_lan
         actions = script.plan(_state(state, other_state, elapsed=float(replan), own=BESIDE))
         for accel, rate in actions[:2]:
             for _ in range(5):
-                _step(state, float(accel), float(rate), 0.1)
-                _step(other_state, 0.0, 0.0, 0.1)
+                unicycle_step(state, float(accel), float(rate), 0.1)
+                unicycle_step(other_state, 0.0, 0.0, 0.1)
                 if abs(state[1]) < 2.0:  # in the other's lane: always clear ahead of it
                     worst = min(worst, state[0] - other_state[0])
     assert worst >= CUT_IN_CLEAR_M - 0.5
@@ -75,8 +84,8 @@ def test_a_cut_in_ahead_of_an_other_that_brakes_to_rest_slows_too_never_closing_
         actions = script.plan(_state(state, other, elapsed=float(replan), other_accel=braking))
         for accel, rate in actions[:2]:
             for _ in range(5):
-                _step(state, float(accel), float(rate), 0.1)
-                _step(other, braking, 0.0, 0.1)
+                unicycle_step(state, float(accel), float(rate), 0.1)
+                unicycle_step(other, braking, 0.0, 0.1)
                 closest = min(closest, state[0] - other[0])
     assert other[3] == pytest.approx(0.0) and state[3] == pytest.approx(0.0)  # both at rest
     assert closest >= lead - 1.0 and state[0] - other[0] < lead + 6.0  # it matches speeds first: never brake-checks
@@ -96,8 +105,8 @@ def test_once_settled_a_cut_in_drives_on_slower_so_that_a_follower_keeping_its_s
     for replan in range(4):
         for accel, rate in script.plan(_state(state, other, elapsed=float(replan)))[:2]:
             for _ in range(5):
-                _step(state, float(accel), float(rate), 0.1)
-                _step(other, 0.0, 0.0, 0.1)
+                unicycle_step(state, float(accel), float(rate), 0.1)
+                unicycle_step(other, 0.0, 0.0, 0.1)
     assert state[3] == pytest.approx(9.0, abs=0.3) and state[0] - other[0] < 14.5 - 6.0
 
 
@@ -111,8 +120,8 @@ def test_a_red_light_runner_is_past_the_crossing_before_the_other_gets_there_as_
     for replan in range(8):
         for accel, rate in script.plan(_state(state, other, elapsed=float(replan)))[:2]:
             for _ in range(5):
-                _step(state, float(accel), float(rate), 0.1)
-                _step(other, 0.0, 0.0, 0.1)
+                unicycle_step(state, float(accel), float(rate), 0.1)
+                unicycle_step(other, 0.0, 0.0, 0.1)
                 if state[0] >= 45.0:
                     break
             if state[0] >= 45.0:
@@ -122,3 +131,49 @@ def test_a_red_light_runner_is_past_the_crossing_before_the_other_gets_there_as_
     assert state[0] >= 45.0 and other[1] <= -(CROSSING_AHEAD_S * 10.0) + 2.0  # across, the other still ~2 s away
     assert kind("run_red_light").script(BehaviourTarget(1, Behaviour.RUN_RED_LIGHT, LANE, "", station_of_goal=90.0,
                                                         speed=8.0)) == Crossing(90.0, 5.0, 8.0)  # fmt: skip
+
+
+def test_a_cut_in_much_faster_than_the_other_matches_its_speed_in_its_own_lane_before_it_moves_across():
+    lead = 14.5
+    script = CuttingIn(lead_m=lead, settle_s=10.0, cruise_mps=9.0)
+    state, other = [lead, 3.5, 0.0, 18.0], [0.0, 0.0, 0.0, 12.0]  # at its lead, 6 m/s faster than the other
+    accel, rate = script.plan(_state(state, other, own=BESIDE))[0]
+    assert -2.0 <= accel < 0 and abs(rate) < 0.02  # slows gently in its own lane: across now, it would enter far on
+    entered = None
+    for step in range(100):  # at 10 Hz, from where both are, as a simulation ticks a scripted actor
+        accel, rate = script.plan(_state(state, other, elapsed=step / 10, own=BESIDE, count=1, per=1))[0]
+        unicycle_step(state, float(accel), float(rate), 0.1)
+        unicycle_step(other, 0.0, 0.0, 0.1)
+        if entered is None and abs(state[1]) < 1.75:
+            entered = (state[0] - other[0], state[3])
+    assert entered is not None
+    assert entered[0] == pytest.approx(lead, abs=3.0) and abs(entered[1] - 12.0) <= CUT_IN_MATCHED_MPS
+
+
+def _drive(script, state, other, traffic, steps=80):
+    """Ticks `script` at 10 Hz with the `traffic` [K, 6] at constant speed; the least bumper gap (4.5 m cars) to it."""
+    traffic, closest = np.asarray(traffic, float).reshape(-1, 6), math.inf
+    for step in range(steps):
+        accel, rate = script.plan(_state(state, other, elapsed=step / 10, traffic=traffic, count=1, per=1))[0]
+        unicycle_step(state, float(accel), float(rate), 0.1)
+        if other is not None:
+            unicycle_step(other, 0.0, 0.0, 0.1)
+        traffic[:, :2] += traffic[:, 3:4] * np.stack([np.cos(traffic[:, 2]), np.sin(traffic[:, 2])], 1) * 0.1
+        ahead = traffic[np.abs(traffic[:, 1] - state[1]) < 2.0, 0] - state[0]
+        closest = min(closest, *(ahead[ahead > -2.0] - 4.5), math.inf)
+    return closest
+
+
+def test_scripted_agents_keep_off_the_traffic_ahead_in_their_lane_and_ignore_the_lane_beside():
+    standing = [[60.0, 0.0, 0.0, 0.0, 4.5, 2.0]]  # a car standing in the lane 60 m ahead
+    beside = [[60.0, 3.5, 0.0, 0.0, 4.5, 2.0]]  # the same, in the lane beside
+    crossing = Crossing(conflict_m=150.0, clear_m=5.0, least_mps=12.0)  # runs a light 100 m on, at 12 m/s or more
+    assert _drive(crossing, [0.0, 0.0, 0.0, 12.0], [100.0, -80.0, math.pi / 2, 5.0], standing) >= 1.0
+    assert _drive(crossing, [0.0, 0.0, 0.0, 12.0], [100.0, -80.0, math.pi / 2, 5.0], []) == math.inf
+    state = [0.0, 0.0, 0.0, 12.0]
+    _drive(Crossing(conflict_m=150.0, clear_m=5.0, least_mps=12.0), state, None, beside)
+    assert state[0] > 80.0  # past the car beside it, not held back by it
+    # a tailgater closing on the other keeps off a slower car that pulled in between (as its IDM has it)
+    tailgater, other = [0.0, 0.0, 0.0, 15.0], [40.0, 0.0, 0.0, 15.0]
+    between = [[20.0, 0.0, 0.0, 8.0, 4.5, 2.0]]
+    assert _drive(Following(lead_m=-10.0), tailgater, other, between, steps=60) >= KEEP_BEHIND["min_gap"] - 1.0

@@ -132,6 +132,12 @@ def test_a_cut_in_targets_the_other_agents_lane_beside_it_at_the_speed_that_leav
     alone = scene(two_lane_road(), _eastbound(y=3.5), _eastbound(y=3.5 + 20.0))  # 2 in no lane beside it
     with pytest.raises(TargetUnavailable):
         _target(alone, 1, Behaviour.CUT_IN, 2)
+    # a car standing in 2's lane 40 m ahead of it: 2 stops behind it before the cut-in could settle ahead of 2
+    queue = scene(two_lane_road(), _eastbound(y=3.5), _eastbound(y=0.0), _eastbound_from(40.0, speed=0.0))
+    with pytest.raises(TargetUnavailable, match="@3 stands in @2's lane within the 59 m the cut-in needs"):
+        _target(queue, 1, Behaviour.CUT_IN, 2)
+    clear = scene(two_lane_road(), _eastbound(y=3.5), _eastbound(y=0.0), _eastbound_from(80.0, speed=0.0))
+    assert _target(clear, 1, Behaviour.CUT_IN, 2).other_id == 2  # farther than the cut-in needs
 
 
 def test_an_overtake_passes_in_its_own_lane_then_cuts_into_the_others_lane_the_gap_ahead_of_it():
@@ -182,6 +188,11 @@ def test_a_red_light_runner_goes_through_the_red_light_ahead_and_across_the_othe
         _target(lit(TrafficLightState.STOP), 1, Behaviour.RUN_RED_LIGHT, 2)  # 1's way has no light
     with pytest.raises(TargetUnavailable, match="the scene has no traffic lights"):
         _target(s, 2, Behaviour.RUN_RED_LIGHT, 1)
+    # a car standing at the light in front of 2: 2 cannot drive through the queue to run it
+    s = scene(four_way(), drive(LEFT_LANE_STRAIGHT), _track(line(-80, -HALF, -10, -HALF), 8.0, 40.0),
+              _track(line(-80, -HALF, -10, -HALF), 0.0, 66.0))  # fmt: skip
+    with pytest.raises(TargetUnavailable, match="@3 stands between it and the red light 22 m ahead"):
+        _target(lit(TrafficLightState.STOP), 2, Behaviour.RUN_RED_LIGHT, 1)
 
 
 def test_a_car_waiting_at_a_side_road_pulls_out_across_the_others_way_just_before_it():

@@ -6,13 +6,15 @@ the car drives on as unprompted before it, and the judge reads the manoeuvre fro
 from __future__ import annotations
 
 import numpy as np
+from interdrive.test_counterfactual import two_lane_road
+from interdrive.test_heuristics import TIME, scene
 
 from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.behaviours.verdict import Start, judge_reading
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.interdrive.prompts import parse_user_prompt
 from langtraj.interdrive.reader import read_clauses
-from langtraj.scenario.types import StateField
+from langtraj.scenario.types import AgentType, StateField
 from langtraj.sim.config import PromptLevers, SimConfig, SimRequest
 from langtraj.sim.engine import simulate
 from langtraj.sim.policies import LangTrajPolicy
@@ -21,9 +23,9 @@ from langtraj.sim.staging import starts_of
 LEVERS = PromptLevers(text=True, guidance=True, selection=True)
 
 
-def _run(loaded, s, text: str | None):
+def _run(loaded, s, text: str | None, ids=(1, 2)):
     model, data = loaded
-    prompt = None if text is None else PromptEntry.of(parse_user_prompt(text, [1, 2]))
+    prompt = None if text is None else PromptEntry.of(parse_user_prompt(text, list(ids)))
     policy = LangTrajPolicy(model, data, SimRequest(candidates=2, levers=LEVERS, selector="first"), prompt=prompt)
     return simulate(s, policy, SimConfig(rollouts=2, replan_s=1.0, seed=0))
 
@@ -59,3 +61,18 @@ def test_a_start_that_never_holds_is_not_followed_and_says_why(junction):
     (reading,) = read_clauses("@1 stops when @2 is within 1 m of @1")
     verdict = judge_reading(reading, junction, frozenset(), Start(None, None, "its start never held: @2 9 m from @1"))
     assert verdict.followed is False and verdict.why == "it never started: its start never held: @2 9 m from @1"
+
+
+def _eastbound(x: float, speed: float = 10.0):
+    return AgentType.VEHICLE, np.stack([x + speed * TIME, np.zeros_like(TIME)], axis=1), np.zeros_like(TIME)
+
+
+def test_a_scripted_brake_after_2_5_s_starts_between_replans_at_the_asked_deceleration(loaded):
+    # @1 leads @2 by 25 m in one lane of a straight road at 10 m/s; replans are at whole seconds, the start half-way
+    lead = scene(two_lane_road(), _eastbound(30.0), _eastbound(0.0))
+    result = _run(loaded, lead, "@1 brakes hard at 4 m/s^2 in front of @2 after 2.5 s")
+    (entry,) = result.report["prompt"]["staged"]
+    assert [r["started_s"] for r in entry["rollouts"]] == [2.5, 2.5]  # its step, not the next replan's
+    speeds = _speeds(result, lead)  # [R, T]: T[k] is the speed at (k + 1) / 10 s
+    drops = -np.diff(speeds, axis=1) / 0.1
+    assert np.allclose(drops[:, 24:39], 4.0, atol=0.05)  # from 2.5 s at 4 m/s^2, executed at 10 Hz

@@ -25,7 +25,6 @@ from langtraj.guidance.projection import (
     project_plans,
     projection_hook,
 )
-from langtraj.interdrive.behaviours import ScriptState
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.model.batch import SceneBatch
 from langtraj.model.config import SampleConfig
@@ -37,6 +36,7 @@ from langtraj.scenario.model import STEP_SECONDS
 from langtraj.sim.config import SimRequest
 from langtraj.sim.external import CLEARANCE_ITERATIONS, accelerations_only, external_acceleration, pin_external
 from langtraj.sim.prompt_replan import Guidance, GuidanceOf, PromptReplans, shifted_plan, with_prompt_guidance
+from langtraj.sim.scripted import script_state
 from langtraj.sim.selection import CandidateSelector, chosen_states
 from langtraj.sim.world import SimWorld
 
@@ -239,6 +239,7 @@ class CandidatePlanning:
         if not any(scripts):
             return None
         dynamics, initial = self.model.dynamics, batch.current_state.detach().double().cpu().numpy()
+        sizes = batch.agent_size.detach().double().cpu().numpy()
         if not isinstance(dynamics, Unicycle):  # a script plans acceleration and yaw rate
             raise InputError(f"scripted manoeuvres need the unicycle dynamics, not {dynamics.name!r}", where="dynamics")
         n = self.model.config.num_actions
@@ -248,19 +249,10 @@ class CandidatePlanning:
             for steering, since, script in planned:
                 other = steering.other_slot
                 other_accel = float(accel[column, external.index(other)]) if other in external else 0.0
-                now = ScriptState(
-                    agent=initial[column, steering.slot],
-                    other=None if other is None else initial[column, other],
-                    other_accel=other_accel,
-                    path=steering.target.path,
-                    elapsed_s=(step - since) * STEP_SECONDS,
-                    count=n,
-                    per_action=dynamics.steps_per_action,
-                    dt=dynamics.dt,
-                    max_yaw_rate=dynamics.max_yaw_rate,
-                    own_lane=steering.target.own_lane,
-                    new_lane=steering.target.new_lane,
-                )
+                now = script_state(
+                    steering, since, step, initial[column], sizes[column], other_accel, dynamics, n,
+                    dynamics.steps_per_action,
+                )  # fmt: skip
                 if len(now.path) >= 2:
                     out[column, steering.slot] = torch.as_tensor(script.plan(now), dtype=out.dtype)
         return None if torch.isnan(out).all() else out.to(next(self.model.parameters()).device)

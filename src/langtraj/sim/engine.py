@@ -1,9 +1,10 @@
 """The closed-loop rollout engine: replan every `replan_s`, execute, shift the history, repeat to 8 s.
 
 At each replan step the policy plans every rollout's driven agents from that rollout's own simulated
-past; the world executes the first `replan_s` seconds of the plan at 10 Hz and the next replan starts
-from there (paper 'Implementation Details': 1 Hz replanning over an 8 s simulation). All R rollouts
-advance together, so a policy can batch them through its model.
+past; the world executes the first `replan_s` seconds of the plan at 10 Hz (each step as the policy's `act`
+makes it: the plan, or a scripted agent's correction from the scene then) and the next replan starts from
+there (paper 'Implementation Details': 1 Hz replanning over an 8 s simulation). All R rollouts advance together,
+so a policy can batch them through its model.
 
 See docs/simulation.md.
 """
@@ -65,7 +66,8 @@ def simulate(scenario: Scenario, policy: Policy, config: SimConfig | None = None
         tick = time.perf_counter()
         plan = policy.plan(world, state, step, count)
         plan_seconds.append(time.perf_counter() - tick)
-        world.execute(step, plan[:, :, :count])
+        for k in range(count):  # step by step: a policy may drive some agents at 10 Hz (`Policy.act`)
+            world.execute(step + k, policy.act(world, state, step + k, plan[:, :, k])[:, :, None])
     return SimResult(
         rollouts=world.rollouts(),
         world=world,

@@ -41,6 +41,7 @@ from langtraj.interdrive.behaviour import BEHAVIOURS
 from langtraj.interdrive.dataset import PromptEntry
 from langtraj.model.checkpoint import load_model
 from langtraj.model.config import SampleConfig
+from langtraj.model.dynamics import Unicycle
 from langtraj.model.features import collate_scenes, map_coverage, sample_map, scene_frame, scene_sample
 from langtraj.model.langtraj import LangTraj
 from langtraj.registry import Registry
@@ -49,6 +50,7 @@ from langtraj.rollouts.baselines import BASELINES
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.selection import prioritized_agents
 from langtraj.scenario.types import AgentType
+from langtraj.sim import scripted
 from langtraj.sim.adherence import CandidateJudge
 from langtraj.sim.candidates import CandidatePlanning, LangTrajRun, on_road_vehicles
 from langtraj.sim.checkpoints import shipped_checkpoint
@@ -135,6 +137,12 @@ class Policy(ABC):
     @abstractmethod
     def plan(self, world: SimWorld, state: Any, step: int, horizon: int) -> np.ndarray:
         """States [R, A_driven, >= horizon, 4] for steps step+1 ... of every rollout."""
+
+    def act(self, world: SimWorld, state: Any, step: int, poses: np.ndarray) -> np.ndarray:
+        """The driven agents' states at step+1 [R, A_driven, 4] given what the last `plan` planned for it (`poses`),
+        called at every step between and at replans: a policy that drives some agents at the simulation's rate
+        corrects them from the scene at `step` (`sim.scripted`); by default the plan."""
+        return poses
 
     def report(self, world: SimWorld, state: Any) -> dict[str, Any]:
         """JSON-ready figures of a finished simulation for its summary (none by default)."""
@@ -517,6 +525,16 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         """The denoising steps the realism and clearance guidance apply at: the last `guided_steps` of the `steps`."""
         guided, steps = self.request.guided_steps, self.request.steps
         return "all" if guided == steps else FinalSteps(guided, steps)
+
+    def act(self, world: SimWorld, state: LangTrajRun, step: int, poses: np.ndarray) -> np.ndarray:
+        """Staged behaviours started at the step their trigger holds, and scripted agents moved at 10 Hz from the
+        scene as it is (`sim.scripted.act`)."""
+        if not state.prompt.stagings and not state.prompt.steering.steerings:
+            return poses
+        dynamics = self.model.dynamics
+        if not isinstance(dynamics, Unicycle):
+            return poses
+        return scripted.act(world, state.prompt, state.origin, dynamics, step, poses)
 
     def report(self, world: SimWorld, state: LangTrajRun) -> dict[str, Any]:
         """Map coverage: the share of driven agents with a lane point of the model's map within 5 m

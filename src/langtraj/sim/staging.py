@@ -1,9 +1,9 @@
 """Behaviours staged at their trigger (docs/simulation.md, 'Timing in words'): a read behaviour whose prompt says when
 it starts ("after 3 s", "when @1 is within 20 m of @7", "then") waits, driven as if unprompted, until its trigger
-(`interdrive.triggers`) holds at a replan in that rollout; then its target is derived from the agents' live state at
-that step, where they are and how fast they go, not where they were at the start, and steered from it, timed from
-that step. Where the scene gives no target when the trigger holds, it is tried again at the next replan, and the
-report says why.
+(`interdrive.triggers`) holds at a step of that rollout (checked at every step, `sim.scripted.act`); then its target is
+derived from the agents' live state at that step, where they are and how fast they go, not where they were at the
+start, and steered from it, timed from that step. Where the scene gives no target when the trigger holds, it is tried
+again at the next step, and the report says why.
 
 A behaviour that starts at once is anchored at the start as before; its completion (`target_done`) starts a sequence's
 next clause.
@@ -188,7 +188,7 @@ class Stagings:
 
     @staticmethod
     def _not_yet(staged: Staged, elapsed: float, why: str) -> str:
-        """Why a staged behaviour whose trigger held did not start at a replan `elapsed` s after the start."""
+        """Why a staged behaviour whose trigger held did not start at the step `elapsed` s after the start."""
         if isinstance(staged.trigger, WhenReady):
             return f"not stageable at {elapsed:.1f} s: {why}"
         return f"its trigger held at {elapsed:.1f} s but {why}"

@@ -50,7 +50,8 @@ class SteppedSimulation:
             self._plan = self.policy.plan(self.world, self.state, self.step, horizon)
             self._planned_at = self.step
         k = self.step - self._planned_at
-        self.world.execute(self.step, self._plan[:, :, k : k + 1])
+        poses = self.policy.act(self.world, self.state, self.step, self._plan[:, :, k])
+        self.world.execute(self.step, poses[:, :, None])
         self.world.place(self.step, external_poses)
         self.step += 1
 

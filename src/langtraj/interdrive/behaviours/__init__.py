@@ -17,6 +17,6 @@ from langtraj.interdrive.behaviours.base import (
     kind,
     register,
 )
-from langtraj.interdrive.behaviours.scripts import Script, ScriptState
+from langtraj.interdrive.behaviours.scripts import Script, ScriptState, unicycle_step
 
-__all__ = ["KINDS", "BehaviourKind", "Parameter", "Script", "ScriptState", "Steer", "kind", "register"]
+__all__ = ["KINDS", "BehaviourKind", "Parameter", "Script", "ScriptState", "Steer", "kind", "register", "unicycle_step"]

@@ -89,6 +89,9 @@ def _run_red_light(ctx: TargetContext, agent: AgentHere, other: AgentHere) -> Be
         if not on_way.any():
             continue
         light = float(found.station[on_way].min())
+        if (queued := ctx.standing_on(agent, path, light)) is not None:
+            reason = f"@{queued} stands between it and the red light {light:.0f} m ahead"
+            continue
         arc = arc_lengths(path)
         crossings = [c for c in (crossing(path, t) for t in theirs) if c is not None and arc[c[0]] > light]
         if not crossings:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from langtraj.car_following import idm_interaction
 from langtraj.polylines import arc_lengths, point_at, project_on_polyline
 
 LOOK_AHEAD_S = 1.0
@@ -26,7 +27,8 @@ class ScriptState:
     """What a script plans from: its agent's and the other agent's state (x, y, heading, speed; one frame) and the
     other's acceleration (m/s^2), the target's path [P, 2] in that frame, the seconds since the behaviour started,
     the dynamics' blocks (`count` actions of `per_action` steps of `dt` s, yaw rate within +-`max_yaw_rate`), and
-    the agent's own lane and the lane it moves into [M, 2] where the target has them (None: none; the path then)."""
+    the agent's own lane and the lane it moves into [M, 2] where the target has them (None: none; the path then), its
+    size and the traffic around it."""
 
     agent: np.ndarray
     other: np.ndarray | None
@@ -39,6 +41,11 @@ class ScriptState:
     max_yaw_rate: float
     own_lane: np.ndarray | None = None
     new_lane: np.ndarray | None = None
+    size: tuple[float, float] = (4.5, 2.0)
+    """The agent's length and width (m)."""
+    traffic: np.ndarray | None = None
+    """Every other agent but the other [K, 6] (x, y, heading, speed, length, width; same frame), which the agent keeps
+    off ahead of it (`keep_behind`); None: none."""
 
 
 class Script(ABC):
@@ -62,12 +69,55 @@ def pursuit_rate(
     return float(np.clip(curvature * max(speed, 0.5), -most, most))
 
 
-def _step(state: list[float], accel: float, rate: float, dt: float) -> None:
-    """One step of the unicycle dynamics (`model.dynamics.Unicycle`), in place: speed, heading, then position."""
+def unicycle_step(state: list[float], accel: float, rate: float, dt: float) -> None:
+    """One step of the unicycle dynamics (`model.dynamics.Unicycle`), in place on (x, y, heading, speed): speed (at
+    least 0), heading, then position."""
     state[3] = max(state[3] + accel * dt, 0.0)
     state[2] += rate * dt
     state[0] += state[3] * math.cos(state[2]) * dt
     state[1] += state[3] * math.sin(state[2]) * dt
+
+
+KEEP_BEHIND = {"max_accel": 2.5, "comfortable_decel": 3.0, "time_headway": 1.0, "min_gap": 2.0}
+"""The IDM a scripted agent keeps off the traffic ahead in its lane with (`keep_behind`): an assertive driver's (1 s of
+headway, 2 m standing), whose free road is its script's."""
+SCRIPT_HARD_BRAKE = 6.0
+"""The hardest a scripted agent brakes for traffic ahead of it (m/s^2)."""
+KEEP_BEHIND_AHEAD_M = 80.0
+"""How far ahead along its lane (m) a scripted agent looks for traffic."""
+KEEP_BEHIND_MARGIN_M = 0.3
+"""An agent is in a scripted agent's lane ahead when its centre is within the two half widths and this of the lane
+(m), as the IDM planner's corridor (`IDMConfig.corridor_margin`)."""
+
+
+def keep_behind(accel: float, state: list[float], lane: np.ndarray, now: ScriptState, traffic: np.ndarray) -> float:
+    """`accel` (m/s^2) limited by the IDM (`KEEP_BEHIND`, free road at its largest acceleration) toward the nearest
+    agent of `traffic` [K, 6] (`ScriptState.traffic`, as it is at this step) in `lane` ahead of the agent: a scripted
+    adversary drives its manoeuvre, never through the cars in front of it (the issue's 'adversaries that drive like
+    drivers'); at least -`SCRIPT_HARD_BRAKE`."""
+    if not len(traffic) or len(lane) < 2:
+        return accel
+    found = project_on_polyline(np.concatenate([np.array([state[:2]]), traffic[:, :2]]), lane)
+    ahead = found.station[1:] - found.station[0]
+    corridor = 0.5 * (now.size[1] + traffic[:, 5]) + KEEP_BEHIND_MARGIN_M
+    inside = (ahead > 0.0) & (ahead < KEEP_BEHIND_AHEAD_M) & (found.distance[1:] <= corridor)
+    if not inside.any():
+        return accel
+    gaps = ahead[inside] - 0.5 * (now.size[0] + traffic[inside, 4])
+    along = traffic[inside, 3] * np.cos(traffic[inside, 2] - state[2])
+    limit = KEEP_BEHIND["max_accel"] + float(idm_interaction(state[3], gaps, along, **KEEP_BEHIND).min())
+    return float(max(min(accel, limit), -SCRIPT_HARD_BRAKE))
+
+
+def traffic_at(now: ScriptState, action: int) -> np.ndarray:
+    """`now.traffic` [K, 6] at the start of its `action`-th action, each agent at constant speed and heading (none:
+    [0, 6])."""
+    if now.traffic is None:
+        return np.zeros((0, 6))
+    seconds, out = action * now.per_action * now.dt, now.traffic.copy()
+    out[:, 0] += now.traffic[:, 3] * np.cos(now.traffic[:, 2]) * seconds
+    out[:, 1] += now.traffic[:, 3] * np.sin(now.traffic[:, 2]) * seconds
+    return out
 
 
 @dataclass(frozen=True)
@@ -84,17 +134,21 @@ class Braking(Script):
         for k in range(now.count):
             t = now.elapsed_s + k * now.per_action * now.dt
             accel = -self.deceleration if t >= self.start_s - 1e-6 else np.nan
+            if not np.isnan(accel):
+                accel = keep_behind(accel, state, now.path, now, traffic_at(now, k))
             ahead = max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3])
             rate = pursuit_rate(*state, now.path, ahead, now.max_yaw_rate)
             out[k] = (accel, rate)
             for _ in range(now.per_action):
-                _step(state, 0.0 if np.isnan(accel) else accel, rate, now.dt)
+                unicycle_step(state, 0.0 if np.isnan(accel) else accel, rate, now.dt)
         return out
 
 
-CUT_IN_LOOK_AHEAD_S = 2.0
-"""A scripted cut-in's pure-pursuit look-ahead (s of speed, at least 10 m): the change into the lane over about 2-3 s,
-as drivers change lanes, not a swerve."""
+CUT_IN_LOOK_AHEAD_S = 1.2
+"""A scripted cut-in's pure-pursuit look-ahead (s of speed, at least `CUT_IN_LOOK_AHEAD_MIN_M`): its centre into the
+lane about 1.5 s after it turns, settled in about 2.5 s, as drivers change lanes, not a swerve (at 2 s and at least
+10 m the change took 3.5-4 s on held-out scenes, and a follower slowing meanwhile opened the gap)."""
+CUT_IN_LOOK_AHEAD_MIN_M = 6.0
 CUT_IN_GAP_GAIN = 1.0
 """Per second squared: the acceleration per metre a scripted cut-in is short of (or past) its lead on the other."""
 CUT_IN_SPEED_GAIN = 1.6
@@ -111,9 +165,24 @@ metre: its rear past the other's front): it pulls in ahead of the other, never a
 CUT_IN_GAP_SLACK_M = 2.0
 """How much nearer than its lead a cut-in may be when it moves across (m): it pulls in at about the asked gap, not
 the first moment it could (3 m ahead of a follower's bumper made the planners brake hard and the gap it settled at
-20-27 m); farther, it moves across and closes in while it does."""
+20-27 m)."""
+CUT_IN_FAR_SLACK_M = 3.0
+"""How much farther than its lead a cut-in may be when it moves across (m): it closes in while it moves, but from
+farther ahead a follower that brakes for the move keeps the gap open (at 5 m a held-out cut-in entered at a 13.4 m
+gap where 10 were asked)."""
 CUT_IN_IN_LANE_M = 0.7
 """How near its path (m) a cut-in is once in the lane: from then (and its settling time) it drives on slower."""
+CUT_IN_MATCHED_MPS = 3.0
+"""How much faster or slower than the other (m/s) a cut-in may be when it moves across: it first matches the other's
+speed in its own lane, so that the gap it enters at is the one it holds (a cutter 12 m/s faster than the ego entered
+the lane 20-30 m ahead where 10 were asked)."""
+CUT_IN_WAIT_DECEL = 2.0
+"""The hardest a cut-in brakes in its own lane (m/s^2), letting the other come up before it moves across: comfortable,
+as a driver drops back to a gap in the next lane."""
+CUT_IN_COMMITTED_M = 1.0
+"""How far from its own lane's centre toward the other's (m) a cut-in has moved when it is committed: from there it
+goes on across, whatever the gap does meanwhile (never back and forth between the lanes); a real agent off its lane's
+centre by half a metre at the start is not (one 0.6 m off turned across at once, 30 m ahead, where 14.5 were asked)."""
 
 
 def _lead_and_offset(state: list[float], other: list[float], path: np.ndarray) -> tuple[float, float]:
@@ -132,7 +201,8 @@ def _keep_lead(lead_m: float, lead: float, state: list[float], other: list[float
 @dataclass(frozen=True)
 class CuttingIn(Script):
     """Into the other's lane (its `new_lane`, else its path; pure pursuit) once clear ahead of the other
-    (`CUT_IN_CLEAR_M`) and at about its lead (`CUT_IN_GAP_SLACK_M`; in its own lane until then), its speed set to
+    (`CUT_IN_CLEAR_M`), at about its lead and speed (`CUT_IN_MATCHED_MPS`; in its own lane
+    until then, `_across`), its speed set to
     reach and keep `lead_m` (centre to centre along the path) ahead of the other wherever the other drives; once in
     the lane and `settle_s` has passed, on at `cruise_mps`: a slower vehicle cutting in (Euro NCAP's cut-in), which
     a follower that ignores it runs into."""
@@ -155,16 +225,31 @@ class CuttingIn(Script):
                 accel = float(np.clip(CUT_IN_SPEED_GAIN * (self.cruise_mps - state[3]), *CUT_IN_ACCELERATIONS))
             else:
                 accel = _keep_lead(self.lead_m, lead, state, other)
-            across = lead >= max(CUT_IN_CLEAR_M, self.lead_m - CUT_IN_GAP_SLACK_M)
-            if across or off <= CUT_IN_IN_LANE_M or own is None:  # into the lane over about 2-3 s, or in it
-                rate = pursuit_rate(*state, into, max(10.0, CUT_IN_LOOK_AHEAD_S * state[3]), now.max_yaw_rate)
-            else:  # its own lane until it moves across
-                rate = pursuit_rate(*state, own, max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), now.max_yaw_rate)
+            if own is None or off <= CUT_IN_IN_LANE_M or self._across(lead, off, state, other, own, into):
+                ahead = max(CUT_IN_LOOK_AHEAD_MIN_M, CUT_IN_LOOK_AHEAD_S * state[3])
+                lane = into
+            else:  # its own lane until it moves across, letting the other come up without braking hard
+                ahead, lane = max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), own
+                accel = max(accel, -CUT_IN_WAIT_DECEL)
+            rate = pursuit_rate(*state, lane, ahead, now.max_yaw_rate)
+            accel = keep_behind(accel, state, lane, now, traffic_at(now, k))
             out[k] = (accel, rate)
             for _ in range(now.per_action):
-                _step(state, accel, rate, now.dt)
-                _step(other, now.other_accel, 0.0, now.dt)
+                unicycle_step(state, accel, rate, now.dt)
+                unicycle_step(other, now.other_accel, 0.0, now.dt)
         return out
+
+    def _across(
+        self, lead: float, off: float, state: list[float], other: list[float], own: np.ndarray, into: np.ndarray
+    ) -> bool:
+        """Whether the cut-in moves across now: committed (`CUT_IN_COMMITTED_M` nearer the lane it moves into, `off`
+        m away, than its own lane's centre is), or clear ahead of the other (`CUT_IN_CLEAR_M`), near its lead
+        (`CUT_IN_GAP_SLACK_M`, `CUT_IN_FAR_SLACK_M`) and within `CUT_IN_MATCHED_MPS` of the other's speed."""
+        centre = point_at(own, float(project_on_polyline(np.array([state[:2]]), own).station[0]))
+        if float(project_on_polyline(centre[None, :2], into).distance[0]) - off > CUT_IN_COMMITTED_M:
+            return True
+        near = max(CUT_IN_CLEAR_M, self.lead_m - CUT_IN_GAP_SLACK_M) <= lead <= self.lead_m + CUT_IN_FAR_SLACK_M
+        return near and abs(state[3] - other[3]) <= CUT_IN_MATCHED_MPS
 
 
 @dataclass(frozen=True)
@@ -181,12 +266,12 @@ class Following(Script):
         state, other = [float(v) for v in now.agent], [float(v) for v in now.other]
         for k in range(now.count):
             lead, _ = _lead_and_offset(state, other, now.path)
-            accel = _keep_lead(self.lead_m, lead, state, other)
+            accel = keep_behind(_keep_lead(self.lead_m, lead, state, other), state, now.path, now, traffic_at(now, k))
             rate = pursuit_rate(*state, now.path, max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), now.max_yaw_rate)
             out[k] = (accel, rate)
             for _ in range(now.per_action):
-                _step(state, accel, rate, now.dt)
-                _step(other, now.other_accel, 0.0, now.dt)
+                unicycle_step(state, accel, rate, now.dt)
+                unicycle_step(other, now.other_accel, 0.0, now.dt)
         return out
 
 
@@ -226,10 +311,11 @@ class Crossing(Script):
             else:
                 need = max(state[3], self.least_mps) if left > 0 else state[3]
             accel = float(np.clip(CROSSING_SPEED_GAIN * (need - state[3]), *CROSSING_ACCELERATIONS))
+            accel = keep_behind(accel, state, now.path, now, traffic_at(now, k))
             rate = pursuit_rate(*state, now.path, max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), now.max_yaw_rate)
             out[k] = (accel, rate)
             for _ in range(now.per_action):
-                _step(state, accel, rate, now.dt)
+                unicycle_step(state, accel, rate, now.dt)
                 if other is not None:
-                    _step(other, now.other_accel, 0.0, now.dt)
+                    unicycle_step(other, now.other_accel, 0.0, now.dt)
         return out

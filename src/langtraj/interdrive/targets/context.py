@@ -171,6 +171,30 @@ class TargetContext:
             for branch in self.junction(agent).branches
         ]
 
+    def standing_on(self, agent: AgentHere, path: np.ndarray, upto: float) -> int | None:
+        """The track id of the nearest other agent standing (at most `STANDING_MPS`) on `path` ahead of `agent`,
+        before station `upto` (its centre within the two half widths and `STANDING_MARGIN_M` of the path): a queue at
+        a light that the agent cannot drive through; None where the way is clear."""
+        agents, c = self.scenario.agents, self.scenario.current_index
+        states, valid = agents.states[:, c], agents.valid[:, c].copy()
+        valid[agents.index_of(agent.track_id)] = False
+        speed = np.hypot(states[:, StateField.VX], states[:, StateField.VY])
+        rows = np.flatnonzero(valid & (speed <= STANDING_MPS))
+        if not len(rows) or len(path) < 2:
+            return None
+        found = project_on_polyline(states[rows][:, [StateField.X, StateField.Y]], path)
+        mine = float(project_on_polyline(agent.xy[None], path).station[0])
+        corridor = 0.5 * (agent.width + states[rows, StateField.WIDTH]) + STANDING_MARGIN_M
+        ahead = found.station - mine
+        on = (ahead > 0.0) & (found.station <= upto) & (found.distance <= corridor)
+        return None if not on.any() else int(agents.ids[rows[on][np.argmin(ahead[on])]])
+
+
+STANDING_MPS = 1.0
+"""The most an agent moves (m/s) to count as standing in another's way (`TargetContext.standing_on`)."""
+STANDING_MARGIN_M = 0.3
+"""Beyond the two half widths, how near a path an agent's centre is to stand on it (m), as the IDM's corridor."""
+
 
 # ---------------------------------------------------------------------------------------------- shared geometry
 
