@@ -26,6 +26,11 @@ def test_a_cut_in_starts_at_once_its_script_letting_the_other_come_up_but_never_
     assert kind("cut_in").ready(_cut_in(speed=11.0, current=12.0, other_speed=12.0)) is None
     assert kind("cut_in").ready(_cut_in(speed=15.0, current=12.0, other_speed=12.0)) is None  # it speeds up
     assert kind("cut_in").ready(_cut_in(speed=6.0, current=16.0, other_speed=12.0)) is None  # it drops back
+    # ... but `suggest` offers no cut-in that must first drop back hard
+    assert kind("cut_in").natural(_cut_in(speed=11.0, current=12.0, other_speed=12.0)) is None
+    slow = kind("cut_in").natural(_cut_in(speed=6.0, current=16.0, other_speed=12.0))
+    assert slow == "it would slow from 16.0 to 6.0 m/s for @1 to come up"
+    assert kind("overtake_cut_in").natural(_cut_in(speed=6.0, current=16.0, other_speed=12.0)) == slow
     standing = kind("cut_in").ready(_cut_in(speed=1.0, current=1.0, other_speed=0.1))
     assert standing == "@1 drives at 0.1 m/s (a cut-in needs 3 or more)"
 

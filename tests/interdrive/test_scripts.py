@@ -177,3 +177,13 @@ def test_scripted_agents_keep_off_the_traffic_ahead_in_their_lane_and_ignore_the
     tailgater, other = [0.0, 0.0, 0.0, 15.0], [40.0, 0.0, 0.0, 15.0]
     between = [[20.0, 0.0, 0.0, 8.0, 4.5, 2.0]]
     assert _drive(Following(lead_m=-10.0), tailgater, other, between, steps=60) >= KEEP_BEHIND["min_gap"] - 1.0
+
+
+def test_a_cut_in_does_not_move_into_a_place_another_car_holds_in_the_lane():
+    lead = 14.5
+    script = CuttingIn(lead_m=lead, settle_s=10.0, cruise_mps=9.0)
+    state, other = [lead, 3.5, 0.0, 12.0], [0.0, 0.0, 0.0, 12.0]  # at its lead beside the other, at its speed
+    beside = np.array([[lead + 2.0, 0.0, 0.0, 12.0, 4.5, 2.0]])  # a car in the other's lane, right where it would go
+    held = script.plan(_state(state, other, own=BESIDE, traffic=beside, count=1, per=1))[0]
+    free = script.plan(_state(state, other, own=BESIDE, traffic=beside + [40.0, 0, 0, 0, 0, 0], count=1, per=1))[0]
+    assert abs(held[1]) < 0.02 and free[1] < -0.05  # waits in its lane; with the place free, turns into it

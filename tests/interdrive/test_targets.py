@@ -138,6 +138,12 @@ def test_a_cut_in_targets_the_other_agents_lane_beside_it_at_the_speed_that_leav
         _target(queue, 1, Behaviour.CUT_IN, 2)
     clear = scene(two_lane_road(), _eastbound(y=3.5), _eastbound(y=0.0), _eastbound_from(80.0, speed=0.0))
     assert _target(clear, 1, Behaviour.CUT_IN, 2).other_id == 2  # farther than the cut-in needs
+    # a car 20 m ahead of 1 in its own lane at its speed: no room to get the gap ahead of 2 without running into it
+    boxed = scene(two_lane_road(), _eastbound(y=3.5), _eastbound(y=0.0), _eastbound_from(20.0, y=3.5))
+    with pytest.raises(TargetUnavailable, match="@3 ahead of it in its lane leaves no room to get 10 m ahead of @2"):
+        _target(boxed, 1, Behaviour.CUT_IN, 2)
+    room = scene(two_lane_road(), _eastbound(y=3.5), _eastbound(y=0.0), _eastbound_from(40.0, y=3.5))
+    assert _target(room, 1, Behaviour.CUT_IN, 2).other_id == 2
 
 
 def test_an_overtake_passes_in_its_own_lane_then_cuts_into_the_others_lane_the_gap_ahead_of_it():

@@ -272,8 +272,10 @@ class _Scene:
     def stages(self, row: int, target: BehaviourTarget) -> bool:
         """Whether a feasible target stages something now: a yield needs a crossing, a follower must be behind the
         ego heading its way, and a behaviour staged on the ego's live state must be ready to start
-        (`BehaviourKind.ready`: no cut-in in front of a standing ego); every other feasible target does."""
-        if kind(target.behaviour).in_path and kind(target.behaviour).ready(target) is not None:
+        (`BehaviourKind.ready`: no cut-in in front of a standing ego) and come about naturally (`BehaviourKind.natural`:
+        no cut-in that must drop back hard first); every other feasible target does."""
+        behaviour = kind(target.behaviour)
+        if behaviour.in_path and (behaviour.ready(target) is not None or behaviour.natural(target) is not None):
             return False
         if target.behaviour is Behaviour.YIELD:
             return target.conflict is not None

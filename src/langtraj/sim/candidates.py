@@ -249,9 +249,10 @@ class CandidatePlanning:
             for steering, since, script in planned:
                 other = steering.other_slot
                 other_accel = float(accel[column, external.index(other)]) if other in external else 0.0
+                memory = state.prompt.memory.setdefault((rollouts[column], steering.slot), {})
                 now = script_state(
                     steering, since, step, initial[column], sizes[column], other_accel, dynamics, n,
-                    dynamics.steps_per_action,
+                    dynamics.steps_per_action, memory,
                 )  # fmt: skip
                 if len(now.path) >= 2:
                     out[column, steering.slot] = torch.as_tensor(script.plan(now), dtype=out.dtype)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import torch
 from torch import Tensor
@@ -70,6 +71,8 @@ class PromptReplans:
     judge: CandidateJudge | None = None
     kept: dict[int, tuple[int, Tensor]] = field(default_factory=dict)
     stagings: Stagings | None = None
+    memory: dict[tuple[int, int], dict[str, Any]] = field(default_factory=dict)
+    """Per (rollout, agent slot): what its script decided at the steps executed so far (`ScriptState.memory`)."""
     """The behaviours that start at their trigger and where each started per rollout (`sim.staging`); None: none."""
 
     def stage(self, world: SimWorld, step: int, rollouts: list[int]) -> None:

@@ -10,6 +10,7 @@ manoeuvres').
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -34,11 +35,12 @@ def script_state(
     dynamics: Unicycle,
     count: int,
     per_action: int,
+    memory: dict[str, Any],
 ) -> ScriptState:
     """What the script of `steering` (timed from step `since`) plans from at `step`: the agents' `current` states
     [A, 4] (scene frame: x, y, heading, speed) and `sizes` [A, 2] (length, width), the other agent's acceleration
     (m/s^2), and `count` actions of `per_action` steps of the unicycle `dynamics`. Every agent but the two is its
-    traffic."""
+    traffic; `memory` what the script decided so far (`PromptReplans.memory`)."""
     other = steering.other_slot
     target = steering.target
     rest = np.setdiff1d(np.arange(len(current)), [steering.slot] + ([] if other is None else [other]))
@@ -56,6 +58,7 @@ def script_state(
         new_lane=target.new_lane,
         size=(float(sizes[steering.slot, 0]), float(sizes[steering.slot, 1])),
         traffic=np.concatenate([current[rest, :4], sizes[rest, :2]], axis=1),
+        memory=memory,
     )
 
 
@@ -99,9 +102,8 @@ def act(
                 continue
             other = steering.other_slot
             other_accel = 0.0 if other is None else measured_acceleration(world, other, step, r)
-            now = script_state(
-                steering, since, step, current[r], sizes[r], other_accel, dynamics, count=1, per_action=1
-            )
+            memory = prompt.memory.setdefault((r, steering.slot), {})
+            now = script_state(steering, since, step, current[r], sizes[r], other_accel, dynamics, 1, 1, memory)
             accel, rate = (float(v) for v in script.plan(now)[0])
             here, then = current[r, steering.slot], planned[r, steering.slot]
             if math.isnan(accel):

@@ -197,6 +197,12 @@ class BehaviourKind(ABC):
         at once."""
         return None
 
+    def natural(self, target: BehaviourTarget) -> str | None:
+        """Why `suggest` should not offer the staging of `target` although the scene allows it and it may start (a
+        cut-in whose agent would have to drop back hard for the other to come up: not how a cut-in comes about), or
+        None; by default every feasible, ready target is."""
+        return None
+
     def judge(self, scene: Scenario, agent: int, other: int | None, asked: Mapping[str, float]) -> Judgement | None:
         """The realised numbers beside the asked ones on a played scene (`judged`); None where the behaviour is judged
         by the labelers' facts alone. `asked` holds its parameters by name (`asked`); another name is an

@@ -68,7 +68,7 @@ def _cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) 
     along the path that average takes it by then.
     Infeasible where that needs more than `GO_FIRST_ACCELERATION` could add, or less than standing still, or where
     someone stands in the other's lane before the place the cut-in settles (`TargetContext.standing_on`: the other
-    stops behind it first)."""
+    stops behind it first), or a car ahead in its own lane leaves it no room to get there (`CUT_IN_ROOM_M`)."""
     behaviour = Behaviour.CUT_IN
     begin = max(4.0, 1.0 * agent.here.speed)
     side, lane, level = lane_beside(ctx, agent, other, behaviour, begin + 20.0)
@@ -83,6 +83,14 @@ def _cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) 
     if speed < 0.0:
         reason = f"it is {lead:.0f} m ahead of @{other.track_id}: too far to cut in {gap:g} m ahead of it"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    own = ctx.ahead(agent)
+    goal = float(speed * CUT_IN_S)
+    ahead = ctx.first_on(agent, own, goal + agent.length + 30.0)
+    if ahead is not None and ahead[0] != other.track_id:
+        room = ahead[1] + ahead[2] * CUT_IN_S - goal - 0.5 * agent.length - CUT_IN_ROOM_M
+        if room < 0.5 * agent.length:  # its centre short of where the cut-in must take it
+            reason = f"@{ahead[0]} ahead of it in its lane leaves no room to get {gap:g} m ahead of @{other.track_id}"
+            raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
     settles = v_other * CUT_IN_S + gap + lengths + other.length
     if (queued := ctx.standing_on(other, ctx.ahead(other), settles)) is not None:
         reason = f"@{queued} stands in @{other.track_id}'s lane within the {settles:.0f} m the cut-in needs ahead of it"
@@ -105,6 +113,9 @@ def _cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) 
     )
 
 
+CUT_IN_ROOM_M = 2.0
+"""The least bumper gap (m) a cut-in keeps to the car ahead of it in its own lane where it must get to (at its goal,
+that car at its speed): with less it cannot get ahead of the other without running into it."""
 CUT_IN_READY_MIN_SPEED = 3.0
 """The least speed (m/s) of the agent cut in on for a staged cut-in to start: in front of a car standing in a queue
 there is nothing to cut in on."""
@@ -129,6 +140,22 @@ def ready(target: BehaviourTarget) -> str | None:
     other_speed = float(target.other_speed or 0.0)
     if other_speed < CUT_IN_READY_MIN_SPEED:
         return f"@{target.other_id} drives at {other_speed:.1f} m/s (a cut-in needs {CUT_IN_READY_MIN_SPEED:g} or more)"
+    return None
+
+
+CUT_IN_NATURAL_SLOWER = 2.0
+"""How much slower (m/s, on average over `CUT_IN_S`) than it drives a cut-in `suggest` offers may ask its agent to go:
+more, and it would have to drop back for the other to come up first (on validation scenes, offered cutters 50-75 m
+ahead of the ego that had to slow by 14 m/s never came to cut in)."""
+
+
+def natural(target: BehaviourTarget) -> str | None:
+    """Why `suggest` does not offer a cut-in (or an overtake and cut-in): its agent would have to slow by more than
+    `CUT_IN_NATURAL_SLOWER` for the other to come up; else None."""
+    if target.speed is not None and target.speed < target.current_speed - CUT_IN_NATURAL_SLOWER:
+        return (
+            f"it would slow from {target.current_speed:.1f} to {target.speed:.1f} m/s for @{target.other_id} to come up"
+        )
     return None
 
 
@@ -162,6 +189,9 @@ class CutIn(BehaviourKind):
 
     def ready(self, target: BehaviourTarget) -> str | None:
         return ready(target)
+
+    def natural(self, target: BehaviourTarget) -> str | None:
+        return natural(target)
 
     def script(self, target: BehaviourTarget) -> Script | None:
         """Into the other's lane ahead of it, settling the asked gap wherever the other drives, then on at

@@ -20,6 +20,7 @@ from langtraj.interdrive.behaviours.cut_in import (
     JUST_AHEAD,
     cruise,
 )
+from langtraj.interdrive.behaviours.cut_in import natural as cut_in_natural
 from langtraj.interdrive.behaviours.cut_in import ready as cut_in_ready
 from langtraj.interdrive.behaviours.recipes import gap_ahead, settled
 from langtraj.interdrive.behaviours.scripts import CuttingIn, Script
@@ -200,6 +201,10 @@ class OvertakeCutIn(BehaviourKind):
     def ready(self, target: BehaviourTarget) -> str | None:
         """As a cut-in's (`cut_in.ready`): not in front of a car standing still."""
         return cut_in_ready(target)
+
+    def natural(self, target: BehaviourTarget) -> str | None:
+        """As a cut-in's (`cut_in.natural`)."""
+        return cut_in_natural(target)
 
     def script(self, target: BehaviourTarget) -> Script | None:
         """Past the other and into its lane ahead of it, settling the asked gap wherever the other drives, then on

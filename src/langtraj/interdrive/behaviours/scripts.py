@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -46,6 +47,9 @@ class ScriptState:
     traffic: np.ndarray | None = None
     """Every other agent but the other [K, 6] (x, y, heading, speed, length, width; same frame), which the agent keeps
     off ahead of it (`keep_behind`); None: none."""
+    memory: dict[str, Any] = field(default_factory=dict)
+    """What the script decided at the steps executed so far (one per agent and rollout, kept by the simulation): a
+    decision its first action takes is written here (a cut-in that has begun to move across goes on across)."""
 
 
 class Script(ABC):
@@ -109,6 +113,25 @@ def keep_behind(accel: float, state: list[float], lane: np.ndarray, now: ScriptS
     return float(max(min(accel, limit), -SCRIPT_HARD_BRAKE))
 
 
+SLOT_MARGIN_M = 2.0
+"""The least bumper gap (m) a lane change leaves to the traffic in the lane it moves into, ahead and behind
+(`slot_free`), besides a second of the follower's closing speed."""
+
+
+def slot_free(state: list[float], lane: np.ndarray, now: ScriptState, traffic: np.ndarray) -> bool:
+    """Whether the agent's place in `lane` beside where it is now is free of `traffic` [K, 6]: no one in the lane within
+    `SLOT_MARGIN_M` of its bumpers, nor a follower there closing the gap within a second (a driver's gap acceptance,
+    as MOBIL's safety criterion; the other agent a cut-in is toward is the script's own business)."""
+    if not len(traffic) or len(lane) < 2:
+        return True
+    found = project_on_polyline(np.concatenate([np.array([state[:2]]), traffic[:, :2]]), lane)
+    ahead = found.station[1:] - found.station[0]
+    inside = found.distance[1:] <= 0.5 * (now.size[1] + traffic[:, 5]) + KEEP_BEHIND_MARGIN_M
+    bumpers = np.abs(ahead) - 0.5 * (now.size[0] + traffic[:, 4])
+    closing = np.where(ahead < 0, traffic[:, 3] * np.cos(traffic[:, 2] - state[2]) - state[3], 0.0)
+    return not bool((inside & (bumpers < SLOT_MARGIN_M + np.maximum(closing, 0.0))).any())
+
+
 def traffic_at(now: ScriptState, action: int) -> np.ndarray:
     """`now.traffic` [K, 6] at the start of its `action`-th action, each agent at constant speed and heading (none:
     [0, 6])."""
@@ -148,7 +171,7 @@ CUT_IN_LOOK_AHEAD_S = 1.2
 """A scripted cut-in's pure-pursuit look-ahead (s of speed, at least `CUT_IN_LOOK_AHEAD_MIN_M`): its centre into the
 lane about 1.5 s after it turns, settled in about 2.5 s, as drivers change lanes, not a swerve (at 2 s and at least
 10 m the change took 3.5-4 s on held-out scenes, and a follower slowing meanwhile opened the gap)."""
-CUT_IN_LOOK_AHEAD_MIN_M = 6.0
+CUT_IN_LOOK_AHEAD_MIN_M = 4.0
 CUT_IN_GAP_GAIN = 1.0
 """Per second squared: the acceleration per metre a scripted cut-in is short of (or past) its lead on the other."""
 CUT_IN_SPEED_GAIN = 1.6
@@ -218,6 +241,7 @@ class CuttingIn(Script):
         into = now.new_lane if now.new_lane is not None and len(now.new_lane) >= 2 else now.path
         own = now.own_lane if now.own_lane is not None and len(now.own_lane) >= 2 else None
         state, other = [float(v) for v in now.agent], [float(v) for v in now.other]
+        moving = bool(now.memory.get("across", False))
         for k in range(now.count):
             t = now.elapsed_s + k * now.per_action * now.dt
             lead, off = _lead_and_offset(state, other, into)
@@ -225,14 +249,20 @@ class CuttingIn(Script):
                 accel = float(np.clip(CUT_IN_SPEED_GAIN * (self.cruise_mps - state[3]), *CUT_IN_ACCELERATIONS))
             else:
                 accel = _keep_lead(self.lead_m, lead, state, other)
-            if own is None or off <= CUT_IN_IN_LANE_M or self._across(lead, off, state, other, own, into):
+            seen = traffic_at(now, k)
+            moving = moving or own is None or off <= CUT_IN_IN_LANE_M
+            if not moving and own is not None:
+                moving = self._across(lead, off, state, other, own, into, now, seen)
+            if moving:
+                if k == 0:  # executed: begun, it goes on across (never back and forth between the lanes)
+                    now.memory["across"] = True
                 ahead = max(CUT_IN_LOOK_AHEAD_MIN_M, CUT_IN_LOOK_AHEAD_S * state[3])
                 lane = into
             else:  # its own lane until it moves across, letting the other come up without braking hard
                 ahead, lane = max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), own
                 accel = max(accel, -CUT_IN_WAIT_DECEL)
             rate = pursuit_rate(*state, lane, ahead, now.max_yaw_rate)
-            accel = keep_behind(accel, state, lane, now, traffic_at(now, k))
+            accel = keep_behind(accel, state, lane, now, seen)
             out[k] = (accel, rate)
             for _ in range(now.per_action):
                 unicycle_step(state, accel, rate, now.dt)
@@ -240,16 +270,25 @@ class CuttingIn(Script):
         return out
 
     def _across(
-        self, lead: float, off: float, state: list[float], other: list[float], own: np.ndarray, into: np.ndarray
+        self,
+        lead: float,
+        off: float,
+        state: list[float],
+        other: list[float],
+        own: np.ndarray,
+        into: np.ndarray,
+        now: ScriptState,
+        traffic: np.ndarray,
     ) -> bool:
         """Whether the cut-in moves across now: committed (`CUT_IN_COMMITTED_M` nearer the lane it moves into, `off`
         m away, than its own lane's centre is), or clear ahead of the other (`CUT_IN_CLEAR_M`), near its lead
-        (`CUT_IN_GAP_SLACK_M`, `CUT_IN_FAR_SLACK_M`) and within `CUT_IN_MATCHED_MPS` of the other's speed."""
+        (`CUT_IN_GAP_SLACK_M`, `CUT_IN_FAR_SLACK_M`), within `CUT_IN_MATCHED_MPS` of the other's speed, and with its
+        place in the lane free of the traffic (`slot_free`)."""
         centre = point_at(own, float(project_on_polyline(np.array([state[:2]]), own).station[0]))
         if float(project_on_polyline(centre[None, :2], into).distance[0]) - off > CUT_IN_COMMITTED_M:
             return True
         near = max(CUT_IN_CLEAR_M, self.lead_m - CUT_IN_GAP_SLACK_M) <= lead <= self.lead_m + CUT_IN_FAR_SLACK_M
-        return near and abs(state[3] - other[3]) <= CUT_IN_MATCHED_MPS
+        return near and abs(state[3] - other[3]) <= CUT_IN_MATCHED_MPS and slot_free(state, into, now, traffic)
 
 
 @dataclass(frozen=True)

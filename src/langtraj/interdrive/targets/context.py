@@ -173,13 +173,22 @@ class TargetContext:
 
     def standing_on(self, agent: AgentHere, path: np.ndarray, upto: float) -> int | None:
         """The track id of the nearest other agent standing (at most `STANDING_MPS`) on `path` ahead of `agent`,
-        before station `upto` (its centre within the two half widths and `STANDING_MARGIN_M` of the path): a queue at
-        a light that the agent cannot drive through; None where the way is clear."""
+        before station `upto` (`first_on`): a queue at a light that the agent cannot drive through; None where the
+        way is clear."""
+        found = self.first_on(agent, path, upto, most_mps=STANDING_MPS)
+        return None if found is None else found[0]
+
+    def first_on(
+        self, agent: AgentHere, path: np.ndarray, upto: float, most_mps: float = math.inf
+    ) -> tuple[int, float, float] | None:
+        """The nearest other agent on `path` ahead of `agent` before station `upto` (its centre within the two half
+        widths and `STANDING_MARGIN_M` of the path), moving at most `most_mps`: its track id, how far ahead of the
+        agent along the path (m, centre to centre) and its speed (m/s); None where there is none."""
         agents, c = self.scenario.agents, self.scenario.current_index
         states, valid = agents.states[:, c], agents.valid[:, c].copy()
         valid[agents.index_of(agent.track_id)] = False
-        speed = np.hypot(states[:, StateField.VX], states[:, StateField.VY])
-        rows = np.flatnonzero(valid & (speed <= STANDING_MPS))
+        speed = _speeds_now(self.scenario)
+        rows = np.flatnonzero(valid & (speed <= most_mps))
         if not len(rows) or len(path) < 2:
             return None
         found = project_on_polyline(states[rows][:, [StateField.X, StateField.Y]], path)
@@ -187,7 +196,24 @@ class TargetContext:
         corridor = 0.5 * (agent.width + states[rows, StateField.WIDTH]) + STANDING_MARGIN_M
         ahead = found.station - mine
         on = (ahead > 0.0) & (found.station <= upto) & (found.distance <= corridor)
-        return None if not on.any() else int(agents.ids[rows[on][np.argmin(ahead[on])]])
+        if not on.any():
+            return None
+        k = int(np.argmin(np.where(on, ahead, np.inf)))
+        return int(agents.ids[rows[k]]), float(ahead[k]), float(speed[rows[k]])
+
+
+def _speeds_now(scenario: Scenario) -> np.ndarray:
+    """Every agent's speed at the current step (m/s): over the last half second from positions where it was seen then,
+    as `AgentOnLane` measures it (some sources leave velocities at zero), else its recorded velocity."""
+    agents, c = scenario.agents, scenario.current_index
+    speed = np.hypot(agents.velocity[:, c, 0], agents.velocity[:, c, 1]).astype(np.float64)
+    back = c - 5
+    if back >= 0:
+        seen = agents.valid[:, back]
+        dt = float(np.median(np.diff(scenario.timestamps))) if scenario.num_steps > 1 else STEP_SECONDS
+        moved = np.linalg.norm(agents.xy[:, c] - agents.xy[:, back], axis=1) / (5 * dt)
+        speed = np.where(seen, moved, speed)
+    return speed
 
 
 STANDING_MPS = 1.0
