@@ -187,14 +187,3 @@ def test_a_cut_in_does_not_move_into_a_place_another_car_holds_in_the_lane():
     held = script.plan(_state(state, other, own=BESIDE, traffic=beside, count=1, per=1))[0]
     free = script.plan(_state(state, other, own=BESIDE, traffic=beside + [40.0, 0, 0, 0, 0, 0], count=1, per=1))[0]
     assert abs(held[1]) < 0.02 and free[1] < -0.05  # waits in its lane; with the place free, turns into it
-
-
-def test_a_red_light_runner_waits_at_its_light_while_the_other_is_far_rather_than_cross_long_before_it():
-    from langtraj.interdrive.behaviours.scripts import CROSSING_WAIT_S, Crossing
-
-    script = Crossing(conflict_m=110.0, clear_m=5.0, least_mps=8.0)  # the crossing (x = 60) 10 m past where it stands
-    state = [50.0, 0.0, 0.0, 0.0]
-    far = [60.0, -120.0, math.pi / 2, 10.0]  # 12 s from the crossing
-    assert script.plan(_state(state, far, count=1, per=1))[0][0] <= 0.05  # stays at its light
-    near = [60.0, -10.0 * (CROSSING_WAIT_S - 0.5), math.pi / 2, 10.0]  # within the wait: it goes
-    assert script.plan(_state(state, near, count=1, per=1))[0][0] > 1.0

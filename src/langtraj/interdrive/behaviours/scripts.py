@@ -325,18 +325,12 @@ CROSSING_AHEAD_S = 2.0
 episodes ended in a contact with the other before the runner was across."""
 
 
-CROSSING_WAIT_S = 6.0
-"""While the other is farther than this from the crossing (s at its speed), a scripted crossing waits at its light
-(slows to stand) rather than cross long before the other comes (held-out runners at their least speed crossed with the
-other 20-40 m away: "no one's way cut")."""
-
-
 @dataclass(frozen=True)
 class Crossing(Script):
     """Along its path (pure pursuit, whatever lights or signs it passes) to `clear_m` past the crossing at
     `conflict_m` along it, there `CROSSING_AHEAD_S` before the other agent gets to the crossing at its current speed,
-    re-timed from where the other is (at least `least_mps`; waiting at its light while the other is farther than
-    `CROSSING_WAIT_S`), then on at its speed: a car that runs a red light across another's way before it."""
+    re-timed at every replan from where the other is (at least `least_mps`), then on at its speed: a car that runs a
+    red light across another's way before it."""
 
     conflict_m: float
     clear_m: float
@@ -353,8 +347,6 @@ class Crossing(Script):
             if left > 0 and other is not None:
                 eta = math.hypot(crossing[0] - other[0], crossing[1] - other[1]) / max(other[3], 1.0)
                 need = max(left / max(eta - CROSSING_AHEAD_S, 0.5), self.least_mps)
-                if eta > CROSSING_WAIT_S:  # the other far: it waits at its light
-                    need = 0.0
             else:
                 need = max(state[3], self.least_mps) if left > 0 else state[3]
             accel = float(np.clip(CROSSING_SPEED_GAIN * (need - state[3]), *CROSSING_ACCELERATIONS))
