@@ -1,8 +1,8 @@
-"""Do prompted agents drive like drivers? (docs/testing.md, 'Adversaries that keep off the traffic'): for each case of a
-suite and each seed, run the episode as written and again with its prompts removed (the same agents, the model driving
-them unprompted), and count, for each prompted agent, the episodes in which it collided with a bystander (anyone but
-the ego and the agent its behaviour is toward) and in which it left the road, from the episode's traffic events
-(`suites.traffic`). The issue's target: prompted within 0.02 of unprompted.
+"""Do prompted agents drive like drivers? (docs/testing.md, 'Adversaries at 10 Hz, behind the traffic, measured'): for
+each case of a suite and each seed, run the episode as written and again with its prompts removed (the same agents,
+the model driving them unprompted), and count, for each prompted agent, the episodes in which it collided with a
+bystander (anyone but the ego and the agent its behaviour is toward) and in which it left the road, from the
+episode's traffic events (`suites.traffic`). The issue's target: prompted within 0.02 of unprompted.
 
     python benchmarks/adversary_bystanders.py SUITE [--planner idm] [--seeds 2] [--cases NAME,...]
 """
