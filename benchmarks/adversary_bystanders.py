@@ -9,16 +9,16 @@ episode's traffic events (`suites.traffic`). The issue's target: prompted within
 
 from __future__ import annotations
 
-import argparse
 import collections
 import dataclasses
 import sys
 import tempfile
-from pathlib import Path
 from typing import Any
 
+from suite_args import suite_from_args
+
 from langtraj.errors import InputError
-from langtraj.suites import RunOptions, load_suite
+from langtraj.suites import RunOptions
 from langtraj.suites.episode import run_episode
 from langtraj.suites.runner import episode_tasks
 
@@ -37,15 +37,7 @@ def faults_of(traffic: dict[str, Any] | None, agent: int, spared: set[int]) -> t
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("suite", type=Path)
-    parser.add_argument("--planner", default="idm")
-    parser.add_argument("--seeds", type=int, default=2)
-    parser.add_argument("--cases", default="", help="comma-separated case names (default: every case)")
-    args = parser.parse_args()
-    suite = load_suite(args.suite)
-    wanted = [c for c in args.cases.split(",") if c]
-    suite = (suite.only(wanted) if wanted else suite).with_seeds(args.seeds)
+    suite, args = suite_from_args(__doc__.splitlines()[0], seeds=2)
     unprompted = dataclasses.replace(suite, cases=tuple(dataclasses.replace(c, prompts=()) for c in suite.cases))
     tally: dict[str, list[int]] = collections.defaultdict(lambda: [0, 0, 0, 0, 0])  # n, bump, bump0, off, off0
     with tempfile.TemporaryDirectory() as out:

@@ -9,18 +9,17 @@ brake (its judge's figure). Run it on a timed and an untimed copy of the same pr
 
 from __future__ import annotations
 
-import argparse
 import sys
 import tempfile
-from pathlib import Path
 from typing import Any
 
 import numpy as np
+from suite_args import suite_from_args
 
 from langtraj.errors import InputError
 from langtraj.scenario.types import StateField
 from langtraj.sim.staging import starts_of
-from langtraj.suites import RunOptions, load_suite
+from langtraj.suites import RunOptions
 from langtraj.suites.episode import run_episode
 from langtraj.suites.runner import episode_tasks
 
@@ -48,15 +47,7 @@ def entered(played: Any, ego: int, agent: int) -> float | None:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("suite", type=Path)
-    parser.add_argument("--planner", default="idm")
-    parser.add_argument("--seeds", type=int, default=4)
-    parser.add_argument("--cases", default="", help="comma-separated case names (default: every case)")
-    args = parser.parse_args()
-    suite = load_suite(args.suite)
-    wanted = [c for c in args.cases.split(",") if c]
-    suite = (suite.only(wanted) if wanted else suite).with_seeds(args.seeds)
+    suite, args = suite_from_args(__doc__.splitlines()[0], seeds=4)
     with tempfile.TemporaryDirectory() as out:
         for task in episode_tasks(suite, RunOptions(out=out, planner=args.planner, video=False)):
             seen: dict[str, Any] = {}
