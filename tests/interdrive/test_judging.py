@@ -599,3 +599,17 @@ def test_constructed_cut_in_and_braking_lead_on_a_real_scene(real_data_dir):
             assert "it left its path while braking (2.5 m to the side" in judgement.why
         else:
             assert _measure(judgement, "peak deceleration").realised == pytest.approx(6.0, abs=0.3)
+
+
+def test_a_cut_in_that_never_settled_says_how_the_other_drove_meanwhile():
+    # the cutter keeps 10 m/s in the lane beside; the other speeds up from 10 to 16 m/s and leaves it behind
+    fast = 10.0 + 6.0 * np.clip(t / 3.0, 0.0, 1.0)
+    sped = episode({1: track(travelled(fast), 0.0), 2: track(10 * t, 3.5)})
+    away = _judge("cut_in", sped, 2, 1, {"gap": 10.0})
+    assert not away.happened and away.why.endswith("@1 sped up from 10.0 to 16.0 m/s meanwhile (its own doing)")
+    # ... or stops
+    stops = np.clip(10.0 - 4.0 * t, 0.0, None)
+    stood = episode({1: track(travelled(stops), 0.0), 2: track(10 * t, 3.5)})
+    assert _judge("cut_in", stood, 2, 1, {}).why.endswith("@1 came to a stand (from 9.9 m/s; its own doing)")
+    # an other that keeps its speed is not named
+    assert "its own doing" not in _judge("cut_in", EPISODES["cut_in out of path"].scene, 2, 1, {}).why

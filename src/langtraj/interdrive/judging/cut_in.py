@@ -115,6 +115,29 @@ def slowed(view: PairView, step: int) -> str | None:
     return f"@{view.other.track_id} had slowed from {first:.1f} to {now:.1f} m/s by then (its own doing)"
 
 
+def how_other_drove(view: PairView) -> str | None:
+    """One line saying how the other changed its speed over the played steps where it did by `FELL_BACK_MPS` or more
+    (sped up, slowed, or came to a stand), else None: a cut-in that never settled beside an ego that sped away or
+    stopped reads as the ego's doing, measured."""
+    speed = view.other.speed
+    known = np.flatnonzero(np.isfinite(speed))
+    if known.size < 2:
+        return None
+    first, last, least = float(speed[known[0]]), float(speed[known[-1]]), float(np.nanmin(speed))
+    name = f"@{view.other.track_id}"
+    if least <= STOOD_MPS < first:
+        return f"{name} came to a stand (from {first:.1f} m/s; its own doing)"
+    if last >= first + FELL_BACK_MPS:
+        return f"{name} sped up from {first:.1f} to {last:.1f} m/s meanwhile (its own doing)"
+    if last <= first - FELL_BACK_MPS:
+        return f"{name} slowed from {first:.1f} to {last:.1f} m/s meanwhile (its own doing)"
+    return None
+
+
+STOOD_MPS = 0.5
+"""The speed (m/s) at or under which the other is said to have come to a stand (`how_other_drove`)."""
+
+
 def never_settled(view: PairView, after: int) -> str:
     """Why the agent never settled in the other's path ahead of it after step `after` (one line)."""
     other = f"@{view.other.track_id}"
@@ -154,7 +177,8 @@ def judge_settling(view: PairView, asked_gap: float, after: int, extra: tuple[Me
         missed += [fell_back] if (fell_back := slowed(view, entered(view, after, step))) else []
     if step is None:
         why = cut_short(contact) if contact is not None else never_settled(view, after)
-        return Judgement(False, measures, "; ".join([why, *missed]), None, contact)
+        drove = None if contact is not None else how_other_drove(view)
+        return Judgement(False, measures, "; ".join([why, *([drove] if drove else []), *missed]), None, contact)
     if missed:
         return Judgement(False, measures, "; ".join(missed), step, contact)
     why = f"settled {gap:.1f} m ahead of {other} in its path at {at(step)} ({measures[-2].describe()})"
