@@ -11,13 +11,11 @@ from __future__ import annotations
 
 import collections
 import dataclasses
-import sys
 import tempfile
 from typing import Any
 
-from suite_args import suite_from_args
+from suite_args import run, suite_from_args
 
-from langtraj.errors import InputError
 from langtraj.suites import RunOptions
 from langtraj.suites.episode import run_episode
 from langtraj.suites.runner import episode_tasks
@@ -73,8 +71,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    try:
-        sys.exit(main())
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        sys.exit(2)
+    run(main)

@@ -10,14 +10,14 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import sys
 import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
 
+from suite_args import run
+
 import langtraj.suites.episode as episode_module
-from langtraj.errors import InputError
 from langtraj.interdrive.behaviours import kind
 from langtraj.sim.prompts import read_prompts
 from langtraj.suites import RunOptions, load_suite
@@ -74,8 +74,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    try:
-        sys.exit(main())
-    except InputError as exc:  # an unknown case: one line, exit 2, as the command line says it
-        print(f"error: {exc}", file=sys.stderr)
-        sys.exit(2)
+    run(main)

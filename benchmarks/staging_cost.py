@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import sys
 import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
 
+from suite_args import run
+
 from langtraj.cases import Case
-from langtraj.errors import InputError
 from langtraj.sim import scripted as scripted_module
 from langtraj.sim.candidates import CandidatePlanning
 from langtraj.sim.staging import Stagings
@@ -108,8 +108,4 @@ def _label(case: Case) -> str:
 
 
 if __name__ == "__main__":
-    try:
-        sys.exit(main())
-    except InputError as exc:  # an unknown case: one line, exit 2, as the command line says it
-        print(f"error: {exc}", file=sys.stderr)
-        sys.exit(2)
+    run(main)

@@ -9,14 +9,12 @@ brake (its judge's figure). Run it on a timed and an untimed copy of the same pr
 
 from __future__ import annotations
 
-import sys
 import tempfile
 from typing import Any
 
 import numpy as np
-from suite_args import suite_from_args
+from suite_args import run, suite_from_args
 
-from langtraj.errors import InputError
 from langtraj.scenario.types import StateField
 from langtraj.sim.staging import starts_of
 from langtraj.suites import RunOptions
@@ -74,8 +72,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    try:
-        sys.exit(main())
-    except InputError as exc:  # an unknown case: one line, exit 2, as the command line says it
-        print(f"error: {exc}", file=sys.stderr)
-        sys.exit(2)
+    run(main)

@@ -18,6 +18,22 @@ LANE_MATCH_MAX_HEADING = math.radians(45.0)
 """Largest heading disagreement between a vehicle and its matched lane (rad); `HeuristicConfig` defaults to it."""
 
 
+def current_speeds(scenario: Scenario, rows: np.ndarray | None = None) -> np.ndarray:
+    """The speed (m/s) of each agent row (every row by default) at the scene's current step: from its positions since
+    the first step it was seen in the last half second, as the labelers measure speed (some sources leave velocities
+    at zero), else its recorded velocity."""
+    agents, c = scenario.agents, scenario.current_index
+    rows = np.arange(agents.num_agents) if rows is None else np.asarray(rows)
+    speed = np.hypot(agents.velocity[rows, c, 0], agents.velocity[rows, c, 1]).astype(np.float64)
+    dt = float(np.median(np.diff(scenario.timestamps))) if scenario.num_steps > 1 else 0.1
+    for back in range(c - 1, max(c - 5, 0) - 1, -1):  # the earliest seen step wins: walk from the nearest back
+        seen = agents.valid[rows, back]
+        apart = agents.xy[rows, c] - agents.xy[rows, back]  # each row's own norm: the figures AgentOnLane had
+        moved = np.array([float(np.linalg.norm(d)) for d in apart]) / ((c - back) * dt)
+        speed = np.where(seen, moved, speed)
+    return speed
+
+
 @dataclass(frozen=True)
 class AgentOnLane:
     """Where an agent is at the current step: its lane (index into the map index, -1 if none), station, speed."""
@@ -38,11 +54,7 @@ class AgentOnLane:
     ) -> AgentOnLane:
         """Agent row `agent` matched to a lane within `radius` m and `max_heading` rad."""
         agents, c = scenario.agents, scenario.current_index
-        speed = float(np.hypot(*agents.velocity[agent, c]))
-        back = [t for t in range(c - 5, c) if t >= 0 and agents.valid[agent, t]]
-        if back:  # from positions, as the labelers measure speed (some sources leave velocities at zero)
-            step = float(np.median(np.diff(scenario.timestamps))) if scenario.num_steps > 1 else 0.1
-            speed = float(np.linalg.norm(agents.xy[agent, c] - agents.xy[agent, back[0]])) / ((c - back[0]) * step)
+        speed = float(current_speeds(scenario, np.array([agent]))[0])
         if not index.has_lanes:
             return cls(-1, math.nan, speed)
         match = index.match_lanes(

@@ -21,6 +21,7 @@ from langtraj.interdrive.behaviours import Script, ScriptState, unicycle_step
 from langtraj.model.dynamics import Unicycle
 from langtraj.scenario.model import STEP_SECONDS
 from langtraj.scenario.types import StateField
+from langtraj.sim.external import external_acceleration
 from langtraj.sim.prompt_replan import PromptReplans
 from langtraj.sim.world import SimWorld
 
@@ -62,16 +63,6 @@ def script_state(
     )
 
 
-def measured_acceleration(world: SimWorld, slot: int, step: int, rollout: int) -> float:
-    """The acceleration (m/s^2) of the driven agent in `slot` over the step before `step` in `rollout` (0 at the
-    log's first step or where it was not seen)."""
-    row = world.driven[[slot]]
-    if step < 1 or not world.valid[rollout, row[0], step - 1]:
-        return 0.0
-    now, before = world.current(step, row)[rollout, 0, 3], world.current(step - 1, row)[rollout, 0, 3]
-    return float((now - before) / STEP_SECONDS)
-
-
 def act(
     world: SimWorld,
     prompt: PromptReplans,
@@ -101,7 +92,7 @@ def act(
             if len(steering.target.path) < 2:
                 continue
             other = steering.other_slot
-            other_accel = 0.0 if other is None else measured_acceleration(world, other, step, r)
+            other_accel = 0.0 if other is None else float(external_acceleration(world, [other], step, [r])[0, 0])
             memory = prompt.memory.setdefault((r, steering.slot), {})
             now = script_state(steering, since, step, current[r], sizes[r], other_accel, dynamics, 1, 1, memory)
             accel, rate = (float(v) for v in script.plan(now)[0])

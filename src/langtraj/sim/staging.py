@@ -139,6 +139,8 @@ class Stagings:
     waiting: dict[int, dict[int, Waiting]] = field(default_factory=dict)
     done: dict[int, dict[int, float]] = field(default_factory=dict)
     """Per rollout: track id -> when its prompted behaviour was done (s since the start)."""
+    checked: dict[int, int] = field(default_factory=dict)
+    """Per rollout: the last step it was checked at (a replan's step is asked twice: by the plan and by its step)."""
 
     def __bool__(self) -> bool:
         return bool(self.staged)
@@ -147,8 +149,9 @@ class Stagings:
         """Check every staged behaviour not started in `rollouts` at `step` (`scenario_at(rollout, step)`: the
         rollout's scene as it is then) and start those whose trigger holds and whose target the scene gives."""
         for r in rollouts:
-            if len(self.anchors.get(r, {})) == len(self.staged):  # all started: nothing waits, nothing to read
-                continue
+            if len(self.anchors.get(r, {})) == len(self.staged) or self.checked.get(r) == step:
+                continue  # all started (nothing waits, nothing to read), or checked at this step already
+            self.checked[r] = step
             scene = scenario_at(r, step)
             elapsed = (step - self.start) * STEP_SECONDS
             self._mark_done(r, scene, elapsed)

@@ -25,6 +25,7 @@ from langtraj.interdrive.targets.lanes_ahead import (
 from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
 from langtraj.polylines import arc_lengths, project_on_polyline, resample
 from langtraj.roads import MapIndex
+from langtraj.roads.position import current_speeds
 from langtraj.roads.routes import ROUTE_SPACING, route, straight_line
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
 from langtraj.scenario.types import RED_STATES, AgentType, StateField, TrafficLightState
@@ -187,7 +188,7 @@ class TargetContext:
         agents, c = self.scenario.agents, self.scenario.current_index
         states, valid = agents.states[:, c], agents.valid[:, c].copy()
         valid[agents.index_of(agent.track_id)] = False
-        speed = _speeds_now(self.scenario)
+        speed = current_speeds(self.scenario)
         rows = np.flatnonzero(valid & (speed <= most_mps))
         if not len(rows) or len(path) < 2:
             return None
@@ -200,20 +201,6 @@ class TargetContext:
             return None
         k = int(np.argmin(np.where(on, ahead, np.inf)))
         return int(agents.ids[rows[k]]), float(ahead[k]), float(speed[rows[k]])
-
-
-def _speeds_now(scenario: Scenario) -> np.ndarray:
-    """Every agent's speed at the current step (m/s): over the last half second from positions where it was seen then,
-    as `AgentOnLane` measures it (some sources leave velocities at zero), else its recorded velocity."""
-    agents, c = scenario.agents, scenario.current_index
-    speed = np.hypot(agents.velocity[:, c, 0], agents.velocity[:, c, 1]).astype(np.float64)
-    back = c - 5
-    if back >= 0:
-        seen = agents.valid[:, back]
-        dt = float(np.median(np.diff(scenario.timestamps))) if scenario.num_steps > 1 else STEP_SECONDS
-        moved = np.linalg.norm(agents.xy[:, c] - agents.xy[:, back], axis=1) / (5 * dt)
-        speed = np.where(seen, moved, speed)
-    return speed
 
 
 STANDING_MPS = 1.0
