@@ -15,6 +15,7 @@ from langtraj.metrics.controllability import (
     ControllabilityResult,
     agent_rates,
     average_displacement,
+    collision_events,
     collision_flags,
     collision_rate,
     controllability,
@@ -174,6 +175,17 @@ def test_collision_rate_over_rollout_agent_pairs():
     assert collision_rate(sc, ro) == pytest.approx(2 / 6)
     assert collision_rate(sc, ro, [101]) == 0.5
     assert collision_rate(sc, ro, [103]) == 0.0
+
+
+def test_a_collision_event_names_the_deepest_contact():
+    """Car 101 grazes 102 (nearest centre) and sits deep in 103 at the same first step: its partner is 103, the
+    least signed distance; 102's first contact is 101 at that step."""
+    sc = scene([track((0, 0), (1, 0)), track((-1, 1.9), (1, 0)), track((3.6, 0), (1, 0))])
+    ro = log_rollouts(sc, 1)
+    ro.x[0, 2, :20] += 20.0  # 103 far ahead until step 20, then 0.9 m of 101's front inside its rear
+    ro.y[0, 1, :20] += 20.0  # 102 away until step 20, then beside 101 (0.1 m of width over)
+    events = {(e.agent, e.other, e.step) for e in collision_events(sc, ro)}
+    assert {(101, 103, 20), (102, 101, 20), (103, 101, 20)} <= events
 
 
 # ------------------------------------------------------------------------------------ offroad

@@ -65,6 +65,14 @@ def test_the_tables_rate_over_evaluated_agents_is_wosacs(rammed) -> None:
     assert rates["collision_all"] == pytest.approx(collision_rate(scenario, rollouts), abs=1e-4)
 
 
+def test_the_flow_beside_realism_is_the_logs_own_on_the_log(rammed) -> None:
+    """The log replayed drives as fast as the log and ends stopped as often (`metrics.flow`), shown beside WOSAC's."""
+    scenario, rollouts, _, _ = rammed
+    figures = realism(scenario, log_rollouts(scenario))
+    assert figures["moving_vehicles_speed_vs_log"] == pytest.approx(1.0, abs=1e-3)
+    assert figures["moving_vehicles_end_stopped"] == figures["moving_vehicles_end_stopped_in_log"]
+
+
 def test_offroad_says_what_it_is_measured_against(real_data_dir: Path) -> None:
     """nuScenes maps have no road edges of their own: off-road is measured against edges derived from the lanes
     and says so; a map with neither is not measured."""

@@ -53,6 +53,7 @@ from langtraj.experiments.common import (
 )
 from langtraj.guidance.projection import HardConstraints
 from langtraj.metrics.features import SceneMap
+from langtraj.metrics.flow import FLOW_KEYS, traffic_flow
 from langtraj.model.checkpoint import load_model
 from langtraj.rollouts.baselines import generate_baseline
 from langtraj.rollouts.container import Rollouts
@@ -276,9 +277,10 @@ def realism_table(
             report = classify_failures(scenario, rollouts, scene=scene)
             figures = wosac_figures(scenario, rollouts, scene_map) | report.shares()
             figures |= {"offroad": report.offroad_rate, "collision": report.collision_rate}
+            figures |= traffic_flow(scenario, rollouts).as_dict()
             rows.append(figures | {"scenario_id": scenario.scenario_id})
         per_window[method.name] = rows
-        table[method.name] = {c: nanmean([r[c] for r in rows]) for c in (*COLUMNS, *BREAKDOWN_KEYS)} | {
+        table[method.name] = {c: nanmean([r[c] for r in rows]) for c in (*COLUMNS, *BREAKDOWN_KEYS, *FLOW_KEYS)} | {
             "min_meta": min(r["meta"] for r in rows),
             "windows": len(rows),
             "seconds_per_simulation": float(np.median(seconds)),
@@ -333,6 +335,31 @@ def breakdown_markdown(table: dict[str, dict[str, float]]) -> str:
     return markdown_table(("method", *header), rows)
 
 
+SCENE_COLUMNS = ("meta", "collision", "offroad", "speed_ratio", "stopped", "stopped_log")
+"""A per-scene row (`per_scene_markdown`): realism, the rates against the stationary floor, and the flow against the
+log (`metrics.flow`)."""
+
+
+def per_scene(per_window: Mapping[str, list[dict]]) -> dict[str, dict[str, dict[str, float]]]:
+    """Each scene's figures per method, the means over its windows (a scene's windows share its scenario id)."""
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for name, rows in per_window.items():
+        scenes = sorted({r["scenario_id"] for r in rows})
+        for scene in scenes:
+            of_scene = [r for r in rows if r["scenario_id"] == scene]
+            figures = {c: nanmean([r.get(c, math.nan) for r in of_scene]) for c in SCENE_COLUMNS}
+            out.setdefault(scene, {})[name] = figures
+    return out
+
+
+def per_scene_markdown(scenes: Mapping[str, Mapping[str, Mapping[str, float]]]) -> str:
+    """`per_scene` as Markdown, a row per (scene, method): NaN as a dash."""
+    header = ("scene", "method", "meta", "collision", "offroad", "speed / log", "end stopped", "log end stopped")
+    rows = [(scene, name, *(cell(r[c]) for c in SCENE_COLUMNS)) for scene, methods in scenes.items()
+            for name, r in methods.items()]  # fmt: skip
+    return markdown_table(header, rows)
+
+
 @dataclass(frozen=True, kw_only=True)
 class RealismSettings(SimulationSettings):
     """The realism table's settings: its rows (`methods`), and the simulation settings every closed-loop table has."""
@@ -362,6 +389,9 @@ class RealismExperiment(Experiment):
             print(markdown(result["table"]))
             print(f"\n{spec.name}, offroad and collisions by cause (sim.failures):")
             print(breakdown_markdown(result["table"]))
+            result["per_scene"] = per_scene(result["per_window"])
+            print(f"\n{spec.name}, per scene: the vehicles moving at the start against their log (metrics.flow):")
+            print(per_scene_markdown(result["per_scene"]))
             kinds = [window_kind(scenario, spec.name) for scenario in scenes]
             result["by_kind"] = by_kind(result["per_window"], kinds, OWN_ROWS)
             for kind, table in result["by_kind"].items():

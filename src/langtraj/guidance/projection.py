@@ -85,6 +85,7 @@ class HardConstraints:
     polish_rate: float = 0.3
     polish_anchor: float = 0.001
     steer_prompted: bool = True
+    hold_back_steps: int | None = None
 
     def __post_init__(self) -> None:
         if self.polish < 0:
@@ -239,6 +240,8 @@ def separation(
     roles[contact[at_contact], 1] = ahead(state_j[at_contact, 2].detach(), -gap[at_contact])
     i_behind, j_behind = roles[contact, 0], roles[contact, 1]
     both = i_behind & j_behind
+    if config.hold_back_steps is not None:  # a contact later than this is left to the replans to come
+        hit = hit & (first_step[contact] < config.hold_back_steps)
     share_i = torch.where(movable[j], torch.where(both, 0.5, 1.0), 1.0) * movable[i] * hit  # overlapping steps only
     share_j = torch.where(movable[i], torch.where(both, 0.5, 1.0), 1.0) * movable[j] * hit
     side = ~(i_behind | j_behind)

@@ -332,18 +332,19 @@ class CollisionEvent:
 
 def collision_events(scenario: Scenario, rollouts: Rollouts) -> list[CollisionEvent]:
     """Every (rollout, agent) pair `collision_flags` flags, with the step of its first contact and the agent it
-    touches then (the nearest by the same signed distance), in rollout then rollout-agent order."""
-    cols = np.arange(rollouts.num_agents)
-    touching = _touching(scenario, rollouts, cols)  # [R, A, T]
-    boxes = _boxes(scenario, rollouts)
-    events = []
+    touches then (the deepest: the least signed distance of the same rounded boxes), in rollout then rollout-agent
+    order. The one event rule: `sim.failures` and the studio's events build on it."""
+    touching = _touching(scenario, rollouts, np.arange(rollouts.num_agents))  # [R, A, T]
+    length, width = _boxes(scenario, rollouts)
+    pose = [getattr(rollouts, f) for f in ("x", "y", "heading")]
+    ids, events = rollouts.object_id, []
     for r, a in zip(*np.nonzero(touching.any(-1)), strict=True):
         step = int(np.argmax(touching[r, a]))
-        x, y = rollouts.x[r, :, step].astype(np.float64), rollouts.y[r, :, step].astype(np.float64)
-        nearest = [int(j) for j in np.argsort(np.hypot(x - x[a], y - y[a])) if j != a]
-        other = next((j for j in nearest if _pair_touches(rollouts, boxes, int(r), int(a), j, step)), nearest[0])
-        ids = rollouts.object_id
-        events.append(CollisionEvent(int(r), int(ids[a]), int(ids[other]), step))
+        mine = [float(v[r, a, step]) for v in (*pose, length, width)]
+        theirs = [v[r, :, step].astype(np.float64) for v in (*pose, length, width)]
+        gap = pair_signed_distance(*(np.full(rollouts.num_agents, m) for m in mine), *theirs)
+        gap[a] = np.inf
+        events.append(CollisionEvent(int(r), int(ids[a]), int(ids[int(np.argmin(gap))]), step))
     return events
 
 
@@ -360,15 +361,6 @@ def _touching(scenario: Scenario, rollouts: Rollouts, cols: np.ndarray) -> np.nd
     pose = [getattr(rollouts, f).astype(np.float64) for f in ("x", "y", "heading")]
     dist = distance_to_nearest_object(*pose, length, width, np.ones(rollouts.x.shape, bool), cols)
     return dist < COLLISION_THRESHOLD
-
-
-def _pair_touches(rollouts: Rollouts, boxes: tuple[np.ndarray, np.ndarray], r: int, a: int, j: int, t: int) -> bool:
-    """Whether agents `a` and `j` alone touch at step `t` of rollout `r` (the same distance, two boxes)."""
-    pick = (slice(r, r + 1), [a, j], slice(t, t + 1))
-    pose = [getattr(rollouts, f)[pick].astype(np.float64) for f in ("x", "y", "heading")]
-    size = [b[pick] for b in boxes]
-    dist = distance_to_nearest_object(*pose, *size, np.ones((1, 2, 1), bool), np.array([0]))
-    return bool(dist[0, 0, 0] < COLLISION_THRESHOLD)
 
 
 def collision_rate(scenario: Scenario, rollouts: Rollouts, agent_ids: Sequence[int] | None = None) -> float:

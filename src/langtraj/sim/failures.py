@@ -2,11 +2,11 @@
 where the realism table's offroad and collision rates come from (docs/experiments.md, 'Samples that stay on the
 road').
 
-The events are exactly those the rates count (`metrics.controllability`): a (rollout, vehicle) pair is off road
-when `offroad_flags` says so, a (rollout, agent) pair collides when `collision_flags` says so. Each such pair is one
-event at its first off-road (or touching) future step 0..79, with the point where it happens (the agent's box
-centre) and, for a collision, the agent it touches first (the nearest then). So the shares per cause, over the
-same denominators, sum to `offroad_rate` and `collision_rate` of the same rollouts.
+The events are exactly those the rates count, found by the one event rule of `metrics.controllability`
+(`offroad_first_steps`, `collision_events`): each (rollout, vehicle) pair off road and each (rollout, agent) pair
+that collides is one event at its first off-road (or touching) future step 0..79, with the point where it happens
+(the agent's box centre) and, for a collision, the agent it touches then (the deepest contact). So the shares per
+cause, over the same denominators, sum to `offroad_rate` and `collision_rate` of the same rollouts.
 
 Each event gets one cause, the first of these that holds (offroad: `OFFROAD_CAUSES`, collisions:
 `COLLISION_CAUSES`, in this order):
@@ -55,15 +55,13 @@ from matplotlib.path import Path as MplPath
 
 from langtraj.errors import InputError
 from langtraj.interdrive.heuristics.config import HeuristicConfig
-from langtraj.metrics.controllability import collision_flags, offroad_flags
-from langtraj.metrics.features import COLLISION_THRESHOLD, OFFROAD_THRESHOLD, SceneMap
+from langtraj.metrics.controllability import collision_events, offroad_first_steps
+from langtraj.metrics.features import COLLISION_THRESHOLD, SceneMap
 from langtraj.metrics.interaction import pair_signed_distance
 from langtraj.metrics.road import (
     CYCLIC_TOLERANCE_M2,
-    RoadEdgeIndex,
     RoadEdges,
     box_bottom_corners,
-    distance_to_road_edge,
 )
 from langtraj.polylines import project_on_segments
 from langtraj.roads import MapIndex
@@ -102,9 +100,6 @@ LANE_CHANGE_LATERAL_M = 1.2
 then reaches 0.45 m over the line of a 3.5-m lane, about where side-by-side cars on neighbour lanes touch."""
 DOWNSTREAM_HOPS = 8
 """Lanes at most this many exit links from the start lane are the start lane's own road ahead."""
-
-_STEP_CHUNK = 10
-"""Steps searched at a time for an event's first off-road step."""
 
 Kind = Literal["offroad", "collision"]
 
@@ -350,19 +345,18 @@ def _offroad_events(
         return [], 0, 0
     if scene.scene_map.road_edges is None:
         return [], 0, pairs
-    ids, flags = offroad_flags(scenario, rollouts, scene_map=scene.scene_map)
+    ids, first = offroad_first_steps(scenario, rollouts, scene_map=scene.scene_map)
     column = {int(i): c for c, i in enumerate(rollouts.object_id)}
     cols = np.array([column[int(i)] for i in ids], np.int64)
-    rollout, which = np.nonzero(flags)
+    rollout, which = np.nonzero(first >= 0)
     if not len(rollout):
         return [], pairs, 0
     x, y, z, heading = _poses(rollouts)
-    chosen = cols[which]
+    chosen, first = cols[which], first[rollout, which]
     length, width, height = (
         np.broadcast_to(sizes[chosen, k, None], (len(chosen), rollouts.num_steps)) for k in range(3)
     )
     pose = [v[rollout, chosen] for v in (x, y, z, heading)]  # [P, T] each, the same boxes `offroad_flags` measures
-    first = _first_offroad_steps(scene.scene_map.road_edges, [*pose, length, width, height])
     events = []
     for p, (r, col, step) in enumerate(zip(rollout.tolist(), chosen.tolist(), first.tolist(), strict=True)):
         track = int(tracks[col])
@@ -382,65 +376,13 @@ def _offroad_events(
     return events, pairs, 0
 
 
-def _first_offroad_steps(edges: RoadEdgeIndex, boxes: list[np.ndarray]) -> np.ndarray:
-    """The first step [P] at which each box (x, y, z, heading, length, width, height, each [P, T]) is off road, searched
-    `_STEP_CHUNK` steps at a time (most events begin early); a box never off road (a rounding apart from
-    `offroad_flags`) gets its most off-road step."""
-    steps = boxes[0].shape[1]
-    first = np.full(len(boxes[0]), -1, np.int64)
-    todo = np.arange(len(first))
-    for start in range(0, steps, _STEP_CHUNK):
-        part = [b[todo, start : start + _STEP_CHUNK] for b in boxes]
-        off = distance_to_road_edge(edges, *part, np.ones(part[0].shape, bool)) > OFFROAD_THRESHOLD
-        found = off.any(-1)
-        first[todo[found]] = start + off[found].argmax(-1)
-        todo = todo[~found]
-        if not len(todo):
-            return first
-    rest = [b[todo] for b in boxes]
-    first[todo] = distance_to_road_edge(edges, *rest, np.ones(rest[0].shape, bool)).argmax(-1)
-    return first
-
-
-def _first_contacts(rollouts: Rollouts, flags: np.ndarray, sizes: np.ndarray) -> list[tuple[int, int, int, int]]:
-    """(rollout, column, partner column, step) of each flagged pair: its first touching step and the agent it
-    touches then (the nearest), by the collision rate's rounded boxes (`pair_signed_distance`)."""
-    x, y, _, heading = _poses(rollouts)
-    length, width = sizes[:, 0], sizes[:, 1]
-    reach = np.hypot(length, width) / 2  # boxes farther apart than their half diagonals cannot touch
-    found = []
-    for r in np.flatnonzero(flags.any(axis=1)).tolist():
-        agents = np.flatnonzero(flags[r])
-        centre = np.hypot(x[r, agents, None] - x[r, None], y[r, agents, None] - y[r, None])  # [F, A, T]
-        near = centre <= (reach[agents, None, None] + reach[None, :, None])
-        near[np.arange(len(agents)), agents] = False
-        f, b, t = np.nonzero(near)
-        a = agents[f]
-        gap = np.full(near.shape, np.inf)
-        gap[f, b, t] = pair_signed_distance(
-            x[r, a, t], y[r, a, t], heading[r, a, t], length[a], width[a],
-            x[r, b, t], y[r, b, t], heading[r, b, t], length[b], width[b],
-        )  # fmt: skip
-        for k, col in enumerate(agents.tolist()):
-            touching = (gap[k] < COLLISION_THRESHOLD).any(axis=0)
-            if touching.any():
-                step = int(touching.argmax())
-                partner = int(gap[k, :, step].argmin())
-            else:  # a rounding apart from `collision_flags`: the closest approach
-                closest = gap[k] if np.isfinite(gap[k]).any() else np.where(near[k], centre[k], np.inf)
-                partner, step = (int(v) for v in np.unravel_index(closest.argmin(), closest.shape))
-            found.append((r, col, partner, step))
-    return found
-
-
-def _collision_events(
-    scene: FailureScene, rollouts: Rollouts, tracks: np.ndarray, sizes: np.ndarray
-) -> list[FailureEvent]:
-    """The collision events: exactly `collision_flags`' (rollout, agent) pairs."""
-    flags = collision_flags(scene.scenario, rollouts)
+def _collision_events(scene: FailureScene, rollouts: Rollouts, tracks: np.ndarray) -> list[FailureEvent]:
+    """The collision events: exactly `collision_flags`' (rollout, agent) pairs, as `collision_events` finds them."""
     x, y, _, _ = _poses(rollouts)
+    column = {int(i): c for c, i in enumerate(rollouts.object_id)}
     events = []
-    for r, col, partner, step in _first_contacts(rollouts, flags, sizes):
+    for event in collision_events(scene.scenario, rollouts):
+        r, col, partner, step = event.rollout, column[event.agent], column[event.other], event.step
         a, b = int(tracks[col]), int(tracks[partner])
         here = np.array([x[r, col, step], y[r, col, step]])
         there = np.array([x[r, partner, step], y[r, partner, step]])
@@ -481,7 +423,7 @@ def classify_failures(scenario: Scenario, rollouts: Rollouts, *, scene: FailureS
     sizes = scenario.agents.states[tracks, now][:, [StateField.LENGTH, StateField.WIDTH, StateField.HEIGHT]]
     sizes = sizes.astype(np.float64)  # the box over the whole future: the current step's, as the rates take it
     offroad, measured, unmeasured = _offroad_events(scene, rollouts, tracks, sizes)
-    collisions = _collision_events(scene, rollouts, tracks, sizes)
+    collisions = _collision_events(scene, rollouts, tracks)
     return FailureReport(
         scenario_id=scenario.scenario_id,
         events=tuple(offroad + collisions),

@@ -21,6 +21,7 @@ from langtraj.interdrive.adherence import AdherenceChecker
 from langtraj.interdrive.behaviours.verdict import judge_reading
 from langtraj.interdrive.reader import PromptReading
 from langtraj.metrics.controllability import collision_events, offroad_first_steps
+from langtraj.metrics.flow import traffic_flow
 from langtraj.metrics.instruction_following import rollout_scenario
 from langtraj.metrics.wosac import evaluate_scenario
 from langtraj.rollouts.agents import evaluated_agent_indices
@@ -41,6 +42,12 @@ REALISM_FIELDS = {
     "offroad_rate": "simulated_offroad_rate",
 }
 """The WOSAC figures a run reports (name in the result: `ScenarioMetrics` field)."""
+FLOW_FIELDS = {
+    "moving_vehicles_speed_vs_log": "speed_ratio",
+    "moving_vehicles_end_stopped": "stopped",
+    "moving_vehicles_end_stopped_in_log": "stopped_log",
+}
+"""The flow figures a run reports (name in the result: `metrics.flow.FlowResult.as_dict` key)."""
 
 
 def judge_prompts(
@@ -131,13 +138,16 @@ def agent_outcomes(scenario: Scenario, rollouts: Rollouts) -> list[dict[str, Any
 
 def realism(scenario: Scenario, rollouts: Rollouts) -> dict[str, Any]:
     """WOSAC figures of the rollouts (2025 configuration), over the agents WOSAC evaluates (`evaluated`, their
-    count); all null, with the reason, where the scene does not log the 80 future steps or has no agent to score."""
+    count), and the flow of the vehicles moving at the start against their log (`metrics.flow`: `FLOW_FIELDS`); all
+    null, with the reason, where the scene does not log the 80 future steps or has no agent to score."""
     evaluated = len(evaluated_agent_indices(scenario))
+    flow = traffic_flow(scenario, rollouts).as_dict()
+    flows = {name: _finite(flow[key]) for name, key in FLOW_FIELDS.items()}
     try:
         metrics = evaluate_scenario(scenario, rollouts).to_dict()
     except InputError as exc:
-        return {name: None for name in REALISM_FIELDS} | {"note": str(exc), "evaluated": evaluated}
-    return {name: _finite(metrics[key]) for name, key in REALISM_FIELDS.items()} | {
+        return {name: None for name in REALISM_FIELDS} | flows | {"note": str(exc), "evaluated": evaluated}
+    return {name: _finite(metrics[key]) for name, key in REALISM_FIELDS.items()} | flows | {
         "note": None,
         "evaluated": evaluated,
     }
