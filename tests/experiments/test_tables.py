@@ -31,6 +31,9 @@ def test_method_specs():
     assert not model.rolling and Method.parse("m=x.ckpt|defaults|rolling").rolling
     assert model.project_choice and not Method.parse("m=x.ckpt|defaults|project_choice=0").project_choice
     assert model.polish is None and Method.parse("m=x.ckpt|defaults|polish=0").polish == 0
+    assert model.polish_steps is None and Method.parse("m=x.ckpt|polish_steps=20").polish_steps == 20
+    assert model.constraints(None).polish_steps == 30  # the default's
+    assert Method.parse("m=x.ckpt|polish_steps=0").constraints(None).polish_steps is None  # the whole plan
     for bad, message in (
         ("nothing", "expected NAME=SPEC"),
         ("cv=constant_velocity|selector=first", "takes no options"),
@@ -39,6 +42,7 @@ def test_method_specs():
         ("m=x.ckpt|guided_steps=two", "guided_steps must be an integer"),
         ("m=x.ckpt|temperature=cold", "temperature must be a number"),
         ("m=x.ckpt|polish=many", "polish must be an integer"),
+        ("m=x.ckpt|polish_steps=2.5", "polish_steps must be an integer"),
     ):
         with pytest.raises(InputError, match=message):
             Method.parse(bad)
@@ -69,6 +73,9 @@ def test_the_realism_table_scores_every_method(tiny_run, tmp_path, capsys):
         assert row["windows"] == 2
         assert all(math.isnan(row[c]) or 0.0 <= row[c] <= 1.0 for c in COLUMNS)
     assert table["log"]["meta"] > table["still"]["meta"]  # replaying the log is what the log scores best
+    assert table["log"]["speed_ratio"] == pytest.approx(1.0, abs=1e-3) and table["still"]["speed_ratio"] == 0.0
+    scenes = json.loads(out.read_text())["toy"]["per_scene"]  # each scene's figures per method (metrics.flow)
+    assert all(set(methods) == set(table) for methods in scenes.values())
 
 
 def test_the_closed_loop_table_takes_rollouts_per_dataset(tiny_run, tmp_path, capsys):

@@ -157,7 +157,8 @@ def test_the_polish_drives_a_box_the_unicycle_left_past_the_edge_back_inside_and
     assert float(corner_reach(rollout(actions), scene, rows).max()) > 2.0
     config = HardConstraints(polish=30)
     polished = polish_on_road(config, scene, agents(3, road=[True, True, False]), initial, rollout, actions)
-    assert float(corner_reach(rollout(polished), scene, rows).max()) < -config.road_margin + 0.05
+    judged = corner_reach(rollout(polished), scene, rows)[..., : config.polish_steps]  # the steps it judges
+    assert float(judged.max()) < -config.road_margin + 0.05
     assert torch.equal(polished[0, 1:], actions[0, 1:])  # inside already, and not kept on the road: untouched
     assert torch.equal(polish_on_road(HardConstraints(polish=0), scene, agents(3), initial, rollout, actions), actions)
 
@@ -178,7 +179,25 @@ def test_a_steer_only_path_is_steered_back_inside_at_the_speeds_it_planned():
     assert not torch.equal(polished[0, 1, :, 0], actions[0, 1, :, 0])  # the free one's not
     rows = torch.tensor([0])
     assert float(corner_reach(rollout(actions), scene, rows).max()) > 2.0
-    assert float(corner_reach(rollout(polished), scene, rows).max()) < 0.0  # steered back inside the edge
+    judged = corner_reach(rollout(polished), scene, rows)[..., : config.polish_steps]
+    assert float(judged.max()) < 0.0  # steered back inside the edge
+
+
+def test_the_polish_judges_the_plans_first_seconds_only():
+    """A car that turns off the road late in its plan (past `polish_steps`) keeps its actions exactly: the replans to
+    come will see that corner; judged over the whole plan, its speed is polished away now."""
+    dynamics = Unicycle()
+    scene = make_scene(1, road_edges=ROAD)
+    initial = torch.tensor([[[0.0, 0.0, 0.0, 10.0]]])
+    actions = torch.zeros(1, 1, 16, 2)
+    actions[0, 0, 10:, 1] = -0.3  # straight on for 5 s, then off the road
+    rollout = lambda x: dynamics(initial, x)  # noqa: E731
+    reach = corner_reach(rollout(actions), scene, torch.tensor([0]))[0, 0]
+    assert float(reach[:30].max()) < -0.2 and float(reach.max()) > 1.0
+    late = polish_on_road(HardConstraints(polish=10, polish_steps=30), scene, agents(1), initial, rollout, actions)
+    assert torch.equal(late, actions)
+    whole = polish_on_road(HardConstraints(polish=10, polish_steps=None), scene, agents(1), initial, rollout, actions)
+    assert float(whole[0, 0, :10, 0].min()) < -0.1  # braking from the first action for a corner 5 s away
 
 
 def test_the_polish_never_leaves_a_path_worse_than_it_found_it():

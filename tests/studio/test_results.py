@@ -67,7 +67,7 @@ def test_the_tables_rate_over_evaluated_agents_is_wosacs(rammed) -> None:
 
 def test_the_flow_beside_realism_is_the_logs_own_on_the_log(rammed) -> None:
     """The log replayed drives as fast as the log and ends stopped as often (`metrics.flow`), shown beside WOSAC's."""
-    scenario, rollouts, _, _ = rammed
+    scenario = rammed[0]
     figures = realism(scenario, log_rollouts(scenario))
     assert figures["moving_vehicles_speed_vs_log"] == pytest.approx(1.0, abs=1e-3)
     assert figures["moving_vehicles_end_stopped"] == figures["moving_vehicles_end_stopped_in_log"]

@@ -18,6 +18,7 @@ denoised once per replan: a rolling checkpoint, `model.rolling`), `|project=N` (
 last N denoising steps: on the road and apart, `guidance.projection`; 0: off), `|project_choice=0` (the plan
 assembled agent by agent by `per_agent` selection is not projected again, `HardConstraints.on_choice`),
 `|polish=N` (N descent steps polishing projected plans onto the road, `HardConstraints.polish`; 0: none),
+`|polish_steps=N` (the polish judges the plans' first N steps, `HardConstraints.polish_steps`; 0: all of them),
 `|defaults` and `|dense`.
 A checkpoint row runs as the paper's (`min_collision`, no guidance) unless its spec says otherwise;
 `|defaults` adds `langtraj simulate`'s default guidance and selection (on-road guidance, no-collision
@@ -100,6 +101,7 @@ class Method:
     project: int | None = None  # hard constraints at the last N denoising steps (0: off); None: the row's setting
     project_choice: bool = True  # with hard constraints, the executed plan assembled per agent is projected again
     polish: int | None = None  # with hard constraints, descent steps polishing plans onto the road (None: the default)
+    polish_steps: int | None = None  # the plan's first steps the polish judges (None: the default; 0: all of them)
 
     def __post_init__(self) -> None:
         if (self.baseline is None) == (self.checkpoint is None):
@@ -109,7 +111,8 @@ class Method:
                 known = ", ".join(BASELINE_POLICIES + ROLLOUT_BASELINES)
                 raise InputError(f"unknown baseline {self.baseline!r}; known: {known}", where="--method")
             options = (self.selector, self.guidance, self.defaults, self.dense, self.guided_steps, self.warm_steps,
-                       self.refresh_map, self.project, self.hold_parked, self.rolling, self.polish)  # fmt: skip
+                       self.refresh_map, self.project, self.hold_parked, self.rolling, self.polish,
+                       self.polish_steps)  # fmt: skip
             if any(o not in (None, (), False) for o in options) or self.temperature != 1.0 or not self.project_choice:
                 raise InputError(f"baseline {self.baseline} takes no options", where="--method")
         scene_wide_terms(self.guidance)  # checked now, before anything runs
@@ -128,11 +131,12 @@ class Method:
         for option in (o for o in options if o not in flags):
             key, eq, value = option.partition("=")
             known = ("selector", "guidance", "guided_steps", "warm_steps", "temperature", "project", "project_choice",
-                     "polish")  # fmt: skip
+                     "polish", "polish_steps")  # fmt: skip
             if not eq or key not in known:
                 raise InputError(
                     "expected selector=NAME, guidance=COST:WEIGHT, guided_steps=N, warm_steps=N, temperature=T, "
-                    "project=N, project_choice=0|1, polish=N, defaults, dense, refresh_map, hold_parked or rolling, "
+                    "project=N, project_choice=0|1, polish=N, polish_steps=N, defaults, dense, refresh_map, "
+                    "hold_parked or rolling, "
                     f"got {option!r}",
                     where="--method",
                 )
@@ -153,6 +157,7 @@ class Method:
             project=_int_option(settings, "project"),
             project_choice=_int_option(settings, "project_choice") != 0,
             polish=_int_option(settings, "polish"),
+            polish_steps=_int_option(settings, "polish_steps"),
         )
 
     def load(self) -> LoadedModel | None:
@@ -206,7 +211,10 @@ class Method:
         if constraints is None:
             return None
         polish = constraints.polish if self.polish is None else self.polish
-        return replace(constraints, on_choice=self.project_choice and constraints.on_choice, polish=polish)
+        judged = constraints.polish_steps if self.polish_steps is None else (self.polish_steps or None)
+        return replace(
+            constraints, on_choice=self.project_choice and constraints.on_choice, polish=polish, polish_steps=judged
+        )
 
 
 def _int_option(settings: dict[str, str], key: str) -> int | None:
@@ -385,7 +393,8 @@ class RealismExperiment(Experiment):
             scenes, config = dataset_windows(spec, settings)
             candidates, steps, rollouts = settings.candidates, settings.steps, config.rollouts
             result = realism_table(settings.methods, scenes, config, candidates, steps, loaded, print)
-            results[spec.name] = result | {"rollouts": rollouts}
+            results[spec.name] = result  # the per-scene and per-kind tables below are added to it
+            result["rollouts"] = rollouts
             print(markdown(result["table"]))
             print(f"\n{spec.name}, offroad and collisions by cause (sim.failures):")
             print(breakdown_markdown(result["table"]))

@@ -68,8 +68,9 @@ class HardConstraints:
     disks keep `gap` (m) apart; points more than `max_offroad` m off the road are left where they are. With
     `on_choice`, the plan a simulation executes is projected once more after selection: a selector that assembles
     each agent from a different candidate (`per_agent`) undoes the guarantee each candidate had. `polish` Adam
-    steps of rate `polish_rate` (network units) then move the actions of paths whose box still reaches past the line,
-    anchored to the refit's by `polish_anchor` (`polish_on_road`; `polish=0` turns it off). With `steer_prompted`,
+    steps of rate `polish_rate` (network units) then move the actions of paths whose box still reaches past the line
+    within the plan's first `polish_steps` steps (None: all of it), anchored to the refit's by `polish_anchor`
+    (`polish_on_road`; `polish=0` turns it off). With `steer_prompted`,
     a prompted agent's plans are polished too, on their yaw rate only (braking a clipped corner away undid turns), a
     pull-over's not at all (steering it away from the kerb undid it); False: prompted agents are not polished."""
 
@@ -85,11 +86,13 @@ class HardConstraints:
     polish_rate: float = 0.3
     polish_anchor: float = 0.001
     steer_prompted: bool = True
-    hold_back_steps: int | None = None
+    polish_steps: int | None = 30
 
     def __post_init__(self) -> None:
         if self.polish < 0:
             raise InputError(f"polish must be >= 0, got {self.polish}", where="hard constraints")
+        if self.polish_steps is not None and self.polish_steps < 1:
+            raise InputError(f"polish_steps must be >= 1, got {self.polish_steps}", where="hard constraints")
         if min(self.steps, self.iterations, self.rounds, self.num_disks) < 1:
             raise InputError(
                 "steps, iterations, rounds and num_disks must be >= 1, got "
@@ -240,8 +243,6 @@ def separation(
     roles[contact[at_contact], 1] = ahead(state_j[at_contact, 2].detach(), -gap[at_contact])
     i_behind, j_behind = roles[contact, 0], roles[contact, 1]
     both = i_behind & j_behind
-    if config.hold_back_steps is not None:  # a contact later than this is left to the replans to come
-        hit = hit & (first_step[contact] < config.hold_back_steps)
     share_i = torch.where(movable[j], torch.where(both, 0.5, 1.0), 1.0) * movable[i] * hit  # overlapping steps only
     share_j = torch.where(movable[i], torch.where(both, 0.5, 1.0), 1.0) * movable[j] * hit
     side = ~(i_behind | j_behind)
@@ -427,10 +428,12 @@ def polish_on_road(
 ) -> Tensor:
     """Network-unit actions x0 [S, A, N, 2] planned from `initial` [S, A, 4] after `config.polish` Adam steps (rate
     `polish_rate`) on the (row, agent) paths of movable road agents (`agents.polish` of them, when given) moving at
-    `_POLISH_MIN_SPEED` or more whose box reaches past its line anywhere (the others keep x0 exactly); the paths of
+    `_POLISH_MIN_SPEED` or more whose box reaches past its line within the plan's first `config.polish_steps` steps
+    (the others keep x0 exactly; later steps are the replans' to come: judged over all 8 s, Adam braked whole
+    highways for a corner seconds ahead, docs/experiments.md 'Traffic that flows'); the paths of
     `agents.steer_only` are stepped on their yaw rate only. A box's line lies `margin` inside the road edge, or where
     the box reaches at the start if that is farther out: a car over the kerb may stay there, not be driven off it.
-    Each path's loss is the squared reach past its line, summed over steps, plus `polish_anchor` times the squared
+    Each path's loss is the squared reach past its line, summed over those steps, plus `polish_anchor` times the squared
     change of its actions; each path ends at the lowest-loss actions it reached, so none ends worse than it began.
     Adam steps every action of a path by about the rate, whatever its gradient's size: it slows a car as readily as it
     steers it, and braking is what keeps roundabout plans on the ring (validation maps: steering alone left 0.41 of
@@ -447,7 +450,8 @@ def polish_on_road(
         start = corner_reach(initial[:, :, None], scene, rows)[..., 0]  # [S, rows]: the box's reach at the start
         line = torch.zeros(x0.shape[:2], dtype=x0.dtype, device=x0.device)  # [S, A]: how far inside the edge
         line[:, rows] = torch.minimum(margin.to(x0)[rows][None], -start)
-        reach = corner_reach(rollout(x0), scene, rows) + line[:, rows, None]
+        judged = config.polish_steps  # the plan's first steps the polish judges (None: all)
+        reach = corner_reach(rollout(x0)[:, :, :judged], scene, rows) + line[:, rows, None]
     polished = torch.zeros(x0.shape[:2], dtype=torch.bool, device=x0.device)
     polished[:, rows] = (reach > 0).any(-1) & (initial[:, rows, 3] >= _POLISH_MIN_SPEED)
     if not bool(polished.any()):
@@ -464,7 +468,7 @@ def polish_on_road(
 
     def loss_of(actions: Tensor) -> Tensor:
         """Each path's loss [K]."""
-        states = drive(actions, polished)
+        states = drive(actions, polished)[:, :judged]
         past = (box_reach(states[..., :2], states[..., 2], size, scene) + inside).clamp(min=0)
         return past.pow(2).sum(-1) + config.polish_anchor * (actions - anchor).pow(2).sum((-2, -1))
 

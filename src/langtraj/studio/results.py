@@ -147,10 +147,14 @@ def realism(scenario: Scenario, rollouts: Rollouts) -> dict[str, Any]:
         metrics = evaluate_scenario(scenario, rollouts).to_dict()
     except InputError as exc:
         return {name: None for name in REALISM_FIELDS} | flows | {"note": str(exc), "evaluated": evaluated}
-    return {name: _finite(metrics[key]) for name, key in REALISM_FIELDS.items()} | flows | {
-        "note": None,
-        "evaluated": evaluated,
-    }
+    return (
+        {name: _finite(metrics[key]) for name, key in REALISM_FIELDS.items()}
+        | flows
+        | {
+            "note": None,
+            "evaluated": evaluated,
+        }
+    )
 
 
 def road_edges(scenario: Scenario) -> str | None:
