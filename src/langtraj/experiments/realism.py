@@ -298,14 +298,20 @@ def realism_table(
     return {"table": table, "per_window": per_window}
 
 
+FLOW_COLUMNS = ("speed_ratio", "stopped", "stopped_log")
+"""The flow figures a realism table shows (`metrics.flow`): speed against the log, ending stopped, and the log's."""
+
+
 def markdown(table: dict[str, dict[str, float]]) -> str:
     """The table as Markdown (NaN as a dash)."""
     header = ("method", "meta", "kinematic", "interactive", "map", "offroad", "collision", "lowest meta")
+    flow = ("speed / log", "end stopped", "log end stopped")
     rows = [
-        (name, *(cell(r[c]) for c in COLUMNS), cell(r["min_meta"]), _seconds(r["seconds_per_simulation"]))
+        (name, *(cell(r[c]) for c in COLUMNS), cell(r["min_meta"]), *(cell(r.get(c)) for c in FLOW_COLUMNS),
+         _seconds(r["seconds_per_simulation"]))
         for name, r in table.items()
-    ]
-    return markdown_table((*header, "s per simulation"), rows)
+    ]  # fmt: skip
+    return markdown_table((*header, *flow, "s per simulation"), rows)
 
 
 def _seconds(value: float) -> str:
@@ -324,7 +330,7 @@ def by_kind(per_window: Mapping[str, list[dict]], kinds: Sequence[str], chosen: 
     for kind in (k for k in chosen if k in kinds):
         rows = {name: [r for r, k in zip(per, kinds, strict=True) if k == kind] for name, per in per_window.items()}
         out[kind] = {
-            name: {c: nanmean([r[c] for r in of_kind]) for c in COLUMNS}
+            name: {c: nanmean([r.get(c, math.nan) for r in of_kind]) for c in (*COLUMNS, *FLOW_COLUMNS)}
             | {"min_meta": min(r["meta"] for r in of_kind), "windows": len(of_kind), "seconds_per_simulation": math.nan}
             for name, of_kind in rows.items()
         }
