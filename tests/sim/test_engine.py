@@ -126,10 +126,12 @@ def test_batched_rollouts_equal_sequential_ones(tiny_run):
         request = SimRequest(candidates=3, steps=2)
         policy = LangTrajPolicy(model, data, request, rollout_batch=batch, constraints=HardConstraints())
         runs.append(simulate(scenario, policy, SimConfig(rollouts=4, replan_s=2.0, seed=5)).rollouts)
-    # Within a centimetre: float32 sums round a little differently at another batch size (more so with several torch
-    # threads), the projection's refit and polish carry that over the replans (measured: 1.7 mm with 2 threads);
+    # Within a few centimetres: float32 sums round a little differently at another batch size (more so with several
+    # torch threads), and the projection's discrete choices (a path refitted when a point moved over 1 mm, polished
+    # when its box reaches past its line in the first 3 s) can fall differently for a path on the edge, carried over
+    # the replans (measured: 1.9 mm with the polish judging the whole plan, 2.8 cm at 8 s with its 3 s);
     # docs/simulation.md, 'Hard constraints'. Rollouts of one another differ by metres.
-    np.testing.assert_allclose(runs[0].x, runs[1].x, atol=1e-2)
+    np.testing.assert_allclose(runs[0].x, runs[1].x, atol=5e-2)
     np.testing.assert_allclose(runs[0].heading, runs[1].heading, atol=1e-2)
     assert not np.allclose(runs[0].x[0], runs[0].x[1])  # rollouts differ from one another
 
