@@ -12,7 +12,7 @@ from dataset_builders import write_dataset
 
 from langtraj.cli.main import main
 from langtraj.errors import InputError
-from langtraj.experiments.realism import COLUMNS, Method, by_kind
+from langtraj.experiments.realism import COLUMNS, FLOW_COLUMNS, Method, by_kind
 
 FREE_TEXT = Path(__file__).parents[1] / "data" / "free_text_prompts.yaml"
 
@@ -49,7 +49,7 @@ def test_method_specs():
 
 
 def test_merges_and_roundabouts_get_rows_of_their_own():
-    per_window = {"m": [{c: float(k) for c in COLUMNS} | {"min_meta": 0.0} for k in range(4)]}
+    per_window = {"m": [{c: float(k) for c in (*COLUMNS, *FLOW_COLUMNS)} | {"min_meta": 0.0} for k in range(4)]}
     kinds = ["onramp", "city", "onramp", "allway"]
     table = by_kind(per_window, kinds, ("onramp", "roundabout"))
     assert list(table) == ["onramp"]  # no roundabout window: no row

@@ -300,18 +300,18 @@ def realism_table(
 
 FLOW_COLUMNS = ("speed_ratio", "stopped", "stopped_log")
 """The flow figures a realism table shows (`metrics.flow`): speed against the log, ending stopped, and the log's."""
+FLOW_HEADER = ("speed / log", "end stopped", "log end stopped")
 
 
 def markdown(table: dict[str, dict[str, float]]) -> str:
     """The table as Markdown (NaN as a dash)."""
     header = ("method", "meta", "kinematic", "interactive", "map", "offroad", "collision", "lowest meta")
-    flow = ("speed / log", "end stopped", "log end stopped")
     rows = [
-        (name, *(cell(r[c]) for c in COLUMNS), cell(r["min_meta"]), *(cell(r.get(c)) for c in FLOW_COLUMNS),
+        (name, *(cell(r[c]) for c in COLUMNS), cell(r["min_meta"]), *(cell(r[c]) for c in FLOW_COLUMNS),
          _seconds(r["seconds_per_simulation"]))
         for name, r in table.items()
     ]  # fmt: skip
-    return markdown_table((*header, *flow, "s per simulation"), rows)
+    return markdown_table((*header, *FLOW_HEADER, "s per simulation"), rows)
 
 
 def _seconds(value: float) -> str:
@@ -330,7 +330,7 @@ def by_kind(per_window: Mapping[str, list[dict]], kinds: Sequence[str], chosen: 
     for kind in (k for k in chosen if k in kinds):
         rows = {name: [r for r, k in zip(per, kinds, strict=True) if k == kind] for name, per in per_window.items()}
         out[kind] = {
-            name: {c: nanmean([r.get(c, math.nan) for r in of_kind]) for c in (*COLUMNS, *FLOW_COLUMNS)}
+            name: {c: nanmean([r[c] for r in of_kind]) for c in (*COLUMNS, *FLOW_COLUMNS)}
             | {"min_meta": min(r["meta"] for r in of_kind), "windows": len(of_kind), "seconds_per_simulation": math.nan}
             for name, of_kind in rows.items()
         }
@@ -349,7 +349,7 @@ def breakdown_markdown(table: dict[str, dict[str, float]]) -> str:
     return markdown_table(("method", *header), rows)
 
 
-SCENE_COLUMNS = ("meta", "collision", "offroad", "speed_ratio", "stopped", "stopped_log")
+SCENE_COLUMNS = ("meta", "collision", "offroad", *FLOW_COLUMNS)
 """A per-scene row (`per_scene_markdown`): realism, the rates against the stationary floor, and the flow against the
 log (`metrics.flow`)."""
 
@@ -361,14 +361,14 @@ def per_scene(per_window: Mapping[str, list[dict]]) -> dict[str, dict[str, dict[
         scenes = sorted({r["scenario_id"] for r in rows})
         for scene in scenes:
             of_scene = [r for r in rows if r["scenario_id"] == scene]
-            figures = {c: nanmean([r.get(c, math.nan) for r in of_scene]) for c in SCENE_COLUMNS}
+            figures = {c: nanmean([r[c] for r in of_scene]) for c in SCENE_COLUMNS}
             out.setdefault(scene, {})[name] = figures
     return out
 
 
 def per_scene_markdown(scenes: Mapping[str, Mapping[str, Mapping[str, float]]]) -> str:
     """`per_scene` as Markdown, a row per (scene, method): NaN as a dash."""
-    header = ("scene", "method", "meta", "collision", "offroad", "speed / log", "end stopped", "log end stopped")
+    header = ("scene", "method", "meta", "collision", "offroad", *FLOW_HEADER)
     rows = [(scene, name, *(cell(r[c]) for c in SCENE_COLUMNS)) for scene, methods in scenes.items()
             for name, r in methods.items()]  # fmt: skip
     return markdown_table(header, rows)

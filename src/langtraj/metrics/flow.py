@@ -13,8 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from langtraj.roads.position import current_speeds
 from langtraj.rollouts.container import Rollouts
-from langtraj.scenario.model import Scenario
+from langtraj.rollouts.validation import check_rollouts
+from langtraj.scenario.model import STEP_SECONDS, Scenario
 from langtraj.scenario.types import AgentType, StateField
 
 MOVING_MPS = 2.0
@@ -53,14 +55,14 @@ FLOW_KEYS = ("flow_vehicles", "speed_ratio", "median_speed_ratio", "stopped", "s
 
 
 def moving_vehicles(scenario: Scenario, rollouts: Rollouts) -> tuple[np.ndarray, np.ndarray]:
-    """The rollout columns and scenario tracks of the vehicles that move at the current step (`MOVING_MPS`) and are
-    logged at it and over the whole simulated future (their log is the yardstick)."""
-    agents, now, steps = scenario.agents, scenario.current_index, rollouts.x.shape[2]
-    tracks = np.array([agents.index_of(int(i)) for i in rollouts.object_id], np.int64)
+    """The rollout columns and scenario tracks of the vehicles that move at the current step (`MOVING_MPS`, by the one
+    speed rule, `roads.position.current_speeds`) and are logged at it and over the whole simulated future (their log is
+    the yardstick)."""
+    agents, now, steps = scenario.agents, scenario.current_index, rollouts.num_steps
+    tracks = check_rollouts(scenario, rollouts)
     future = agents.valid[tracks, now : now + steps + 1]
     logged = future.shape[1] == steps + 1 and future.all(axis=1)
-    velocity = agents.states[tracks, now][:, [StateField.VX, StateField.VY]]
-    moving = np.hypot(velocity[:, 0], velocity[:, 1]) >= MOVING_MPS
+    moving = current_speeds(scenario, tracks) >= MOVING_MPS
     vehicle = agents.types[tracks] == int(AgentType.VEHICLE)
     keep = np.flatnonzero(logged & moving & vehicle)
     return keep, tracks[keep]
@@ -68,9 +70,9 @@ def moving_vehicles(scenario: Scenario, rollouts: Rollouts) -> tuple[np.ndarray,
 
 def _driven(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The distance driven over every step of paths [..., T + 1] (the current position first), and the mean speed over
-    the last `END_STEPS` steps (m/s at 10 Hz)."""
+    the last `END_STEPS` steps (m/s)."""
     step = np.hypot(np.diff(x, axis=-1), np.diff(y, axis=-1))
-    return step.sum(axis=-1), step[..., -END_STEPS:].sum(axis=-1) / (END_STEPS * 0.1)
+    return step.sum(axis=-1), step[..., -END_STEPS:].sum(axis=-1) / (END_STEPS * STEP_SECONDS)
 
 
 def traffic_flow(scenario: Scenario, rollouts: Rollouts) -> FlowResult:
@@ -78,15 +80,15 @@ def traffic_flow(scenario: Scenario, rollouts: Rollouts) -> FlowResult:
     columns, tracks = moving_vehicles(scenario, rollouts)
     if not len(columns):
         return FlowResult(0, math.nan, math.nan, math.nan, math.nan)
-    now, steps = scenario.current_index, rollouts.x.shape[2]
+    now, steps = scenario.current_index, rollouts.num_steps
     states = scenario.agents.states[tracks, now : now + steps + 1]
     log_distance, log_end = _driven(states[..., StateField.X], states[..., StateField.Y])
-    start = states[None, :, :1]  # the current position, before every rollout's first step
-    x = np.concatenate([np.broadcast_to(start[..., StateField.X], (rollouts.num_rollouts, len(columns), 1)),
-                        rollouts.x[:, columns]], axis=-1)  # fmt: skip
-    y = np.concatenate([np.broadcast_to(start[..., StateField.Y], (rollouts.num_rollouts, len(columns), 1)),
-                        rollouts.y[:, columns]], axis=-1)  # fmt: skip
-    distance, end = _driven(x.astype(np.float64), y.astype(np.float64))
+    shape = (rollouts.num_rollouts, len(columns), 1)  # the current position, before every rollout's first step
+    x, y = (
+        np.concatenate([np.broadcast_to(states[:, :1, field], shape), path[:, columns]], axis=-1).astype(np.float64)
+        for field, path in ((StateField.X, rollouts.x), (StateField.Y, rollouts.y))
+    )
+    distance, end = _driven(x, y)
     per_vehicle = distance.mean(axis=0) / np.maximum(log_distance, 1e-6)
     return FlowResult(
         vehicles=len(columns),
