@@ -4,13 +4,22 @@ guidance costs (`guidance.geometry`)."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 import torch
 
 from langtraj.errors import InputError
 from langtraj.guidance import geometry
-from langtraj.polylines import arc_lengths, point_at, project_on_polyline, project_on_segments, resample
+from langtraj.polylines import (
+    arc_lengths,
+    point_at,
+    project_on_polyline,
+    project_on_segments,
+    ray_meets_polyline,
+    resample,
+)
 
 ELL = np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 4.0]])  # east 3 m, then north 4 m
 
@@ -118,3 +127,14 @@ def test_numpy_and_torch_projections_agree_on_random_points():
     assert inner.mean() > 0.5
     assert np.allclose(station.numpy()[inner], found.station[inner], atol=1e-9)
     assert np.allclose((offset.numpy() * normal).sum(-1)[inner], found.offset[inner], atol=1e-9)
+
+
+def test_a_ray_meets_a_polyline_at_its_first_crossing_ahead_within_the_stations_asked():
+    path = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]])  # east, north, west: 30 m
+    station, along = ray_meets_polyline(np.array([5.0, -5.0]), math.pi / 2, path)  # north from below the first leg
+    assert station == pytest.approx(5.0) and along == pytest.approx(5.0)
+    station, along = ray_meets_polyline(np.array([5.0, -5.0]), math.pi / 2, path, first_m=10.0)  # its third leg
+    assert station == pytest.approx(25.0) and along == pytest.approx(15.0)
+    assert ray_meets_polyline(np.array([5.0, -5.0]), -math.pi / 2, path) is None  # behind it
+    assert ray_meets_polyline(np.array([5.0, -5.0]), 0.0, path) is None  # parallel to the first leg, below it
+    assert ray_meets_polyline(np.array([5.0, -5.0]), math.pi / 2, path, last_m=4.0) is None

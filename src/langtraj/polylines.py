@@ -116,3 +116,29 @@ def project_on_polyline(points: np.ndarray, polyline: np.ndarray) -> PolylinePro
         distance=found.distance.reshape(shape),
         segment=segment.reshape(shape),
     )
+
+
+def ray_meets_polyline(
+    origin: np.ndarray, heading: float, polyline: np.ndarray, first_m: float = 0.0, last_m: float = math.inf
+) -> tuple[float, float] | None:
+    """Where the ray from `origin` [2] along `heading` (rad) first meets `polyline` [P, 2] between `first_m` and
+    `last_m` along it (first by the polyline's order): (the station there, the distance along the ray, m); None where
+    it does not."""
+    arc = arc_lengths(polyline)
+    keep = np.flatnonzero((arc[1:] >= first_m) & (arc[:-1] <= last_m))
+    if not keep.size:
+        return None
+    start, segment = polyline[keep], polyline[keep + 1] - polyline[keep]
+    direction = np.array([math.cos(heading), math.sin(heading)])
+    rel = start - np.asarray(origin, np.float64)
+    denom = direction[0] * segment[:, 1] - direction[1] * segment[:, 0]
+    parallel = np.abs(denom) < 1e-9
+    denom = np.where(parallel, 1.0, denom)
+    along = (rel[:, 0] * segment[:, 1] - rel[:, 1] * segment[:, 0]) / denom
+    share = (rel[:, 0] * direction[1] - rel[:, 1] * direction[0]) / denom
+    station = arc[keep] + share * (arc[keep + 1] - arc[keep])
+    hit = ~parallel & (along > 0.0) & (share >= 0.0) & (share <= 1.0) & (station >= first_m) & (station <= last_m)
+    if not hit.any():
+        return None
+    i = int(np.flatnonzero(hit)[0])
+    return float(station[i]), float(along[i])

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 from scenario_builders import make_scenario, two_lane_road
 
+from langtraj.interdrive.behaviours import kind
 from langtraj.scenario.io import write_scenarios
 from langtraj.suites.config import load_suite
 
@@ -50,6 +51,9 @@ def test_json_and_the_suite_hold_one_case_per_staging_and_the_suite_loads(road_f
     for case, staging in zip(loaded.cases, stagings, strict=True):
         assert Path(case.scenario).resolve() == road_file.resolve() and case.index == 0 and case.window is None
         assert case.ego == 1 and case.prompts == (staging["prompt"],) and case.seeds == (0,)
+        in_path = kind(staging["behaviour"]).in_path  # a cut-in, a braking lead: any collision fails; a tailgater not
+        assert case.criteria.no_collision is in_path and case.criteria.no_at_fault_collision
+    assert {kind(s["behaviour"]).in_path for s in stagings} == {True, False}
     assert "# @1's lane on its right, 10 m ahead of it, at 13.6 m/s (score 3.98)" in suite.read_text()
     names = [c.name for c in loaded.cases]
     assert "straight-2-cut-in-gap-10" in names and "straight-3-brake-hard-deceleration-6" in names

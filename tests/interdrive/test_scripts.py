@@ -110,27 +110,52 @@ def test_once_settled_a_cut_in_drives_on_slower_so_that_a_follower_keeping_its_s
     assert state[3] == pytest.approx(9.0, abs=0.3) and state[0] - other[0] < 14.5 - 6.0
 
 
-def test_a_red_light_runner_is_past_the_crossing_before_the_other_gets_there_as_it_drives():
-    from langtraj.interdrive.behaviours.scripts import CROSSING_AHEAD_S, Crossing
+def _run_crossing(script, state, other, other_accel=0.0, steps=100):
+    """Ticks a `Crossing` at 10 Hz (4.5 x 2 m cars) against the other driving north at `other_accel` (stopping at rest);
+    per step (runner x, runner speed, other y, other speed) and the step its centre crossed the other's path (x = 40),
+    or None."""
+    rows, crossed = [], None
+    for step in range(steps):
+        now = ScriptState(np.asarray(state, float), np.asarray(other, float), other_accel, LANE, step / 10, 1, 1, 0.1,
+                          1.5, other_size=(4.5, 2.0))  # fmt: skip
+        accel, rate = script.plan(now)[0]
+        unicycle_step(state, float(accel), float(rate), 0.1)
+        unicycle_step(other, other_accel if other[3] > 0 else 0.0, 0.0, 0.1)
+        rows.append((state[0], state[3], other[1], other[3]))
+        if crossed is None and state[0] >= 40.0:
+            crossed = step
+    return np.asarray(rows), crossed
 
-    # its path runs east along y = 0 from x = -50: the crossing at x = 40 is 90 m along it; the other comes north
-    # along x = 40 from 60 m south at 10 m/s (6 s away); the runner is at x = 0 at 8 m/s
-    script = Crossing(conflict_m=90.0, clear_m=5.0, least_mps=5.0)
-    state, other = [0.0, 0.0, 0.0, 8.0], [40.0, -60.0, math.pi / 2, 10.0]
-    for replan in range(8):
-        for accel, rate in script.plan(_state(state, other, elapsed=float(replan)))[:2]:
-            for _ in range(5):
-                unicycle_step(state, float(accel), float(rate), 0.1)
-                unicycle_step(other, 0.0, 0.0, 0.1)
-                if state[0] >= 45.0:
-                    break
-            if state[0] >= 45.0:
-                break
-        if state[0] >= 45.0:
-            break
-    assert state[0] >= 45.0 and other[1] <= -(CROSSING_AHEAD_S * 10.0) + 2.0  # across, the other still ~2 s away
+
+def test_a_red_light_runner_meets_the_other_at_the_crossing_as_it_drives_so_that_a_careless_one_hits_its_side():
+    from langtraj.interdrive.behaviours.scripts import CROSSING_MEET
+
+    # its path runs east along y = 0: the crossing at x = 40 is 90 m along it, its stop line at x = 30; the other
+    # comes north along x = 40 from 60 m south at 10 m/s; the runner is at x = 0 at 8 m/s
+    script = Crossing(conflict_m=90.0, least_mps=8.0, line_m=80.0)
+    rows, crossed = _run_crossing(script, [0.0, 0.0, 0.0, 8.0], [40.0, -60.0, math.pi / 2, 10.0])
+    assert crossed is not None
+    front = -rows[crossed, 2] - 2.25  # the other's front, short of the runner's path
+    reach = 1.0 + 3.25 * 10.0 / rows[crossed, 1]  # closer, the other keeping its speed runs into the runner's side
+    assert 0.0 < front < reach and front == pytest.approx(CROSSING_MEET * reach, abs=1.0)
+    assert rows[:, 1].min() < 7.0  # 1 s early at 8 m/s: it slowed toward its line ...
+    assert rows[rows[:, 0] >= 30.0, 1].min() > 7.5  # ... and went through it at about 8 m/s (the law is first order)
     assert kind("run_red_light").script(BehaviourTarget(1, Behaviour.RUN_RED_LIGHT, LANE, "", station_of_goal=90.0,
-                                                        speed=8.0)) == Crossing(90.0, 5.0, 8.0)  # fmt: skip
+                                                        speed=8.0, stop_line_m=80.0)) == script  # fmt: skip
+
+
+def test_a_red_light_runner_early_for_its_moment_stands_short_of_the_line_and_goes_when_the_other_comes():
+    script = Crossing(conflict_m=90.0, least_mps=8.0, line_m=80.0)  # the line at x = 30, the crossing at x = 40
+    # the other 120 m south at 5 m/s: 24 s away, the runner 4 s from the line at 8 m/s
+    rows, crossed = _run_crossing(script, [0.0, 0.0, 0.0, 8.0], [40.0, -120.0, math.pi / 2, 5.0], steps=300)
+    assert crossed is not None
+    standing = np.flatnonzero(rows[:, 1] < 0.05)
+    assert standing.size > 30 and rows[standing, 0].min() >= 25.0 and rows[standing, 0].max() < 30.0 - 2.25
+    front = -rows[crossed, 2] - 2.25
+    assert 0.0 < front < 1.0 + 3.25 * 5.0 / rows[crossed, 1]  # it set off in time to meet it
+    # an other that stops 40 m short of the crossing: the runner stands at its line and never goes
+    rows, crossed = _run_crossing(script, [0.0, 0.0, 0.0, 8.0], [40.0, -60.0, math.pi / 2, 10.0], -5.0, steps=150)
+    assert crossed is None and rows[-1, 0] < 30.0 - 2.25 and rows[-1, 1] == 0.0  # its front short of the line
 
 
 def test_a_cut_in_much_faster_than_the_other_matches_its_speed_in_its_own_lane_before_it_moves_across():
@@ -167,11 +192,11 @@ def _drive(script, state, other, traffic, steps=80):
 def test_scripted_agents_keep_off_the_traffic_ahead_in_their_lane_and_ignore_the_lane_beside():
     standing = [[60.0, 0.0, 0.0, 0.0, 4.5, 2.0]]  # a car standing in the lane 60 m ahead
     beside = [[60.0, 3.5, 0.0, 0.0, 4.5, 2.0]]  # the same, in the lane beside
-    crossing = Crossing(conflict_m=150.0, clear_m=5.0, least_mps=12.0)  # runs a light 100 m on, at 12 m/s or more
+    crossing = Crossing(conflict_m=150.0, least_mps=12.0)  # runs a light 100 m on, at 12 m/s or more
     assert _drive(crossing, [0.0, 0.0, 0.0, 12.0], [100.0, -80.0, math.pi / 2, 5.0], standing) >= 1.0
     assert _drive(crossing, [0.0, 0.0, 0.0, 12.0], [100.0, -80.0, math.pi / 2, 5.0], []) == math.inf
     state = [0.0, 0.0, 0.0, 12.0]
-    _drive(Crossing(conflict_m=150.0, clear_m=5.0, least_mps=12.0), state, None, beside)
+    _drive(Crossing(conflict_m=150.0, least_mps=12.0), state, None, beside)
     assert state[0] > 80.0  # past the car beside it, not held back by it
     # a tailgater closing on the other keeps off a slower car that pulled in between (as its IDM has it)
     tailgater, other = [0.0, 0.0, 0.0, 15.0], [40.0, 0.0, 0.0, 15.0]

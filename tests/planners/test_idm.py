@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -199,3 +201,20 @@ def test_the_cautious_planner_brakes_for_what_the_idm_passes_and_earlier():
     merging = [vehicle(20.0, y=4.5, speed=8.0, heading=-0.15)]
     assert accel(agents=merging) == pytest.approx(FREE) and cautious(agents=merging) < 0.0
     assert cautious(agents=[vehicle(40.0, speed=10.0)]) < accel(agents=[vehicle(40.0, speed=10.0)])
+
+
+def test_the_cautious_planner_brakes_for_a_car_crossing_its_way_seen_coming_and_not_for_oncoming_traffic():
+    """A car 20 m ahead and 20 m to the side driving across the route at 10 m/s (on it in 2 s, as a red-light runner
+    comes): the IDM, which looks only at agents heading its way, keeps going; the cautious planner brakes. Oncoming
+    traffic in the next lane it lets by."""
+    from langtraj.planners import CautiousPlanner
+
+    def cautious(**kwargs) -> float:
+        return float(CautiousPlanner().act(make_observation(**kwargs))[0])
+
+    crossing = [vehicle(20.0, y=-20.0, speed=10.0, heading=math.pi / 2)]
+    assert accel(agents=crossing) == pytest.approx(FREE) and cautious(agents=crossing) < -1.0
+    leaving = [vehicle(20.0, y=5.0, speed=10.0, heading=math.pi / 2)]  # across already, driving away
+    oncoming = [vehicle(30.0, y=3.5, speed=10.0, heading=math.pi)]
+    free = cautious()
+    assert cautious(agents=leaving) == pytest.approx(free) and cautious(agents=oncoming) == pytest.approx(free)

@@ -140,8 +140,12 @@ def _table(
 
 def write_suite(out: Path, stagings: Sequence[Staging]) -> None:
     """A `langtraj test` suite of one case per staging at `out`, written atomically and loaded (`load_suite`) before
-    it replaces `out`: scene paths relative to its folder, the ego named, the staging's reason as a comment."""
+    it replaces `out`: scene paths relative to its folder, the ego named, the staging's reason as a comment. A case
+    that puts its agent in the ego's path (`BehaviourKind.in_path`) fails on any collision of the ego
+    (`no_collision`): a red-light runner hit in the side is not the ego's fault by the rules of the road, yet a
+    planner that drives into it has failed the test."""
     from langtraj.fileio import atomic_path
+    from langtraj.interdrive.behaviours import kind
     from langtraj.suites.config import load_suite
 
     folder = out.resolve().parent
@@ -164,6 +168,8 @@ def write_suite(out: Path, stagings: Sequence[Staging]) -> None:
             "prompts": [s.prompt],
             "seeds": SUITE_SEEDS,
         }
+        if kind(s.behaviour.value).in_path:  # whoever the law blames, a planner that runs into it fails
+            case["criteria"] = {"no_collision": True}
         lines.append(f"  # {s.reason} (score {s.score:.2f})")
         dumped = yaml.safe_dump([case], sort_keys=False, width=1000, allow_unicode=True)
         lines += ["  " + line for line in dumped.splitlines()]

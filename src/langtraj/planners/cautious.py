@@ -14,10 +14,12 @@ CAUTIOUS = IDMConfig(
     max_accel=1.0,
     corridor_margin=1.0,
     cut_in_horizon=3.0,
+    crossing_traffic=True,
 )
 """Its settings: 80 % of the limit, 2.5 s of headway and 4 m standing gap (the IDM's 1.5 s and 2 m), a 1 m margin
-on the corridor (an agent straddling the lane line is in its path) and a 3-s look at agents heading its way (a
-cut-in seen coming three times as early), gentle to speed up."""
+on the corridor (an agent straddling the lane line is in its path) and a 3-s look at agents heading its way or
+crossing it (a cut-in seen coming three times as early, a car crossing against its light seen coming at all), gentle
+to speed up."""
 
 
 @PLANNERS.register

@@ -27,6 +27,8 @@ CAUTION_STATES = tuple(int(state) for state in TrafficLightState if state.is_cau
 """Light states that mean caution (`TrafficLightState.is_caution`: arrow, plain and flashing): stop only where a
 comfortable stop is still possible."""
 _BEHIND_M = 50.0  # the route is extended this far behind its first point, so agents alongside get signed stations
+CROSSING_MAX_ANGLE = math.radians(120.0)
+"""Agents heading more than this off the route count as oncoming, not crossing (`IDMConfig.crossing_traffic`)."""
 CUT_IN_SAMPLES = 5
 """Times along `IDMConfig.cut_in_horizon` at which the agents' forecasts are checked against the corridor."""
 
@@ -60,6 +62,10 @@ class IDMConfig:
     cut_in_horizon: float = 1.0
     """An agent heading the ego's way also counts as on the route when its constant-velocity forecast puts it there
     within this many seconds (a cut-in seen coming), s; 0: only where it is now."""
+    crossing_traffic: bool = False
+    """Whether agents crossing the ego's way count too when that forecast puts them on the route ahead (a car
+    running a red light seen coming; not oncoming ones, more than `CROSSING_MAX_ANGLE` off the ego's way); the IDM's
+    own: only agents heading its way."""
     light_lateral: float = 1.5
     """A light's stop point is on the route when at most this far from it laterally, m."""
     max_lateral_accel: float = 2.0
@@ -210,7 +216,8 @@ class IDMPlanner(Planner):
                 xy, velocity = agents[:, [AgentColumn.X, AgentColumn.Y]], agents[:, [AgentColumn.VX, AgentColumn.VY]]
                 ahead_xy = xy[None] + times[:, None, None] * velocity[None]  # [S, K, 2]
                 there = project_on_polyline(ahead_xy.reshape(-1, 2), line).offset.reshape(len(times), -1)
-                overlaps |= (np.cos(relative) > 0.0) & (np.abs(there) <= reach).any(axis=0)
+                coming = np.cos(relative) > (math.cos(CROSSING_MAX_ANGLE) if c.crossing_traffic else 0.0)
+                overlaps |= coming & (np.abs(there) <= reach).any(axis=0)
             ahead = overlaps & (station > 0.0)
             gaps = station - 0.5 * length - half_along
             lead_speeds = agents[:, AgentColumn.VX] * np.cos(along) + agents[:, AgentColumn.VY] * np.sin(along)

@@ -58,6 +58,7 @@ def script_state(
         own_lane=target.own_lane,
         new_lane=target.new_lane,
         size=(float(sizes[steering.slot, 0]), float(sizes[steering.slot, 1])),
+        other_size=None if other is None else (float(sizes[other, 0]), float(sizes[other, 1])),
         traffic=np.concatenate([current[rest, :4], sizes[rest, :2]], axis=1),
         memory=memory,
     )

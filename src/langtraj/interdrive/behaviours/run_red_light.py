@@ -114,14 +114,11 @@ def _run_red_light(ctx: TargetContext, agent: AgentHere, other: AgentHere) -> Be
             other_eta=distance / max(other.here.speed, 1.0),
             current_speed=agent.here.speed,
             other_speed=other.here.speed,
+            stop_line_m=light,
         )
         check_going_first(agent, other, target)
         return target
     raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
-
-
-RUNNER_CLEAR_M = 5.0
-"""How far past the crossing a scripted red-light runner is by its time (m): its length clear of the other's way."""
 
 
 @register
@@ -148,13 +145,14 @@ class RunRedLight(BehaviourKind):
         return _run_red_light(ctx, agent, other)
 
     def script(self, target: BehaviourTarget) -> Script | None:
-        """Through the red light along its way, past the crossing (and its own length beyond) before the other gets
-        there as it drives, at its target speed at least (`Crossing`): guidance alone left the runner, which learned
-        to stop at red lights, short of the stop line in 7 of 24 held-out episodes (docs/testing.md, 'Scenarios
-        staged on the ego's live state')."""
+        """Through the red light along its way into the other's way as it drives, timed so that the other, keeping its
+        speed, would run into its side, standing short of the stop line while early (`Crossing`): guidance alone left
+        the runner, which learned to stop at red lights, short of the stop line in 7 of 24 held-out episodes, and a
+        runner past the crossing 2 s ahead of the other cut no one's way (docs/testing.md, 'Red lights run into the
+        ego's way')."""
         if target.station_of_goal is None:
             return None
-        return Crossing(float(target.station_of_goal), RUNNER_CLEAR_M, float(target.speed or 0.0))
+        return Crossing(float(target.station_of_goal), float(target.speed or 0.0), target.stop_line_m)
 
     def steer(self, target: BehaviourTarget, other_driven: bool) -> list[Steer]:
         """As going first (past the crossing a second before the other agent gets there, clear of it), through the

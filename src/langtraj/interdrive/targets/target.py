@@ -60,6 +60,9 @@ class BehaviourTarget:
     lead: its follower's gap)."""
     starts_s: float | None = None
     """When the agent sets off (s), where the target has it wait first (a pull-out waiting for its moment)."""
+    stop_line_m: float | None = None
+    """How far along the path a stop line it passes is (m), where the target runs one (a red-light run): a scripted
+    runner early for its moment stands short of it (`behaviours.scripts.Crossing`)."""
     joins_m: float | None = None
     """How far along the path it joins its new lane (m), where the target changes lanes (a lane change: where its
     lead-in meets the lane), so that what is asked after the change lies past it (`stop_after`)."""
