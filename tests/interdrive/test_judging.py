@@ -509,6 +509,13 @@ def test_a_red_light_run_reports_when_it_crossed_on_red_and_its_lead_over_the_ot
     assert "never crossed @1's path" in _judge("run_red_light", EPISODES["red out of path"].scene, 2, 1, {}).why
     dark = replace(EPISODES["red met"].scene, traffic_lights=None)
     assert _judge("run_red_light", dark, 2, 1, {}).why == "never crossed a signal's stop line"
+    # a runner standing short of its line all along, the other crawling 40 m off: the other's driving, measured
+    lights = EPISODES["red met"].scene.traffic_lights
+    held = episode({1: track(1.75, -40.0 + 1.0 * t), 2: track(np.full_like(t, -14.0), -1.75)}, lights)
+    assert _judge("run_red_light", held, 2, 1, {}).why == (
+        "never crossed a signal's stop line: it stood short of it from 0 s (waiting for @1); @1 drove at 1.0 m/s "
+        "meanwhile and came no nearer than 34 m"
+    )
 
 
 def test_measures_and_judgements_as_json_and_lines():

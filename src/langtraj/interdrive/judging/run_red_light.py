@@ -109,6 +109,27 @@ def path_crossing(view: PairView, start: int) -> int | None:
     return None
 
 
+STOOD_MPS = 0.5
+"""Under this speed (m/s) the runner stands (waiting at its light for the other, `behaviours.scripts.Crossing`)."""
+
+
+def _stood_for(view: PairView) -> str:
+    """Where a runner that never crossed a stop line stood to the end: since when, and how the other drove meanwhile
+    (its mean speed and how near it came), so that a run the other's driving ruled out says so; '' where it did not
+    stand."""
+    moving = np.flatnonzero(~(view.agent.speed < STOOD_MPS) & view.agent.valid)
+    since = 0 if not moving.size else int(moving[-1]) + 1
+    steps = np.arange(since, len(view.both))[view.both[since:]]
+    if since >= len(view.both) - 1 or not steps.size:
+        return ""
+    gap = np.hypot(*(view.other.xy[steps] - view.agent.xy[steps]).T)
+    speed = float(np.nanmean(view.other.speed[steps]))
+    return (
+        f": it stood short of it from {at(since)} (waiting for @{view.other.track_id}); @{view.other.track_id} "
+        f"drove at {speed:.1f} m/s meanwhile and came no nearer than {float(gap.min()):.0f} m"
+    )
+
+
 def _measures(
     crossed: float | None, red_for: float | None, distance: float | None, ahead: float | None, reach: float | None
 ) -> tuple[Measure, ...]:
@@ -135,7 +156,7 @@ def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -
             step, state = crossings[0]
             why = f"crossed a stop line at {at(step)} on {TrafficLightState(state).name.lower()}, not red"
         else:
-            why = "never crossed a signal's stop line"
+            why = "never crossed a signal's stop line" + _stood_for(view)
     if why is not None or red is None:
         return Judgement(False, _measures(None, None, None, None, None), why or "", None, contact)
     red_for = _red_for(scene, view.agent, red)
