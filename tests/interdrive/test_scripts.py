@@ -111,9 +111,9 @@ def test_once_settled_a_cut_in_drives_on_slower_so_that_a_follower_keeping_its_s
 
 
 def _run_crossing(script, state, other, other_accel=0.0, steps=100):
-    """Ticks a `Crossing` at 10 Hz (4.5 x 2 m cars) against the other driving north at `other_accel` (stopping at rest);
-    per step (runner x, runner speed, other y, other speed) and the step its centre crossed the other's path (x = 40),
-    or None."""
+    """Ticks a `Crossing` at 10 Hz (4.5 x 2 m cars) against the other driving north at `other_accel` (stopping at rest;
+    the script is told it, as the simulation measures it): per step (runner x, runner speed, other y, other speed), and
+    the step its centre crossed the other's path (x = 40) or None."""
     rows, crossed = [], None
     for step in range(steps):
         now = ScriptState(np.asarray(state, float), np.asarray(other, float), other_accel, LANE, step / 10, 1, 1, 0.1,
@@ -153,6 +153,14 @@ def test_a_red_light_runner_early_for_its_moment_stands_short_of_the_line_and_go
     assert standing.size > 30 and rows[standing, 0].min() >= 25.0 and rows[standing, 0].max() < 30.0 - 2.25
     front = -rows[crossed, 2] - 2.25
     assert 0.0 < front < 1.0 + 3.25 * 5.0 / rows[crossed, 1]  # it set off in time to meet it
+    # an other setting off from a stand 30 m south at 1.5 m/s^2 (at a green): met as it speeds up, not as it stood
+    rows, crossed = _run_crossing(script, [0.0, 0.0, 0.0, 8.0], [40.0, -30.0, math.pi / 2, 0.2], 1.5, steps=150)
+    assert crossed is not None
+    front, speed = -rows[crossed, 2] - 2.25, rows[crossed, 3]
+    assert 0.0 < front < 1.0 + 3.25 * speed / rows[crossed, 1] and speed > 5.0
+    # an other standing across its way at the crossing (it got there first): the runner stops short of it
+    rows, crossed = _run_crossing(script, [0.0, 0.0, 0.0, 8.0], [40.0, 0.0, math.pi / 2, 0.0], steps=150)
+    assert crossed is None and rows[:, 0].max() < 40.0 - 1.0 - 2.25 and rows[-1, 1] < 0.1
     # an other that stops 40 m short of the crossing: the runner stands at its line and never goes
     rows, crossed = _run_crossing(script, [0.0, 0.0, 0.0, 8.0], [40.0, -60.0, math.pi / 2, 10.0], -5.0, steps=150)
     assert crossed is None and rows[-1, 0] < 30.0 - 2.25 and rows[-1, 1] == 0.0  # its front short of the line

@@ -347,11 +347,15 @@ CROSSING_BRAKE_FROM = 1.0
 CROSSING_STANDING_REACH_M = 12.0
 """A crossing goes at once when the other stands (under `CROSSING_STANDING_MPS`) this close (m) to the crossing, and
 waits while it stands farther (the red-light judge's reach for a standing other is 15 m)."""
-CROSSING_REANCHOR_M = 10.0
+CROSSING_REANCHOR_M = 5.0
 """A crossing meets the other where the other's heading line crosses its path, when that is within this (m) of the
 crossing the target read; farther (a turning other), at that crossing."""
 CROSSING_STANDING_MPS = 0.5
-"""Under this speed (m/s) the other counts as standing for a crossing's timing."""
+"""Under this speed (m/s) the other counts as standing for a crossing's timing, unless it is setting off."""
+CROSSING_SETTING_OFF = 0.3
+"""An other under `CROSSING_STANDING_MPS` accelerating at this (m/s^2) or more is setting off, not standing."""
+CROSSING_OTHER_ACCEL = 2.0
+"""The most acceleration (m/s^2) a crossing's timing expects of the other (its measured one, where it speeds up)."""
 
 
 def _fastest_s(distance: float, speed: float, top: float, dt: float) -> float:
@@ -364,6 +368,13 @@ def _fastest_s(distance: float, speed: float, top: float, dt: float) -> float:
         travelled += speed * dt
         t += dt
     return t
+
+
+def _reach_s(distance: float, speed: float, accel: float) -> float:
+    """How long (s) covering `distance` m takes from `speed` at a constant `accel` >= 0 (inf when standing still)."""
+    if accel < 1e-6:
+        return distance / speed if speed > 1e-6 else (0.0 if distance <= 0.0 else math.inf)
+    return (math.sqrt(speed**2 + 2.0 * accel * distance) - speed) / accel
 
 
 def _speed_for(distance: float, speed: float, moment: float, least: float, top: float, dt: float) -> float:
@@ -400,12 +411,13 @@ def _toward_hold(accel: float, speed: float, to_hold: float, dt: float) -> float
 @dataclass(frozen=True)
 class Crossing(Script):
     """Along its path (pure pursuit, whatever lights or signs it passes) to the crossing at `conflict_m` along it, its
-    centre there when the other agent, at its current speed, is `CROSSING_MEET` of its collision reach short of it
+    centre there when the other agent, as it drives, is `CROSSING_MEET` of its collision reach short of it
     (synchronised arrival), re-timed at every step from where the other is. Early for that, it approaches slower (at
     `CROSSING_APPROACH_MPS` at least) and stands `CROSSING_HOLD_M` short of the stop line at `line_m` (None: none)
     until it must set off; once it cannot stand short any more, through at `least_mps` at least (a car that jumps the
-    light does not creep), up to `CROSSING_TOP_MPS`. A car that runs a red light into another's way, whatever that
-    agent does (docs/simulation.md, 'Scripted manoeuvres')."""
+    light does not creep), up to `CROSSING_TOP_MPS`; never into the other where that is already in its way ahead. A
+    car that runs a red light into another's way, whatever that agent does (docs/simulation.md, 'Scripted
+    manoeuvres')."""
 
     conflict_m: float
     least_mps: float
@@ -424,16 +436,27 @@ class Crossing(Script):
 
     def _moment_s(self, state: list[float], other: list[float], distance: float, now: ScriptState) -> float:
         """When (s from now) its centre is due where it meets the other, the other `distance` m (centre) from there:
-        when the other's front, at its speed, is the meeting distance short of it; 0 where it is already that close,
-        inf while it stands farther than `CROSSING_STANDING_REACH_M`."""
+        when the other's front, at its speed and its acceleration if it speeds up (up to `CROSSING_OTHER_ACCEL`: an
+        ego setting off at a green; one that brakes is taken at its speed), is the meeting distance short of it; 0
+        where it is already that close, inf while it stands farther than `CROSSING_STANDING_REACH_M`."""
         length, width = now.size
         other_length, other_width = now.other_size if now.other_size is not None else now.size
         front = distance - 0.5 * other_length
-        if other[3] < CROSSING_STANDING_MPS:
+        speed, accel = other[3], float(np.clip(now.other_accel, 0.0, CROSSING_OTHER_ACCEL))
+        if speed < CROSSING_STANDING_MPS and accel < CROSSING_SETTING_OFF:
             return 0.0 if front <= CROSSING_STANDING_REACH_M else math.inf
-        runner = max(state[3], self.least_mps)
-        meet = CROSSING_MEET * (0.5 * width + 0.5 * (length + other_width) * other[3] / runner)
-        return max((front - meet) / other[3], 0.0)
+        there = speed + accel * _reach_s(max(front, 0.0), speed, accel)  # its speed when it gets there
+        meet = CROSSING_MEET * (0.5 * width + 0.5 * (length + other_width) * there / max(state[3], self.least_mps))
+        return _reach_s(max(front - meet, 0.0), speed, accel)
+
+    @staticmethod
+    def _with_other(traffic: np.ndarray, other: list[float] | None, now: ScriptState) -> np.ndarray:
+        """`traffic` [K, 6] and the other agent as it is: a runner that finds the other already in its way ahead (it
+        got there first, or stands there) keeps off it like any car, rather than driving into it."""
+        if other is None:
+            return traffic
+        size = now.other_size if now.other_size is not None else now.size
+        return np.concatenate([traffic, np.array([[*other[:4], *size]])])
 
     def plan(self, now: ScriptState) -> np.ndarray:
         out = np.full((now.count, 2), np.nan)
@@ -459,7 +482,7 @@ class Crossing(Script):
                     approach = max(left / moment, CROSSING_APPROACH_MPS)
                     accel = _toward_hold(CROSSING_SPEED_GAIN * (approach - state[3]), state[3], hold - station, now.dt)
             accel = float(np.clip(accel, *CROSSING_ACCELERATIONS))
-            accel = keep_behind(accel, state, now.path, now, traffic_at(now, k))
+            accel = keep_behind(accel, state, now.path, now, self._with_other(traffic_at(now, k), other, now))
             rate = pursuit_rate(*state, now.path, max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), now.max_yaw_rate)
             out[k] = (accel, rate)
             for _ in range(now.per_action):
