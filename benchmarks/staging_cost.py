@@ -5,7 +5,10 @@ target derived where a trigger holds and its readiness asked), planning the scri
 (`CandidatePlanning._scripted`) and driving them at every step (`sim.scripted.act`), as a share of the episode
 (docs/benchmarks.md, 'Staging on the live state: its cost'; the issue's target: at most 10 %).
 
-    python benchmarks/staging_cost.py [--cases waymo-8a34-cut-in-by-name,...] [--planner idm] [--seed 0]
+    python benchmarks/staging_cost.py [--suite SUITE] [--cases waymo-8a34-cut-in-by-name,...] [--planner idm]
+        [--seed 0]
+
+The timed prompts run on the example suite's scene 8a34 where the suite has that case.
 """
 
 from __future__ import annotations
@@ -49,9 +52,10 @@ def main() -> int:
     args = parser.parse_args()
     full = load_suite(args.suite)
     suite = full.only(args.cases.split(","))
-    (scene,) = full.only([TIMED_ON]).cases
     cases = [replace(c, seeds=(args.seed,)) for c in suite.cases]
-    cases += [replace(scene, name=f"timed-{k}", prompts=(text,), seeds=(args.seed,)) for k, text in enumerate(TIMED)]
+    for scene in (c for c in full.cases if c.name == TIMED_ON):  # the example suite's: another suite has none
+        numbered = enumerate(TIMED)
+        cases += [replace(scene, name=f"timed-{k}", prompts=(text,), seeds=(args.seed,)) for k, text in numbered]
     suite = replace(suite, cases=tuple(cases))
     spent = {"staging": 0.0, "inside": 0.0}
     update = Stagings.update
