@@ -485,6 +485,12 @@ def test_a_tailgater_reports_its_headways_and_time_under_the_line():
     assert "not the 1 s tailgating needs" in far.why and _measure(far, "headway").realised == pytest.approx(1.0, 0.01)
     assert _judge("tailgate", EPISODES["tailgate too close"].scene, 2, 1, {}).why.startswith("headway 0.1 s done")
     assert "never behind @1" in _judge("tailgate", EPISODES["tailgate out of path"].scene, 2, 1, {}).why
+    # the ego brakes to a stand from 1 s on: the tailgater, 1.5 s behind and slowing with it, never closes in; the
+    # reason says the ego's doing, measured
+    ego = 30.0 + np.where(t < 1.0, 10 * t, 10.0 + 10 * (t - 1.0) - 2.5 * (t - 1.0) ** 2)
+    ego = np.where(t < 3.0, ego, 30.0 + 10.0 + 10.0 * 2.0 - 2.5 * 4.0)
+    stopped = episode({1: track(ego, 0.0), 2: track(ego - LENGTH - 15.0, 0.0)})
+    assert _judge("tailgate", stopped, 2, 1, {}).why.endswith("@1 came to a stand (from 10.0 m/s; its own doing)")
     with pytest.raises(InputError, match="unknown asked values gap"):
         _judge("tailgate", EPISODES["tailgate met"].scene, 2, 1, {"gap": 3.0})
 

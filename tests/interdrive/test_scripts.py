@@ -20,9 +20,11 @@ from langtraj.interdrive.behaviours.scripts import (
     Crossing,
     CuttingIn,
     Following,
+    trail,
     unicycle_step,
 )
 from langtraj.interdrive.targets import BehaviourTarget
+from langtraj.polylines import project_on_polyline
 
 LANE = np.stack([np.linspace(-50, 400, 451), np.zeros(451)], axis=1)  # eastbound, y = 0
 BESIDE = np.stack([np.linspace(-50, 400, 451), np.full(451, 3.5)], axis=1)
@@ -209,7 +211,7 @@ def test_scripted_agents_keep_off_the_traffic_ahead_in_their_lane_and_ignore_the
     # a tailgater closing on the other keeps off a slower car that pulled in between (as its IDM has it)
     tailgater, other = [0.0, 0.0, 0.0, 15.0], [40.0, 0.0, 0.0, 15.0]
     between = [[20.0, 0.0, 0.0, 8.0, 4.5, 2.0]]
-    assert _drive(Following(lead_m=-10.0), tailgater, other, between, steps=60) >= KEEP_BEHIND["min_gap"] - 1.0
+    assert _drive(Following(0.4, 4.5), tailgater, other, between, steps=60) >= KEEP_BEHIND["min_gap"] - 1.0
 
 
 def test_a_cut_in_does_not_move_into_a_place_another_car_holds_in_the_lane():
@@ -220,3 +222,36 @@ def test_a_cut_in_does_not_move_into_a_place_another_car_holds_in_the_lane():
     held = script.plan(_state(state, other, own=BESIDE, traffic=beside, count=1, per=1))[0]
     free = script.plan(_state(state, other, own=BESIDE, traffic=beside + [40.0, 0, 0, 0, 0, 0], count=1, per=1))[0]
     assert abs(held[1]) < 0.02 and free[1] < -0.05  # waits in its lane; with the place free, turns into it
+
+
+def test_a_tailgater_follows_the_other_round_a_turn_its_own_lane_does_not_take():
+    """The other turns left off the lane (a 20 m radius at 8 m/s) while the tailgater's lane goes on east: the
+    tailgater keeps its lead behind it on the way the other drove, not on its lane."""
+    script = Following(headway_s=0.5, bumpers_m=4.5)  # 4 m at 8 m/s: 8.5 m centre to centre
+    state, other, memory = [0.0, 0.0, 0.0, 8.0], [12.0, 0.0, 0.0, 8.0], {}
+    for step in range(80):
+        now = ScriptState(np.asarray(state), np.asarray(other), 0.0, LANE, step / 10, 1, 1, 0.1, 1.5, memory=memory)
+        accel, rate = script.plan(now)[0]
+        unicycle_step(state, float(accel), float(rate), 0.1)
+        unicycle_step(other, 0.0, 0.4 if step >= 10 else 0.0, 0.1)  # a quarter turn from 1 s on
+    assert other[2] > 1.5 and state[2] > 1.0  # both heading north by now
+    assert len(memory["trail"]) > 40  # the other's way, a point a metre
+    driven = trail(ScriptState(np.asarray(state), np.asarray(other), 0.0, LANE, 8.0, 1, 1, 0.1, 1.5, memory=memory))
+    found = project_on_polyline(np.array([state[:2], other[:2]]), driven)
+    assert found.distance[0] < 0.5 and found.station[1] - found.station[0] == pytest.approx(8.5, abs=1.5)
+
+
+def test_a_tailgater_keeps_its_headway_at_the_others_speed_as_it_slows():
+    """The other slows from 12 to 6 m/s: the tailgater's gap shrinks with it, 0.4 s of headway throughout (a fixed
+    distance would open to 0.8 s), and the tailgate behaviour scripts exactly that from its target."""
+    script = Following(headway_s=0.4, bumpers_m=4.5)
+    state, other, memory, gaps = [0.0, 0.0, 0.0, 12.0], [9.3, 0.0, 0.0, 12.0], {}, []
+    for step in range(100):
+        now = ScriptState(np.asarray(state), np.asarray(other), 0.0, LANE, step / 10, 1, 1, 0.1, 1.5, memory=memory)
+        accel, rate = script.plan(now)[0]
+        unicycle_step(state, float(accel), float(rate), 0.1)
+        unicycle_step(other, -1.5 if other[3] > 6.0 else 0.0, 0.0, 0.1)
+        gaps.append((other[0] - state[0] - 4.5) / other[3])
+    assert other[3] == pytest.approx(6.0, abs=0.2) and gaps[-1] == pytest.approx(0.4, abs=0.08)
+    target = BehaviourTarget(1, Behaviour.TAILGATE, LANE, "", lead_m=-(0.4 * 12.0 + 4.5), speed=12.0)
+    assert kind("tailgate").script(target) == Following(0.4, pytest.approx(4.5))

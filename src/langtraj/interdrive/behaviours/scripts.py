@@ -293,22 +293,54 @@ class CuttingIn(Script):
         return near and abs(state[3] - other[3]) <= CUT_IN_MATCHED_MPS and slot_free(state, into, now, traffic)
 
 
+TRAIL_SPACING_M = 1.0
+"""A followed agent's trail keeps a point every this (m) of its driven way (`trail`)."""
+TRAIL_AHEAD_M = 80.0
+"""A followed agent's trail goes on along its heading this far (m): where it drives next, as far as a follower can
+tell."""
+
+
+def trail(now: ScriptState) -> np.ndarray:
+    """The way the other agent has driven since the script's first plan, from where the agent was then (a point every
+    `TRAIL_SPACING_M`, kept in `now.memory['trail']`), to where the other is now and on along its heading for
+    `TRAIL_AHEAD_M` [P, 2]: a follower's path wherever the other turns, read from the simulation as it runs (never
+    from the log)."""
+    assert now.other is not None
+    here = [float(now.other[0]), float(now.other[1])]
+    points = now.memory.setdefault("trail", [[float(now.agent[0]), float(now.agent[1])]])
+    if math.dist(points[-1], here) >= TRAIL_SPACING_M:
+        points.append(here)
+    heading = float(now.other[2])
+    ahead = [here[0] + TRAIL_AHEAD_M * math.cos(heading), here[1] + TRAIL_AHEAD_M * math.sin(heading)]
+    line = points if math.dist(points[-1], here) < 1e-3 else [*points, here]
+    return np.asarray([*line, ahead], np.float64)
+
+
+FOLLOW_STANDING_M = 2.0
+"""The bumper gap (m) a follower keeps behind a slow or standing other, where its headway asks for less."""
+
+
 @dataclass(frozen=True)
 class Following(Script):
-    """Keeping `lead_m` (negative: behind) on the other agent along its path, wherever the other drives, in its lane
-    (pure pursuit): a tailgater closing in to a short headway and sitting there."""
+    """Keeping `headway_s` of time gap behind the other agent at the other's speed as it is (at least
+    `FOLLOW_STANDING_M`; `bumpers_m` the half lengths of the two, centre to centre), along the way the other drives
+    (`trail`: behind it wherever it turns, not along the lane the target read), by pure pursuit: a tailgater closing in
+    to a short headway and sitting there however the other's speed changes."""
 
-    lead_m: float
+    headway_s: float
+    bumpers_m: float
 
     def plan(self, now: ScriptState) -> np.ndarray:
         out = np.full((now.count, 2), np.nan)
         if now.other is None:
             return out
+        path = trail(now)
         state, other = [float(v) for v in now.agent], [float(v) for v in now.other]
         for k in range(now.count):
-            lead, _ = _lead_and_offset(state, other, now.path)
-            accel = keep_behind(_keep_lead(self.lead_m, lead, state, other), state, now.path, now, traffic_at(now, k))
-            rate = pursuit_rate(*state, now.path, max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), now.max_yaw_rate)
+            lead, _ = _lead_and_offset(state, other, path)
+            behind = -(self.bumpers_m + max(self.headway_s * other[3], FOLLOW_STANDING_M))
+            accel = keep_behind(_keep_lead(behind, lead, state, other), state, path, now, traffic_at(now, k))
+            rate = pursuit_rate(*state, path, max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), now.max_yaw_rate)
             out[k] = (accel, rate)
             for _ in range(now.per_action):
                 unicycle_step(state, accel, rate, now.dt)

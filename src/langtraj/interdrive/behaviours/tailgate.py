@@ -96,10 +96,14 @@ class Tailgate(BehaviourKind):
         return _tailgate(ctx, agent, other)
 
     def script(self, target: BehaviourTarget) -> Script | None:
-        """Closing in behind the other to `TAILGATE_HEADWAY_S` and staying there wherever the other drives, in its
-        lane (`Following`); guidance alone kept the model's 1.6-1.7 s of headway (docs/testing.md, 'Scenarios
-        staged on the ego's live state')."""
-        return None if target.lead_m is None else Following(float(target.lead_m))
+        """Closing in behind the other to `TAILGATE_HEADWAY_S` at the other's speed as it is and staying there, along
+        the way the other drives (`Following`); guidance alone kept the model's 1.6-1.7 s of headway, and a fixed
+        distance behind an other that slowed came to 1.3-2 s (docs/testing.md, 'Scenarios staged on the ego's live
+        state')."""
+        if target.lead_m is None:
+            return None
+        bumpers = -float(target.lead_m) - TAILGATE_HEADWAY_S * float(target.speed or 0.0)  # the half lengths
+        return Following(TAILGATE_HEADWAY_S, bumpers)
 
     def steer(self, target: BehaviourTarget, other_driven: bool) -> list[Steer]:
         """At the station that closes the gap behind the other agent when the target says, not past it before; at

@@ -376,3 +376,32 @@ def not_seen(view: PairView) -> str | None:
     if not view.both.any():
         return f"@{view.agent.track_id} and @{view.other.track_id} are never in the scene together after its start"
     return None
+
+
+FELL_BACK_MPS = 2.0
+"""How much the other must change its speed (m/s) for a judge to say so (`how_other_drove`); a cut-in's gap wider than
+asked is the other's doing where it had slowed this much by the time the cut-in entered its lane."""
+
+
+STOOD_MPS = 0.5
+"""The speed (m/s) at or under which an agent stands: the other came to a stand (`how_other_drove`), a red-light
+runner waited."""
+
+
+def how_other_drove(view: PairView) -> str | None:
+    """One line saying how the other changed its speed over the played steps where it did by `FELL_BACK_MPS` or more
+    (sped up, slowed, or came to a stand), else None: a manoeuvre that never came about beside an ego that sped away
+    or stopped reads as the ego's doing, measured."""
+    speed = view.other.speed
+    known = np.flatnonzero(np.isfinite(speed))
+    if known.size < 2:
+        return None
+    first, last, least = float(speed[known[0]]), float(speed[known[-1]]), float(np.nanmin(speed))
+    name = f"@{view.other.track_id}"
+    if least <= STOOD_MPS < first:
+        return f"{name} came to a stand (from {first:.1f} m/s; its own doing)"
+    if last >= first + FELL_BACK_MPS:
+        return f"{name} sped up from {first:.1f} to {last:.1f} m/s meanwhile (its own doing)"
+    if last <= first - FELL_BACK_MPS:
+        return f"{name} slowed from {first:.1f} to {last:.1f} m/s meanwhile (its own doing)"
+    return None

@@ -16,12 +16,14 @@ from collections.abc import Mapping
 import numpy as np
 
 from langtraj.interdrive.judging.base import (
+    FELL_BACK_MPS,
     Judgement,
     Measure,
     PairView,
     asked_value,
     at,
     cut_short,
+    how_other_drove,
     not_seen,
     pair_view,
 )
@@ -97,11 +99,6 @@ def entered(view: PairView, after: int, settled_at: int) -> int:
     return after + int(before[-1]) + 1 if before.size else after
 
 
-FELL_BACK_MPS = 2.0
-"""How much slower (m/s) than at the start the other must be when a cut-in enters its lane for a gap wider than asked
-to be said to be the other's doing: it braked or fell back before the cut-in."""
-
-
 def slowed(view: PairView, step: int) -> str | None:
     """One line saying the other had slowed by `step` (`FELL_BACK_MPS` or more below its first known speed), else
     None: a gap wider than asked that a follower braking early opened, not the cut-in."""
@@ -113,29 +110,6 @@ def slowed(view: PairView, step: int) -> str | None:
     if now > first - FELL_BACK_MPS:
         return None
     return f"@{view.other.track_id} had slowed from {first:.1f} to {now:.1f} m/s by then (its own doing)"
-
-
-def how_other_drove(view: PairView) -> str | None:
-    """One line saying how the other changed its speed over the played steps where it did by `FELL_BACK_MPS` or more
-    (sped up, slowed, or came to a stand), else None: a cut-in that never settled beside an ego that sped away or
-    stopped reads as the ego's doing, measured."""
-    speed = view.other.speed
-    known = np.flatnonzero(np.isfinite(speed))
-    if known.size < 2:
-        return None
-    first, last, least = float(speed[known[0]]), float(speed[known[-1]]), float(np.nanmin(speed))
-    name = f"@{view.other.track_id}"
-    if least <= STOOD_MPS < first:
-        return f"{name} came to a stand (from {first:.1f} m/s; its own doing)"
-    if last >= first + FELL_BACK_MPS:
-        return f"{name} sped up from {first:.1f} to {last:.1f} m/s meanwhile (its own doing)"
-    if last <= first - FELL_BACK_MPS:
-        return f"{name} slowed from {first:.1f} to {last:.1f} m/s meanwhile (its own doing)"
-    return None
-
-
-STOOD_MPS = 0.5
-"""The speed (m/s) at or under which the other is said to have come to a stand (`how_other_drove`)."""
 
 
 def never_settled(view: PairView, after: int) -> str:

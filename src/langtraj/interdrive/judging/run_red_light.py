@@ -16,6 +16,7 @@ import numpy as np
 
 from langtraj.interdrive.judging.base import (
     EPSILON_SPEED,
+    STOOD_MPS,
     Judgement,
     Measure,
     PairView,
@@ -107,10 +108,6 @@ def path_crossing(view: PairView, start: int) -> int | None:
         if abs(across[t]) < ON_PATH_M or (near and np.sign(across[t]) != np.sign(across[t - 1])):
             return t
     return None
-
-
-STOOD_MPS = 0.5
-"""Under this speed (m/s) the runner stands (waiting at its light for the other, `behaviours.scripts.Crossing`)."""
 
 
 def _stood_for(view: PairView) -> str:

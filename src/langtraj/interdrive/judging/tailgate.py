@@ -19,6 +19,7 @@ from langtraj.interdrive.judging.base import (
     Measure,
     at,
     cut_short,
+    how_other_drove,
     not_seen,
     pair_view,
 )
@@ -84,7 +85,8 @@ def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -
     if why is None and not measures[0].ok:
         why = measures[0].missed()
     if why is not None:
-        return Judgement(False, measures, why, done, contact)
+        drove = None if contact is not None else how_other_drove(view)
+        return Judgement(False, measures, why if drove is None else f"{why}; {drove}", done, contact)
     return Judgement(
         True, measures, f"tailgated {name} at a median {median:.2f} s of headway from {at(first[0])}", done, contact
     )
