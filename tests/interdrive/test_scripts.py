@@ -211,7 +211,7 @@ def test_scripted_agents_keep_off_the_traffic_ahead_in_their_lane_and_ignore_the
     # a tailgater closing on the other keeps off a slower car that pulled in between (as its IDM has it)
     tailgater, other = [0.0, 0.0, 0.0, 15.0], [40.0, 0.0, 0.0, 15.0]
     between = [[20.0, 0.0, 0.0, 8.0, 4.5, 2.0]]
-    assert _drive(Following(0.4, 4.5), tailgater, other, between, steps=60) >= KEEP_BEHIND["min_gap"] - 1.0
+    assert _drive(Following(0.4), tailgater, other, between, steps=60) >= KEEP_BEHIND["min_gap"] - 1.0
 
 
 def test_a_cut_in_does_not_move_into_a_place_another_car_holds_in_the_lane():
@@ -227,7 +227,7 @@ def test_a_cut_in_does_not_move_into_a_place_another_car_holds_in_the_lane():
 def test_a_tailgater_follows_the_other_round_a_turn_its_own_lane_does_not_take():
     """The other turns left off the lane (a 20 m radius at 8 m/s) while the tailgater's lane goes on east: the
     tailgater keeps its lead behind it on the way the other drove, not on its lane."""
-    script = Following(headway_s=0.5, bumpers_m=4.5)  # 4 m at 8 m/s: 8.5 m centre to centre
+    script = Following(headway_s=0.5)  # 4 m at 8 m/s behind a 4.5-m car: 8.5 m centre to centre
     state, other, memory = [0.0, 0.0, 0.0, 8.0], [12.0, 0.0, 0.0, 8.0], {}
     for step in range(80):
         now = ScriptState(np.asarray(state), np.asarray(other), 0.0, LANE, step / 10, 1, 1, 0.1, 1.5, memory=memory)
@@ -244,7 +244,7 @@ def test_a_tailgater_follows_the_other_round_a_turn_its_own_lane_does_not_take()
 def test_a_tailgater_keeps_its_headway_at_the_others_speed_as_it_slows():
     """The other slows from 12 to 6 m/s: the tailgater's gap shrinks with it, 0.4 s of headway throughout (a fixed
     distance would open to 0.8 s), and the tailgate behaviour scripts exactly that from its target."""
-    script = Following(headway_s=0.4, bumpers_m=4.5)
+    script = Following(headway_s=0.4)  # two 4.5-m cars (the state's default boxes)
     state, other, memory, gaps = [0.0, 0.0, 0.0, 12.0], [9.3, 0.0, 0.0, 12.0], {}, []
     for step in range(100):
         now = ScriptState(np.asarray(state), np.asarray(other), 0.0, LANE, step / 10, 1, 1, 0.1, 1.5, memory=memory)
@@ -253,5 +253,5 @@ def test_a_tailgater_keeps_its_headway_at_the_others_speed_as_it_slows():
         unicycle_step(other, -1.5 if other[3] > 6.0 else 0.0, 0.0, 0.1)
         gaps.append((other[0] - state[0] - 4.5) / other[3])
     assert other[3] == pytest.approx(6.0, abs=0.2) and gaps[-1] == pytest.approx(0.4, abs=0.08)
-    target = BehaviourTarget(1, Behaviour.TAILGATE, LANE, "", lead_m=-(0.4 * 12.0 + 4.5), speed=12.0)
-    assert kind("tailgate").script(target) == Following(0.4, pytest.approx(4.5))
+    target = BehaviourTarget(1, Behaviour.TAILGATE, LANE, "", speed=12.0, other_id=2)
+    assert kind("tailgate").script(target) == Following(0.4)

@@ -45,13 +45,19 @@ class ScriptState:
     size: tuple[float, float] = (4.5, 2.0)
     """The agent's length and width (m)."""
     other_size: tuple[float, float] | None = None
-    """The other agent's length and width (m); None: the agent's own."""
+    """The other agent's length and width (m); None: the agent's own (`other_box`)."""
     traffic: np.ndarray | None = None
     """Every other agent but the other [K, 6] (x, y, heading, speed, length, width; same frame), which the agent keeps
     off ahead of it (`keep_behind`); None: none."""
     memory: dict[str, Any] = field(default_factory=dict)
-    """What the script decided at the steps executed so far (one per agent and rollout, kept by the simulation): a
-    decision its first action takes is written here (a cut-in that has begun to move across goes on across)."""
+    """What the script decided or saw at the steps executed so far (one per agent and rollout, kept by the simulation):
+    a decision its first action takes (a cut-in that has begun to move across goes on across), or the other's way so
+    far (a follower's `trail`)."""
+
+    @property
+    def other_box(self) -> tuple[float, float]:
+        """The other agent's length and width (m), the agent's own where the state does not say."""
+        return self.other_size if self.other_size is not None else self.size
 
 
 class Script(ABC):
@@ -323,22 +329,22 @@ FOLLOW_STANDING_M = 2.0
 @dataclass(frozen=True)
 class Following(Script):
     """Keeping `headway_s` of time gap behind the other agent at the other's speed as it is (at least
-    `FOLLOW_STANDING_M`; `bumpers_m` the half lengths of the two, centre to centre), along the way the other drives
-    (`trail`: behind it wherever it turns, not along the lane the target read), by pure pursuit: a tailgater closing in
-    to a short headway and sitting there however the other's speed changes."""
+    `FOLLOW_STANDING_M`, bumper to bumper), along the way the other drives (`trail`: behind it wherever it turns, not
+    along the lane the target read), by pure pursuit: a tailgater closing in to a short headway and sitting there
+    however the other's speed changes."""
 
     headway_s: float
-    bumpers_m: float
 
     def plan(self, now: ScriptState) -> np.ndarray:
         out = np.full((now.count, 2), np.nan)
         if now.other is None:
             return out
+        bumpers = 0.5 * (now.size[0] + now.other_box[0])  # centre to centre, bumpers touching
         path = trail(now)
         state, other = [float(v) for v in now.agent], [float(v) for v in now.other]
         for k in range(now.count):
             lead, _ = _lead_and_offset(state, other, path)
-            behind = -(self.bumpers_m + max(self.headway_s * other[3], FOLLOW_STANDING_M))
+            behind = -(bumpers + max(self.headway_s * other[3], FOLLOW_STANDING_M))
             accel = keep_behind(_keep_lead(behind, lead, state, other), state, path, now, traffic_at(now, k))
             rate = pursuit_rate(*state, path, max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), now.max_yaw_rate)
             out[k] = (accel, rate)
@@ -390,12 +396,12 @@ CROSSING_OTHER_ACCEL = 2.0
 """The most acceleration (m/s^2) a crossing's timing expects of the other (its measured one, where it speeds up)."""
 
 
-def _fastest_s(distance: float, speed: float, top: float, dt: float) -> float:
-    """How long (s) covering `distance` m takes from `speed` under the crossing's speed law toward `top` (at most
-    80 s; `dt`-s steps)."""
+def _cover_s(distance: float, speed: float, toward: float, dt: float) -> float:
+    """How long (s) covering `distance` m takes from `speed` under the crossing's speed law toward the speed `toward`
+    (at most 80 s; `dt`-s steps)."""
     travelled, t = 0.0, 0.0
     while travelled < distance and t < 80.0:
-        accel = float(np.clip(CROSSING_SPEED_GAIN * (top - speed), *CROSSING_ACCELERATIONS))
+        accel = float(np.clip(CROSSING_SPEED_GAIN * (toward - speed), *CROSSING_ACCELERATIONS))
         speed = max(speed + accel * dt, 0.0)
         travelled += speed * dt
         t += dt
@@ -409,17 +415,20 @@ def _reach_s(distance: float, speed: float, accel: float) -> float:
     return (math.sqrt(speed**2 + 2.0 * accel * distance) - speed) / accel
 
 
-def _speed_for(distance: float, speed: float, moment: float, least: float, top: float, dt: float) -> float:
+def _speed_for(
+    distance: float, speed: float, moment: float, least: float, top: float, dt: float, slowest: float
+) -> float:
     """The speed (m/s, within `least` and `top`) toward which the crossing's speed law covers `distance` m from
-    `speed` in `moment` s: `top` where even that is late, `least` where even that is early (bisection)."""
-    if _fastest_s(distance, speed, top, dt) >= moment:
-        return top
-    if _fastest_s(distance, speed, least, dt) <= moment:
+    `speed` in `moment` s (`slowest`: the time it takes toward `least`): `top` where even that is late, `least` where
+    even that is early (bisection)."""
+    if slowest <= moment:
         return least
+    if _cover_s(distance, speed, top, dt) >= moment:
+        return top
     low, high = least, top
     for _ in range(CROSSING_BISECTIONS):
         mid = 0.5 * (low + high)
-        low, high = (mid, high) if _fastest_s(distance, speed, mid, dt) > moment else (low, mid)
+        low, high = (mid, high) if _cover_s(distance, speed, mid, dt) > moment else (low, mid)
     return 0.5 * (low + high)
 
 
@@ -472,7 +481,7 @@ class Crossing(Script):
         ego setting off at a green; one that brakes is taken at its speed), is the meeting distance short of it; 0
         where it is already that close, inf while it stands farther than `CROSSING_STANDING_REACH_M`."""
         length, width = now.size
-        other_length, other_width = now.other_size if now.other_size is not None else now.size
+        other_length, other_width = now.other_box
         front = distance - 0.5 * other_length
         speed, accel = other[3], float(np.clip(now.other_accel, 0.0, CROSSING_OTHER_ACCEL))
         if speed < CROSSING_STANDING_MPS and accel < CROSSING_SETTING_OFF:
@@ -487,8 +496,7 @@ class Crossing(Script):
         got there first, or stands there) keeps off it like any car, rather than driving into it."""
         if other is None:
             return traffic
-        size = now.other_size if now.other_size is not None else now.size
-        return np.concatenate([traffic, np.array([[*other[:4], *size]])])
+        return np.concatenate([traffic, np.array([[*other[:4], *now.other_box]])])
 
     def plan(self, now: ScriptState) -> np.ndarray:
         out = np.full((now.count, 2), np.nan)
@@ -505,10 +513,10 @@ class Crossing(Script):
                 accel = CROSSING_SPEED_GAIN * (need - state[3])
             else:
                 moment = self._moment_s(state, other, distance, now)
-                slowest = _fastest_s(left, state[3], self.least_mps, now.dt)  # through at its least speed
+                slowest = _cover_s(left, state[3], self.least_mps, now.dt)  # through at its least speed
                 early = slowest < moment - CROSSING_GO_SLACK_S
                 if hold is None or not early or _committed(state[3], hold - station):
-                    need = _speed_for(left, state[3], moment, self.least_mps, top, now.dt)
+                    need = _speed_for(left, state[3], moment, self.least_mps, top, now.dt, slowest)
                     accel = CROSSING_SPEED_GAIN * (need - state[3])
                 else:  # early: slower, and standing short of the line rather than creeping through it
                     approach = max(left / moment, CROSSING_APPROACH_MPS)

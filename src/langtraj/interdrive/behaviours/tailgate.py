@@ -65,7 +65,6 @@ def _tailgate(ctx: TargetContext, agent: AgentHere, other: AgentHere) -> Behavio
         ctx.ahead(agent),
         f"{want:.0f} m behind @{other.track_id} ({TAILGATE_HEADWAY_S:g} s at {v_other:.1f} m/s) within {within:.1f} s",
         station_of_goal=float(v_other * within + gap - want),
-        lead_m=-float(want + 0.5 * (agent.length + other.length)),
         speed=float(v_other),
         other_id=other.track_id,
         current_speed=agent.here.speed,
@@ -100,10 +99,7 @@ class Tailgate(BehaviourKind):
         the way the other drives (`Following`); guidance alone kept the model's 1.6-1.7 s of headway, and a fixed
         distance behind an other that slowed came to 1.3-2 s (docs/testing.md, 'Scenarios staged on the ego's live
         state')."""
-        if target.lead_m is None:
-            return None
-        bumpers = -float(target.lead_m) - TAILGATE_HEADWAY_S * float(target.speed or 0.0)  # the half lengths
-        return Following(TAILGATE_HEADWAY_S, bumpers)
+        return Following(TAILGATE_HEADWAY_S)
 
     def steer(self, target: BehaviourTarget, other_driven: bool) -> list[Steer]:
         """At the station that closes the gap behind the other agent when the target says, not past it before; at
