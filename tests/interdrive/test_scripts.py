@@ -255,3 +255,60 @@ def test_a_tailgater_keeps_its_headway_at_the_others_speed_as_it_slows():
     assert other[3] == pytest.approx(6.0, abs=0.2) and gaps[-1] == pytest.approx(0.4, abs=0.08)
     target = BehaviourTarget(1, Behaviour.TAILGATE, LANE, "", speed=12.0, other_id=2)
     assert kind("tailgate").script(target) == Following(0.4)
+
+
+def test_a_cut_in_toward_an_other_that_leaves_its_lane_settles_on_the_others_way_not_the_lane():
+    """The other (a constant-velocity ego on a bend, as it were) drives 4 degrees off its lane and drifts out of it: the
+    cut-in pulls in ahead of it on its heading line, the path the judge reads, not on the lane it left."""
+    lead, drift = 14.5, math.radians(4.0)
+    script = CuttingIn(lead_m=lead, settle_s=20.0, cruise_mps=9.0)
+    state, other, memory = [lead, 3.5, 0.0, 12.0], [0.0, 0.0, drift, 12.0], {}
+    for step in range(80):
+        now = ScriptState(np.asarray(state), np.asarray(other), 0.0, LANE, step / 10, 1, 1, 0.1, 1.5,
+                          own_lane=BESIDE, new_lane=LANE, memory=memory)  # fmt: skip
+        accel, rate = script.plan(now)[0]
+        unicycle_step(state, float(accel), float(rate), 0.1)
+        unicycle_step(other, 0.0, 0.0, 0.1)
+    assert other[1] > 5.0  # the other is well out of its lane by now
+    dx, dy = state[0] - other[0], state[1] - other[1]
+    along, across = dx * math.cos(drift) + dy * math.sin(drift), -dx * math.sin(drift) + dy * math.cos(drift)
+    assert abs(across) < 0.5 and abs(state[2] - drift) < math.radians(3.0)  # on the other's way, heading its way
+    assert along == pytest.approx(lead, abs=2.0)
+
+
+def test_a_cut_in_waiting_in_its_lane_brakes_as_hard_as_the_other_so_that_it_is_not_left_far_ahead():
+    lead = 14.5
+    script = CuttingIn(lead_m=lead, settle_s=10.0, cruise_mps=9.0)
+    state, other = [lead + 6.0, 3.5, 0.0, 15.0], [0.0, 0.0, 0.0, 15.0]  # 6 m past its lead, waiting for the other
+    accel, _ = script.plan(_state(state, other, other_accel=-3.0, own=BESIDE, count=1, per=1))[0]
+    assert accel == pytest.approx(-5.0)  # the other brakes at 3 m/s^2: it drops back at 2 on top of that, not at 2
+    accel, _ = script.plan(_state(state, other, other_accel=0.0, own=BESIDE, count=1, per=1))[0]
+    assert accel == pytest.approx(-2.0)  # the other keeping its speed: comfortable
+
+
+def test_a_cut_in_that_finds_itself_behind_the_other_in_its_lane_keeps_off_it_rather_than_driving_through_it():
+    script = CuttingIn(lead_m=14.5, settle_s=10.0, cruise_mps=9.0)
+    state, other, closest = [-12.0, 0.0, 0.0, 12.0], [0.0, 0.0, 0.0, 12.0], math.inf  # 12 m behind it, same lane
+    for step in range(80):
+        accel, rate = script.plan(_state(state, other, elapsed=step / 10, own=BESIDE, count=1, per=1))[0]
+        unicycle_step(state, float(accel), float(rate), 0.1)
+        unicycle_step(other, 0.0, 0.0, 0.1)
+        closest = min(closest, other[0] - state[0] - 4.5)
+    assert closest >= KEEP_BEHIND["min_gap"] - 0.5  # it wants to be 14.5 m ahead, but never through the other
+
+
+def test_a_cut_in_moving_across_in_front_of_a_crawling_other_does_not_crawl_across_and_settles_in_time():
+    """The other crawls at 1.5 m/s; the cut-in, at its lead and already moving across, keeps 3 m/s until it is in the
+    lane and settles (within 1 m of the lane, heading within 8 degrees) within 4 s, not the 8 s of a crawl."""
+    script = CuttingIn(lead_m=14.5, settle_s=10.0, cruise_mps=0.0)
+    state, other, memory, settled = [14.5, 3.5, 0.0, 1.5], [0.0, 0.0, 0.0, 1.5], {"across": True}, None
+    for step in range(80):
+        now = ScriptState(np.asarray(state), np.asarray(other), 0.0, LANE, step / 10, 1, 1, 0.1, 1.5,
+                          own_lane=BESIDE, new_lane=LANE, memory=memory)  # fmt: skip
+        accel, rate = script.plan(now)[0]
+        unicycle_step(state, float(accel), float(rate), 0.1)
+        unicycle_step(other, 0.0, 0.0, 0.1)
+        if settled is None and abs(state[1]) < 1.0 and abs(state[2]) < math.radians(8.0):
+            settled = step / 10
+    assert settled is not None and settled <= 4.0
+    assert state[0] - other[0] == pytest.approx(14.5, abs=4.0)  # and near its lead, having slowed once in the lane

@@ -144,6 +144,11 @@ def test_a_cut_in_targets_the_other_agents_lane_beside_it_at_the_speed_that_leav
         _target(boxed, 1, Behaviour.CUT_IN, 2)
     room = scene(two_lane_road(), _eastbound(y=3.5), _eastbound(y=0.0), _eastbound_from(40.0, y=3.5))
     assert _target(room, 1, Behaviour.CUT_IN, 2).other_id == 2
+    # 1.2 m to the side of 2 (a lane merging into 2's): in its path already, whatever the map says is beside it
+    merged = scene(two_lane_road(), _eastbound(y=1.2), _eastbound(y=0.0))
+    for behaviour in (Behaviour.CUT_IN, Behaviour.OVERTAKE_CUT_IN):
+        with pytest.raises(TargetUnavailable, match=r"1\.2 m to the side of @2: already in its path, not beside it"):
+            _target(merged, 1, behaviour, 2)
 
 
 def test_an_overtake_passes_in_its_own_lane_then_cuts_into_the_others_lane_the_gap_ahead_of_it():
@@ -167,7 +172,7 @@ def test_an_overtake_passes_in_its_own_lane_then_cuts_into_the_others_lane_the_g
     with pytest.raises(TargetUnavailable, match="cannot get 10 m ahead of @2 by 7 s"):
         _target(far, 1, Behaviour.OVERTAKE_CUT_IN, 2)
     same_lane = scene(two_lane_road(), _eastbound_from(0.0), _eastbound_from(15.0))
-    with pytest.raises(TargetUnavailable, match="not in a lane beside its own"):
+    with pytest.raises(TargetUnavailable, match=r"0\.0 m to the side of @2: already in its path"):
         _target(same_lane, 1, Behaviour.OVERTAKE_CUT_IN, 2)
 
 

@@ -4,7 +4,10 @@ See docs/interdrive.md ('Targets and feasibility') and docs/testing.md ('Judged 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
+
+import numpy as np
 
 from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
 from langtraj.interdrive.behaviours.base import BehaviourKind, Parameter, Steer, register, route, steps
@@ -61,15 +64,28 @@ _CUT_IN = [
 # ---------------------------------------------------------------------------------------------- target
 
 
+def out_of_path(agent: AgentHere, other: AgentHere, behaviour: Behaviour) -> None:
+    """Infeasible where the agent's centre is already within the judge's `OUT_OF_PATH_M` of the other's heading line:
+    it follows or leads the other (a lane merging into the other's), and no settling in its path could count as a
+    cut-in (`judging.cut_in.out_of_path_step`)."""
+    heading = other.heading
+    across = float((agent.xy - other.xy) @ np.array([-math.sin(heading), math.cos(heading)]))
+    if abs(across) < judged_by.OUT_OF_PATH_M:
+        reason = f"it is {abs(across):.1f} m to the side of @{other.track_id}: already in its path, not beside it"
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+
+
 def _cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) -> BehaviourTarget:
     """Into the other's lane when it lies beside the agent's (`_lane_beside`) at the agent or at a station of its
     road ahead, from where a change can begin (1 s or 4 m ahead); the `speed` is the average that puts the agent's
     rear `gap` m ahead of the other's front at `CUT_IN_S`, the other keeping its speed, and `station_of_goal` where
     along the path that average takes it by then.
-    Infeasible where that needs more than `GO_FIRST_ACCELERATION` could add, or less than standing still, or where
+    Infeasible where the agent is in the other's path already (`out_of_path`), where that needs more than
+    `GO_FIRST_ACCELERATION` could add, or less than standing still, or where
     someone stands in the other's lane before the place the cut-in settles (`TargetContext.standing_on`: the other
     stops behind it first), or a car ahead in its own lane leaves it no room to get there (`CUT_IN_ROOM_M`)."""
     behaviour = Behaviour.CUT_IN
+    out_of_path(agent, other, behaviour)
     begin = max(4.0, 1.0 * agent.here.speed)
     side, lane, level = lane_beside(ctx, agent, other, behaviour, begin + 20.0)
     v, v_other = agent.here.speed, other.here.speed

@@ -19,6 +19,7 @@ from langtraj.interdrive.behaviours.cut_in import (
     GAP,
     JUST_AHEAD,
     cruise,
+    out_of_path,
 )
 from langtraj.interdrive.behaviours.cut_in import natural as cut_in_natural
 from langtraj.interdrive.behaviours.cut_in import ready as cut_in_ready
@@ -101,6 +102,7 @@ def _overtake_cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap
     more than `FOLLOWER_RANGE_M` behind, it cannot settle by `OVERTAKE_LATEST_S`, or the other's lane runs into a
     junction before it would."""
     behaviour = Behaviour.OVERTAKE_CUT_IN
+    out_of_path(agent, other, behaviour)
     side, lane, level = lane_beside(ctx, agent, other, behaviour, 10.0)
     v, v_other = agent.here.speed, other.here.speed
     if v_other < OVERTAKE_MIN_SPEED:

@@ -140,6 +140,15 @@ def slot_free(state: list[float], lane: np.ndarray, now: ScriptState, traffic: n
     return not bool((inside & (bumpers < SLOT_MARGIN_M + np.maximum(closing, 0.0))).any())
 
 
+def with_other(traffic: np.ndarray, other: list[float] | None, now: ScriptState) -> np.ndarray:
+    """`traffic` [K, 6] and the other agent as it is: a scripted agent that finds the other in its way ahead (a
+    runner's other got there first; a cut-in starts behind it) keeps off it like any car, rather than driving into
+    it."""
+    if other is None:
+        return traffic
+    return np.concatenate([traffic, np.array([[*other[:4], *now.other_box]])])
+
+
 def traffic_at(now: ScriptState, action: int) -> np.ndarray:
     """`now.traffic` [K, 6] at the start of its `action`-th action, each agent at constant speed and heading (none:
     [0, 6])."""
@@ -179,7 +188,9 @@ CUT_IN_LOOK_AHEAD_S = 1.2
 """A scripted cut-in's pure-pursuit look-ahead (s of speed, at least `CUT_IN_LOOK_AHEAD_MIN_M`): its centre into the
 lane about 1.5 s after it turns, settled in about 2.5 s, as drivers change lanes, not a swerve (at 2 s and at least
 10 m the change took 3.5-4 s on held-out scenes, and a follower slowing meanwhile opened the gap)."""
-CUT_IN_LOOK_AHEAD_MIN_M = 4.0
+CUT_IN_LOOK_AHEAD_MIN_M = 2.5
+"""At a crawl a cut-in turns more sharply, as drivers do in a queue: with 4 m, one at 2 m/s behind a cautious ego took
+5 s to move across, 16-19 degrees off the lane throughout, and never settled within a scenario."""
 CUT_IN_GAP_GAIN = 1.0
 """Per second squared: the acceleration per metre a scripted cut-in is short of (or past) its lead on the other."""
 CUT_IN_SPEED_GAIN = 1.6
@@ -187,7 +198,8 @@ CUT_IN_SPEED_GAIN = 1.6
 damping ratio of 0.8, within 2 m of its lead in about 3 s where the acceleration limits allow; at 0.4 and 1.0 it
 took 8 s, longer than a scenario)."""
 CUT_IN_ACCELERATIONS = (-3.5, 2.5)
-"""What a scripted cut-in may brake and accelerate (m/s^2): firm, not an emergency."""
+"""What a scripted cut-in may brake and accelerate (m/s^2) to keep its lead, on top of the other's own braking
+(`_keep_lead`): firm, not an emergency."""
 CUT_IN_CLEAR_M = 5.5
 """How far ahead of the other's centre a cut-in's centre gets before it moves across (two car lengths' halves and a
 metre: its rear past the other's front): it pulls in ahead of the other, never across it from beside (a side-swipe)."""
@@ -201,6 +213,13 @@ CUT_IN_FAR_SLACK_M = 3.0
 """How much farther than its lead a cut-in may be when it moves across (m): it closes in while it moves, but from
 farther ahead a follower that brakes for the move keeps the gap open (at 5 m a held-out cut-in entered at a 13.4 m
 gap where 10 were asked)."""
+CUT_IN_CROSSING_MIN_MPS = 3.0
+"""The least speed (m/s) a cut-in keeps while it moves across: a lane change at a crawl does not end within a scenario
+(behind a cautious ego at 2 m/s, a validation cut-in slowed to 0.7-1.6 m/s, turned 26-35 degrees off the lane, and
+was still moving across at 8 s)."""
+CUT_IN_ALIGNED = math.radians(5.0)
+"""Until its heading is this near its way's (rad), a cut-in in the lane is still moving across (at a crawl it would
+never straighten: its yaw rate goes with its speed)."""
 CUT_IN_IN_LANE_M = 0.7
 """How near its path (m) a cut-in is once in the lane: from then (and its settling time) it drives on slower."""
 CUT_IN_MATCHED_MPS = 3.0
@@ -209,11 +228,45 @@ speed in its own lane, so that the gap it enters at is the one it holds (a cutte
 the lane 20-30 m ahead where 10 were asked)."""
 CUT_IN_WAIT_DECEL = 2.0
 """The hardest a cut-in brakes in its own lane (m/s^2), letting the other come up before it moves across: comfortable,
-as a driver drops back to a gap in the next lane."""
+as a driver drops back to a gap in the next lane. Where the other brakes, this on top of its braking (within
+`CUT_IN_ACCELERATIONS`): a follower braking for the traffic does not leave it far ahead."""
 CUT_IN_COMMITTED_M = 1.0
 """How far from its own lane's centre toward the other's (m) a cut-in has moved when it is committed: from there it
 goes on across, whatever the gap does meanwhile (never back and forth between the lanes); a real agent off its lane's
 centre by half a metre at the start is not (one 0.6 m off turned across at once, 30 m ahead, where 14.5 were asked)."""
+
+
+OTHER_IN_LANE_M = 0.75
+"""The other agent keeps to the lane a cut-in moves into while its centre is within this (m) of the lane's centre
+(and its heading within `OTHER_IN_LANE_HEADING`); farther, it drives its own way (`way_of`)."""
+OTHER_IN_LANE_HEADING = math.radians(6.0)
+WAY_BEHIND_M = 60.0
+"""How far back (m) the way a cut-in reads is drawn behind its lane's start, or behind the other on its heading line:
+a follower behind where the lane was drawn from still projects onto it, so the lead is read true."""
+WAY_AHEAD_M = 150.0
+"""How far ahead of the other (m) its heading line goes, where it has left its lane."""
+
+
+def way_of(other: list[float], lane: np.ndarray) -> np.ndarray:
+    """The way the other agent drives on, as a cut-in reads it from where the other is now [P, 2]: `lane` (drawn
+    `WAY_BEHIND_M` back along its first segment) while the other keeps to it, else the other's heading line: a
+    planner that leaves its lane (a constant-velocity ego on a bend) is cut in front of where it goes, the path the
+    judge reads, not the lane it left."""
+    back = lane[0] - lane[1]
+    back = lane[0] + WAY_BEHIND_M * back / max(float(np.hypot(*back)), 1e-9)
+    way = np.concatenate([back[None], lane])
+    near = float(project_on_polyline(np.array([other[:2]]), way).distance[0]) <= OTHER_IN_LANE_M
+    if near and abs(_heading_off(other, way)) <= OTHER_IN_LANE_HEADING:
+        return way
+    forward = np.array([math.cos(other[2]), math.sin(other[2])])
+    return np.stack([np.asarray(other[:2]) - WAY_BEHIND_M * forward, np.asarray(other[:2]) + WAY_AHEAD_M * forward])
+
+
+def _heading_off(state: list[float], path: np.ndarray) -> float:
+    """How far the agent's heading is off `path`'s at its nearest point (rad, -pi to pi)."""
+    segment = int(project_on_polyline(np.array([state[:2]]), path).segment[0])
+    along = path[segment + 1] - path[segment]
+    return math.remainder(state[2] - math.atan2(along[1], along[0]), math.tau)
 
 
 def _lead_and_offset(state: list[float], other: list[float], path: np.ndarray) -> tuple[float, float]:
@@ -222,11 +275,19 @@ def _lead_and_offset(state: list[float], other: list[float], path: np.ndarray) -
     return float(found.station[0] - found.station[1]), float(found.distance[0])
 
 
-def _keep_lead(lead_m: float, lead: float, state: list[float], other: list[float]) -> float:
-    """The acceleration (m/s^2, within `CUT_IN_ACCELERATIONS`) that brings the agent to `lead_m` ahead of the other
-    (behind it where negative) and to its speed."""
-    accel = CUT_IN_GAP_GAIN * (lead_m - lead) + CUT_IN_SPEED_GAIN * (other[3] - state[3])
-    return float(np.clip(accel, *CUT_IN_ACCELERATIONS))
+def _keep_lead(
+    lead_m: float,
+    lead: float,
+    state: list[float],
+    other: list[float],
+    other_accel: float = 0.0,
+    hardest: float = -CUT_IN_ACCELERATIONS[0],
+) -> float:
+    """The acceleration (m/s^2) that brings the agent to `lead_m` ahead of the other (behind it where negative) and to
+    its speed (within `CUT_IN_ACCELERATIONS`), on top of the other's own `other_accel`, braking at most `hardest`."""
+    correction = CUT_IN_GAP_GAIN * (lead_m - lead) + CUT_IN_SPEED_GAIN * (other[3] - state[3])
+    accel = other_accel + float(np.clip(correction, *CUT_IN_ACCELERATIONS))
+    return float(np.clip(accel, -hardest, CUT_IN_ACCELERATIONS[1]))
 
 
 @dataclass(frozen=True)
@@ -246,31 +307,38 @@ class CuttingIn(Script):
         out = np.full((now.count, 2), np.nan)
         if now.other is None:
             return out
-        into = now.new_lane if now.new_lane is not None and len(now.new_lane) >= 2 else now.path
+        theirs = now.new_lane if now.new_lane is not None and len(now.new_lane) >= 2 else now.path
         own = now.own_lane if now.own_lane is not None and len(now.own_lane) >= 2 else None
         state, other = [float(v) for v in now.agent], [float(v) for v in now.other]
+        into = way_of(other, theirs)
+        wait_decel = CUT_IN_WAIT_DECEL + max(-now.other_accel, 0.0)
         moving = bool(now.memory.get("across", False))
         for k in range(now.count):
             t = now.elapsed_s + k * now.per_action * now.dt
             lead, off = _lead_and_offset(state, other, into)
-            if t >= self.settle_s and off <= CUT_IN_IN_LANE_M:
-                accel = float(np.clip(CUT_IN_SPEED_GAIN * (self.cruise_mps - state[3]), *CUT_IN_ACCELERATIONS))
-            else:
-                accel = _keep_lead(self.lead_m, lead, state, other)
             seen = traffic_at(now, k)
             moving = moving or own is None or off <= CUT_IN_IN_LANE_M
             if not moving and own is not None:
                 moving = self._across(lead, off, state, other, own, into, now, seen)
+            if moving and k == 0:  # executed: begun, it goes on across (never back and forth between the lanes)
+                now.memory["across"] = True
+            if t >= self.settle_s and off <= CUT_IN_IN_LANE_M:
+                accel = float(np.clip(CUT_IN_SPEED_GAIN * (self.cruise_mps - state[3]), *CUT_IN_ACCELERATIONS))
+            else:
+                # the other's braking matched until the cut-in is in its lane (a follower braking for the traffic
+                # does not leave it behind or far ahead); once in, that braking is the other's answer to the cut-in,
+                # and matching it would brake both to a stand
+                matched = now.other_accel if off > CUT_IN_IN_LANE_M else 0.0
+                accel = _keep_lead(self.lead_m, lead, state, other, matched, SCRIPT_HARD_BRAKE)
             if moving:
-                if k == 0:  # executed: begun, it goes on across (never back and forth between the lanes)
-                    now.memory["across"] = True
-                ahead = max(CUT_IN_LOOK_AHEAD_MIN_M, CUT_IN_LOOK_AHEAD_S * state[3])
-                lane = into
-            else:  # its own lane until it moves across, letting the other come up without braking hard
+                if off > CUT_IN_IN_LANE_M or abs(_heading_off(state, into)) > CUT_IN_ALIGNED:  # not at a crawl
+                    accel = max(accel, CUT_IN_SPEED_GAIN * (CUT_IN_CROSSING_MIN_MPS - state[3]))
+                ahead, lane = max(CUT_IN_LOOK_AHEAD_MIN_M, CUT_IN_LOOK_AHEAD_S * state[3]), into
+            else:  # its own lane, letting the other come up without braking hard
+                accel = max(accel, -wait_decel)
                 ahead, lane = max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), own
-                accel = max(accel, -CUT_IN_WAIT_DECEL)
             rate = pursuit_rate(*state, lane, ahead, now.max_yaw_rate)
-            accel = keep_behind(accel, state, lane, now, seen)
+            accel = keep_behind(accel, state, lane, now, with_other(seen, other, now))
             out[k] = (accel, rate)
             for _ in range(now.per_action):
                 unicycle_step(state, accel, rate, now.dt)
@@ -345,7 +413,8 @@ class Following(Script):
         for k in range(now.count):
             lead, _ = _lead_and_offset(state, other, path)
             behind = -(bumpers + max(self.headway_s * other[3], FOLLOW_STANDING_M))
-            accel = keep_behind(_keep_lead(behind, lead, state, other), state, path, now, traffic_at(now, k))
+            # the other's braking is not fed forward: a tailgater reacts to the gap and the speeds, late
+            accel = keep_behind(_keep_lead(behind, lead, state, other, 0.0), state, path, now, traffic_at(now, k))
             rate = pursuit_rate(*state, path, max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), now.max_yaw_rate)
             out[k] = (accel, rate)
             for _ in range(now.per_action):
@@ -490,14 +559,6 @@ class Crossing(Script):
         meet = CROSSING_MEET * (0.5 * width + 0.5 * (length + other_width) * there / max(state[3], self.least_mps))
         return _reach_s(max(front - meet, 0.0), speed, accel)
 
-    @staticmethod
-    def _with_other(traffic: np.ndarray, other: list[float] | None, now: ScriptState) -> np.ndarray:
-        """`traffic` [K, 6] and the other agent as it is: a runner that finds the other already in its way ahead (it
-        got there first, or stands there) keeps off it like any car, rather than driving into it."""
-        if other is None:
-            return traffic
-        return np.concatenate([traffic, np.array([[*other[:4], *now.other_box]])])
-
     def plan(self, now: ScriptState) -> np.ndarray:
         out = np.full((now.count, 2), np.nan)
         state = [float(v) for v in now.agent]
@@ -522,7 +583,7 @@ class Crossing(Script):
                     approach = max(left / moment, CROSSING_APPROACH_MPS)
                     accel = _toward_hold(CROSSING_SPEED_GAIN * (approach - state[3]), state[3], hold - station, now.dt)
             accel = float(np.clip(accel, *CROSSING_ACCELERATIONS))
-            accel = keep_behind(accel, state, now.path, now, self._with_other(traffic_at(now, k), other, now))
+            accel = keep_behind(accel, state, now.path, now, with_other(traffic_at(now, k), other, now))
             rate = pursuit_rate(*state, now.path, max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3]), now.max_yaw_rate)
             out[k] = (accel, rate)
             for _ in range(now.per_action):
