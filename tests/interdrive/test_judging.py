@@ -623,6 +623,10 @@ def test_a_cut_in_that_never_settled_says_how_the_other_drove_meanwhile():
     # ... or stops
     stops = np.clip(10.0 - 4.0 * t, 0.0, None)
     stood = episode({1: track(travelled(stops), 0.0), 2: track(10 * t, 3.5)})
-    assert _judge("cut_in", stood, 2, 1, {}).why.endswith("@1 came to a stand (from 9.9 m/s; its own doing)")
+    why = _judge("cut_in", stood, 2, 1, {}).why
+    assert why.endswith("@1 came to a stand (from 9.9 m/s; its own doing)")
+    # where it stayed beside the other against the asked gap: level with it (4.5 m behind its front), then far ahead
+    assert "(at closest 3.5 m to its side): beside it, from 4 m behind @1's front to " in why
+    assert "m ahead (10 m asked)" in why
     # an other that keeps its speed is not named
     assert "its own doing" not in _judge("cut_in", EPISODES["cut_in out of path"].scene, 2, 1, {}).why

@@ -112,8 +112,10 @@ def slowed(view: PairView, step: int) -> str | None:
     return f"@{view.other.track_id} had slowed from {first:.1f} to {now:.1f} m/s by then (its own doing)"
 
 
-def never_settled(view: PairView, after: int) -> str:
-    """Why the agent never settled in the other's path ahead of it after step `after` (one line)."""
+def never_settled(view: PairView, after: int, asked_gap: float | None = None) -> str:
+    """Why the agent never settled in the other's path ahead of it after step `after` (one line): where it stayed
+    beside the other, out of its path, how far ahead of the other's front it was meanwhile against `asked_gap` (a
+    cut-in waits beside until it is near its gap: an other that never came up to it, or left it behind, says so)."""
     other = f"@{view.other.track_id}"
     steps = np.arange(view.steps) >= after
     with np.errstate(invalid="ignore"):
@@ -128,7 +130,17 @@ def never_settled(view: PairView, after: int) -> str:
     closest = float(np.nanmin(np.abs(view.across[ahead])))
     if closest <= SETTLED_LATERAL_M:
         return f"never settled in {other}'s path: still turned across it when in it"
-    return f"never settled in {other}'s path ahead of it (at closest {closest:.1f} m to its side)"
+    why = f"never settled in {other}'s path ahead of it (at closest {closest:.1f} m to its side)"
+    with np.errstate(invalid="ignore"):
+        beside = steps & view.both & (np.abs(view.across) >= OUT_OF_PATH_M)
+    if asked_gap is None or not beside.any():
+        return why
+    gaps = view.gap_ahead[beside]
+    low, high = float(np.nanmin(gaps)), float(np.nanmax(gaps))
+    asked = f"({asked_gap:g} m asked)"
+    if low < 0.0:
+        return f"{why}: beside it, from {-low:.0f} m behind {other}'s front to {high:.0f} m ahead {asked}"
+    return f"{why}: beside it, {low:.0f}-{high:.0f} m ahead of {other}'s front {asked}"
 
 
 def judge_settling(view: PairView, asked_gap: float, after: int, extra: tuple[Measure, ...] = ()) -> Judgement:
@@ -150,7 +162,7 @@ def judge_settling(view: PairView, asked_gap: float, after: int, extra: tuple[Me
     if gap is not None and step is not None and gap > asked_gap + tolerance:
         missed += [fell_back] if (fell_back := slowed(view, entered(view, after, step))) else []
     if step is None:
-        why = cut_short(contact) if contact is not None else never_settled(view, after)
+        why = cut_short(contact) if contact is not None else never_settled(view, after, asked_gap)
         drove = None if contact is not None else how_other_drove(view)
         return Judgement(False, measures, "; ".join([why, *([drove] if drove else []), *missed]), None, contact)
     if missed:
