@@ -257,18 +257,27 @@ def test_a_tailgater_keeps_its_headway_at_the_others_speed_as_it_slows():
     assert kind("tailgate").script(target) == Following(0.4)
 
 
-def test_a_cut_in_toward_an_other_that_leaves_its_lane_settles_on_the_others_way_not_the_lane():
-    """The other (a constant-velocity ego on a bend, as it were) drives 4 degrees off its lane and drifts out of it: the
-    cut-in pulls in ahead of it on its heading line, the path the judge reads, not on the lane it left."""
-    lead, drift = 14.5, math.radians(4.0)
-    script = CuttingIn(lead_m=lead, settle_s=20.0, cruise_mps=9.0)
-    state, other, memory = [lead, 3.5, 0.0, 12.0], [0.0, 0.0, drift, 12.0], {}
-    for step in range(80):
+def _tick_cut_in(script, state, other, memory, steps=80) -> np.ndarray:
+    """Ticks a cut-in from the lane beside (`BESIDE`) into the other's (`LANE`) at 10 Hz, as the simulation drives a
+    scripted agent, the other at constant speed and heading; its states [steps, 4] after each step."""
+    out = []
+    for step in range(steps):
         now = ScriptState(np.asarray(state), np.asarray(other), 0.0, LANE, step / 10, 1, 1, 0.1, 1.5,
                           own_lane=BESIDE, new_lane=LANE, memory=memory)  # fmt: skip
         accel, rate = script.plan(now)[0]
         unicycle_step(state, float(accel), float(rate), 0.1)
         unicycle_step(other, 0.0, 0.0, 0.1)
+        out.append(list(state))
+    return np.asarray(out)
+
+
+def test_a_cut_in_toward_an_other_that_leaves_its_lane_settles_on_the_others_way_not_the_lane():
+    """The other (a constant-velocity ego on a bend, as it were) drives 4 degrees off its lane and drifts out of it: the
+    cut-in pulls in ahead of it on its heading line, the path the judge reads, not on the lane it left."""
+    lead, drift = 14.5, math.radians(4.0)
+    script = CuttingIn(lead_m=lead, settle_s=20.0, cruise_mps=9.0)
+    state, other = [lead, 3.5, 0.0, 12.0], [0.0, 0.0, drift, 12.0]
+    _tick_cut_in(script, state, other, {})
     assert other[1] > 5.0  # the other is well out of its lane by now
     dx, dy = state[0] - other[0], state[1] - other[1]
     along, across = dx * math.cos(drift) + dy * math.sin(drift), -dx * math.sin(drift) + dy * math.cos(drift)
@@ -301,14 +310,8 @@ def test_a_cut_in_moving_across_in_front_of_a_crawling_other_does_not_crawl_acro
     """The other crawls at 1.5 m/s; the cut-in, at its lead and already moving across, keeps 3 m/s until it is in the
     lane and settles (within 1 m of the lane, heading within 8 degrees) within 4 s, not the 8 s of a crawl."""
     script = CuttingIn(lead_m=14.5, settle_s=10.0, cruise_mps=0.0)
-    state, other, memory, settled = [14.5, 3.5, 0.0, 1.5], [0.0, 0.0, 0.0, 1.5], {"across": True}, None
-    for step in range(80):
-        now = ScriptState(np.asarray(state), np.asarray(other), 0.0, LANE, step / 10, 1, 1, 0.1, 1.5,
-                          own_lane=BESIDE, new_lane=LANE, memory=memory)  # fmt: skip
-        accel, rate = script.plan(now)[0]
-        unicycle_step(state, float(accel), float(rate), 0.1)
-        unicycle_step(other, 0.0, 0.0, 0.1)
-        if settled is None and abs(state[1]) < 1.0 and abs(state[2]) < math.radians(8.0):
-            settled = step / 10
-    assert settled is not None and settled <= 4.0
+    state, other = [14.5, 3.5, 0.0, 1.5], [0.0, 0.0, 0.0, 1.5]
+    states = _tick_cut_in(script, state, other, {"across": True})
+    settled = np.flatnonzero((np.abs(states[:, 1]) < 1.0) & (np.abs(states[:, 2]) < math.radians(8.0)))
+    assert settled.size and settled[0] / 10 <= 4.0
     assert state[0] - other[0] == pytest.approx(14.5, abs=4.0)  # and near its lead, having slowed once in the lane

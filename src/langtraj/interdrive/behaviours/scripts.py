@@ -228,8 +228,8 @@ speed in its own lane, so that the gap it enters at is the one it holds (a cutte
 the lane 20-30 m ahead where 10 were asked)."""
 CUT_IN_WAIT_DECEL = 2.0
 """The hardest a cut-in brakes in its own lane (m/s^2), letting the other come up before it moves across: comfortable,
-as a driver drops back to a gap in the next lane. Where the other brakes, this on top of its braking (within
-`CUT_IN_ACCELERATIONS`): a follower braking for the traffic does not leave it far ahead."""
+as a driver drops back to a gap in the next lane. Where the other brakes, this on top of its braking (at most
+`SCRIPT_HARD_BRAKE` in all): a follower braking for the traffic does not leave it far ahead."""
 CUT_IN_COMMITTED_M = 1.0
 """How far from its own lane's centre toward the other's (m) a cut-in has moved when it is committed: from there it
 goes on across, whatever the gap does meanwhile (never back and forth between the lanes); a real agent off its lane's
@@ -247,6 +247,13 @@ WAY_AHEAD_M = 150.0
 """How far ahead of the other (m) its heading line goes, where it has left its lane."""
 
 
+def _heading_off(state: list[float], path: np.ndarray) -> float:
+    """How far the agent's heading is off `path`'s at its nearest point (rad, -pi to pi)."""
+    segment = int(project_on_polyline(np.array([state[:2]]), path).segment[0])
+    along = path[segment + 1] - path[segment]
+    return math.remainder(state[2] - math.atan2(along[1], along[0]), math.tau)
+
+
 def way_of(other: list[float], lane: np.ndarray) -> np.ndarray:
     """The way the other agent drives on, as a cut-in reads it from where the other is now [P, 2]: `lane` (drawn
     `WAY_BEHIND_M` back along its first segment) while the other keeps to it, else the other's heading line: a
@@ -260,13 +267,6 @@ def way_of(other: list[float], lane: np.ndarray) -> np.ndarray:
         return way
     forward = np.array([math.cos(other[2]), math.sin(other[2])])
     return np.stack([np.asarray(other[:2]) - WAY_BEHIND_M * forward, np.asarray(other[:2]) + WAY_AHEAD_M * forward])
-
-
-def _heading_off(state: list[float], path: np.ndarray) -> float:
-    """How far the agent's heading is off `path`'s at its nearest point (rad, -pi to pi)."""
-    segment = int(project_on_polyline(np.array([state[:2]]), path).segment[0])
-    along = path[segment + 1] - path[segment]
-    return math.remainder(state[2] - math.atan2(along[1], along[0]), math.tau)
 
 
 def _lead_and_offset(state: list[float], other: list[float], path: np.ndarray) -> tuple[float, float]:
@@ -292,12 +292,12 @@ def _keep_lead(
 
 @dataclass(frozen=True)
 class CuttingIn(Script):
-    """Into the other's lane (its `new_lane`, else its path; pure pursuit) once clear ahead of the other
-    (`CUT_IN_CLEAR_M`), at about its lead and speed (`CUT_IN_MATCHED_MPS`; in its own lane
-    until then, `_across`), its speed set to
-    reach and keep `lead_m` (centre to centre along the path) ahead of the other wherever the other drives; once in
-    the lane and `settle_s` has passed, on at `cruise_mps`: a slower vehicle cutting in (Euro NCAP's cut-in), which
-    a follower that ignores it runs into."""
+    """Into the other's way (`way_of`: its lane, the target's `new_lane` or else its path, while it keeps to it;
+    pure pursuit) once clear ahead of the other (`CUT_IN_CLEAR_M`), at about its lead and speed
+    (`CUT_IN_MATCHED_MPS`; in its own lane until then, `_across`), its speed set to reach and keep `lead_m` (centre to
+    centre along the way) ahead of the other wherever the other drives, the other's braking matched until it is in
+    the lane; once in the lane and `settle_s` has passed, on at `cruise_mps`: a slower vehicle cutting in (Euro NCAP's
+    cut-in), which a follower that ignores it runs into."""
 
     lead_m: float
     settle_s: float

@@ -112,7 +112,7 @@ def slowed(view: PairView, step: int) -> str | None:
     return f"@{view.other.track_id} had slowed from {first:.1f} to {now:.1f} m/s by then (its own doing)"
 
 
-def never_settled(view: PairView, after: int, asked_gap: float | None = None) -> str:
+def never_settled(view: PairView, after: int, asked_gap: float) -> str:
     """Why the agent never settled in the other's path ahead of it after step `after` (one line): where it stayed
     beside the other, out of its path, how far ahead of the other's front it was meanwhile against `asked_gap` (a
     cut-in waits beside until it is near its gap: an other that never came up to it, or left it behind, says so)."""
@@ -133,7 +133,7 @@ def never_settled(view: PairView, after: int, asked_gap: float | None = None) ->
     why = f"never settled in {other}'s path ahead of it (at closest {closest:.1f} m to its side)"
     with np.errstate(invalid="ignore"):
         beside = steps & view.both & (np.abs(view.across) >= OUT_OF_PATH_M)
-    if asked_gap is None or not beside.any():
+    if not beside.any():
         return why
     gaps = view.gap_ahead[beside]
     low, high = float(np.nanmin(gaps)), float(np.nanmax(gaps))
