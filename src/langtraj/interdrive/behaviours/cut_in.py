@@ -4,10 +4,7 @@ See docs/interdrive.md ('Targets and feasibility') and docs/testing.md ('Judged 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
-
-import numpy as np
 
 from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
 from langtraj.interdrive.behaviours.base import BehaviourKind, Parameter, Steer, register, route, steps
@@ -24,6 +21,7 @@ from langtraj.interdrive.targets.context import (
     into_lane,
     lane_beside,
     lead_of,
+    offset_of,
 )
 from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
 from langtraj.interdrive.taxonomy import InteractionType
@@ -68,8 +66,7 @@ def out_of_path(agent: AgentHere, other: AgentHere, behaviour: Behaviour) -> Non
     """Infeasible where the agent's centre is already within the judge's `OUT_OF_PATH_M` of the other's heading line:
     it follows or leads the other (a lane merging into the other's), and no settling in its path could count as a
     cut-in (`judging.cut_in.out_of_path_step`)."""
-    heading = other.heading
-    across = float((agent.xy - other.xy) @ np.array([-math.sin(heading), math.cos(heading)]))
+    across = offset_of(agent, other)
     if abs(across) < judged_by.OUT_OF_PATH_M:
         reason = f"it is {abs(across):.1f} m to the side of @{other.track_id}: already in its path, not beside it"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)

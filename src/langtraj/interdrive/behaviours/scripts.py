@@ -247,11 +247,10 @@ WAY_AHEAD_M = 150.0
 """How far ahead of the other (m) its heading line goes, where it has left its lane."""
 
 
-def _heading_off(state: list[float], path: np.ndarray) -> float:
-    """How far the agent's heading is off `path`'s at its nearest point (rad, -pi to pi)."""
-    segment = int(project_on_polyline(np.array([state[:2]]), path).segment[0])
+def _heading_off(heading: float, path: np.ndarray, segment: int) -> float:
+    """How far `heading` is off `path`'s `segment`-th segment (rad, -pi to pi)."""
     along = path[segment + 1] - path[segment]
-    return math.remainder(state[2] - math.atan2(along[1], along[0]), math.tau)
+    return math.remainder(heading - math.atan2(along[1], along[0]), math.tau)
 
 
 def way_of(other: list[float], lane: np.ndarray) -> np.ndarray:
@@ -262,17 +261,20 @@ def way_of(other: list[float], lane: np.ndarray) -> np.ndarray:
     back = lane[0] - lane[1]
     back = lane[0] + WAY_BEHIND_M * back / max(float(np.hypot(*back)), 1e-9)
     way = np.concatenate([back[None], lane])
-    near = float(project_on_polyline(np.array([other[:2]]), way).distance[0]) <= OTHER_IN_LANE_M
-    if near and abs(_heading_off(other, way)) <= OTHER_IN_LANE_HEADING:
+    found = project_on_polyline(np.array([other[:2]]), way)
+    near = float(found.distance[0]) <= OTHER_IN_LANE_M
+    if near and abs(_heading_off(other[2], way, int(found.segment[0]))) <= OTHER_IN_LANE_HEADING:
         return way
     forward = np.array([math.cos(other[2]), math.sin(other[2])])
     return np.stack([np.asarray(other[:2]) - WAY_BEHIND_M * forward, np.asarray(other[:2]) + WAY_AHEAD_M * forward])
 
 
-def _lead_and_offset(state: list[float], other: list[float], path: np.ndarray) -> tuple[float, float]:
-    """How far the agent's centre is ahead of the other's along `path` (m), and how far the agent is off it (m)."""
+def _lead_and_offset(state: list[float], other: list[float], path: np.ndarray) -> tuple[float, float, float]:
+    """How far the agent's centre is ahead of the other's along `path` (m), how far the agent is off it (m), and how
+    far its heading is off the path's there (rad)."""
     found = project_on_polyline(np.array([state[:2], other[:2]]), path)
-    return float(found.station[0] - found.station[1]), float(found.distance[0])
+    heading_off = _heading_off(state[2], path, int(found.segment[0]))
+    return float(found.station[0] - found.station[1]), float(found.distance[0]), heading_off
 
 
 def _keep_lead(
@@ -315,7 +317,7 @@ class CuttingIn(Script):
         moving = bool(now.memory.get("across", False))
         for k in range(now.count):
             t = now.elapsed_s + k * now.per_action * now.dt
-            lead, off = _lead_and_offset(state, other, into)
+            lead, off, turned = _lead_and_offset(state, other, into)
             seen = traffic_at(now, k)
             moving = moving or own is None or off <= CUT_IN_IN_LANE_M
             if not moving and own is not None:
@@ -331,7 +333,7 @@ class CuttingIn(Script):
                 matched = now.other_accel if off > CUT_IN_IN_LANE_M else 0.0
                 accel = _keep_lead(self.lead_m, lead, state, other, matched, SCRIPT_HARD_BRAKE)
             if moving:
-                if off > CUT_IN_IN_LANE_M or abs(_heading_off(state, into)) > CUT_IN_ALIGNED:  # not at a crawl
+                if off > CUT_IN_IN_LANE_M or abs(turned) > CUT_IN_ALIGNED:  # not at a crawl
                     accel = max(accel, CUT_IN_SPEED_GAIN * (CUT_IN_CROSSING_MIN_MPS - state[3]))
                 ahead, lane = max(CUT_IN_LOOK_AHEAD_MIN_M, CUT_IN_LOOK_AHEAD_S * state[3]), into
             else:  # its own lane, letting the other come up without braking hard
@@ -411,7 +413,7 @@ class Following(Script):
         path = trail(now)
         state, other = [float(v) for v in now.agent], [float(v) for v in now.other]
         for k in range(now.count):
-            lead, _ = _lead_and_offset(state, other, path)
+            lead, _, _ = _lead_and_offset(state, other, path)
             behind = -(bumpers + max(self.headway_s * other[3], FOLLOW_STANDING_M))
             # the other's braking is not fed forward: a tailgater reacts to the gap and the speeds, late
             accel = keep_behind(_keep_lead(behind, lead, state, other, 0.0), state, path, now, traffic_at(now, k))

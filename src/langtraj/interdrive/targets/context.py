@@ -270,6 +270,12 @@ def lead_of(agent: AgentHere, other: AgentHere) -> float:
     return float((agent.xy - other.xy) @ heading)
 
 
+def offset_of(agent: AgentHere, other: AgentHere) -> float:
+    """How far the agent's centre is to the left of the other's heading line (m; negative: to its right)."""
+    left = np.array([-math.sin(other.heading), math.cos(other.heading)])
+    return float((agent.xy - other.xy) @ left)
+
+
 def into_lane(index: MapIndex, agent: AgentHere, lane: int, station: float) -> np.ndarray:
     """The agent's way into `lane` at `station` (a lane change, a cut-in): a straight lead-in from where it is, then
     the lane on."""
