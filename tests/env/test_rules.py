@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scenario_builders import two_lane_road
 
-from langtraj.env.route import Route
 from langtraj.env.rules import EpisodeLights, RuleJudge
 from langtraj.roads import MapIndex
+from langtraj.roads.mission import Route
 from langtraj.scenario import TrafficLights
 from langtraj.scenario.types import StateField, TrafficLightState
 from langtraj.suites.verdict import COMFORT_BOUNDS, StepRecord, comfort_figures

@@ -26,6 +26,7 @@ from langtraj.interdrive.suggest import (
 )
 from langtraj.interdrive.targets import feasibility
 from langtraj.roads import MapIndex
+from langtraj.roads.mission import mission_of
 from langtraj.scenario import AgentType
 from langtraj.scenario.io import read_scenarios
 
@@ -47,6 +48,8 @@ def _road():
 
 
 def _verdict(s, staging: Staging, index: MapIndex):
+    """The staging asked alone, the ego on the route its planner is given (as the env stages it)."""
+    mission = mission_of(s, s.agents.index_of(staging.other), index)
     return feasibility(
         s,
         staging.agent,
@@ -55,6 +58,7 @@ def _verdict(s, staging: Staging, index: MapIndex):
         other_id=staging.other,
         gap=staging.parameters.get("gap"),
         deceleration=staging.parameters.get("deceleration"),
+        routes={staging.other: mission.points},
     )
 
 

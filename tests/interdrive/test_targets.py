@@ -206,6 +206,37 @@ def test_a_red_light_runner_goes_through_the_red_light_ahead_and_across_the_othe
         _target(lit(TrafficLightState.STOP), 2, Behaviour.RUN_RED_LIGHT, 1)
 
 
+def test_a_red_light_run_toward_an_agent_with_a_known_route_crosses_that_route_or_has_no_target():
+    """An ego under a planner drives the route it is given (`TargetContext.routes`), not whichever way the junction
+    offers: a southbound runner crosses a northbound ego's left turn, not its way straight on."""
+    from dataclasses import replace
+
+    from langtraj.scenario import TrafficLights
+    from langtraj.scenario.types import TrafficLightState
+
+    west = -3.0 * HALF  # a southbound road to the left of the northbound lanes: 51, then junction lane 52
+    southbound = [MapFeature(51, MapFeatureType.LANE_SURFACE_STREET, line(west, 80, west, 10), exit_lanes=(52,)),
+                  MapFeature(52, MapFeatureType.LANE_SURFACE_STREET, line(west, 10, west, -10, 21), entry_lanes=(51,),
+                             interpolating=True)]  # fmt: skip
+    road = RoadMap([*four_way().features, *southbound])
+    s = scene(road, drive(LEFT_LANE_STRAIGHT), _track(line(west, 80, west, 10), 8.0, 40.0))  # 2 at y = 32
+    steps = s.agents.states.shape[1]
+    lights = TrafficLights([51], np.full((steps, 1), TrafficLightState.STOP, np.int8), np.ones((steps, 1), bool),
+                           [[west, 10, 0]])  # fmt: skip
+    s, index = replace(s, traffic_lights=lights), MapIndex.build(s.road_map)
+    left = derive_target(s, 1, Behaviour.TURN_LEFT, index).path
+    straight = derive_target(s, 1, Behaviour.GO_STRAIGHT, index).path
+    unknown = derive_target(s, 2, Behaviour.RUN_RED_LIGHT, index, other_id=1)  # some way of 1 crosses 2's
+    turning = derive_target(s, 2, Behaviour.RUN_RED_LIGHT, index, other_id=1, routes={1: left})
+    assert turning.conflict == pytest.approx(unknown.conflict)
+    with pytest.raises(TargetUnavailable, match="@1's way does not cross its way past the red light 22 m ahead"):
+        derive_target(s, 2, Behaviour.RUN_RED_LIGHT, index, other_id=1, routes={1: straight})
+    far = straight + np.array([30.0, 0.0])  # a route it is nowhere near: not driving it, its lanes count
+    assert derive_target(s, 2, Behaviour.RUN_RED_LIGHT, index, other_id=1, routes={1: far}).conflict == pytest.approx(
+        unknown.conflict
+    )
+
+
 def test_a_car_waiting_at_a_side_road_pulls_out_across_the_others_way_just_before_it():
     waiting = _track(line(-80, -HALF, -10, -HALF), 0.0, 68.0)  # standing on the eastbound road at x = -12
     s = scene(four_way(), drive(RIGHT_LANE_STRAIGHT), waiting)  # 1 northbound at 8 m/s, 40 m before the crossing

@@ -5,7 +5,7 @@ Gymnasium environment (docs/testing.md).
 The ego is one of the scene's agents: the model sees it as it sees every other agent, but the ego's motion comes
 from the action (`env.dynamics`), and the model's guidance and candidate selection judge the others against a
 forecast of the ego (`sim.external`). No simulated agent reads its logged future; only the ego's route is chosen
-with the log (`env.route`), and `reset`'s info carries the ego's logged future for log-replay baselines.
+with the log (`roads.mission`), and `reset`'s info carries the ego's logged future for log-replay baselines.
 """
 
 from __future__ import annotations
@@ -26,13 +26,12 @@ from langtraj.env.dynamics import step_unicycle, track
 from langtraj.env.events import EventJudge
 from langtraj.env.observe import MapPieces, Observer
 from langtraj.env.reward import RewardConfig
-from langtraj.env.route import ego_route
 from langtraj.env.rules import EpisodeLights, RuleJudge, light_mode
 from langtraj.errors import InputError
 from langtraj.metrics.road import RoadEdgeIndex, road_edge_index
 from langtraj.model.config import ModelConfig
 from langtraj.roads import MapIndex
-from langtraj.roads.position import AgentOnLane
+from langtraj.roads.mission import mission_of
 from langtraj.rollouts.agents import sim_agent_indices
 from langtraj.rollouts.container import Rollouts
 from langtraj.scenario.drivable import measured_road_edges
@@ -184,13 +183,12 @@ class LangTrajEnv(gym.Env):
         policy, described = build_policy(scenario, request, self._loaded)
         sim_seed = int(self.np_random.integers(2**31 - 1))
         config = replace(self.sim_config, seed=sim_seed)
-        self._sim = SteppedSimulation(scenario, policy, np.array([ego]), config)
+        route = mission_of(scenario, ego, scene.index)  # the ego's one route: its planner's, and staging's reading
+        self._sim = SteppedSimulation(scenario, policy, np.array([ego]), config, routes={ego_id: route.points})
         self._ego, self._ego_id = ego, ego_id
-        pose = self._pose()
         logged = _logged_future(scenario, ego)
-        start = AgentOnLane.of(scenario, ego, scene.index)
         seen = logged[np.isfinite(logged[:, 0]), :2]
-        self._route = ego_route(scene.index, start, pose[:2], float(pose[2]), seen)
+        self._route = route
         lights = EpisodeLights(scenario, self.lights)
         self._observer = Observer(scenario, ego, self._route, scene.pieces, lights)
         self._judge = EventJudge(scenario, ego, scene.edges, scene.index, lights)

@@ -14,11 +14,11 @@ import numpy as np
 
 from langtraj.angles import wrap_angle
 from langtraj.env import spaces
-from langtraj.env.route import Route
 from langtraj.env.rules import EpisodeLights
 from langtraj.env.spaces import AgentColumn, EgoColumn
 from langtraj.frames import points_to_frame
 from langtraj.model.features import feature_pieces
+from langtraj.roads.mission import Route
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import StateField
 

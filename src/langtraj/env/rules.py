@@ -12,9 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from langtraj.angles import wrap_angle
-from langtraj.env.route import Route
 from langtraj.errors import InputError
 from langtraj.roads import MapIndex
+from langtraj.roads.mission import Route
 from langtraj.roads.position import LANE_MATCH_RADIUS
 from langtraj.roads.stop_lines import StopLines
 from langtraj.scenario.model import Scenario

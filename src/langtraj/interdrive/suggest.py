@@ -26,6 +26,7 @@ from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
 from langtraj.interdrive.behaviours import kind
 from langtraj.interdrive.targets import BehaviourTarget, CounterfactualConfig, TargetContext, feasibility
 from langtraj.roads import MapIndex
+from langtraj.roads.mission import mission_of
 from langtraj.scenario.model import Scenario
 from langtraj.scenario.types import AgentType, StateField
 
@@ -179,9 +180,10 @@ def suggest_stagings(
     most natural first (`Staging.score`, then distance, agent, the vocabulary's order and the parameter). The map is
     indexed once (`map_index`, built when not given). `scene`, `index` and `window` only label the stagings.
 
-    Kinds the map always allows are listed where the scene stages them: a yield where the two ways cross (it can
-    always wait, but a yield with no crossing stages nothing), following by an agent behind the ego heading its
-    way."""
+    Targets read the ego's way as the route the env gives its planner (`roads.mission`), so what is offered is what
+    an episode stages. Kinds the map always allows are listed where the scene stages them: a yield where the two
+    ways cross (it can always wait, but a yield with no crossing stages nothing), following by an agent behind the
+    ego heading its way."""
     ego = ego_of(scenario, ego)
     asked = pair_behaviours() if behaviours is None else tuple(dict.fromkeys(behaviours))
     for behaviour in asked:
@@ -189,7 +191,8 @@ def suggest_stagings(
             raise InputError(f"{behaviour.value!r} is not a behaviour toward another agent", where="behaviour")
     index_ = map_index if map_index is not None else MapIndex.build(scenario.road_map)
     scene_ = _Scene.of(scenario, ego)
-    context = TargetContext(scenario, index_, config)  # each agent's lane and roads ahead found once
+    mission = mission_of(scenario, scenario.agents.index_of(ego), index_)  # the route its planner is given
+    context = TargetContext(scenario, index_, config, {ego: mission.points})  # each agent's roads found once
     found: list[Staging] = []
     for behaviour in asked:
         values = PARAMETER_VALUES.get(behaviour, ())

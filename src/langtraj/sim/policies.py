@@ -410,7 +410,14 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         index = MapIndex.build(start.road_map) if self.prompt_texts else None
         steering = (
             prompt_steering(
-                start, self.readings, world.driven, origin, self.request.levers, index, external=external_ids(world)
+                start,
+                self.readings,
+                world.driven,
+                origin,
+                self.request.levers,
+                index,
+                external=external_ids(world),
+                routes=world.routes,
             )
             if self.prompt_texts
             else PromptSteering()
@@ -461,7 +468,9 @@ class LangTrajPolicy(CandidatePlanning, Policy):
             for k, staged in enumerate(steering.staged)
             if (s := keeping(start, staged.reading, index, origin, slots))
         }
-        return Stagings(steering.staged, origin, slots, index, world.start, started=steering.targets, keep=keep)
+        return Stagings(
+            steering.staged, origin, slots, index, world.start, started=steering.targets, keep=keep, routes=world.routes
+        )
 
     def held_slots(self, start: Scenario, world: SimWorld, external: tuple[int, ...]) -> tuple[int, ...]:
         """With `hold_parked`, the slots of the driven agents parked in the log (`sim.parked.parked_in_history`:

@@ -8,7 +8,7 @@ simulation: each behaviour's target and the criteria selection judges by (`promp
 
 from __future__ import annotations
 
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -176,8 +176,11 @@ def _unread_problem(reading: PromptReading) -> str | None:
     return f"clause {reading.clause!r} cannot be read ({unknown}); did you mean {fixed[0]!r}?"
 
 
-def _verdict(scenario: Scenario, reading: PromptReading, index: MapIndex) -> Feasibility | None:
-    """The map's one answer for a read behaviour: its target, or why there is none (None for a prompt not read)."""
+def _verdict(
+    scenario: Scenario, reading: PromptReading, index: MapIndex, routes: Mapping[int, np.ndarray] | None = None
+) -> Feasibility | None:
+    """The map's one answer for a read behaviour: its target, or why there is none (None for a prompt not read), the
+    agents with a known route (`routes`: an ego's mission) read on it."""
     if reading.behaviour is None or reading.agent is None:
         return None
     if BEHAVIOURS[reading.behaviour].is_pair and reading.other is None:
@@ -190,6 +193,7 @@ def _verdict(scenario: Scenario, reading: PromptReading, index: MapIndex) -> Fea
         other_id=reading.other,
         gap=reading.metres,
         deceleration=reading.deceleration,
+        routes=routes,
     )
     return verdict if reading.then is None else then_feasibility(verdict, reading.then)
 
@@ -277,12 +281,14 @@ def prompt_steering(
     levers: PromptLevers,
     index: MapIndex | None = None,
     external: Collection[int] = (),
+    routes: Mapping[int, np.ndarray] | None = None,
 ) -> PromptSteering:
     """From each typed prompt's reading (`read_prompts`): its behaviour's target, derived from the map (`index`,
     built here when not given) at the current step (`interdrive.targets`), as guidance and selection criteria for
     the driven agents `rows` (scenario rows in slot order), and the warnings about it (`warnings`). A prompt
     the reader cannot read, or whose target the map does not give, steers by the levers it can (text; selection
-    still judges a read behaviour), and its note says so. A read agent the model does not drive is an InputError."""
+    still judges a read behaviour), and its note says so. A read agent the model does not drive is an InputError.
+    `routes`: the routes the `external` agents drive (`SimWorld.routes`), which targets toward them read."""
     slots = {int(scenario.agents.ids[row]): slot for slot, row in enumerate(rows)}
     readings = tuple(readings)
     index = index if index is not None else MapIndex.build(scenario.road_map)
@@ -294,7 +300,7 @@ def prompt_steering(
         reading = on_live_state(reading, external)
         if reading.trigger is not None and reading.read and reading.agent in slots:
             if not BEHAVIOURS[reading.behaviour].is_pair:  # the map's verdict on a manoeuvre holds later too
-                verdict = _verdict(scenario, reading, index)
+                verdict = _verdict(scenario, reading, index, routes)
                 if (warning := _warning(reading, verdict, _fallback(scenario, reading, verdict, index))) is not None:
                     warnings.append(warning)
             staged.append(_staged(scenario, reading, slots, levers, len(asks)))
@@ -305,7 +311,7 @@ def prompt_steering(
                 + (", adherence-first selection from then" if levers.selection else "")
             )
             continue
-        verdict = _verdict(scenario, reading, index)
+        verdict = _verdict(scenario, reading, index, routes)
         steered = _fallback(scenario, reading, verdict, index)
         if (warning := _warning(reading, verdict, steered)) is not None:
             warnings.append(warning)

@@ -11,9 +11,11 @@ next clause.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
+
+import numpy as np
 
 from langtraj.frames import Origin
 from langtraj.guidance.steering import Steering
@@ -135,6 +137,8 @@ class Stagings:
     started: tuple[BehaviourTarget, ...] = ()
     keep: dict[int, Steering] = field(default_factory=dict)
     """Staged behaviour -> the steering that keeps its agent's place until it starts (`keeping`), where one does."""
+    routes: Mapping[int, np.ndarray] = field(default_factory=dict)
+    """The routes the external agents drive (`SimWorld.routes`: an ego's mission), which targets toward them read."""
     anchors: dict[int, dict[int, Anchor]] = field(default_factory=dict)
     waiting: dict[int, dict[int, Waiting]] = field(default_factory=dict)
     done: dict[int, dict[int, float]] = field(default_factory=dict)
@@ -175,6 +179,7 @@ class Stagings:
                         other_id=reading.other,
                         gap=reading.metres,
                         deceleration=reading.deceleration,
+                        routes=self.routes,
                     )
                 except TargetUnavailable as exc:
                     wait.unavailable = self._not_yet(staged, elapsed, str(exc.detail))

@@ -4,6 +4,7 @@ included, actually did; between replans they execute the plan, as in `engine.sim
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -18,9 +19,18 @@ from langtraj.sim.world import SimWorld
 
 class SteppedSimulation:
     """`policy` drives the scene's sim agents but `external` (scenario rows), whose next poses each `advance` is
-    given. A model policy that drives the external agents too sees them as context; it never moves them."""
+    given. A model policy that drives the external agents too sees them as context; it never moves them. `routes`:
+    track id -> the route [P, 2] (world frame) an external agent drives (an ego's mission, `roads.mission`), which
+    behaviours staged toward it read as its way (`SimWorld.routes`)."""
 
-    def __init__(self, scenario: Scenario, policy: Policy, external: np.ndarray, config: SimConfig | None = None):
+    def __init__(
+        self,
+        scenario: Scenario,
+        policy: Policy,
+        external: np.ndarray,
+        config: SimConfig | None = None,
+        routes: Mapping[int, np.ndarray] | None = None,
+    ):
         self.config = config = SimConfig(rollouts=1) if config is None else config
         sim_agents = sim_agent_indices(scenario)
         external = np.asarray(external, np.int64)
@@ -28,7 +38,9 @@ class SteppedSimulation:
             raise InputError("an external agent must be valid at the scene's current step", where="ego")
         driven = policy.drives(scenario, sim_agents)
         self.policy = policy
-        self.world = SimWorld(scenario, driven, config.rollouts, undriven=policy.undriven, external=external)
+        self.world = SimWorld(
+            scenario, driven, config.rollouts, undriven=policy.undriven, external=external, routes=routes
+        )
         self.state: Any = policy.reset(self.world, config.seed)
         self.step = self.world.start
         self._plan: np.ndarray | None = None

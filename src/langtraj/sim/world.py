@@ -11,6 +11,7 @@ See docs/simulation.md.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import replace
 
 import numpy as np
@@ -75,7 +76,9 @@ class SimWorld:
     policy with `execute`; `external` rows (an ego under test, docs/testing.md) are written from outside with
     `place`, step by step, and a policy that drives them too sees them but never moves them; every other sim
     agent moves as `undriven` says (`UNDRIVEN`). Unless it is "log", the world holds no logged future at all:
-    no policy can read it."""
+    no policy can read it. `routes`: track id -> the route [P, 2] (world frame) an external agent drives (an ego's
+    mission: the map's lanes its planner is given, never its motion), read as its way by behaviours staged toward it
+    (`sim.staging`)."""
 
     def __init__(
         self,
@@ -84,6 +87,7 @@ class SimWorld:
         num_rollouts: int,
         undriven: str = "constant_velocity",
         external: np.ndarray | None = None,
+        routes: Mapping[int, np.ndarray] | None = None,
     ):
         if num_rollouts < 1:
             raise ValueError(f"num_rollouts must be at least 1, got {num_rollouts}")
@@ -103,6 +107,7 @@ class SimWorld:
         self.external = np.zeros(0, np.int64) if external is None else np.asarray(external, np.int64)
         if not set(self.external.tolist()) <= sim:
             raise ValueError("every external agent must be a sim agent (valid at the current step)")
+        self.routes = {int(k): np.asarray(v, np.float64) for k, v in (routes or {}).items()}
         self.others = np.setdiff1d(self.sim_agents, np.union1d(self.driven, self.external))  # nobody moves them
         self._moved = ~np.isin(self.driven, self.external)  # driven columns `execute` writes
         # Undriven agents: the log where `undriven` is "log", and constant velocity wherever no logged

@@ -6,7 +6,7 @@ distance). Read from the scene at the current step only. See docs/interdrive.md 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,6 +56,9 @@ RED_STOP_LATERAL = 1.5
 """How close to a way a signal's stop point must lie to be that way's (m; lanes are about 3.5 m apart)."""
 FOLLOWER_RANGE_M = 40.0
 """How far (bumper to bumper, m) behind a braking lead, or ahead of a tailgater, the other agent may be."""
+ON_ROUTE_M = 4.0
+"""An agent with a known route (`TargetContext.routes`) drives it while its centre is within this (m) of it; farther
+(it left its route), its way is read from the lanes as any agent's."""
 NOT_GO_STATES = tuple(s for s in TrafficLightState if s.is_stop or s.is_caution)
 """Signal states that stop a lane or are about to: the other agent must face none of these before the crossing (it
 has the right of way a red-light runner cuts)."""
@@ -92,10 +95,21 @@ class AgentHere:
 class TargetContext:
     """One scene's map read for targets: the map index, the settings and, per agent, where it is, the next junction's
     branches and its road ahead, each computed once, so that asking about every behaviour of an agent
-    (`feasibility.behaviour_feasibility`) reads the map once (`derive.target_of` derives one target)."""
+    (`feasibility.behaviour_feasibility`) reads the map once (`derive.target_of` derives one target).
 
-    def __init__(self, scenario: Scenario, index: MapIndex, config: CounterfactualConfig | None = None):
+    `routes`: track id -> the route [P, 2] (world frame) an agent is known to drive: an ego under a planner drives the
+    mission it is given (`roads.mission`), not whichever branch the straightest exits or the junction's list give, so
+    a target toward it (a runner across its way, a lead braking on it) reads that route as its one way ahead."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        index: MapIndex,
+        config: CounterfactualConfig | None = None,
+        routes: Mapping[int, np.ndarray] | None = None,
+    ):
         self.scenario, self.index, self.config = scenario, index, config or CounterfactualConfig()
+        self.routes = dict(routes or {})
         self._agents: dict[int, AgentHere | None] = {}
         self._junctions: dict[int, JunctionAhead] = {}
         self._stations: dict[int, list[StationAhead]] = {}
@@ -156,14 +170,36 @@ class TargetContext:
             raise TargetUnavailable(agent.track_id, behaviour, "undecided", reason)
 
     def ahead(self, agent: AgentHere) -> np.ndarray:
-        """The agent's lane ahead by the straightest exits, or, off lanes (a pedestrian, a cyclist, a map without
-        lanes), the line along its heading."""
+        """The agent's route from where it is, where it drives a known one (`routes`, within `ON_ROUTE_M`); else its
+        lane ahead by the straightest exits, or, off lanes (a pedestrian, a cyclist, a map without lanes), the line
+        along its heading."""
+        if (known := self.on_route(agent)) is not None:
+            return known
         if self.index.has_lanes and agent.on_lane:
             return route(self.index, [agent.here.lane], agent.here.station, agent.reach)
         return straight_line(agent.xy, agent.heading, max(20.0, agent.here.speed * HORIZON_S + 10.0))
 
+    def on_route(self, agent: AgentHere) -> np.ndarray | None:
+        """The agent's known route (`routes`) from its nearest point on, `agent.reach` m of it at least where the route
+        has them; None where it has none or is more than `ON_ROUTE_M` off it."""
+        known = self.routes.get(agent.track_id)
+        if known is None or len(known) < 2:
+            return None
+        found = project_on_polyline(agent.xy[None], known)
+        if float(found.distance[0]) > ON_ROUTE_M:
+            return None
+        stations = arc_lengths(known)
+        start = float(found.station[0])
+        keep = (stations > start) & (stations <= start + max(agent.reach, ROUTE_SPACING))
+        first = np.array([np.interp(start, stations, known[:, 0]), np.interp(start, stations, known[:, 1])])
+        out = np.concatenate([first[None], known[keep]])
+        return out if len(out) >= 2 else None
+
     def ways_ahead(self, agent: AgentHere) -> list[np.ndarray]:
-        """Every way the agent may go: its lane ahead first, then each branch of the next junction."""
+        """Every way the agent may go: its known route alone where it drives one (`on_route`); else its lane ahead
+        first, then each branch of the next junction."""
+        if (known := self.on_route(agent)) is not None:
+            return [known]
         first = self.ahead(agent)
         if not (self.index.has_lanes and self.index.has_connectivity and agent.on_lane):
             return [first]

@@ -7,7 +7,10 @@ See docs/interdrive.md ('Targets and feasibility').
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import replace
+
+import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
@@ -46,11 +49,14 @@ def derive_target(
     config: CounterfactualConfig | None = None,
     gap: float | None = None,
     deceleration: float | None = None,
+    routes: Mapping[int, np.ndarray] | None = None,
 ) -> BehaviourTarget:
     """The target of `behaviour` for `track_id` at the scenario's current step (see the module docstring;
-    `target_of`). Raises `TargetUnavailable` (an InputError) naming the agent, the behaviour and the
-    reason where the map gives none: then the behaviour is not feasible there (`feasibility`)."""
-    return target_of(TargetContext(scenario, index, config), track_id, behaviour, other_id, gap, deceleration)
+    `target_of`), the agents with a known route (`routes`, `TargetContext`) read on it. Raises `TargetUnavailable`
+    (an InputError) naming the agent, the behaviour and the reason where the map gives none: then the behaviour is
+    not feasible there (`feasibility`)."""
+    ctx = TargetContext(scenario, index, config, routes)
+    return target_of(ctx, track_id, behaviour, other_id, gap, deceleration)
 
 
 def target_of(

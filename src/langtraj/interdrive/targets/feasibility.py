@@ -4,7 +4,10 @@ always has a target to steer toward (docs/interdrive.md, 'Targets and feasibilit
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
+
+import numpy as np
 
 from langtraj.errors import InputError
 from langtraj.interdrive.behaviour import BEHAVIOURS, Behaviour
@@ -50,12 +53,14 @@ def feasibility(
     gap: float | None = None,
     deceleration: float | None = None,
     context: TargetContext | None = None,
+    routes: Mapping[int, np.ndarray] | None = None,
 ) -> Feasibility:
     """Whether `track_id` can do `behaviour` (toward `other_id` for a pair behaviour; a cut-in `gap` m ahead of it; a
     braking lead at `deceleration` m/s^2) at the current step: feasible with its target, or infeasible / undecided
     with the reason the map gives no target. `context`: the scene's map as read for earlier questions (its agents'
-    lanes, junctions and roads ahead, each found once), for a caller asking many."""
-    context = context if context is not None else TargetContext(scenario, index, config)
+    lanes, junctions and roads ahead, each found once), for a caller asking many; `routes`: the agents' known routes
+    (`TargetContext`), where no `context` is given."""
+    context = context if context is not None else TargetContext(scenario, index, config, routes)
     return _verdict(context, track_id, behaviour, other_id, gap, deceleration)
 
 

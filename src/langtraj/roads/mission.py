@@ -1,4 +1,5 @@
-"""The ego's route: the lanes it is to drive, from the map (docs/testing.md, 'The route').
+"""The ego's route: the lanes it is to drive, from the map (docs/testing.md, 'The route'): the one route a planner
+is given (`env`), and the way targets staged toward the ego read for it (`interdrive.targets`, `suggest`).
 
 Where the log holds the ego's future, the route is the chain of lanes from the ego's lane that passes nearest to
 where the logged ego went (its mission, as nuPlan and Waymax give a planner its route); otherwise the ego's lane
@@ -18,6 +19,8 @@ from langtraj.polylines import arc_lengths, project_on_polyline
 from langtraj.roads import MapIndex
 from langtraj.roads.position import AgentOnLane
 from langtraj.roads.routes import chain_path, continued, route, straight_line
+from langtraj.scenario.model import FUTURE_STEPS, Scenario
+from langtraj.scenario.types import StateField
 
 ROUTE_LENGTH_M = 250.0
 """How far the route reaches beyond the logged end point (or from the ego, without a log)."""
@@ -88,6 +91,20 @@ def ego_route(index: MapIndex, start: AgentOnLane, xy: np.ndarray, heading: floa
     if best is None:
         return _along(index, [start.lane], start.station, ROUTE_LENGTH_M, "lanes")
     return _along(index, best, start.station, reach + ROUTE_LENGTH_M, source="log")
+
+
+def mission_of(scenario: Scenario, row: int, index: MapIndex) -> Route:
+    """The route of the agent at scenario `row` from its pose at the current step (`ego_route`), chosen by its logged
+    positions over the simulated future where the log has them: the one route an ego is given (`env`) and targets
+    toward it read (`interdrive.suggest`), so both agree."""
+    c = scenario.current_index
+    state = scenario.agents.states[row, c].astype(np.float64)
+    steps = np.arange(c + 1, min(c + 1 + FUTURE_STEPS, scenario.num_steps))
+    logged = scenario.agents.states[row, steps[scenario.agents.valid[row, steps]]][:, [StateField.X, StateField.Y]]
+    logged = np.asarray(logged, np.float64)
+    start = AgentOnLane.of(scenario, row, index)
+    xy = state[[StateField.X, StateField.Y]]
+    return ego_route(index, start, xy, float(state[StateField.HEADING]), logged[np.isfinite(logged[:, 0])])
 
 
 def _along(index: MapIndex, lanes: list[int], station: float, length: float, source: str) -> Route:

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from langtraj.env.route import Route, ego_route
 from langtraj.roads import MapIndex
+from langtraj.roads.mission import Route, ego_route
 from langtraj.roads.position import AgentOnLane
 from langtraj.scenario import MapFeature, MapFeatureType, RoadMap
 from langtraj.scenario.model import MPH_TO_MPS
