@@ -16,7 +16,8 @@ PROMPT = [{"agent": 7, "other": 1, "behaviour": "cut_in", "followed": True}]
 
 
 def _episode(case: str, seed: int, status: str, hit: tuple[int, ...] = ()) -> EpisodeResult:
-    prompts = [] if case == "drive" else PROMPT
+    followed = status != "fail" or bool(hit)  # a failure with no contact but the bystander's: before the cut-in
+    prompts = [] if case == "drive" else [PROMPT[0] | {"followed": followed and status != "not_happened"}]
     contacts = [{"step": 10, "with": 3}] + [{"step": 20 + k, "with": a} for k, a in enumerate(hit)]  # @3: a bystander
     return EpisodeResult(case, seed, status, prompts=prompts, ego=1, figures={"collisions": contacts})
 
@@ -41,7 +42,7 @@ def test_a_case_separates_when_it_happens_the_careful_pass_and_the_careless_hit_
         tmp_path,
         {
             "idm": {"cut-in-2": [("not_happened", ()), ("pass", ())]},
-            "cautious": {},
+            "cautious": {"cut-in-2": [("pass", ()), ("fail", ())]},  # seed 1: bystander @3 hit before the cut-in
             "constant_velocity": {"cut-in": [crash, crash], "cut-in-2": [crash, ("fail", (9,))]},
         },
     )
@@ -49,8 +50,11 @@ def test_a_case_separates_when_it_happens_the_careful_pass_and_the_careless_hit_
     assert rows["cut-in"].separates is True and rows["cut-in"].why == "separates"
     assert rows["cut-in-2"].separates is False
     assert rows["cut-in-2"].why == (
-        "did not happen in 1 of 2 under idm; the careless planner did not fail through the prompted agent in 1 of 2"
+        "did not happen in 1 of 2 under idm; did not happen in 1 of 2 under cautious (1 cut short by a failure first);"
+        " the careless planner did not fail through the prompted agent in 1 of 2"
     )
+    careful = {t.planner: t for t in rows["cut-in-2"].tallies}["cautious"]
+    assert (careful.happened, careful.passed, careful.failed, careful.cut_short) == (1, 1, 0, 1)
     assert rows["drive"].separates is None  # no prompt: nothing to separate
     careless = {t.planner: t for t in rows["cut-in-2"].tallies}["constant_velocity"]
     assert (careless.happened, careless.failed, careless.failed_through_prompted) == (2, 2, 1)

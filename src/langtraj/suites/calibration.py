@@ -31,8 +31,9 @@ CALIBRATION_FILE = "calibration"
 
 @dataclass(frozen=True)
 class PlannerTally:
-    """One case's episodes under one planner: how many, in how many the scenario happened (its prompts were followed;
-    not "not happened" nor an error), passed, failed, and failed by a collision with an agent a prompt names."""
+    """One case's episodes under one planner: how many, in how many the scenario happened, passed, failed, failed by a
+    collision with an agent a prompt names, and were cut short (failed before the scenario happened: a planner that
+    hits a bystander at 0.6 s never met the cut-in; `happened`)."""
 
     planner: str
     episodes: int
@@ -40,12 +41,13 @@ class PlannerTally:
     passed: int
     failed: int
     failed_through_prompted: int
+    cut_short: int = 0
 
     @classmethod
     def of(cls, planner: str, results: Sequence[EpisodeResult], staged: set[int]) -> PlannerTally:
         """The tally of `results`, failing "through the prompted agent" by any collision with one of `staged`
         (`verdict.contacts`: every contact, not only the first)."""
-        happened = [r for r in results if r.status in ("pass", "fail")]
+        happened = [r for r in results if happened_in(r, staged)]
         failed = [r for r in happened if r.status == "fail"]
         return cls(
             planner,
@@ -53,11 +55,29 @@ class PlannerTally:
             len(happened),
             sum(r.status == "pass" for r in happened),
             len(failed),
-            sum(bool(staged & {c["with"] for c in r.figures.get("collisions") or ()}) for r in failed),
+            sum(bool(staged & _hit(r)) for r in failed),
+            sum(r.status == "fail" for r in results) - len(failed),
         )
 
     def to_json(self) -> dict[str, Any]:
         return dict(vars(self))
+
+
+def _hit(result: EpisodeResult) -> set[int]:
+    """The agents the ego touched in the episode (every contact, `verdict.contacts`)."""
+    return {c["with"] for c in result.figures.get("collisions") or ()}
+
+
+def happened_in(result: EpisodeResult, staged: set[int]) -> bool:
+    """Whether the case's scenario happened in the episode: it passed (every prompt followed), or it failed by a
+    collision with an agent of `staged` (the adversary got in the ego's way) or with every prompt followed up to the
+    failure (`PromptVerdict.followed` not False, judged on the played steps). A failure before the scenario (a
+    contact with a bystander at 0.6 s, the cut-in not begun) did not test it: cut short, not happened."""
+    if result.status == "pass":
+        return True
+    if result.status != "fail":
+        return False
+    return bool(staged & _hit(result)) or not any(p.get("followed") is False for p in result.prompts)
 
 
 def _staged(case: Case, results: Sequence[EpisodeResult]) -> set[int]:
@@ -110,6 +130,7 @@ def calibrate(runs: Mapping[str, SuiteResults]) -> list[CaseCalibration]:
             continue
         why = [
             f"did not happen in {t.episodes - t.happened} of {t.episodes} under {t.planner}"
+            + (f" ({t.cut_short} cut short by a failure first)" if t.cut_short else "")
             for t in tallies
             if t.happened < t.episodes
         ]
@@ -148,7 +169,8 @@ def markdown(rows: Sequence[CaseCalibration]) -> str:
     lines = [
         "# Calibration: does each case tell a careless planner from a careful one?",
         "",
-        "Per planner: episodes where the scenario happened / passed / failed through the prompted agent, of all.",
+        "Per planner: episodes where the scenario happened / passed / failed through the prompted agent, of all. An",
+        "episode that failed before its scenario happened (a bystander hit first) is cut short: not happened.",
         "",
         head,
         "| --- " * (len(planners) + 2) + "|",
