@@ -315,3 +315,18 @@ def test_a_cut_in_moving_across_in_front_of_a_crawling_other_does_not_crawl_acro
     settled = np.flatnonzero((np.abs(states[:, 1]) < 1.0) & (np.abs(states[:, 2]) < math.radians(8.0)))
     assert settled.size and settled[0] / 10 <= 4.0
     assert state[0] - other[0] == pytest.approx(14.5, abs=4.0)  # and near its lead, having slowed once in the lane
+
+
+def test_an_overtake_from_behind_arrives_at_its_lead_at_the_others_speed_and_cuts_in_without_running_on():
+    """From 15 m behind an other at 12 m/s, 4 m/s faster (as the overtake's target asks), it closes no faster than it
+    can shed again (`CUT_IN_APPROACH`): it reaches its lead at about the other's speed and moves across there. The
+    damped law alone ran on to 22 m ahead, braking at 2 m/s^2 too late, and never moved across within 8 s."""
+    lead = 14.5
+    script = CuttingIn(lead_m=lead, settle_s=20.0, cruise_mps=9.0)
+    state, other = [-15.0, 3.5, 0.0, 16.0], [0.0, 0.0, 0.0, 12.0]
+    states = _tick_cut_in(script, state, other, {}, steps=80)
+    leads = states[:, 0] - 12.0 * 0.1 * np.arange(1, 81)  # the other at 12 m/s throughout
+    assert leads.max() < lead + 1.5  # never past its lead by more than the judge's slack
+    in_lane = np.flatnonzero(np.abs(states[:, 1]) < 0.5)
+    assert in_lane.size and in_lane[0] / 10 <= 7.5  # moved across within the scenario
+    assert leads[-1] == pytest.approx(lead, abs=1.0) and abs(states[-1, 3] - 12.0) < 1.0

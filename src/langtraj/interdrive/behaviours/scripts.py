@@ -286,10 +286,27 @@ def _keep_lead(
     hardest: float = -CUT_IN_ACCELERATIONS[0],
 ) -> float:
     """The acceleration (m/s^2) that brings the agent to `lead_m` ahead of the other (behind it where negative) and to
-    its speed (within `CUT_IN_ACCELERATIONS`), on top of the other's own `other_accel`, braking at most `hardest`."""
-    correction = CUT_IN_GAP_GAIN * (lead_m - lead) + CUT_IN_SPEED_GAIN * (other[3] - state[3])
+    its speed (within `CUT_IN_ACCELERATIONS`), on top of the other's own `other_accel`, braking at most `hardest`: it
+    closes on the lead no faster than it can shed that speed again at `CUT_IN_APPROACH` (`_closing`)."""
+    correction = CUT_IN_SPEED_GAIN * (_closing(lead_m - lead) - (state[3] - other[3]))
     accel = other_accel + float(np.clip(correction, *CUT_IN_ACCELERATIONS))
     return float(np.clip(accel, -hardest, CUT_IN_ACCELERATIONS[1]))
+
+
+CUT_IN_APPROACH = 1.5
+"""The relative deceleration (m/s^2) a scripted agent plans to match the other's speed with as it reaches its lead:
+the damped law alone (`CUT_IN_GAP_GAIN`, `CUT_IN_SPEED_GAIN`) closes a large gap faster than the acceleration limits
+can undo, and an overtake from 26 m behind an ego speeding up ran on to 42-55 m ahead of it, never to cut in."""
+
+
+def _closing(error: float) -> float:
+    """How fast (m/s, signed as `error`) the agent closes on its lead `error` m away: the damped law's
+    `CUT_IN_GAP_GAIN` / `CUT_IN_SPEED_GAIN` per metre near it, and no faster than stopping at `CUT_IN_APPROACH` allows
+    farther off (a braking curve: it arrives at the other's speed, without overshooting)."""
+    distance = abs(error)
+    return math.copysign(
+        min(CUT_IN_GAP_GAIN / CUT_IN_SPEED_GAIN * distance, math.sqrt(2.0 * CUT_IN_APPROACH * distance)), error
+    )
 
 
 @dataclass(frozen=True)
