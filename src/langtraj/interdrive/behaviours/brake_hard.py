@@ -74,24 +74,32 @@ _BRAKE_HARD = [
 # ---------------------------------------------------------------------------------------------- target
 
 
+def brake_hard_min_speed(deceleration: float) -> float:
+    """The least speed (m/s) a lead braking at `deceleration` must have: `BRAKE_HARD_MIN_SPEED`, and enough for the
+    judge to read a whole window of that braking from its least speed (`judging.brake_hard.MIN_SPEED` plus
+    `deceleration` over `PEAK_WINDOW_S`): a lead at 5 m/s asked 6 m/s^2 stops within the window, and read 4.4."""
+    return max(BRAKE_HARD_MIN_SPEED, judged_by.MIN_SPEED + deceleration * judged_by.PEAK_WINDOW_S)
+
+
 def _brake_hard(ctx: TargetContext, agent: AgentHere, other: AgentHere, deceleration: float) -> BehaviourTarget:
-    """The agent's lane ahead and the stop that braking at `deceleration` from `BRAKE_HARD_AFTER_S` brings it to,
+    """The agent's way ahead in the other's path (`TargetContext.in_path_of`: the other's route where it drives on
+    it, else its own lane ahead) and the stop that braking at `deceleration` from `BRAKE_HARD_AFTER_S` brings it to,
     the other following within `FOLLOWER_RANGE_M` (Euro NCAP's braking lead vehicle). Infeasible for a deceleration
-    outside `BRAKE_HARD_LIMITS`, an agent slower than `BRAKE_HARD_MIN_SPEED`, or no such follower."""
+    outside `BRAKE_HARD_LIMITS`, an agent slower than `brake_hard_min_speed`, or no such follower."""
     behaviour, v = Behaviour.BRAKE_HARD, agent.here.speed
     low, high = BRAKE_HARD_LIMITS
     if not low <= deceleration <= high:
         reason = f"braking at {deceleration:g} m/s^2 is outside {low:g} to {high:g} m/s^2 (hard, and what tyres give)"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
-    if v < BRAKE_HARD_MIN_SPEED:
-        reason = f"it is too slow to brake hard ({v:.1f} m/s; at least {BRAKE_HARD_MIN_SPEED:g})"
+    if v < (least := brake_hard_min_speed(deceleration)):
+        reason = f"it is too slow to brake hard at {deceleration:g} m/s^2 ({v:.1f} m/s; at least {least:g})"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
     gap = pair_gap(ctx, agent, other, behaviour, lead=agent, where="behind")
     station = v * BRAKE_HARD_AFTER_S + v * v / (2.0 * deceleration)
     return BehaviourTarget(
         agent.track_id,
         behaviour,
-        ctx.ahead(agent),
+        ctx.in_path_of(agent, other),
         f"braking at {deceleration:g} m/s^2 from {BRAKE_HARD_AFTER_S:g} s to rest {station:.0f} m ahead, "
         f"@{other.track_id} {gap:.0f} m behind",
         station_of_goal=float(station),
