@@ -151,7 +151,7 @@ def test_sweep_values_are_read_from_the_case_names():
 
 def test_a_prompt_the_scene_ruled_out_reads_apart_from_one_not_followed():
     verdict = PromptVerdict("@5 brakes hard in front of @1", "read as: @5 brake_hard @1", "brake_hard", 5, 1, False)
-    warning = "@5 cannot brake hard in front of @1: it is too slow to brake hard at 4 m/s^2 (0.0 m/s; at least 5)"
+    warning = "@5 cannot brake hard in front of @1: it is too slow to brake hard at 4 m/s^2 (0.0 m/s; at least 4)"
     (ruled_out,) = not_happened([verdict], [warning, "@7 cannot turn left: no junction"])
     assert ruled_out.startswith("scenario could not happen: '@5 brakes hard in front of @1'") and warning in ruled_out
     (plain,) = not_happened([verdict], ["@7 cannot turn left: no junction"])

@@ -75,10 +75,9 @@ _BRAKE_HARD = [
 
 
 def brake_hard_min_speed(deceleration: float) -> float:
-    """The least speed (m/s) a lead braking at `deceleration` must have: `BRAKE_HARD_MIN_SPEED`, and enough for the
-    judge to read a whole window of that braking from its least speed (`judging.brake_hard.MIN_SPEED` plus
-    `deceleration` over `PEAK_WINDOW_S`): a lead at 5 m/s asked 6 m/s^2 stops within the window, and read 4.4."""
-    return max(BRAKE_HARD_MIN_SPEED, judged_by.MIN_SPEED + deceleration * judged_by.PEAK_WINDOW_S)
+    """The least speed (m/s) a lead braking at `deceleration` must have: `BRAKE_HARD_MIN_SPEED`, and enough not to
+    stop within the judge's window (`deceleration` over `judging.brake_hard.PEAK_WINDOW_S`), which would read less."""
+    return max(BRAKE_HARD_MIN_SPEED, deceleration * judged_by.PEAK_WINDOW_S)
 
 
 def _brake_hard(ctx: TargetContext, agent: AgentHere, other: AgentHere, deceleration: float) -> BehaviourTarget:
