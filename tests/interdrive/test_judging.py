@@ -630,3 +630,12 @@ def test_a_cut_in_that_never_settled_says_how_the_other_drove_meanwhile():
     assert "m ahead (10 m asked)" in why
     # an other that keeps its speed is not named
     assert "its own doing" not in _judge("cut_in", EPISODES["cut_in out of path"].scene, 2, 1, {}).why
+
+
+def test_a_cut_in_held_back_by_a_car_ahead_in_its_own_lane_names_it():
+    # the cutter keeps 2 m ahead of the other, beside it, 10 m behind a car in its own lane: short of the asked 10 m
+    held = episode({1: track(10 * t, 0.0), 2: track(10 * t + 2.0, 3.5), 3: track(10 * t + 16.5, 3.5)})
+    why = _judge("cut_in", held, 2, 1, {"gap": 10.0}).why
+    assert "; held behind @3 in its own lane (10-10 m ahead of it)" in why
+    free = episode({1: track(10 * t, 0.0), 2: track(10 * t + 2.0, 3.5), 3: track(10 * t + 16.5, 7.0)})
+    assert "held behind" not in _judge("cut_in", free, 2, 1, {"gap": 10.0}).why  # the car is a lane further over

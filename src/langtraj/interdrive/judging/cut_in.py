@@ -29,6 +29,7 @@ from langtraj.interdrive.judging.base import (
 )
 from langtraj.runs import true_runs
 from langtraj.scenario.model import STEP_SECONDS, Scenario
+from langtraj.scenario.types import StateField
 
 """What a prompt may ask of a cut-in: `gap`, bumper to bumper in metres ("with a 15 m gap")."""
 GAP_TOLERANCE_M = 3.0
@@ -143,10 +144,50 @@ def never_settled(view: PairView, after: int, asked_gap: float) -> str:
     return f"{why}: beside it, {low:.0f}-{high:.0f} m ahead of {other}'s front {asked}"
 
 
-def judge_settling(view: PairView, asked_gap: float, after: int, extra: tuple[Measure, ...] = ()) -> Judgement:
+HELD_AHEAD_M = 25.0
+"""A third car this close (m, bumper to bumper) ahead of a cut-in that stays short of its gap beside the other, in
+its own lane (`HELD_LATERAL_M`), held it back (`held_behind`)."""
+HELD_LATERAL_M = 1.5
+"""... its centre within this (m) of the cut-in's heading line."""
+HELD_SHARE = 0.5
+"""... at this share of those steps or more."""
+
+
+def held_behind(scene: Scenario, view: PairView, after: int, asked_gap: float) -> str | None:
+    """Who held the cut-in back, where it stayed beside the other short of `asked_gap` after step `after`: the agent
+    most often ahead of it in its own lane within `HELD_AHEAD_M` (at `HELD_SHARE` of those steps or more), as "held
+    behind @12 in its own lane (6-9 m ahead of it)"; None where none did. The traffic's doing, not the other's."""
+    with np.errstate(invalid="ignore"):
+        short = (np.arange(view.steps) >= after) & view.both & (np.abs(view.across) >= OUT_OF_PATH_M)
+        short &= view.gap_ahead < asked_gap - gap_tolerance(asked_gap)
+    steps = np.flatnonzero(short)
+    if not steps.size:
+        return None
+    first = min(int(scene.current_index), scene.num_steps - 1)
+    agents = scene.agents
+    ids = agents.ids
+    rows = first + steps
+    states = agents.states[:, rows].astype(np.float64)  # [A, S, F]
+    rel = states[..., [StateField.X, StateField.Y]] - view.agent.xy[steps][None]
+    cos, sin = np.cos(view.agent.heading[steps])[None], np.sin(view.agent.heading[steps])[None]
+    ahead = rel[..., 0] * cos + rel[..., 1] * sin - 0.5 * (states[..., StateField.LENGTH] + view.agent.length[steps])
+    lateral = np.abs(rel[..., 1] * cos - rel[..., 0] * sin)
+    mine = np.isin(ids, [view.agent.track_id, view.other.track_id])[:, None]
+    held = agents.valid[:, rows] & ~mine & (ahead > 0.0) & (ahead <= HELD_AHEAD_M) & (lateral <= HELD_LATERAL_M)
+    counts = held.sum(axis=1)
+    best = int(np.argmax(counts))
+    if counts[best] < HELD_SHARE * len(steps):
+        return None
+    gaps = ahead[best][held[best]]
+    return f"held behind @{int(ids[best])} in its own lane ({gaps.min():.0f}-{gaps.max():.0f} m ahead of it)"
+
+
+def judge_settling(
+    view: PairView, asked_gap: float, after: int, extra: tuple[Measure, ...] = (), held: str | None = None
+) -> Judgement:
     """The cut-in's verdict once the agent was out of the other's path at step `after`: its gap when it settles
     against `asked_gap`, and the time it took; `extra` measures (an overtake's) precede them, and any of them not ok
-    fails it too."""
+    fails it too. `held`: who held it back in its own lane (`held_behind`), said where it never settled."""
     other = f"@{view.other.track_id}"
     contact = view.contact_step
     step = settling(view, after)
@@ -164,7 +205,9 @@ def judge_settling(view: PairView, asked_gap: float, after: int, extra: tuple[Me
     if step is None:
         why = cut_short(contact) if contact is not None else never_settled(view, after, asked_gap)
         drove = None if contact is not None else how_other_drove(view)
-        return Judgement(False, measures, "; ".join([why, *([drove] if drove else []), *missed]), None, contact)
+        held = None if contact is not None else held
+        why = "; ".join([why, *([held] if held else []), *([drove] if drove else []), *missed])
+        return Judgement(False, measures, why, None, contact)
     if missed:
         return Judgement(False, measures, "; ".join(missed), step, contact)
     why = f"settled {gap:.1f} m ahead of {other} in its path at {at(step)} ({measures[-2].describe()})"
@@ -184,4 +227,4 @@ def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -
         return Judgement(
             False, (gap, Measure("time to settle", "s", None, None, None, None)), why, None, view.contact_step
         )
-    return judge_settling(view, asked_gap, after)
+    return judge_settling(view, asked_gap, after, held=held_behind(scene, view, after, asked_gap))
