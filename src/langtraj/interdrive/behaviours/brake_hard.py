@@ -76,7 +76,8 @@ _BRAKE_HARD = [
 
 def brake_hard_min_speed(deceleration: float) -> float:
     """The least speed (m/s) a lead braking at `deceleration` must have: `BRAKE_HARD_MIN_SPEED`, and enough not to
-    stop within the judge's window (`deceleration` over `judging.brake_hard.PEAK_WINDOW_S`), which would read less."""
+    stop within the judge's 0.5-s window (`deceleration` over `judging.brake_hard.PEAK_WINDOW_S`), which would read
+    less: it binds beyond 8 m/s^2."""
     return max(BRAKE_HARD_MIN_SPEED, deceleration * judged_by.PEAK_WINDOW_S)
 
 

@@ -162,10 +162,8 @@ def traffic_at(now: ScriptState, action: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Braking(Script):
-    """From `start_s`, slowing at `deceleration` m/s^2 to rest and standing, its speed held before (the scene as it
-    was: the model, conditioned on the stop to come, slowed a 5-m/s lead in the first second, so that it stopped
-    within the judge's 0.5-s window and read 4.4 where 6 was asked), keeping to its path throughout (pure pursuit),
-    never into the traffic ahead (`keep_behind`)."""
+    """From `start_s`, slowing at `deceleration` m/s^2 to rest and standing (the model's acceleration before), and
+    keeping to its path throughout (pure pursuit), never into the traffic ahead (`keep_behind`)."""
 
     start_s: float
     deceleration: float
@@ -175,13 +173,14 @@ class Braking(Script):
         state = [float(v) for v in now.agent]
         for k in range(now.count):
             t = now.elapsed_s + k * now.per_action * now.dt
-            accel = -self.deceleration if t >= self.start_s - 1e-6 else 0.0
-            accel = keep_behind(accel, state, now.path, now, traffic_at(now, k))
+            accel = -self.deceleration if t >= self.start_s - 1e-6 else np.nan
+            if not np.isnan(accel):
+                accel = keep_behind(accel, state, now.path, now, traffic_at(now, k))
             ahead = max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3])
             rate = pursuit_rate(*state, now.path, ahead, now.max_yaw_rate)
             out[k] = (accel, rate)
             for _ in range(now.per_action):
-                unicycle_step(state, accel, rate, now.dt)
+                unicycle_step(state, 0.0 if np.isnan(accel) else accel, rate, now.dt)
         return out
 
 
