@@ -430,18 +430,6 @@ def test_a_braking_lead_stops_in_its_lane_where_the_asked_deceleration_brings_it
         derive_target(brisk, 1, Behaviour.BRAKE_HARD, index, other_id=2, deceleration=10.0)
 
 
-def test_a_braking_lead_on_the_route_of_the_agent_behind_it_keeps_to_that_route():
-    """The lead's own lane goes straight on at the junction; the follower's route (an ego's mission) turns left: the
-    lead braking in front of it keeps to the route (`TargetContext.in_path_of`), not leaving its path while braking."""
-    s = scene(four_way(), drive(LEFT_LANE_STRAIGHT, start=45.0), drive(LEFT_LANE_STRAIGHT, start=30.0))
-    index = MapIndex.build(s.road_map)
-    left = derive_target(s, 2, Behaviour.TURN_LEFT, index).path
-    own = derive_target(s, 1, Behaviour.BRAKE_HARD, index, other_id=2).path
-    assert np.abs(own[:, 0] + HALF).max() < 0.2  # straight on, its lane's straightest exit
-    turning = derive_target(s, 1, Behaviour.BRAKE_HARD, index, other_id=2, routes={2: left}).path
-    assert turning[-1, 0] < -20.0 and abs(turning[-1, 1] - HALF) < 0.2  # westbound on the left turn's exit
-
-
 def test_a_tailgater_closes_to_the_short_headway_behind_the_other_in_its_lane():
     s = scene(two_lane_road(), _eastbound_from(0.0), _eastbound_from(20.0))  # 1 is 15.5 m behind 2, both 10 m/s
     target = _target(s, 1, Behaviour.TAILGATE, 2)

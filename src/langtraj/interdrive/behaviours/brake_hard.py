@@ -82,8 +82,7 @@ def brake_hard_min_speed(deceleration: float) -> float:
 
 
 def _brake_hard(ctx: TargetContext, agent: AgentHere, other: AgentHere, deceleration: float) -> BehaviourTarget:
-    """The agent's way ahead in the other's path (`TargetContext.in_path_of`: the other's route where it drives on
-    it, else its own lane ahead) and the stop that braking at `deceleration` from `BRAKE_HARD_AFTER_S` brings it to,
+    """The agent's lane ahead and the stop that braking at `deceleration` from `BRAKE_HARD_AFTER_S` brings it to,
     the other following within `FOLLOWER_RANGE_M` (Euro NCAP's braking lead vehicle). Infeasible for a deceleration
     outside `BRAKE_HARD_LIMITS`, an agent slower than `brake_hard_min_speed`, or no such follower."""
     behaviour, v = Behaviour.BRAKE_HARD, agent.here.speed
@@ -99,7 +98,7 @@ def _brake_hard(ctx: TargetContext, agent: AgentHere, other: AgentHere, decelera
     return BehaviourTarget(
         agent.track_id,
         behaviour,
-        ctx.in_path_of(agent, other),
+        ctx.ahead(agent),
         f"braking at {deceleration:g} m/s^2 from {BRAKE_HARD_AFTER_S:g} s to rest {station:.0f} m ahead, "
         f"@{other.track_id} {gap:.0f} m behind",
         station_of_goal=float(station),

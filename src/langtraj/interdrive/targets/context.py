@@ -200,13 +200,6 @@ class TargetContext:
         more than `ON_ROUTE_M` off it."""
         return _along(self.routes.get(agent.track_id), agent)
 
-    def in_path_of(self, agent: AgentHere, other: AgentHere) -> np.ndarray:
-        """The agent's way ahead in the other's path: the other's known route from where the agent is on it (a lead
-        braking in front of an ego keeps to the road the ego takes, not the exit its own lane turns into), where the
-        other has one and the agent is within `ON_ROUTE_M` of it; else the agent's own way (`ahead`)."""
-        found = _along(self.routes.get(other.track_id), agent)
-        return found if found is not None else self.ahead(agent)
-
     def ways_ahead(self, agent: AgentHere) -> list[np.ndarray]:
         """Every way the agent may go: its known route alone where it drives one (`on_route`); else its lane ahead
         first, then each branch of the next junction."""
