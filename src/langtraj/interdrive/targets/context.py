@@ -92,22 +92,6 @@ class AgentHere:
         return self.here.lane >= 0
 
 
-def _along(known: np.ndarray | None, agent: AgentHere) -> np.ndarray | None:
-    """`known` (a route [P, 2]) from the agent's nearest point on it, `agent.reach` m of it at least where the route
-    has them; None where there is no route or the agent is more than `ON_ROUTE_M` off it."""
-    if known is None or len(known) < 2:
-        return None
-    found = project_on_polyline(agent.xy[None], known)
-    if float(found.distance[0]) > ON_ROUTE_M:
-        return None
-    stations = arc_lengths(known)
-    start = float(found.station[0])
-    keep = (stations > start) & (stations <= start + max(agent.reach, ROUTE_SPACING))
-    first = np.array([np.interp(start, stations, known[:, 0]), np.interp(start, stations, known[:, 1])])
-    out = np.concatenate([first[None], known[keep]])
-    return out if len(out) >= 2 else None
-
-
 class TargetContext:
     """One scene's map read for targets: the map index, the settings and, per agent, where it is, the next junction's
     branches and its road ahead, each computed once, so that asking about every behaviour of an agent
@@ -115,7 +99,8 @@ class TargetContext:
 
     `routes`: track id -> the route [P, 2] (world frame) an agent is known to drive: an ego under a planner drives the
     mission it is given (`roads.mission`), not whichever branch the straightest exits or the junction's list give, so
-    a target toward it (a runner across its way, a lead braking on it) reads that route as its one way ahead."""
+    a target toward it (a runner across its way, a pull-out timed to its arrival) reads that route as its one way
+    ahead."""
 
     def __init__(
         self,
@@ -196,9 +181,20 @@ class TargetContext:
         return straight_line(agent.xy, agent.heading, max(20.0, agent.here.speed * HORIZON_S + 10.0))
 
     def on_route(self, agent: AgentHere) -> np.ndarray | None:
-        """The agent's known route (`routes`) from its nearest point on (`_along`); None where it has none or is
-        more than `ON_ROUTE_M` off it."""
-        return _along(self.routes.get(agent.track_id), agent)
+        """The agent's known route (`routes`) from its nearest point on, `agent.reach` m of it at least where the
+        route has them; None where it has none or is more than `ON_ROUTE_M` off it."""
+        known = self.routes.get(agent.track_id)
+        if known is None or len(known) < 2:
+            return None
+        found = project_on_polyline(agent.xy[None], known)
+        if float(found.distance[0]) > ON_ROUTE_M:
+            return None
+        stations = arc_lengths(known)
+        start = float(found.station[0])
+        keep = (stations > start) & (stations <= start + max(agent.reach, ROUTE_SPACING))
+        first = np.array([np.interp(start, stations, known[:, 0]), np.interp(start, stations, known[:, 1])])
+        out = np.concatenate([first[None], known[keep]])
+        return out if len(out) >= 2 else None
 
     def ways_ahead(self, agent: AgentHere) -> list[np.ndarray]:
         """Every way the agent may go: its known route alone where it drives one (`on_route`); else its lane ahead
