@@ -23,7 +23,7 @@ from langtraj.interdrive.targets.lanes_ahead import (
     stations_ahead,
 )
 from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
-from langtraj.polylines import arc_lengths, project_on_polyline, resample
+from langtraj.polylines import arc_lengths, point_at, project_on_polyline, resample
 from langtraj.roads import MapIndex
 from langtraj.roads.position import current_speeds
 from langtraj.roads.routes import ROUTE_SPACING, route, straight_line
@@ -111,6 +111,7 @@ class TargetContext:
     ):
         self.scenario, self.index, self.config = scenario, index, config or CounterfactualConfig()
         self.routes = dict(routes or {})
+        self._on_route: dict[int, np.ndarray | None] = {}
         self._agents: dict[int, AgentHere | None] = {}
         self._junctions: dict[int, JunctionAhead] = {}
         self._stations: dict[int, list[StationAhead]] = {}
@@ -182,18 +183,21 @@ class TargetContext:
 
     def on_route(self, agent: AgentHere) -> np.ndarray | None:
         """The agent's known route (`routes`) from its nearest point on, `agent.reach` m of it at least where the
-        route has them; None where it has none or is more than `ON_ROUTE_M` off it."""
+        route has them; None where it has none or is more than `ON_ROUTE_M` off it. Found once per agent."""
+        if agent.track_id not in self._on_route:
+            self._on_route[agent.track_id] = self._read_route(agent)
+        return self._on_route[agent.track_id]
+
+    def _read_route(self, agent: AgentHere) -> np.ndarray | None:
         known = self.routes.get(agent.track_id)
         if known is None or len(known) < 2:
             return None
         found = project_on_polyline(agent.xy[None], known)
         if float(found.distance[0]) > ON_ROUTE_M:
             return None
-        stations = arc_lengths(known)
-        start = float(found.station[0])
+        stations, start = arc_lengths(known), float(found.station[0])
         keep = (stations > start) & (stations <= start + max(agent.reach, ROUTE_SPACING))
-        first = np.array([np.interp(start, stations, known[:, 0]), np.interp(start, stations, known[:, 1])])
-        out = np.concatenate([first[None], known[keep]])
+        out = np.concatenate([point_at(known, start)[None], known[keep]])
         return out if len(out) >= 2 else None
 
     def ways_ahead(self, agent: AgentHere) -> list[np.ndarray]:
