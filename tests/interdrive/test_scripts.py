@@ -330,3 +330,25 @@ def test_an_overtake_from_behind_arrives_at_its_lead_at_the_others_speed_and_cut
     in_lane = np.flatnonzero(np.abs(states[:, 1]) < 0.5)
     assert in_lane.size and in_lane[0] / 10 <= 7.5  # moved across within the scenario
     assert leads[-1] == pytest.approx(lead, abs=1.0) and abs(states[-1, 3] - 12.0) < 1.0
+
+
+def test_a_cut_in_held_back_in_its_own_lane_moves_across_when_it_would_enter_at_its_lead_and_the_others_speed():
+    """The example suite's on-ramp cut-in: a car 27 m ahead in the cutter's own lane holds it at 18 m/s while the other
+    comes up 4 m/s faster and speeds up. In its own lane it can never match the other's speed; it moves across when, free
+    of that car, it would enter the lane at about its lead and the other's speed (`CUT_IN_ENTRY_S`), and does so."""
+    lead = 15.0 + 4.5
+    script = CuttingIn(lead_m=lead, settle_s=20.0, cruise_mps=9.0)
+    state, other, memory = [35.0, 3.5, 0.0, 18.0], [0.0, 0.0, 0.0, 22.0], {}
+    slow = np.array([[62.0, 3.5, 0.0, 18.0, 4.5, 2.0]])  # 27 m ahead in the cutter's lane at 18 m/s
+    entered = None
+    for step in range(80):
+        now = ScriptState(np.asarray(state), np.asarray(other), 0.4, LANE, step / 10, 1, 1, 0.1, 1.5, own_lane=BESIDE,
+                          new_lane=LANE, traffic=slow.copy(), memory=memory)  # fmt: skip
+        accel, rate = script.plan(now)[0]
+        unicycle_step(state, float(accel), float(rate), 0.1)
+        unicycle_step(other, 0.4, 0.0, 0.1)
+        slow[0, 0] += 1.8
+        if entered is None and abs(state[1]) < 1.75:
+            entered = (state[0] - other[0], state[3] - other[3])
+    assert entered is not None  # before: it waited beside, 4-5 m/s slower, to the end
+    assert entered[0] == pytest.approx(lead, abs=3.0) and abs(entered[1]) <= CUT_IN_MATCHED_MPS

@@ -206,13 +206,13 @@ metre: its rear past the other's front): it pulls in ahead of the other, never a
 
 
 CUT_IN_GAP_SLACK_M = 2.0
-"""How much nearer than its lead a cut-in may be when it moves across (m): it pulls in at about the asked gap, not
+"""How much nearer than its lead a cut-in may be when it enters the lane (m, `CUT_IN_ENTRY_S`): it pulls in at about the asked gap, not
 the first moment it could (3 m ahead of a follower's bumper made the planners brake hard and the gap it settled at
 20-27 m)."""
-CUT_IN_FAR_SLACK_M = 3.0
-"""How much farther than its lead a cut-in may be when it moves across (m): it closes in while it moves, but from
-farther ahead a follower that brakes for the move keeps the gap open (at 5 m a held-out cut-in entered at a 13.4 m
-gap where 10 were asked)."""
+CUT_IN_FAR_SLACK_M = 1.5
+"""How much farther than its lead a cut-in may be when it enters the lane (m, `CUT_IN_ENTRY_S`): a follower that brakes
+for the move opens the gap meanwhile (at 5 m on the lead when it turned, a held-out cut-in entered at a 13.4 m gap
+where 10 were asked)."""
 CUT_IN_CROSSING_MIN_MPS = 3.0
 """The least speed (m/s) a cut-in keeps while it moves across: a lane change at a crawl does not end within a scenario
 (behind a cautious ego at 2 m/s, a validation cut-in slowed to 0.7-1.6 m/s, turned 26-35 degrees off the lane, and
@@ -223,9 +223,14 @@ never straighten: its yaw rate goes with its speed)."""
 CUT_IN_IN_LANE_M = 0.7
 """How near its path (m) a cut-in is once in the lane: from then (and its settling time) it drives on slower."""
 CUT_IN_MATCHED_MPS = 3.0
-"""How much faster or slower than the other (m/s) a cut-in may be when it moves across: it first matches the other's
-speed in its own lane, so that the gap it enters at is the one it holds (a cutter 12 m/s faster than the ego entered
-the lane 20-30 m ahead where 10 were asked)."""
+"""How much faster or slower than the other (m/s) a cut-in may be when it enters the lane (`CUT_IN_ENTRY_S` on): it
+first matches the other's speed, so that the gap it enters at is the one it holds (a cutter 12 m/s faster than the
+ego entered the lane 20-30 m ahead where 10 were asked)."""
+CUT_IN_ENTRY_S = 1.2
+"""How long (s) after it turns a cut-in's centre enters the lane (`CUT_IN_LOOK_AHEAD_S`): it moves across when its lead
+and speed then, as it would close on them once free of its own lane's traffic, are the asked ones (the gap acceptance
+on the moment of entry, not on the present: a cutter held 4 m/s slower than an ego speeding up by a car ahead in its
+own lane never matched its speed there, and never moved across)."""
 CUT_IN_WAIT_DECEL = 2.0
 """The hardest a cut-in brakes in its own lane (m/s^2), letting the other come up before it moves across: comfortable,
 as a driver drops back to a gap in the next lane. Where the other brakes, this on top of its braking (at most
@@ -377,14 +382,33 @@ class CuttingIn(Script):
         traffic: np.ndarray,
     ) -> bool:
         """Whether the cut-in moves across now: committed (`CUT_IN_COMMITTED_M` nearer the lane it moves into, `off`
-        m away, than its own lane's centre is), or clear ahead of the other (`CUT_IN_CLEAR_M`), near its lead
-        (`CUT_IN_GAP_SLACK_M`, `CUT_IN_FAR_SLACK_M`), within `CUT_IN_MATCHED_MPS` of the other's speed, and with its
-        place in the lane free of the traffic (`slot_free`)."""
+        m away, than its own lane's centre is), or clear ahead of the other (`CUT_IN_CLEAR_M`) with its place in the
+        lane free of the traffic (`slot_free`), and on entering the lane (`_at_entry`) near its lead
+        (`CUT_IN_GAP_SLACK_M`, `CUT_IN_FAR_SLACK_M`) and within `CUT_IN_MATCHED_MPS` of the other's speed."""
         centre = point_at(own, float(project_on_polyline(np.array([state[:2]]), own).station[0]))
         if float(project_on_polyline(centre[None, :2], into).distance[0]) - off > CUT_IN_COMMITTED_M:
             return True
-        near = max(CUT_IN_CLEAR_M, self.lead_m - CUT_IN_GAP_SLACK_M) <= lead <= self.lead_m + CUT_IN_FAR_SLACK_M
-        return near and abs(state[3] - other[3]) <= CUT_IN_MATCHED_MPS and slot_free(state, into, now, traffic)
+        if lead < CUT_IN_CLEAR_M or not slot_free(state, into, now, traffic):
+            return False
+        cap = keep_behind(CUT_IN_ACCELERATIONS[1], state, into, now, with_other(traffic, other, now))
+        entry, faster = self._at_entry(lead, state[3], other[3], now.other_accel, cap, now.dt)
+        near = max(CUT_IN_CLEAR_M, self.lead_m - CUT_IN_GAP_SLACK_M) <= entry <= self.lead_m + CUT_IN_FAR_SLACK_M
+        return near and abs(faster) <= CUT_IN_MATCHED_MPS
+
+    def _at_entry(
+        self, lead: float, speed: float, theirs: float, other_accel: float, cap: float, dt: float
+    ) -> tuple[float, float]:
+        """The lead (m) and how much faster than the other (m/s) the cut-in is `CUT_IN_ENTRY_S` after it turns now:
+        closing on its lead as it does while it moves across (`_keep_lead`, the other's braking matched, at least
+        `CUT_IN_CROSSING_MIN_MPS`), at most `cap` (what the traffic ahead in the lane it moves into allows), the other
+        at its present acceleration."""
+        for _ in range(round(CUT_IN_ENTRY_S / dt)):
+            accel = min(_keep_lead(self.lead_m, lead, [0.0, 0.0, 0.0, speed], [0.0, 0.0, 0.0, theirs], other_accel,
+                                   SCRIPT_HARD_BRAKE), cap)  # fmt: skip
+            accel = max(accel, CUT_IN_SPEED_GAIN * (CUT_IN_CROSSING_MIN_MPS - speed))
+            speed, theirs = max(speed + accel * dt, 0.0), max(theirs + other_accel * dt, 0.0)
+            lead += (speed - theirs) * dt
+        return lead, speed - theirs
 
 
 TRAIL_SPACING_M = 1.0
