@@ -333,9 +333,9 @@ def test_an_overtake_from_behind_arrives_at_its_lead_at_the_others_speed_and_cut
 
 
 def test_a_cut_in_held_back_in_its_own_lane_moves_across_when_it_would_enter_at_its_lead_and_the_others_speed():
-    """The example suite's on-ramp cut-in: a car 27 m ahead in the cutter's own lane holds it at 18 m/s while the other
-    comes up 4 m/s faster and speeds up. In its own lane it can never match the other's speed; it moves across when, free
-    of that car, it would enter the lane at about its lead and the other's speed (`CUT_IN_ENTRY_S`), and does so."""
+    """The example suite's on-ramp cut-in: a car 27 m ahead in the cutter's own lane holds it at 18 m/s while the
+    other comes up 4 m/s faster and speeds up. In its own lane it can never match the other's speed; it moves across
+    when, free of that car, it would enter the lane at about its lead and the other's speed (`CUT_IN_ENTRY_S`)."""
     lead = 15.0 + 4.5
     script = CuttingIn(lead_m=lead, settle_s=20.0, cruise_mps=9.0)
     state, other, memory = [35.0, 3.5, 0.0, 18.0], [0.0, 0.0, 0.0, 22.0], {}

@@ -206,9 +206,9 @@ metre: its rear past the other's front): it pulls in ahead of the other, never a
 
 
 CUT_IN_GAP_SLACK_M = 2.0
-"""How much nearer than its lead a cut-in may be when it enters the lane (m, `CUT_IN_ENTRY_S`): it pulls in at about the asked gap, not
-the first moment it could (3 m ahead of a follower's bumper made the planners brake hard and the gap it settled at
-20-27 m)."""
+"""How much nearer than its lead a cut-in may be when it enters the lane (m, `CUT_IN_ENTRY_S`): it pulls in at about
+the asked gap, not the first moment it could (3 m ahead of a follower's bumper made the planners brake hard and the
+gap it settled at 20-27 m)."""
 CUT_IN_FAR_SLACK_M = 1.5
 """How much farther than its lead a cut-in may be when it enters the lane (m, `CUT_IN_ENTRY_S`): a follower that brakes
 for the move opens the gap meanwhile (at 5 m on the lead when it turned, a held-out cut-in entered at a 13.4 m gap
