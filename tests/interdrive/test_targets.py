@@ -467,3 +467,39 @@ def test_a_stop_after_a_manoeuvre_lies_past_it_and_is_refused_out_of_reach():
     far = feasibility(scene(four_way(), drive(LEFT_LANE_LEFT)), 1, Behaviour.TURN_LEFT, MapIndex.build(s.road_map))
     out_of_reach = then_feasibility(far, Behaviour.STOP)
     assert out_of_reach.status == "infeasible" and out_of_reach.reason.startswith("then stop: a stop past the junction")
+
+
+def test_a_cut_in_overtake_or_tailgate_is_refused_where_the_other_stops_first_for_a_red_light_or_a_walker():
+    """The other must drive on while the behaviour happens (a cut-in settled ahead of it, a tailgater on its tail): a
+    red light or a pedestrian on its way within that reach stops a planner that keeps the law first (`keeps_going`;
+    a held-out IDM ego stopped for a walker crossing 17 m ahead in all of its tailgating and cut-in episodes)."""
+    from dataclasses import replace
+
+    from langtraj.scenario import TrafficLights
+    from langtraj.scenario.types import TrafficLightState
+
+    def walker(x: float):  # a pedestrian crossing the right lane northward at x, 1.1 m/s
+        xy = np.stack([np.full_like(TIME, x), -1.0 + 1.1 * (TIME - TIME[10])], axis=1)
+        return AgentType.PEDESTRIAN, xy, np.full_like(TIME, math.pi / 2)
+
+    cases = [  # (behaviour, the agent, the other, where the other is), 2 the other at 10 m/s in the right lane
+        (Behaviour.CUT_IN, _eastbound_from(0.0, y=3.5), _eastbound_from(0.0)),
+        (Behaviour.OVERTAKE_CUT_IN, _eastbound_from(0.0, y=3.5), _eastbound_from(5.0)),
+        (Behaviour.TAILGATE, _eastbound_from(0.0), _eastbound_from(20.0)),
+    ]
+    for behaviour, agent, other in cases:
+        x2 = other[1][10, 0]  # where 2 is at the current step
+        assert _target(scene(two_lane_road(), agent, other), 1, behaviour, 2).other_id == 2
+        assert _target(scene(two_lane_road(), agent, other, walker(x2 + 150.0)), 1, behaviour, 2).other_id == 2
+        with pytest.raises(TargetUnavailable, match=r"@3 on foot 3\d m ahead on @2's way: it stops there"):
+            _target(scene(two_lane_road(), agent, other, walker(x2 + 35.0)), 1, behaviour, 2)
+        s = scene(two_lane_road(), agent, other)
+        steps = s.agents.states.shape[1]
+        for state, refused in ((TrafficLightState.STOP, True), (TrafficLightState.GO, False)):
+            lights = TrafficLights([1], np.full((steps, 1), state, np.int8), np.ones((steps, 1), bool),
+                                   [[x2 + 40.0, 0.0, 0.0]])  # fmt: skip
+            if refused:
+                with pytest.raises(TargetUnavailable, match=r"a red light 40 m ahead on @2's way"):
+                    _target(replace(s, traffic_lights=lights), 1, behaviour, 2)
+            else:
+                assert _target(replace(s, traffic_lights=lights), 1, behaviour, 2).other_id == 2

@@ -19,6 +19,7 @@ from langtraj.interdrive.targets.context import (
     AgentHere,
     TargetContext,
     into_lane,
+    keeps_going,
     lane_beside,
     lead_of,
     offset_of,
@@ -80,7 +81,8 @@ def _cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) 
     Infeasible where the agent is in the other's path already (`out_of_path`), where that needs more than
     `GO_FIRST_ACCELERATION` could add, or less than standing still, or where
     someone stands in the other's lane before the place the cut-in settles (`TargetContext.standing_on`: the other
-    stops behind it first), or a car ahead in its own lane leaves it no room to get there (`CUT_IN_ROOM_M`)."""
+    stops behind it first), a red light on the other's way stops it before the cut-in has settled (`keeps_going`),
+    or a car ahead in its own lane leaves it no room to get there (`CUT_IN_ROOM_M`)."""
     behaviour = Behaviour.CUT_IN
     out_of_path(agent, other, behaviour)
     begin = max(4.0, 1.0 * agent.here.speed)
@@ -108,6 +110,7 @@ def _cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) 
     if (queued := ctx.standing_on(other, ctx.ahead(other), settles)) is not None:
         reason = f"@{queued} stands in @{other.track_id}'s lane within the {settles:.0f} m the cut-in needs ahead of it"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    keeps_going(ctx, agent, other, behaviour, CUT_IN_S + judged_by.SETTLED_HOLD_S)
     return BehaviourTarget(
         agent.track_id,
         behaviour,

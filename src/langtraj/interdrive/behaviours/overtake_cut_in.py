@@ -27,6 +27,7 @@ from langtraj.interdrive.behaviours.recipes import gap_ahead, settled
 from langtraj.interdrive.behaviours.scripts import CuttingIn, Script
 from langtraj.interdrive.detector import overtake_cut_in_runs
 from langtraj.interdrive.judging import overtake_cut_in as judged_by
+from langtraj.interdrive.judging.cut_in import SETTLED_HOLD_S
 from langtraj.interdrive.reader.words import OTHER, verb
 from langtraj.interdrive.targets.context import (
     FOLLOWER_RANGE_M,
@@ -35,6 +36,7 @@ from langtraj.interdrive.targets.context import (
     LANE_CHANGE_S,
     AgentHere,
     TargetContext,
+    keeps_going,
     lane_beside,
     lead_of,
 )
@@ -99,8 +101,8 @@ def _overtake_cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap
     (not before 1 s), then changes lanes over `LANE_CHANGE_S`, gaining the rest of the gap on the way.
     `station_of_goal` is where it settles, `settled_s` when, `speed` the passing speed. Infeasible where the other is
     slower than `OVERTAKE_MIN_SPEED` (queued traffic is not overtaken), the agent is already ahead of it (a cut-in) or
-    more than `FOLLOWER_RANGE_M` behind, it cannot settle by `OVERTAKE_LATEST_S`, or the other's lane runs into a
-    junction before it would."""
+    more than `FOLLOWER_RANGE_M` behind, it cannot settle by `OVERTAKE_LATEST_S`, the other's lane runs into a
+    junction before it would, or a red light stops the other before it has settled (`keeps_going`)."""
     behaviour = Behaviour.OVERTAKE_CUT_IN
     out_of_path(agent, other, behaviour)
     side, lane, level = lane_beside(ctx, agent, other, behaviour, 10.0)
@@ -135,6 +137,7 @@ def _overtake_cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap
     if room < goal:
         reason = f"@{other.track_id}'s lane runs into a junction {room:.0f} m ahead, before it could settle there"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    keeps_going(ctx, agent, other, behaviour, settle + SETTLED_HOLD_S)
     path = _past_then_into_lane(ctx, agent, lane, level, begin, 0.5 * (goal - begin))
     if path is None:
         reason = f"@{other.track_id}'s lane ends before it could change into it"

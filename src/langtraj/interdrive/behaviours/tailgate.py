@@ -13,9 +13,10 @@ from langtraj.interdrive.behaviours.scripts import Following, Script
 from langtraj.interdrive.detector import tailgating_runs
 from langtraj.interdrive.judging import tailgate as judged_by
 from langtraj.interdrive.reader.words import OTHER, verb
-from langtraj.interdrive.targets.context import AgentHere, TargetContext, pair_gap
+from langtraj.interdrive.targets.context import JUDGE, AgentHere, TargetContext, keeps_going, pair_gap
 from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
 from langtraj.interdrive.taxonomy import InteractionType
+from langtraj.scenario.model import STEP_SECONDS
 
 TAILGATE_HEADWAY_S = 0.4
 """The time gap a tailgater closes to (s): under the judge's 0.6 s (`DetectorConfig.tailgating_headway_s`)."""
@@ -48,7 +49,8 @@ def _tailgate(ctx: TargetContext, agent: AgentHere, other: AgentHere) -> Behavio
     """The agent's lane ahead and the station where its gap to the other, keeping its speed, is `TAILGATE_HEADWAY_S`
     of headway, closed `TAILGATE_CLOSING` m/s faster than the other (at least 2 s), then the other's speed.
     Infeasible where the other is not ahead in its lane within `FOLLOWER_RANGE_M`, is slower than
-    `TAILGATE_MIN_SPEED`, or the gap cannot be closed within `TAILGATE_WITHIN_S`."""
+    `TAILGATE_MIN_SPEED`, the gap cannot be closed within `TAILGATE_WITHIN_S`, or a red light stops the other before
+    the judge's second of tailgating after that (`keeps_going`: a stop ends any tailgating)."""
     behaviour, v_other = Behaviour.TAILGATE, other.here.speed
     gap = pair_gap(ctx, agent, other, behaviour, lead=other, where="ahead of")
     if v_other < TAILGATE_MIN_SPEED:
@@ -59,6 +61,7 @@ def _tailgate(ctx: TargetContext, agent: AgentHere, other: AgentHere) -> Behavio
     if within > TAILGATE_WITHIN_S:
         reason = f"@{other.track_id} is {gap:.0f} m ahead: too far to close to {want:.0f} m in {TAILGATE_WITHIN_S:g} s"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
+    keeps_going(ctx, agent, other, behaviour, within + JUDGE.min_follow_steps * STEP_SECONDS)
     return BehaviourTarget(
         agent.track_id,
         behaviour,

@@ -221,14 +221,22 @@ class TargetContext:
         return None if found is None else found[0]
 
     def first_on(
-        self, agent: AgentHere, path: np.ndarray, upto: float, most_mps: float = math.inf
+        self,
+        agent: AgentHere,
+        path: np.ndarray,
+        upto: float,
+        most_mps: float = math.inf,
+        kind: AgentType | None = None,
     ) -> tuple[int, float, float] | None:
-        """The nearest other agent on `path` ahead of `agent` before station `upto` (its centre within the two half
-        widths and `STANDING_MARGIN_M` of the path), moving at most `most_mps`: its track id, how far ahead of the
-        agent along the path (m, centre to centre) and its speed (m/s); None where there is none."""
+        """The nearest other agent (of `kind`, where given) on `path` ahead of `agent` before station `upto` (its
+        centre within the two half widths and `STANDING_MARGIN_M` of the path), moving at most `most_mps`: its track
+        id, how far ahead of the agent along the path (m, centre to centre) and its speed (m/s); None where there is
+        none."""
         agents, c = self.scenario.agents, self.scenario.current_index
         states, valid = agents.states[:, c], agents.valid[:, c].copy()
         valid[agents.index_of(agent.track_id)] = False
+        if kind is not None:
+            valid &= agents.types == int(kind)
         speed = current_speeds(self.scenario)
         rows = np.flatnonzero(valid & (speed <= most_mps))
         if not len(rows) or len(path) < 2:
@@ -335,14 +343,37 @@ def stop_points(ctx: TargetContext, states: Iterable[TrafficLightState]) -> np.n
     return np.asarray(lights.stop_points)[showing, :2]
 
 
-def red_on_way(ctx: TargetContext, path: np.ndarray, station: float) -> bool:
-    """Whether the stop point of a signal showing stop at the current step lies on `path` (within
-    `RED_STOP_LATERAL`) before `station`."""
+def red_ahead(ctx: TargetContext, path: np.ndarray, station: float) -> float | None:
+    """The station along `path` (m) of the first stop point of a signal showing stop at the current step that lies on
+    it (within `RED_STOP_LATERAL`) before `station`; None where none does."""
     stops = stop_points(ctx, RED_STATES)
     if stops is None or not len(stops):
-        return False
+        return None
     found = project_on_polyline(stops, path)
-    return bool(((found.distance < RED_STOP_LATERAL) & (found.station < station)).any())
+    on = (found.distance < RED_STOP_LATERAL) & (found.station < station)
+    return float(found.station[on].min()) if on.any() else None
+
+
+def red_on_way(ctx: TargetContext, path: np.ndarray, station: float) -> bool:
+    """Whether the stop point of a signal showing stop at the current step lies on `path` before `station`."""
+    return red_ahead(ctx, path, station) is not None
+
+
+def keeps_going(ctx: TargetContext, agent: AgentHere, other: AgentHere, behaviour: Behaviour, seconds: float) -> None:
+    """Infeasible where a signal showing stop, or a pedestrian, lies on the other's way (`TargetContext.ahead`: its
+    route, where it has one) within what it drives in `seconds` at its speed and then brakes over at
+    `COMFORT_DECELERATION`: an other that stops there (a planner that keeps the law, or yields to a walker crossing)
+    has stopped before a behaviour needing it to drive on for `seconds` (a cut-in settled in front of it, a tailgater
+    on its tail) could happen."""
+    v, way = other.here.speed, ctx.ahead(other)
+    reach = v * seconds + v * v / (2.0 * COMFORT_DECELERATION)
+    red = red_ahead(ctx, way, reach)
+    walker = ctx.first_on(other, way, reach, kind=AgentType.PEDESTRIAN)
+    if red is None and walker is None:
+        return
+    what = f"a red light {red:.0f} m" if red is not None else f"@{walker[0]} on foot {walker[1]:.0f} m"
+    reason = f"{what} ahead on @{other.track_id}'s way: it stops there within the {seconds:g} s this needs it to go on"
+    raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
 
 
 def red_before(stops: np.ndarray, ways: list[np.ndarray], point: np.ndarray) -> bool:
