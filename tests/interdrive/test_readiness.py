@@ -31,6 +31,11 @@ def test_a_cut_in_starts_at_once_its_script_letting_the_other_come_up_but_never_
     slow = kind("cut_in").natural(_cut_in(speed=6.0, current=16.0, other_speed=12.0))
     assert slow == "it would slow from 16.0 to 6.0 m/s for @1 to come up"
     assert kind("overtake_cut_in").natural(_cut_in(speed=6.0, current=16.0, other_speed=12.0)) == slow
+    # an overtaker 6 m/s faster than the other passes at its own speed and settles at the other's: natural; one 22 m/s
+    # faster would shed them all to settle in front of it, and passes instead
+    assert kind("overtake_cut_in").natural(_cut_in(speed=18.0, current=18.0, other_speed=12.0)) is None
+    passing = kind("overtake_cut_in").natural(_cut_in(speed=29.0, current=29.0, other_speed=7.0))
+    assert passing == "it would slow from 29.0 to 7.0 m/s to settle in front of @1: a pass, not a cut-in"
     standing = kind("cut_in").ready(_cut_in(speed=1.0, current=1.0, other_speed=0.1))
     assert standing == "@1 drives at 0.1 m/s (a cut-in needs 3 or more)"
 
