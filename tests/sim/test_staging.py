@@ -76,3 +76,27 @@ def test_a_scripted_brake_after_2_5_s_starts_between_replans_at_the_asked_decele
     speeds = _speeds(result, lead)  # [R, T]: T[k] is the speed at (k + 1) / 10 s
     drops = -np.diff(speeds, axis=1) / 0.1
     assert np.allclose(drops[:, 24:39], 4.0, atol=0.05)  # from 2.5 s at 4 m/s^2, executed at 10 Hz
+
+
+def _lateral(result, s, slot: int) -> np.ndarray:
+    """The agent in `slot`'s y [R, T] over the simulated steps."""
+    return result.world.states[:, slot, s.current_index + 1 :, StateField.Y]
+
+
+def test_a_cut_in_after_3_s_keeps_its_lead_in_its_own_lane_until_then_and_moves_across_after(loaded):
+    # @1 beside @2 in the left lane of a straight road, 14.5 m ahead (the 10 m gap asked), both at 10 m/s
+    beside = scene(two_lane_road(), (AgentType.VEHICLE, *_eastbound(14.5)[1:]), _eastbound(0.0))
+    beside.agents.states[0, :, StateField.Y] = 3.5
+    beside.agents.states[:, :, StateField.VX] = 10.0  # the scripts read the recorded velocity
+    untimed = _run(loaded, beside, "@1 cuts in front of @2 with a 10 m gap")
+    timed = _run(loaded, beside, "@1 cuts in front of @2 with a 10 m gap after 3 s")
+    (entry,) = timed.report["prompt"]["staged"]
+    assert [r["started_s"] for r in entry["rollouts"]] == [3.0, 3.0]
+    entered = [np.flatnonzero(np.abs(y) < 1.75) for y in _lateral(timed, beside, 0)]
+    assert all(e.size and 3.0 <= (e[0] + 1) / 10 <= 5.5 for e in entered)  # across from 3 s, not before
+    early = _lateral(timed, beside, 0)[:, :29]
+    assert np.abs(early - 3.5).max() < 0.7  # its own lane until then, placed at its lead (`CutIn.placed`)
+    x = timed.world.states[:, :2, beside.current_index + 30, StateField.X]
+    assert np.abs(x[:, 0] - x[:, 1] - 14.5).max() < 3.0
+    first = [np.flatnonzero(np.abs(y) < 1.75) for y in _lateral(untimed, beside, 0)]
+    assert all(f.size and (f[0] + 1) / 10 < 2.5 for f in first)  # untimed, it moves across at once

@@ -466,7 +466,7 @@ class LangTrajPolicy(CandidatePlanning, Policy):
         keep = {
             k: s
             for k, staged in enumerate(steering.staged)
-            if (s := keeping(start, staged.reading, index, origin, slots))
+            if (s := keeping(start, staged.reading, index, origin, slots, world.routes))
         }
         return Stagings(
             steering.staged, origin, slots, index, world.start, started=steering.targets, keep=keep, routes=world.routes

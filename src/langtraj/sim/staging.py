@@ -72,15 +72,25 @@ KEEP_SLACK_M = 2.0
 
 
 def keeping(
-    scenario: Scenario, reading: PromptReading, index: MapIndex, origin: Origin, slots: dict[int, int]
+    scenario: Scenario,
+    reading: PromptReading,
+    index: MapIndex,
+    origin: Origin,
+    slots: dict[int, int],
+    routes: Mapping[int, np.ndarray] | None = None,
 ) -> Steering | None:
     """Until a behaviour timed by the clock or by another's behaviour starts, its agent keeps the place it has at the
     start relative to the other agent (within `KEEP_SLACK_M`, along its own lane), from where the behaviour could
-    be staged then (`suggest` found it so), instead of drifting wherever the model takes it; None for a behaviour
-    of one agent, or toward an agent the model does not drive."""
+    be staged then (`suggest` found it so), instead of drifting wherever the model takes it; where the behaviour's
+    kind keeps a place of its own (`BehaviourKind.placed`: a cutter at its lead beside the other, executed by its
+    script), that one, read with the external agents' `routes` (`TargetContext.routes`). None for a behaviour of
+    one agent, or toward an agent the simulation does not drive."""
     if not isinstance(reading.trigger, (AtTime, AfterDone)) or reading.other not in slots:
         return None
     assert reading.agent is not None and reading.behaviour is not None
+    placed = _placed(scenario, reading, index, routes or {})
+    if placed is not None:
+        return Steering.of(placed, origin, slots)
     ctx = TargetContext(scenario, index)
     try:
         agent, other = ctx.agent(reading.agent, reading.behaviour), ctx.agent(int(reading.other), reading.behaviour)
@@ -102,6 +112,20 @@ def keeping(
         + route()
     )
     return Steering.of(target, origin, slots, tuple(steers))
+
+
+def _placed(
+    scenario: Scenario, reading: PromptReading, index: MapIndex, routes: Mapping[int, np.ndarray]
+) -> BehaviourTarget | None:
+    """The place the reading's kind keeps its agent in until it starts (`BehaviourKind.placed`), from its target at
+    the start; None where the kind keeps none or the start gives no target."""
+    assert reading.agent is not None and reading.behaviour is not None
+    try:
+        target = derive_target(scenario, reading.agent, reading.behaviour, index, other_id=reading.other,
+                               gap=reading.metres, deceleration=reading.deceleration, routes=routes)  # fmt: skip
+    except TargetUnavailable:
+        return None
+    return kind(reading.behaviour).placed(target)
 
 
 def target_done(target: BehaviourTarget, since: int, scene: Scenario) -> bool:

@@ -190,6 +190,13 @@ class BehaviourKind(ABC):
         is the prompt's, so a behaviour that otherwise waits a little first starts at once; unchanged by default."""
         return target
 
+    def placed(self, target: BehaviourTarget) -> BehaviourTarget | None:
+        """The target that keeps the agent where it can stage the behaviour, executed until a trigger the prompt gives
+        starts it ("after 3 s": a cutter keeping its lead beside the other in its own lane, not moving across), from
+        the behaviour's target at the start; None where the kind keeps no such place (the agent is steered to keep
+        its offset to the other instead: `sim.staging.keeping`)."""
+        return None
+
     def ready(self, target: BehaviourTarget) -> str | None:
         """Why the behaviour should not start yet from `target`, derived from the agents as they are now (a cut-in
         that would need its agent to brake hard to let the other catch up; a braking lead with its follower far

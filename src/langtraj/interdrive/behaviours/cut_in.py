@@ -4,7 +4,9 @@ See docs/interdrive.md ('Targets and feasibility') and docs/testing.md ('Judged 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
+from dataclasses import replace
 
 from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
 from langtraj.interdrive.behaviours.base import BehaviourKind, Parameter, Steer, register, route, steps
@@ -215,7 +217,16 @@ class CutIn(BehaviourKind):
         unsettled or turned across the lane (docs/testing.md, 'Scenarios staged on the ego's live state')."""
         if target.lead_m is None:
             return None
-        return CuttingIn(float(target.lead_m), float(target.settled_s or CUT_IN_S), cruise(target))
+        moves = 0.0 if target.starts_s is None else float(target.starts_s)
+        return CuttingIn(float(target.lead_m), float(target.settled_s or CUT_IN_S), cruise(target), moves)
+
+    def placed(self, target: BehaviourTarget) -> BehaviourTarget | None:
+        """Its lead beside the other in its own lane at the other's speed, never moving across (`CuttingIn`'s
+        `moves_from_s`; its path its own lane): when the trigger holds, the cut-in is where it can begin at once."""
+        if target.lead_m is None or target.own_lane is None or len(target.own_lane) < 2:
+            return None
+        reason = f"keeps its lead beside @{target.other_id} in its own lane until it starts"
+        return replace(target, path=target.own_lane, starts_s=math.inf, reason=reason)
 
     def steer(self, target: BehaviourTarget, other_driven: bool) -> list[Steer]:
         """The gap ahead of the other agent when the change has settled (`CUT_IN_S`) and after

@@ -327,6 +327,9 @@ class CuttingIn(Script):
     lead_m: float
     settle_s: float
     cruise_mps: float
+    moves_from_s: float = 0.0
+    """It moves across no earlier than this (s after its start); until then it keeps its lead in its own lane (a
+    timed cut-in placed for its trigger: `CutIn.placed`)."""
 
     def plan(self, now: ScriptState) -> np.ndarray:
         out = np.full((now.count, 2), np.nan)
@@ -343,7 +346,7 @@ class CuttingIn(Script):
             lead, off, turned = _lead_and_offset(state, other, into)
             seen = traffic_at(now, k)
             moving = moving or own is None or off <= CUT_IN_IN_LANE_M
-            if not moving and own is not None:
+            if not moving and own is not None and t >= self.moves_from_s:
                 moving = self._across(lead, off, state, other, own, into, now, seen)
             if moving and k == 0:  # executed: begun, it goes on across (never back and forth between the lanes)
                 now.memory["across"] = True
