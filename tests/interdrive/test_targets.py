@@ -144,6 +144,13 @@ def test_a_cut_in_targets_the_other_agents_lane_beside_it_at_the_speed_that_leav
         _target(boxed, 1, Behaviour.CUT_IN, 2)
     room = scene(two_lane_road(), _eastbound(y=3.5), _eastbound(y=0.0), _eastbound_from(40.0, y=3.5))
     assert _target(room, 1, Behaviour.CUT_IN, 2).other_id == 2
+    # 2's lead 12 m ahead of it at its speed (7.5 m between them): no place for a 10 m gap and a car in front of 2
+    taken = scene(two_lane_road(), _eastbound(y=3.5), _eastbound(y=0.0), _eastbound_from(12.0))
+    for behaviour in (Behaviour.CUT_IN, Behaviour.OVERTAKE_CUT_IN):
+        with pytest.raises(TargetUnavailable, match="@3 ahead of @2 in its lane leaves 8 m, no room for a 10 m gap"):
+            _target(taken, 1, behaviour, 2)
+    apart = scene(two_lane_road(), _eastbound(y=3.5), _eastbound(y=0.0), _eastbound_from(25.0))  # 20.5 m: room
+    assert _target(apart, 1, Behaviour.CUT_IN, 2).other_id == 2
     # 1.2 m to the side of 2 (a lane merging into 2's): in its path already, whatever the map says is beside it
     merged = scene(two_lane_road(), _eastbound(y=1.2), _eastbound(y=0.0))
     for behaviour in (Behaviour.CUT_IN, Behaviour.OVERTAKE_CUT_IN):

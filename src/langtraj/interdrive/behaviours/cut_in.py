@@ -29,6 +29,7 @@ from langtraj.interdrive.targets.context import (
 from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
 from langtraj.interdrive.taxonomy import InteractionType
 from langtraj.roads.routes import route as lane_route
+from langtraj.scenario.types import AgentType, StateField
 
 CUT_IN_GAP_M = 10.0
 """The gap (bumper to bumper, m) a cut-in leaves in front of the other agent unless the prompt gives one."""
@@ -83,8 +84,9 @@ def _cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) 
     Infeasible where the agent is in the other's path already (`out_of_path`), where that needs more than
     `GO_FIRST_ACCELERATION` could add, or less than standing still, or where
     someone stands in the other's lane before the place the cut-in settles (`TargetContext.standing_on`: the other
-    stops behind it first), a red light on the other's way stops it before the cut-in has settled (`keeps_going`),
-    or a car ahead in its own lane leaves it no room to get there (`CUT_IN_ROOM_M`)."""
+    stops behind it first), the car ahead of the other leaves no room for the gap and the agent (`room_ahead`), a red
+    light on the other's way stops it before the cut-in has settled (`keeps_going`), or a car ahead in its own lane
+    leaves it no room to get there (`CUT_IN_ROOM_M`)."""
     behaviour = Behaviour.CUT_IN
     out_of_path(agent, other, behaviour)
     begin = max(4.0, 1.0 * agent.here.speed)
@@ -113,6 +115,7 @@ def _cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) 
         reason = f"@{queued} stands in @{other.track_id}'s lane within the {settles:.0f} m the cut-in needs ahead of it"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
     keeps_going(ctx, agent, other, behaviour, CUT_IN_S + judged_by.SETTLED_HOLD_S)
+    room_ahead(ctx, agent, other, behaviour, gap, CUT_IN_S)
     return BehaviourTarget(
         agent.track_id,
         behaviour,
@@ -129,6 +132,29 @@ def _cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) 
         own_lane=ctx.ahead(agent),
         new_lane=lane_route(ctx.index, [lane], level, agent.reach + begin),
     )
+
+
+def room_ahead(
+    ctx: TargetContext, agent: AgentHere, other: AgentHere, behaviour: Behaviour, gap: float, seconds: float
+) -> None:
+    """Infeasible where the vehicle ahead of the other in its lane (`TargetContext.first_on`), at its speed, leaves less
+    than the agent's length, `gap` and `CUT_IN_ROOM_M` between them `seconds` on (the other keeping its speed): the
+    place the cut-in would settle in is taken (on validation scenes `suggest` offered 10-m cut-ins in front of an ego
+    whose lead was 5 m ahead of it in a queue; none moved across)."""
+    reach = other.here.speed * seconds + gap + agent.length + other.length + CUT_IN_ROOM_M
+    ahead = ctx.first_on(other, ctx.ahead(other), reach, kind=AgentType.VEHICLE)
+    if ahead is None:
+        return
+    track, apart, speed = ahead
+    agents = ctx.scenario.agents
+    length = float(agents.states[agents.index_of(track), ctx.scenario.current_index, StateField.LENGTH])
+    room = apart + (speed - other.here.speed) * seconds - 0.5 * (other.length + length)
+    if room < gap + agent.length + CUT_IN_ROOM_M:
+        reason = (
+            f"@{track} ahead of @{other.track_id} in its lane leaves {max(room, 0.0):.0f} m, no room for "
+            f"a {gap:g} m gap and the car"
+        )
+        raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
 
 
 CUT_IN_ROOM_M = 2.0

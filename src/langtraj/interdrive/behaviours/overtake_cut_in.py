@@ -21,6 +21,7 @@ from langtraj.interdrive.behaviours.cut_in import (
     JUST_AHEAD,
     cruise,
     out_of_path,
+    room_ahead,
 )
 from langtraj.interdrive.behaviours.cut_in import natural as cut_in_natural
 from langtraj.interdrive.behaviours.cut_in import ready as cut_in_ready
@@ -103,7 +104,8 @@ def _overtake_cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap
     `station_of_goal` is where it settles, `settled_s` when, `speed` the passing speed. Infeasible where the other is
     slower than `OVERTAKE_MIN_SPEED` (queued traffic is not overtaken), the agent is already ahead of it (a cut-in) or
     more than `FOLLOWER_RANGE_M` behind, it cannot settle by `OVERTAKE_LATEST_S`, the other's lane runs into a
-    junction before it would, or a red light stops the other before it has settled (`keeps_going`)."""
+    junction before it would, the car ahead of the other leaves no room for it (`room_ahead`), or a red light stops the
+    other before it has settled (`keeps_going`)."""
     behaviour = Behaviour.OVERTAKE_CUT_IN
     out_of_path(agent, other, behaviour)
     side, lane, level = lane_beside(ctx, agent, other, behaviour, 10.0)
@@ -139,6 +141,7 @@ def _overtake_cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap
         reason = f"@{other.track_id}'s lane runs into a junction {room:.0f} m ahead, before it could settle there"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
     keeps_going(ctx, agent, other, behaviour, settle + SETTLED_HOLD_S)
+    room_ahead(ctx, agent, other, behaviour, gap, settle)
     path = _past_then_into_lane(ctx, agent, lane, level, begin, 0.5 * (goal - begin))
     if path is None:
         reason = f"@{other.track_id}'s lane ends before it could change into it"
