@@ -34,6 +34,7 @@ def test_a_cut_in_starts_at_once_its_script_letting_the_other_come_up_but_never_
     # an overtaker 6 m/s faster than the other passes at its own speed and settles at the other's: natural; one 22 m/s
     # faster would shed them all to settle in front of it, and passes instead
     assert kind("overtake_cut_in").natural(_cut_in(speed=18.0, current=18.0, other_speed=12.0)) is None
+    assert kind("overtake_cut_in").natural(_cut_in(speed=22.0, current=22.0, other_speed=12.0)) is None  # 10 in 3 s
     passing = kind("overtake_cut_in").natural(_cut_in(speed=29.0, current=29.0, other_speed=7.0))
     assert passing == "it would slow from 29.0 to 7.0 m/s to settle in front of @1: a pass, not a cut-in"
     standing = kind("cut_in").ready(_cut_in(speed=1.0, current=1.0, other_speed=0.1))

@@ -13,7 +13,6 @@ from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
 from langtraj.interdrive.behaviours.base import BehaviourKind, Steer, register, route, speed, steps
 from langtraj.interdrive.behaviours.cut_in import (
     CHANGE_AND_SPEED,
-    CUT_IN_NATURAL_SLOWER,
     CUT_IN_VERBS,
     CUT_MANNER,
     CUTS_IN,
@@ -26,7 +25,7 @@ from langtraj.interdrive.behaviours.cut_in import (
 from langtraj.interdrive.behaviours.cut_in import natural as cut_in_natural
 from langtraj.interdrive.behaviours.cut_in import ready as cut_in_ready
 from langtraj.interdrive.behaviours.recipes import gap_ahead, settled
-from langtraj.interdrive.behaviours.scripts import CuttingIn, Script
+from langtraj.interdrive.behaviours.scripts import CUT_IN_ACCELERATIONS, CuttingIn, Script
 from langtraj.interdrive.detector import overtake_cut_in_runs
 from langtraj.interdrive.judging import overtake_cut_in as judged_by
 from langtraj.interdrive.judging.cut_in import SETTLED_HOLD_S
@@ -51,6 +50,9 @@ from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS
 
 OVERTAKE_GAIN = 4.0
 """How much faster than the other agent an overtake passes it (m/s), unless the agent is faster already."""
+OVERTAKE_SHED_MPS = -CUT_IN_ACCELERATIONS[0] * LANE_CHANGE_S
+"""The most an overtake's agent may be faster than the other (m/s) for `suggest` to offer it: what its script brakes
+over a lane change (3.5 m/s^2 for 3 s), settling at the other's speed."""
 OVERTAKE_LATEST_S = HORIZON_S - 1.0
 """By when an overtake must have settled in the other's lane (s): a second before the horizon, for the judge."""
 OVERTAKE_MIN_SPEED = 5.0
@@ -212,12 +214,12 @@ class OvertakeCutIn(BehaviourKind):
         return cut_in_ready(target)
 
     def natural(self, target: BehaviourTarget) -> str | None:
-        """As a cut-in's (`cut_in.natural`), and not where its agent would have to shed more than `OVERTAKE_GAIN` and
-        `CUT_IN_NATURAL_SLOWER` to settle at the other's speed: that is a pass, not a cut-in (a held-out overtaker at
-        29 m/s past an ego at 7 braked at 2 m/s^2 and was 55 m ahead of it at the end, 10 asked)."""
-        if target.current_speed is not None and target.other_speed is not None:
+        """As a cut-in's (`cut_in.natural`), and not where its agent would have to shed more than its script brakes
+        over a lane change (`OVERTAKE_SHED_MPS`) to settle at the other's speed: that is a pass, not a cut-in (a
+        held-out overtaker at 29 m/s past an ego at 7 was 55 m ahead of it at the end, 10 asked)."""
+        if target.other_speed is not None:
             shed = target.current_speed - target.other_speed
-            if shed > OVERTAKE_GAIN + CUT_IN_NATURAL_SLOWER:
+            if shed > OVERTAKE_SHED_MPS:
                 return (
                     f"it would slow from {target.current_speed:.1f} to {target.other_speed:.1f} m/s to settle in "
                     f"front of @{target.other_id}: a pass, not a cut-in"
