@@ -85,8 +85,8 @@ def _cut_in(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) 
     `GO_FIRST_ACCELERATION` could add, or less than standing still, or where
     someone stands in the other's lane before the place the cut-in settles (`TargetContext.standing_on`: the other
     stops behind it first), the car ahead of the other leaves no room for the gap and the agent (`room_ahead`), a red
-    light on the other's way stops it before the cut-in has settled (`keeps_going`), or a car ahead in its own lane
-    leaves it no room to get there (`CUT_IN_ROOM_M`)."""
+    light or a walker on the other's way stops it before the cut-in has settled (`keeps_going`), or a car ahead in
+    its own lane leaves it no room to get there (`CUT_IN_ROOM_M`)."""
     behaviour = Behaviour.CUT_IN
     out_of_path(agent, other, behaviour)
     begin = max(4.0, 1.0 * agent.here.speed)

@@ -49,8 +49,8 @@ def _tailgate(ctx: TargetContext, agent: AgentHere, other: AgentHere) -> Behavio
     """The agent's lane ahead and the station where its gap to the other, keeping its speed, is `TAILGATE_HEADWAY_S`
     of headway, closed `TAILGATE_CLOSING` m/s faster than the other (at least 2 s), then the other's speed.
     Infeasible where the other is not ahead in its lane within `FOLLOWER_RANGE_M`, is slower than
-    `TAILGATE_MIN_SPEED`, the gap cannot be closed within `TAILGATE_WITHIN_S`, or a red light stops the other before
-    the judge's second of tailgating after that (`keeps_going`: a stop ends any tailgating)."""
+    `TAILGATE_MIN_SPEED`, the gap cannot be closed within `TAILGATE_WITHIN_S`, or a red light or a walker on its way
+    stops the other before the judge's second of tailgating after that (`keeps_going`: a stop ends any tailgating)."""
     behaviour, v_other = Behaviour.TAILGATE, other.here.speed
     gap = pair_gap(ctx, agent, other, behaviour, lead=other, where="ahead of")
     if v_other < TAILGATE_MIN_SPEED:

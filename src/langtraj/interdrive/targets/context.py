@@ -372,7 +372,7 @@ def keeps_going(ctx: TargetContext, agent: AgentHere, other: AgentHere, behaviou
     if red is None and walker is None:
         return
     what = f"a red light {red:.0f} m" if red is not None else f"@{walker[0]} on foot {walker[1]:.0f} m"
-    reason = f"{what} ahead on @{other.track_id}'s way: it stops there within the {seconds:g} s this needs it to go on"
+    reason = f"{what} ahead on @{other.track_id}'s way: it stops there within the {seconds:.1f} s this needs it on"
     raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
 
 
