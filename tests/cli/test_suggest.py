@@ -34,7 +34,8 @@ def test_the_table_lists_each_scene_with_its_stagings_and_their_prompts(road_fil
     assert f"{road_file} [0] straight: ego @1," in out and f"{road_file} [1] pair: ego @1," in out
     assert "@2 cuts in front of @ego with a 10 m gap" in out and "@1's lane on its right, 10 m ahead of it" in out
     assert "@3 brakes hard at 6 m/s^2 in front of @ego" in out and "@4 tailgates @ego" in out
-    assert out.strip().splitlines()[-1].startswith("16 stagings in 2 scene(s) (follow 1, cut_in 6, overtake_cut_in 6,")
+    # in the first scene the ego's lead, 20.5 m ahead of it, leaves no room for a 15-m cut-in or overtake
+    assert out.strip().splitlines()[-1].startswith("14 stagings in 2 scene(s) (follow 1, cut_in 5, overtake_cut_in 5,")
 
 
 def test_json_and_the_suite_hold_one_case_per_staging_and_the_suite_loads(road_file, tmp_path, capsys):
