@@ -21,7 +21,7 @@ from suites.fakes import FAKE_ENV, write_scene
 def road(tmp_path: Path) -> Path:
     """A straight two-lane road: the self-driving car @1 (the ego), @2 ahead of it, @3 in the next lane."""
     path = tmp_path / "road.pkl"
-    write_scenarios(path, [two_lane_road([(0, 0, 10), (20, 0, 8), (0, 3.5, 10)])])
+    write_scenarios(path, [two_lane_road([(0, 0, 10), (40, 0, 8), (0, 3.5, 10)])])  # @2 leaves room for a cut-in
     return path
 
 
