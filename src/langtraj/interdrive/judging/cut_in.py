@@ -183,11 +183,11 @@ def held_behind(scene: Scenario, view: PairView, after: int, asked_gap: float) -
 
 
 def judge_settling(
-    view: PairView, asked_gap: float, after: int, extra: tuple[Measure, ...] = (), held: str | None = None
+    scene: Scenario, view: PairView, asked_gap: float, after: int, extra: tuple[Measure, ...] = ()
 ) -> Judgement:
-    """The cut-in's verdict once the agent was out of the other's path at step `after`: its gap when it settles
-    against `asked_gap`, and the time it took; `extra` measures (an overtake's) precede them, and any of them not ok
-    fails it too. `held`: who held it back in its own lane (`held_behind`), said where it never settled."""
+    """The cut-in's verdict on `scene` once the agent was out of the other's path at step `after`: its gap when it
+    settles against `asked_gap`, and the time it took; `extra` measures (an overtake's) precede them, and any of them
+    not ok fails it too. Where it never settled, who held it back in its own lane says so too (`held_behind`)."""
     other = f"@{view.other.track_id}"
     contact = view.contact_step
     step = settling(view, after)
@@ -205,7 +205,7 @@ def judge_settling(
     if step is None:
         why = cut_short(contact) if contact is not None else never_settled(view, after, asked_gap)
         drove = None if contact is not None else how_other_drove(view)
-        held = None if contact is not None else held
+        held = None if contact is not None else held_behind(scene, view, after, asked_gap)
         why = "; ".join([why, *([held] if held else []), *([drove] if drove else []), *missed])
         return Judgement(False, measures, why, None, contact)
     if missed:
@@ -227,4 +227,4 @@ def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -
         return Judgement(
             False, (gap, Measure("time to settle", "s", None, None, None, None)), why, None, view.contact_step
         )
-    return judge_settling(view, asked_gap, after, held=held_behind(scene, view, after, asked_gap))
+    return judge_settling(scene, view, asked_gap, after)

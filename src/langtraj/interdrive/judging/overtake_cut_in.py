@@ -23,7 +23,6 @@ from langtraj.interdrive.judging.base import (
 from langtraj.interdrive.judging.cut_in import (
     SETTLED_LATERAL_M,
     gap_tolerance,
-    held_behind,
     judge_settling,
     out_of_path_step,
     settling,
@@ -78,5 +77,4 @@ def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -
     if level.size:
         k = first + int(level[0])
         speeds = (float(view.agent.speed[k]), float(view.other.speed[k]))
-    held = held_behind(scene, view, after, asked_gap)
-    return judge_settling(view, asked_gap, after, _measures(far, speeds), held)
+    return judge_settling(scene, view, asked_gap, after, _measures(far, speeds))
