@@ -5,6 +5,7 @@ asked lead wherever the other drives."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from langtraj.interdrive.behaviours.cut_in import CUT_IN_SLOWER
 from langtraj.interdrive.behaviours.scripts import (
     CUT_IN_CLEAR_M,
     CUT_IN_MATCHED_MPS,
+    EASE_OFF_MPS,
     KEEP_BEHIND,
     Braking,
     Crossing,
@@ -54,6 +56,20 @@ def test_a_braking_lead_brakes_at_the_asked_deceleration_from_its_start_and_keep
     assert speeds[-1] == 0.0 and speeds[9] == pytest.approx(15.0)
     assert np.diff(speeds[10:40]).min() == pytest.approx(-0.4)  # 4 m/s^2 at 10 Hz
     assert abs(states[30, 1]) < 0.2  # back on the lane within 3 s
+
+
+def test_a_lead_easing_off_for_its_trigger_lets_the_follower_close_in_no_slower_than_its_floor():
+    # 35.5 m ahead (bumpers: 31 m) of a follower at 12 m/s, to let it within 20 m, then brake; never below 8 m/s
+    lead, follower = [40.0, 0.0, 0.0, 12.0], [0.0, 0.0, 0.0, 12.0]
+    script = Braking(start_s=math.inf, deceleration=4.0, closes_to_m=20.0, floor_mps=8.0)
+    states = _roll(script.plan(_state(lead, follower, count=16, per=5)), lead)  # 8 s, the follower at 12 m/s
+    gaps = states[:, 0] - (12.0 * 0.1 * np.arange(1, 81)) - 4.5
+    speeds = states[:, 3]
+    assert speeds.min() >= 8.0 - 1e-6 and speeds.min() >= 12.0 - EASE_OFF_MPS - 1e-6
+    assert np.diff(speeds).min() >= -0.2 - 1e-6  # eased off at 2 m/s^2 at most, no hard braking before its trigger
+    assert (gaps <= 20.0).any() and gaps.min() >= 17.0  # it comes within 20 m, and no nearer than the aim
+    near = Braking(start_s=math.inf, deceleration=4.0, closes_to_m=20.0).plan(_state([15.0, 0.0, 0.0, 12.0], follower))
+    assert near[0, 0] > 0.0  # a follower nearer than asked sees it pull away
 
 
 def test_a_cut_in_from_beside_waits_to_be_ahead_then_settles_the_lead_in_the_lane():
@@ -96,6 +112,10 @@ def test_a_cut_in_ahead_of_an_other_that_brakes_to_rest_slows_too_never_closing_
 def test_the_script_of_a_behaviour_comes_from_its_target():
     target = BehaviourTarget(1, Behaviour.BRAKE_HARD, LANE, "", current_speed=12.0, deceleration=6.0, settled_s=3.0)
     assert kind("brake_hard").script(target) == Braking(1.0, 6.0)
+    assert kind("brake_hard").placed(target) is None  # timed by the clock: it keeps its offset (`sim.staging`)
+    placed = kind("brake_hard").placed(replace(target, other_id=2), within_m=20.0)
+    assert placed is not None and kind("brake_hard").script(placed) == Braking(math.inf, 6.0, 20.0, 6.0)
+    assert kind("cut_in").placed(replace(target, behaviour=Behaviour.CUT_IN), within_m=20.0) is None
     cut = BehaviourTarget(1, Behaviour.CUT_IN, BESIDE, "", lead_m=14.5, settled_s=4.0, other_speed=12.0)
     assert kind("cut_in").script(cut) == CuttingIn(14.5, 4.0, 12.0 - CUT_IN_SLOWER)
     assert kind("stop").script(BehaviourTarget(1, Behaviour.STOP, LANE, "")) is None  # guidance alone

@@ -15,6 +15,7 @@ from interdrive.test_counterfactual import (
     RIGHT_LANE_STRAIGHT,
     drive,
     four_way,
+    two_lane_road,
 )
 from interdrive.test_heuristics import TIME, along, scene
 from roads.test_index import line
@@ -99,6 +100,22 @@ def test_the_warnings_come_from_the_same_reading():
     no_target = prompt_steering(_crossing_scene(), read_prompts(["@2 turns left"]), np.arange(3), ORIGIN, ALL_LEVERS)
     assert [w.split(":")[0] for w in no_target.warnings] == ["@2 cannot turn left"]
     assert not prompt_steering(_crossing_scene(), read_prompts(["@2 stops"]), np.arange(3), ORIGIN, ALL_LEVERS).warnings
+
+
+def test_a_condition_on_the_agents_that_holds_at_the_start_already_is_warned_about_and_starts_at_once():
+    # @1 12 m (bumpers) ahead of @2 in one lane of a straight road at 10 m/s
+    def east(x: float):
+        return AgentType.VEHICLE, np.stack([x + 10.0 * TIME, np.zeros_like(TIME)], axis=1), np.zeros_like(TIME)
+
+    lead = scene(two_lane_road(), east(16.5), east(0.0))
+    near = "When @2 is within 20 m of @1, @1 brakes hard in front of @2"
+    (warning,) = prompt_steering(lead, read_prompts([near]), np.arange(2), ORIGIN, ALL_LEVERS).warnings
+    assert warning == (
+        "the start of @1's brake_hard (when @2 is within 20 m of @1) holds already at the start (@2 12 m from @1): it "
+        "starts at once, not when that comes about"
+    )
+    far = near.replace("20 m", "10 m")
+    assert not prompt_steering(lead, read_prompts([far]), np.arange(2), ORIGIN, ALL_LEVERS).warnings
 
 
 def test_a_prompt_of_two_clauses_steers_both_agents():

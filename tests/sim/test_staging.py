@@ -100,3 +100,27 @@ def test_a_cut_in_after_3_s_keeps_its_lead_in_its_own_lane_until_then_and_moves_
     assert np.abs(x[:, 0] - x[:, 1] - 14.5).max() < 3.0
     first = [np.flatnonzero(np.abs(y) < 1.75) for y in _lateral(untimed, beside, 0)]
     assert all(f.size and (f[0] + 1) / 10 < 2.5 for f in first)  # untimed, it moves across at once
+
+
+def _gap_at(result, s, step: int) -> np.ndarray:
+    """The bumper gap between @1 and @2 [R] at simulated `step` (their centres less half of each length)."""
+    states = result.world.states[:, :2, step]
+    centres = np.hypot(*(states[:, 0, [StateField.X, StateField.Y]] - states[:, 1, [StateField.X, StateField.Y]]).T)
+    return centres - 0.5 * states[:, :, StateField.LENGTH].sum(axis=1)
+
+
+def test_a_braking_lead_when_its_follower_is_within_20_m_eases_off_until_it_is_and_brakes_there(loaded):
+    # @1 leads @2 by 30 m (bumpers) in one lane at 10 m/s: at the same speed @2 would never come within 20 m
+    lead = scene(two_lane_road(), _eastbound(34.5), _eastbound(0.0))
+    lead.agents.states[:, :, StateField.VX] = 10.0
+    result = _run(loaded, lead, "When @2 is within 20 m of @1, @1 brakes hard at 4 m/s^2 in front of @2")
+    (entry,) = result.report["prompt"]["staged"]
+    started = [r["started_s"] for r in entry["rollouts"]]
+    assert all(s is not None and 1.0 <= s <= 6.5 for s in started), started
+    for r, at in enumerate(started):
+        step = lead.current_index + round(at / 0.1)
+        assert 17.0 <= _gap_at(result, lead, step)[r] <= 20.0  # braking starts with @2 at the asked gap
+        speeds = _speeds(result, lead)[r]
+        assert speeds[: step - lead.current_index - 1].min() >= 5.9  # eased off no slower than it needs to brake
+        drops = -np.diff(speeds[step - lead.current_index :]) / 0.1
+        assert np.allclose(drops[:10], 4.0, atol=0.05)  # then at 4 m/s^2, at once

@@ -35,7 +35,7 @@ from langtraj.interdrive.targets import (
     feasibility,
     then_feasibility,
 )
-from langtraj.interdrive.triggers import WhenReady
+from langtraj.interdrive.triggers import AfterDone, AtTime, Now, WhenReady
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import Scenario
 from langtraj.sim.adherence import Ask
@@ -303,6 +303,8 @@ def prompt_steering(
                 verdict = _verdict(scenario, reading, index, routes)
                 if (warning := _warning(reading, verdict, _fallback(scenario, reading, verdict, index))) is not None:
                     warnings.append(warning)
+            if (warning := _holds_at_start(scenario, reading)) is not None:
+                warnings.append(warning)
             staged.append(_staged(scenario, reading, slots, levers, len(asks)))
             if levers.selection:
                 asks.append(staged[-1].ask_of)
@@ -372,6 +374,24 @@ def on_live_state(reading: PromptReading, external: Collection[int]) -> PromptRe
     if reading.trigger is not None or reading.condition or not reading.read or reading.other not in external:
         return reading
     return replace(reading, trigger=WhenReady()) if kind(str(reading.behaviour)).in_path else reading
+
+
+def _holds_at_start(scenario: Scenario, reading: PromptReading) -> str | None:
+    """The warning about a condition on the agents' state that holds at the start already ("when @ego is within 20 m
+    of @35" with the ego 12 m behind): the behaviour starts at once, as OpenSCENARIO's conditions without an edge do,
+    not when the condition comes about; None otherwise. Worded so that a suite does not read it as the scene ruling
+    the behaviour out (`suites.happened.not_happened`)."""
+    trigger = reading.trigger
+    if trigger is None or isinstance(trigger, (AtTime, AfterDone, WhenReady)):
+        return None
+    if not trigger.holds(Now(scenario, 0.0)):
+        return None
+    measured = trigger.measured(Now(scenario, 0.0))
+    return (
+        f"the start of @{reading.agent}'s {Behaviour(reading.behaviour).value} ({trigger.describe()}) holds already at the start"
+        + (f" ({measured})" if measured else "")
+        + ": it starts at once, not when that comes about"
+    )
 
 
 def _staged(scenario: Scenario, reading: PromptReading, slots: dict[int, int], levers: PromptLevers, at: int) -> Staged:

@@ -25,7 +25,7 @@ from langtraj.interdrive.behaviours.verdict import Start
 from langtraj.interdrive.reader import PromptReading
 from langtraj.interdrive.targets import BehaviourTarget, TargetUnavailable, derive_target
 from langtraj.interdrive.targets.context import TargetContext, lead_of
-from langtraj.interdrive.triggers import STOPPED_MPS, AfterDone, AtTime, Now, Trigger, WhenReady, pose_at
+from langtraj.interdrive.triggers import STOPPED_MPS, AfterDone, AtTime, Now, Trigger, WhenReady, Within, pose_at
 from langtraj.polylines import project_on_polyline
 from langtraj.roads import MapIndex
 from langtraj.scenario.model import FUTURE_STEPS, STEP_SECONDS, Scenario
@@ -83,14 +83,20 @@ def keeping(
     start relative to the other agent (within `KEEP_SLACK_M`, along its own lane), from where the behaviour could
     be staged then (`suggest` found it so), instead of drifting wherever the model takes it; where the behaviour's
     kind keeps a place of its own (`BehaviourKind.placed`: a cutter at its lead beside the other, executed by its
-    script), that one, read with the external agents' `routes` (`TargetContext.routes`). None for a behaviour of
-    one agent, or toward an agent the simulation does not drive."""
-    if not isinstance(reading.trigger, (AtTime, AfterDone)) or reading.other not in slots:
+    script), that one, read with the external agents' `routes` (`TargetContext.routes`). A behaviour started when
+    the other comes within a gap of its agent ("when @ego is within 20 m of @4") keeps the place its kind has for
+    that gap (a braking lead easing off), where it has one. None for a behaviour of one agent, toward an agent the
+    simulation does not drive, or started otherwise."""
+    within = _within_m(reading)
+    timed = isinstance(reading.trigger, (AtTime, AfterDone))
+    if not (timed or within is not None) or reading.other not in slots:
         return None
     assert reading.agent is not None and reading.behaviour is not None
-    placed = _placed(scenario, reading, index, routes or {})
+    placed = _placed(scenario, reading, index, routes or {}, within)
     if placed is not None:
         return Steering.of(placed, origin, slots)
+    if not timed:
+        return None
     ctx = TargetContext(scenario, index)
     try:
         agent, other = ctx.agent(reading.agent, reading.behaviour), ctx.agent(int(reading.other), reading.behaviour)
@@ -114,18 +120,31 @@ def keeping(
     return Steering.of(target, origin, slots, tuple(steers))
 
 
+def _within_m(reading: PromptReading) -> float | None:
+    """The bumper gap (m) at which the reading's trigger starts it, where that trigger is the gap between its agent
+    and the other ("when @ego is within 20 m of @4, @4 brakes hard in front of @ego"); else None."""
+    trigger = reading.trigger
+    if not isinstance(trigger, Within) or trigger.metres is None:
+        return None
+    return float(trigger.metres) if {trigger.subject, trigger.other} == {reading.agent, reading.other} else None
+
+
 def _placed(
-    scenario: Scenario, reading: PromptReading, index: MapIndex, routes: Mapping[int, np.ndarray]
+    scenario: Scenario,
+    reading: PromptReading,
+    index: MapIndex,
+    routes: Mapping[int, np.ndarray],
+    within_m: float | None = None,
 ) -> BehaviourTarget | None:
-    """The place the reading's kind keeps its agent in until it starts (`BehaviourKind.placed`), from its target at
-    the start; None where the kind keeps none or the start gives no target."""
+    """The place the reading's kind keeps its agent in until it starts (`BehaviourKind.placed`, with the trigger's
+    gap `within_m`), from its target at the start; None where the kind keeps none or the start gives no target."""
     assert reading.agent is not None and reading.behaviour is not None
     try:
         target = derive_target(scenario, reading.agent, reading.behaviour, index, other_id=reading.other,
                                gap=reading.metres, deceleration=reading.deceleration, routes=routes)  # fmt: skip
     except TargetUnavailable:
         return None
-    return kind(reading.behaviour).placed(target)
+    return kind(reading.behaviour).placed(target, within_m)
 
 
 def target_done(target: BehaviourTarget, since: int, scene: Scenario) -> bool:

@@ -190,11 +190,13 @@ class BehaviourKind(ABC):
         is the prompt's, so a behaviour that otherwise waits a little first starts at once; unchanged by default."""
         return target
 
-    def placed(self, target: BehaviourTarget) -> BehaviourTarget | None:
+    def placed(self, target: BehaviourTarget, within_m: float | None = None) -> BehaviourTarget | None:
         """The target that keeps the agent where it can stage the behaviour, executed until a trigger the prompt gives
         starts it ("after 3 s": a cutter keeping its lead beside the other in its own lane, not moving across), from
-        the behaviour's target at the start; None where the kind keeps no such place (the agent is steered to keep
-        its offset to the other instead: `sim.staging.keeping`)."""
+        the behaviour's target at the start; with `within_m`, the bumper gap between the two at which the prompt's
+        trigger starts it ("when @ego is within 20 m of @4"), a place that brings the other within it (a braking
+        lead easing off until its follower is there). None where the kind keeps no such place (the agent is steered
+        to keep its offset to the other instead, or, for a gap, driven as if unprompted: `sim.staging.keeping`)."""
         return None
 
     def ready(self, target: BehaviourTarget) -> str | None:

@@ -4,6 +4,7 @@ deceleration, staying in the follower's path: `judge`). See docs/interdrive.md (
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import replace
 
@@ -39,6 +40,9 @@ BRAKE_HARD_AFTER_S = 1.0
 """When a braking lead starts braking (s): the follower has a second of the scene as it was."""
 BRAKE_HARD_MIN_SPEED = 4.0
 """The least speed a braking lead must have (m/s): slower, hard braking lasts too short to judge."""
+BRAKE_HARD_EASE_OFF_SPARE_MPS = 2.0
+"""How much faster than it must be to brake hard (`brake_hard_min_speed`) a braking lead easing off for its
+follower stays (m/s; `BrakeHard.placed`)."""
 BRAKE_HARD_READY_S = 3.0
 """The time headway (s) its follower must be within for a braking lead staged on the follower's live state to start
 braking (`BrakeHard.ready`)."""
@@ -141,7 +145,21 @@ class BrakeHard(BehaviourKind):
         guidance alone let the model, conditioned on a stop, brake at 5.5-13 m/s^2 when 4 was asked, and swerve
         (docs/testing.md, 'Scenarios staged on the ego's live state')."""
         start = BRAKE_HARD_AFTER_S if target.starts_s is None else target.starts_s
-        return Braking(start, float(target.deceleration or BRAKE_HARD_DECELERATION))
+        deceleration = float(target.deceleration or BRAKE_HARD_DECELERATION)
+        if target.closes_to_m is None:
+            return Braking(start, deceleration)
+        floor = brake_hard_min_speed(deceleration) + BRAKE_HARD_EASE_OFF_SPARE_MPS
+        return Braking(start, deceleration, target.closes_to_m, floor)
+
+    def placed(self, target: BehaviourTarget, within_m: float | None = None) -> BehaviourTarget | None:
+        """For a trigger on its follower's gap ("when @ego is within 20 m of @4, @4 brakes hard"): in its lane,
+        easing off until the follower is within it (`scripts.ease_off`), no slower than its braking needs, so that it
+        brakes with the follower at the asked gap whatever the follower's planner does; a follower that hangs back
+        behind a lead at that speed never brings it about, and the report says how far back it was."""
+        if within_m is None or target.other_id is None:
+            return None
+        reason = f"eases off until @{target.other_id} is within {within_m:g} m"
+        return replace(target, starts_s=math.inf, closes_to_m=float(within_m), reason=reason)
 
     def at_trigger(self, target: BehaviourTarget) -> BehaviourTarget:
         """Braking at once: the prompt's trigger says when ("when @ego is within 20 m of @738, ..."), not the second
@@ -150,7 +168,10 @@ class BrakeHard(BehaviourKind):
 
     def ready(self, target: BehaviourTarget) -> str | None:
         """Not before its follower is within `BRAKE_HARD_READY_S` of time headway (Euro NCAP's braking lead brakes
-        with its follower 12-40 m behind at 50 km/h: 0.9-2.9 s): braking with the follower far behind tests nothing."""
+        with its follower 12-40 m behind at 50 km/h: 0.9-2.9 s): braking with the follower far behind tests nothing.
+        A prompt that says when (`at_trigger`: "when @ego is within 20 m of @4") is obeyed as it says."""
+        if target.starts_s is not None:
+            return None
         speed = max(float(target.other_speed or 0.0), 0.1)
         gap = float(target.other_gap_m or 0.0)
         if gap > BRAKE_HARD_READY_S * speed:

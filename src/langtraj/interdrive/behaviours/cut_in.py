@@ -246,10 +246,11 @@ class CutIn(BehaviourKind):
         moves = 0.0 if target.starts_s is None else float(target.starts_s)
         return CuttingIn(float(target.lead_m), float(target.settled_s or CUT_IN_S), cruise(target), moves)
 
-    def placed(self, target: BehaviourTarget) -> BehaviourTarget | None:
+    def placed(self, target: BehaviourTarget, within_m: float | None = None) -> BehaviourTarget | None:
         """Its lead beside the other in its own lane at the other's speed, never moving across (`CuttingIn`'s
-        `moves_from_s`; its path its own lane): when the trigger holds, the cut-in is where it can begin at once."""
-        if target.lead_m is None or target.own_lane is None or len(target.own_lane) < 2:
+        `moves_from_s`; its path its own lane): when the trigger holds, the cut-in is where it can begin at once. None
+        for a trigger on the gap between the two (`within_m`), which its lead would not bring about."""
+        if within_m is not None or target.lead_m is None or target.own_lane is None or len(target.own_lane) < 2:
             return None
         reason = f"keeps its lead beside @{target.other_id} in its own lane until it starts"
         return replace(target, path=target.own_lane, starts_s=math.inf, reason=reason)

@@ -160,30 +160,6 @@ def traffic_at(now: ScriptState, action: int) -> np.ndarray:
     return out
 
 
-@dataclass(frozen=True)
-class Braking(Script):
-    """From `start_s`, slowing at `deceleration` m/s^2 to rest and standing (the model's acceleration before), and
-    keeping to its path throughout (pure pursuit), never into the traffic ahead (`keep_behind`)."""
-
-    start_s: float
-    deceleration: float
-
-    def plan(self, now: ScriptState) -> np.ndarray:
-        out = np.full((now.count, 2), np.nan)
-        state = [float(v) for v in now.agent]
-        for k in range(now.count):
-            t = now.elapsed_s + k * now.per_action * now.dt
-            accel = -self.deceleration if t >= self.start_s - 1e-6 else np.nan
-            if not np.isnan(accel):
-                accel = keep_behind(accel, state, now.path, now, traffic_at(now, k))
-            ahead = max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3])
-            rate = pursuit_rate(*state, now.path, ahead, now.max_yaw_rate)
-            out[k] = (accel, rate)
-            for _ in range(now.per_action):
-                unicycle_step(state, 0.0 if np.isnan(accel) else accel, rate, now.dt)
-        return out
-
-
 CUT_IN_LOOK_AHEAD_S = 1.2
 """A scripted cut-in's pure-pursuit look-ahead (s of speed, at least `CUT_IN_LOOK_AHEAD_MIN_M`): its centre into the
 lane about 1.5 s after it turns, settled in about 2.5 s, as drivers change lanes, not a swerve (at 2 s and at least
@@ -313,6 +289,66 @@ def _closing(error: float) -> float:
     return math.copysign(
         min(CUT_IN_GAP_GAIN / CUT_IN_SPEED_GAIN * distance, math.sqrt(2.0 * CUT_IN_APPROACH * distance)), error
     )
+
+
+EASE_OFF_MPS = 4.0
+"""The most a lead easing off for its follower to close in (`Braking.closes_to_m`) drives slower than the follower
+(m/s): from 40 m back a follower comes within 20 m in about 5 s, inside an episode."""
+EASE_OFF_ACCELERATIONS = (-2.0, 2.0)
+"""What a lead easing off accelerates within (m/s^2): gentle, so that its braking before the trigger is not what the
+judge reads as the hard braking asked."""
+EASE_OFF_MARGIN_M = 1.5
+"""How far inside the asked gap a lead easing off aims (m), so that the gap crosses it rather than creeping up to it."""
+
+
+def ease_off(
+    gap_to: float, floor: float, state: list[float], other: list[float], other_accel: float, sizes: float
+) -> float:
+    """The acceleration (m/s^2) of a lead letting the follower `other` close to `gap_to` m bumper to bumper
+    (`EASE_OFF_MARGIN_M` inside it; `sizes`: the two half lengths): slower than the follower by the braking curve
+    of the gap left (`_closing`, at most `EASE_OFF_MPS`) and never below `floor` m/s, on top of the follower's own
+    `other_accel`; a follower nearer than the gap sees it pull away again."""
+    gap = math.hypot(state[0] - other[0], state[1] - other[1]) - sizes
+    error = gap_to - EASE_OFF_MARGIN_M - gap  # negative while the follower is farther back than asked
+    slower = float(np.clip(_closing(error), -EASE_OFF_MPS, EASE_OFF_MPS))
+    correction = CUT_IN_SPEED_GAIN * (max(other[3] + slower, floor) - state[3])
+    return float(np.clip(other_accel + correction, *EASE_OFF_ACCELERATIONS))
+
+
+@dataclass(frozen=True)
+class Braking(Script):
+    """From `start_s`, slowing at `deceleration` m/s^2 to rest and standing, and keeping to its path throughout
+    (pure pursuit), never into the traffic ahead (`keep_behind`); before, the model's acceleration, or, with
+    `closes_to_m`, easing off until the other agent behind is within that bumper gap (`ease_off`, no slower than
+    `floor_mps`): a braking lead placed for a trigger on its follower's gap."""
+
+    start_s: float
+    deceleration: float
+    closes_to_m: float | None = None
+    floor_mps: float = 0.0
+
+    def plan(self, now: ScriptState) -> np.ndarray:
+        out = np.full((now.count, 2), np.nan)
+        state = [float(v) for v in now.agent]
+        other = None if now.other is None else [float(v) for v in now.other]
+        sizes = 0.5 * (now.size[0] + now.other_box[0])
+        for k in range(now.count):
+            t = now.elapsed_s + k * now.per_action * now.dt
+            if t >= self.start_s - 1e-6:
+                accel = keep_behind(-self.deceleration, state, now.path, now, traffic_at(now, k))
+            elif self.closes_to_m is not None and other is not None:
+                eased = ease_off(self.closes_to_m, self.floor_mps, state, other, now.other_accel, sizes)
+                accel = keep_behind(eased, state, now.path, now, traffic_at(now, k))
+            else:
+                accel = np.nan
+            ahead = max(LOOK_AHEAD_MIN_M, LOOK_AHEAD_S * state[3])
+            rate = pursuit_rate(*state, now.path, ahead, now.max_yaw_rate)
+            out[k] = (accel, rate)
+            for _ in range(now.per_action):
+                unicycle_step(state, 0.0 if np.isnan(accel) else accel, rate, now.dt)
+                if other is not None:
+                    unicycle_step(other, now.other_accel, 0.0, now.dt)
+        return out
 
 
 @dataclass(frozen=True)

@@ -63,6 +63,9 @@ class BehaviourTarget:
     stop_line_m: float | None = None
     """How far along the path a stop line it passes is (m), where the target runs one (a red-light run): a scripted
     runner early for its moment stands short of it (`behaviours.scripts.Crossing`)."""
+    closes_to_m: float | None = None
+    """The bumper gap (m) the agent eases off to let the other, behind it, come within, where it is placed for a
+    trigger on that gap (a braking lead before "when @ego is within 20 m of @4": `BehaviourKind.placed`)."""
     joins_m: float | None = None
     """How far along the path it joins its new lane (m), where the target changes lanes (a lane change: where its
     lead-in meets the lane), so that what is asked after the change lies past it (`stop_after`)."""
