@@ -437,6 +437,22 @@ def test_a_braking_lead_stops_in_its_lane_where_the_asked_deceleration_brings_it
         derive_target(brisk, 1, Behaviour.BRAKE_HARD, index, other_id=2, deceleration=10.0)
 
 
+def test_a_braking_lead_is_refused_behind_a_queue_and_where_its_lane_parts_from_the_followers_route():
+    # at the current step 1 (x = 40, 10 m/s) would come to rest 22.5 m on; 3 stands 17 m ahead of it (bumpers: 12.5 m)
+    queued = scene(two_lane_road(), _eastbound_from(30.0), _eastbound_from(0.0), _eastbound_from(57.0, speed=0.0))
+    with pytest.raises(TargetUnavailable, match="queued behind @3 12 m ahead, stopping for it anyway"):
+        _target(queued, 1, Behaviour.BRAKE_HARD, 2)
+    moving = scene(two_lane_road(), _eastbound_from(30.0), _eastbound_from(0.0), _eastbound_from(47.0, speed=10.0))
+    assert _target(moving, 1, Behaviour.BRAKE_HARD, 2).stop  # driving on at 10 m/s it leaves room enough
+    s = scene(two_lane_road(), _eastbound_from(30.0), _eastbound_from(0.0))
+    index = MapIndex.build(s.road_map)
+    turns_off = np.array([[-60.0, 0.0], [50.0, 0.0], [50.0, 60.0]])  # 2's route leaves the road north at x = 50
+    with pytest.raises(TargetUnavailable, match="its lane parts from @2's way 12 m ahead, before it would come to"):
+        derive_target(s, 1, Behaviour.BRAKE_HARD, index, other_id=2, routes={2: turns_off})
+    along = np.array([[-60.0, 0.0], [200.0, 0.0]])
+    assert derive_target(s, 1, Behaviour.BRAKE_HARD, index, other_id=2, routes={2: along}).stop
+
+
 def test_a_tailgater_closes_to_the_short_headway_behind_the_other_in_its_lane():
     s = scene(two_lane_road(), _eastbound_from(0.0), _eastbound_from(20.0))  # 1 is 15.5 m behind 2, both 10 m/s
     target = _target(s, 1, Behaviour.TAILGATE, 2)

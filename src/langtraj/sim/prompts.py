@@ -386,9 +386,9 @@ def _holds_at_start(scenario: Scenario, reading: PromptReading) -> str | None:
         return None
     if not trigger.holds(Now(scenario, 0.0)):
         return None
-    measured = trigger.measured(Now(scenario, 0.0))
+    measured, behaviour = trigger.measured(Now(scenario, 0.0)), Behaviour(reading.behaviour).value
     return (
-        f"the start of @{reading.agent}'s {Behaviour(reading.behaviour).value} ({trigger.describe()}) holds already at the start"
+        f"the start of @{reading.agent}'s {behaviour} ({trigger.describe()}) holds already at the start"
         + (f" ({measured})" if measured else "")
         + ": it starts at once, not when that comes about"
     )

@@ -8,6 +8,8 @@ import math
 from collections.abc import Mapping
 from dataclasses import replace
 
+import numpy as np
+
 from langtraj.interdrive.behaviour import Behaviour, BehaviourSpec
 from langtraj.interdrive.behaviours.base import (
     HOLD_WEIGHT,
@@ -25,11 +27,14 @@ from langtraj.interdrive.behaviours.recipes import settled
 from langtraj.interdrive.behaviours.scripts import Braking, Script
 from langtraj.interdrive.detector import braking_lead_runs
 from langtraj.interdrive.judging import brake_hard as judged_by
+from langtraj.interdrive.judging.base import IN_PATH_LATERAL_M
 from langtraj.interdrive.reader.words import IN_FRONT, OTHER, TIGHT_GAP, verb
 from langtraj.interdrive.targets.context import AgentHere, TargetContext, pair_gap
 from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
 from langtraj.interdrive.taxonomy import InteractionType
+from langtraj.polylines import point_at, project_on_polyline
 from langtraj.scenario.model import FUTURE_STEPS
+from langtraj.scenario.types import StateField
 
 BRAKE_HARD_DECELERATION = 4.0
 """How hard a braking lead brakes unless the prompt says (m/s^2): Euro NCAP's braking-lead tests use 2 to 6."""
@@ -51,6 +56,13 @@ DECELERATION = Parameter(
     "hard braking, and at most what tyres give on dry asphalt",
 )  # fmt: skip
 """How hard a braking lead is asked to brake ("at 6 m/s^2", "at 0.5 g")."""
+WAY_STEP_M = 1.0
+"""How finely a braking lead's way to its rest is checked against its follower's (m; `_on_their_way`)."""
+QUEUE_GAP_M = 2.0
+"""The least bumper gap (m) the vehicle ahead of a braking lead, driving on at its speed, leaves past the lead's rest
+point: less, and the lead is queued behind it (`_not_queued`), the standing gap of the agents' IDM."""
+QUEUE_REACH_M = 30.0
+"""How far past its rest point a braking lead looks for the vehicle ahead (m)."""
 KEEP_LANE_WEIGHT = 16.0 * ROUTE_WEIGHT
 """Per m^2 off the lane, for a braking lead, which must not swerve: above the common range, as the model, conditioned
 on a stop, moves aside by 1.5-3 m at 1x; chosen on validation maps (docs/testing.md, 'The safety-critical
@@ -99,10 +111,13 @@ def _brake_hard(ctx: TargetContext, agent: AgentHere, other: AgentHere, decelera
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
     gap = pair_gap(ctx, agent, other, behaviour, lead=agent, where="behind")
     station = v * BRAKE_HARD_AFTER_S + v * v / (2.0 * deceleration)
+    path = ctx.ahead(agent)
+    _on_their_way(ctx, agent, other, path, station)
+    _not_queued(ctx, agent, path, station, BRAKE_HARD_AFTER_S + v / deceleration)
     return BehaviourTarget(
         agent.track_id,
         behaviour,
-        ctx.ahead(agent),
+        path,
         f"braking at {deceleration:g} m/s^2 from {BRAKE_HARD_AFTER_S:g} s to rest {station:.0f} m ahead, "
         f"@{other.track_id} {gap:.0f} m behind",
         station_of_goal=float(station),
@@ -114,6 +129,45 @@ def _brake_hard(ctx: TargetContext, agent: AgentHere, other: AgentHere, decelera
         deceleration=float(deceleration),
         other_gap_m=float(gap),
     )
+
+
+def _on_their_way(ctx: TargetContext, agent: AgentHere, other: AgentHere, path: np.ndarray, upto: float) -> None:
+    """Infeasible where the agent's `path` parts from the other's way (`TargetContext.ahead`: its route, where it
+    drives one) by more than the judge's `IN_PATH_LATERAL_M` before the agent comes to rest `upto` m along it: a
+    follower that turns off at the junction ahead is braked in front of by no one (the judge reads the lead in the
+    follower's driven path)."""
+    way = ctx.ahead(other)
+    if len(path) < 2 or len(way) < 2:
+        return
+    stations = np.arange(0.0, upto + 0.5 * agent.length, WAY_STEP_M)
+    off = project_on_polyline(point_at(path, stations), way).distance
+    if (off <= IN_PATH_LATERAL_M).all():
+        return
+    parts = float(stations[int(np.argmax(off > IN_PATH_LATERAL_M))])
+    reason = f"its lane parts from @{other.track_id}'s way {parts:.0f} m ahead, before it would come to rest"
+    raise TargetUnavailable(agent.track_id, Behaviour.BRAKE_HARD, "infeasible", reason)
+
+
+def _not_queued(ctx: TargetContext, agent: AgentHere, path: np.ndarray, upto: float, rest_s: float) -> None:
+    """Infeasible where the vehicle ahead of the agent on its `path`, driving on at its speed, is less than
+    `QUEUE_GAP_M` past where the agent comes to rest (`upto` m along it, `rest_s` s from now): the agent is stopping
+    behind it anyway, slowing already (a queue), and what it does is no hard braking staged in front of anyone."""
+    found = ctx.first_on(agent, path, upto + QUEUE_REACH_M)
+    if found is None:
+        return
+    ahead, length, speed = found[1], _length_of(ctx, found[0]), found[2]
+    room = ahead + speed * rest_s - 0.5 * (agent.length + length) - upto
+    if room >= QUEUE_GAP_M:
+        return
+    reason = (
+        f"it is queued behind @{found[0]} {ahead - 0.5 * (agent.length + length):.0f} m ahead, stopping for it anyway"
+    )
+    raise TargetUnavailable(agent.track_id, Behaviour.BRAKE_HARD, "infeasible", reason)
+
+
+def _length_of(ctx: TargetContext, track_id: int) -> float:
+    agents = ctx.scenario.agents
+    return float(agents.states[agents.index_of(track_id), ctx.scenario.current_index, StateField.LENGTH])
 
 
 @register
