@@ -34,7 +34,6 @@ from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailabl
 from langtraj.interdrive.taxonomy import InteractionType
 from langtraj.polylines import point_at, project_on_polyline
 from langtraj.scenario.model import FUTURE_STEPS
-from langtraj.scenario.types import StateField
 
 BRAKE_HARD_DECELERATION = 4.0
 """How hard a braking lead brakes unless the prompt says (m/s^2): Euro NCAP's braking-lead tests use 2 to 6."""
@@ -155,7 +154,7 @@ def _not_queued(ctx: TargetContext, agent: AgentHere, path: np.ndarray, upto: fl
     found = ctx.first_on(agent, path, upto + QUEUE_REACH_M)
     if found is None:
         return
-    ahead, length, speed = found[1], _length_of(ctx, found[0]), found[2]
+    ahead, length, speed = found[1], ctx.length(found[0]), found[2]
     room = ahead + speed * rest_s - 0.5 * (agent.length + length) - upto
     if room >= QUEUE_GAP_M:
         return
@@ -163,11 +162,6 @@ def _not_queued(ctx: TargetContext, agent: AgentHere, path: np.ndarray, upto: fl
         f"it is queued behind @{found[0]} {ahead - 0.5 * (agent.length + length):.0f} m ahead, stopping for it anyway"
     )
     raise TargetUnavailable(agent.track_id, Behaviour.BRAKE_HARD, "infeasible", reason)
-
-
-def _length_of(ctx: TargetContext, track_id: int) -> float:
-    agents = ctx.scenario.agents
-    return float(agents.states[agents.index_of(track_id), ctx.scenario.current_index, StateField.LENGTH])
 
 
 @register

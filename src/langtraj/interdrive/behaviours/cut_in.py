@@ -29,7 +29,7 @@ from langtraj.interdrive.targets.context import (
 from langtraj.interdrive.targets.target import BehaviourTarget, TargetUnavailable
 from langtraj.interdrive.taxonomy import InteractionType
 from langtraj.roads.routes import route as lane_route
-from langtraj.scenario.types import AgentType, StateField
+from langtraj.scenario.types import AgentType
 
 CUT_IN_GAP_M = 10.0
 """The gap (bumper to bumper, m) a cut-in leaves in front of the other agent unless the prompt gives one."""
@@ -146,9 +146,7 @@ def room_ahead(
     if ahead is None:
         return
     track, apart, speed = ahead
-    agents = ctx.scenario.agents
-    length = float(agents.states[agents.index_of(track), ctx.scenario.current_index, StateField.LENGTH])
-    room = apart + (speed - other.here.speed) * seconds - 0.5 * (other.length + length)
+    room = apart + (speed - other.here.speed) * seconds - 0.5 * (other.length + ctx.length(track))
     if room < gap + agent.length + CUT_IN_ROOM_M:
         reason = (
             f"@{track} ahead of @{other.track_id} in its lane leaves {max(room, 0.0):.0f} m, no room for "

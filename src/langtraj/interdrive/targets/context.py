@@ -146,6 +146,11 @@ class TargetContext:
             self.config.reach(here.speed),
         )
 
+    def length(self, track_id: int) -> float:
+        """Agent `track_id`'s length at the current step (m)."""
+        agents = self.scenario.agents
+        return float(agents.states[agents.index_of(track_id), self.scenario.current_index, StateField.LENGTH])
+
     def junction(self, agent: AgentHere) -> JunctionAhead:
         """The branches of the agent's next junction within its search (`lanes_ahead.junction_ahead`)."""
         if agent.track_id not in self._junctions:
