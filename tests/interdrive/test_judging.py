@@ -502,6 +502,14 @@ def test_a_pull_out_reports_its_margin_at_the_others_speed_when_it_set_off():
     late = _judge("pull_out", EPISODES["pull_out contact"].scene, 2, 1, {})
     assert late.why.startswith("cut short by a contact")
     assert _judge("pull_out", EPISODES["pull_out out of path"].scene, 2, 1, {}).why == "never came onto @1's way"
+    assert _judge("pull_out", EPISODES["pull_out a lot"].scene, 2, 1, {}).why == "margin 5 s done, 2 s asked (+-1 s)"
+    # the ego slows from 10 to 4 m/s from 0.5 s on: a pull-out timed for it at 10 m/s comes out far ahead, and the
+    # reason says the ego's doing, measured
+    puller = EPISODES["pull_out met"].scene.agents.xy[1]  # @2, set off for an ego at 10 m/s
+    ego = -40.0 + travelled(np.clip(10.0 - 2.0 * np.clip(t - 0.5, 0.0, None), 4.0, 10.0))
+    slowing = episode({1: track(ego, 0.0), 2: track(puller[:, 0], puller[:, 1], math.pi / 2)})
+    why = _judge("pull_out", slowing, 2, 1, {}).why
+    assert why.startswith("margin ") and why.endswith("@1 slowed from 10.0 to 4.0 m/s meanwhile (its own doing)")
 
 
 def test_a_red_light_run_reports_when_it_crossed_on_red_and_its_lead_over_the_other():

@@ -17,8 +17,10 @@ from langtraj.interdrive.judging.base import (
     EPSILON_SPEED,
     Judgement,
     Measure,
+    PairView,
     at,
     cut_short,
+    how_other_drove,
     not_seen,
     pair_view,
 )
@@ -85,6 +87,7 @@ def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -
                 why = f"came onto {name}'s way only behind it"
             else:
                 why = f"set off more than {LOOKBACK_S:g} s before coming onto {name}'s way"
+            why = _with_how_other_drove(why, view, contact)
         return Judgement(False, _measures(None, None, None), why, None, contact)
     speed = float(view.other.speed[set_off])
     gap = float(view.gap_ahead[entry])
@@ -93,6 +96,13 @@ def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -
         why = f"{name} was all but standing ({speed:.1f} m/s) when it set off: no one to pull out in front of"
         return Judgement(False, measures, why, entry, contact)
     if not measures[0].ok:
-        return Judgement(False, measures, measures[0].missed(), entry, contact)
+        return Judgement(False, measures, _with_how_other_drove(measures[0].missed(), view, contact), entry, contact)
     why = f"pulled out {gap:.1f} m ahead of {name} at {at(entry)} ({measures[0].describe()})"
     return Judgement(True, measures, why, entry, contact)
+
+
+def _with_how_other_drove(why: str, view: PairView, contact: int | None) -> str:
+    """`why` and, before any contact, how the other changed its speed meanwhile (`how_other_drove`): a margin wider
+    than asked, or a pull-out never on the other's way, beside an ego that slowed or sped up reads as its doing."""
+    drove = None if contact is not None else how_other_drove(view)
+    return why if drove is None else f"{why}; {drove}"
