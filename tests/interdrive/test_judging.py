@@ -473,6 +473,13 @@ def test_a_braking_lead_reports_its_peak_and_whether_it_stayed_in_the_path():
     off = _judge("brake_hard", EPISODES["brake out of path"].scene, 2, 1, {"deceleration": 6.0})
     assert off.why.startswith("did not brake in front of @1: it left its path while braking (2.3 m to the side")
     assert _measure(off, "turned off the path").realised > 15
+    # a third car moves from the next lane into the 30-m gap between them, 12 m behind the lead, as it brakes
+    base = EPISODES["brake met"].scene
+    lead, ego = base.agents.xy[1], base.agents.xy[0]
+    between = episode({1: track(ego[:, 0], 0.0), 2: track(lead[:, 0], 0.0),
+                       3: track(lead[:, 0] - 12.0 - LENGTH, 3.5 * (1.0 - smooth(0.5, 1.0)))})  # fmt: skip
+    cut = _judge("brake_hard", between, 2, 1, {"deceleration": 6.0})
+    assert cut.happened is False and cut.why.startswith("@3 came between @1 and it at 1.")
     short = _judge("brake_hard", EPISODES["brake contact"].scene, 2, 1, {})
     assert "cut short by a contact at 1." in short.why
 

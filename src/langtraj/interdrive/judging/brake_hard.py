@@ -30,6 +30,7 @@ from langtraj.interdrive.judging.base import (
 )
 from langtraj.runs import true_runs
 from langtraj.scenario.model import STEP_SECONDS, Scenario
+from langtraj.scenario.types import StateField
 
 """What a prompt may ask of a braking lead: `deceleration` in m/s^2 ("at 6 m/s^2", "at 0.5 g")."""
 DECELERATION_TOLERANCE = 1.5
@@ -67,6 +68,33 @@ def _usable(view: PairView, steps: int) -> np.ndarray:
     limit = n if view.contact_step is None else view.contact_step
     out[max(limit - steps, 0) :] = False
     return out
+
+
+def came_between(scene: Scenario, view: PairView, span: np.ndarray) -> str | None:
+    """The first agent but the two in the follower's path between them at a step of `span` (the braking): its centre
+    within `IN_PATH_LATERAL_M` of the follower's heading line, ahead of the follower's front and behind the lead's
+    rear, as "@92 came between @80 and it at 1.9 s"; None where none did. A car that moved in between was braked in
+    front of, not the follower (the traffic's doing, which the labelers' nearest-leader rule sees too)."""
+    if not span.size:
+        return None
+    agents, rows = scene.agents, min(int(scene.current_index), scene.num_steps - 1) + span
+    follower = view.other
+    states = agents.states[:, rows].astype(np.float64)  # [A, S, F]
+    rel = states[..., [StateField.X, StateField.Y]] - follower.xy[span][None]
+    cos, sin = np.cos(follower.heading[span])[None], np.sin(follower.heading[span])[None]
+    along = rel[..., 0] * cos + rel[..., 1] * sin
+    half = 0.5 * states[..., StateField.LENGTH]
+    with np.errstate(invalid="ignore"):
+        between = (along - half > 0.5 * follower.length[span]) & (
+            along + half < view.along[span] - 0.5 * view.agent.length[span]
+        )
+        between &= np.abs(rel[..., 1] * cos - rel[..., 0] * sin) <= IN_PATH_LATERAL_M
+    between &= agents.valid[:, rows] & ~np.isin(agents.ids, [view.agent.track_id, follower.track_id])[:, None]
+    if not between.any():
+        return None
+    found = np.argwhere(between)  # [K, 2]: agent row, step of span
+    who, step = found[np.argmin(found[:, 1])]
+    return f"@{int(agents.ids[who])} came between @{follower.track_id} and it at {at(int(span[step]))}"
 
 
 def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -> Judgement:
@@ -119,6 +147,8 @@ def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -
         reasons.append(f"not ahead of {name} when it began braking at {at(start)}")
     elif gap > FOLLOWER_RANGE_M:
         reasons.append(f"{name} was {gap:.0f} m behind when it began braking: more than {FOLLOWER_RANGE_M:g} m")
+    if (between := came_between(scene, view, span)) is not None:
+        reasons.append(between)
     if not (measures[1].ok and measures[2].ok):
         reasons.append(
             f"did not brake in front of {name}: it left its path while braking ({lateral:.1f} m to the side, "
