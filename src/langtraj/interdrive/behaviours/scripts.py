@@ -302,13 +302,13 @@ EASE_OFF_MARGIN_M = 1.5
 
 
 def ease_off(
-    gap_to: float, floor: float, state: list[float], other: list[float], other_accel: float, sizes: float
+    gap_to: float, floor: float, state: list[float], other: list[float], other_accel: float, half_lengths: float
 ) -> float:
     """The acceleration (m/s^2) of a lead letting the follower `other` close to `gap_to` m bumper to bumper
-    (`EASE_OFF_MARGIN_M` inside it; `sizes`: the two half lengths): slower than the follower by the braking curve
-    of the gap left (`_closing`, at most `EASE_OFF_MPS`) and never below `floor` m/s, on top of the follower's own
-    `other_accel`; a follower nearer than the gap sees it pull away again."""
-    gap = math.hypot(state[0] - other[0], state[1] - other[1]) - sizes
+    (`EASE_OFF_MARGIN_M` inside it; `half_lengths`: the sum of the two): slower than the follower by the braking
+    curve of the gap left (`_closing`, at most `EASE_OFF_MPS`) and never below `floor` m/s, on top of the follower's
+    own `other_accel`; a follower nearer than the gap sees it pull away again."""
+    gap = math.hypot(state[0] - other[0], state[1] - other[1]) - half_lengths
     error = gap_to - EASE_OFF_MARGIN_M - gap  # negative while the follower is farther back than asked
     slower = float(np.clip(_closing(error), -EASE_OFF_MPS, EASE_OFF_MPS))
     correction = CUT_IN_SPEED_GAIN * (max(other[3] + slower, floor) - state[3])
@@ -331,13 +331,13 @@ class Braking(Script):
         out = np.full((now.count, 2), np.nan)
         state = [float(v) for v in now.agent]
         other = None if now.other is None else [float(v) for v in now.other]
-        sizes = 0.5 * (now.size[0] + now.other_box[0])
+        half_lengths = 0.5 * (now.size[0] + now.other_box[0])
         for k in range(now.count):
             t = now.elapsed_s + k * now.per_action * now.dt
             if t >= self.start_s - 1e-6:
                 accel = keep_behind(-self.deceleration, state, now.path, now, traffic_at(now, k))
             elif self.closes_to_m is not None and other is not None:
-                eased = ease_off(self.closes_to_m, self.floor_mps, state, other, now.other_accel, sizes)
+                eased = ease_off(self.closes_to_m, self.floor_mps, state, other, now.other_accel, half_lengths)
                 accel = keep_behind(eased, state, now.path, now, traffic_at(now, k))
             else:
                 accel = np.nan
