@@ -437,13 +437,16 @@ def test_a_braking_lead_stops_in_its_lane_where_the_asked_deceleration_brings_it
         derive_target(brisk, 1, Behaviour.BRAKE_HARD, index, other_id=2, deceleration=10.0)
 
 
-def test_a_braking_lead_is_refused_behind_a_queue_and_where_its_lane_parts_from_the_followers_route():
+def test_a_braking_lead_is_refused_behind_a_queue_with_a_car_between_and_where_it_parts_from_the_followers_route():
     # at the current step 1 (x = 40, 10 m/s) would come to rest 22.5 m on; 3 stands 17 m ahead of it (bumpers: 12.5 m)
     queued = scene(two_lane_road(), _eastbound_from(30.0), _eastbound_from(0.0), _eastbound_from(57.0, speed=0.0))
     with pytest.raises(TargetUnavailable, match="queued behind @3 12 m ahead, stopping for it anyway"):
         _target(queued, 1, Behaviour.BRAKE_HARD, 2)
     moving = scene(two_lane_road(), _eastbound_from(30.0), _eastbound_from(0.0), _eastbound_from(47.0, speed=10.0))
     assert _target(moving, 1, Behaviour.BRAKE_HARD, 2).stop  # driving on at 10 m/s it leaves room enough
+    between = scene(two_lane_road(), _eastbound_from(30.0), _eastbound_from(0.0), _eastbound_from(15.0))
+    with pytest.raises(TargetUnavailable, match="@3 is between @2 and it"):
+        _target(between, 1, Behaviour.BRAKE_HARD, 2)
     s = scene(two_lane_road(), _eastbound_from(30.0), _eastbound_from(0.0))
     index = MapIndex.build(s.road_map)
     turns_off = np.array([[-60.0, 0.0], [50.0, 0.0], [50.0, 60.0]])  # 2's route leaves the road north at x = 50

@@ -109,6 +109,7 @@ def _brake_hard(ctx: TargetContext, agent: AgentHere, other: AgentHere, decelera
         reason = f"it is too slow to brake hard at {deceleration:g} m/s^2 ({v:.1f} m/s; at least {least:g})"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
     gap = pair_gap(ctx, agent, other, behaviour, lead=agent, where="behind")
+    _nearest_lead(ctx, agent, other, gap)
     station = v * BRAKE_HARD_AFTER_S + v * v / (2.0 * deceleration)
     path = ctx.ahead(agent)
     _on_their_way(ctx, agent, other, path, station)
@@ -128,6 +129,16 @@ def _brake_hard(ctx: TargetContext, agent: AgentHere, other: AgentHere, decelera
         deceleration=float(deceleration),
         other_gap_m=float(gap),
     )
+
+
+def _nearest_lead(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) -> None:
+    """Infeasible where another road user is on the other's way between it and the agent (`TargetContext.first_on`
+    within the `gap`): the other follows that one, and the agent's braking is in front of it, not of the other."""
+    found = ctx.first_on(other, ctx.ahead(other), gap + 0.5 * other.length)
+    if found is None or found[0] == agent.track_id:
+        return
+    reason = f"@{found[0]} is between @{other.track_id} and it"
+    raise TargetUnavailable(agent.track_id, Behaviour.BRAKE_HARD, "infeasible", reason)
 
 
 def _on_their_way(ctx: TargetContext, agent: AgentHere, other: AgentHere, path: np.ndarray, upto: float) -> None:
