@@ -68,11 +68,13 @@ def _eastbound(x: float, speed: float = 10.0):
 
 
 def test_a_scripted_brake_after_2_5_s_starts_between_replans_at_the_asked_deceleration(loaded):
-    # @1 leads @2 by 25 m in one lane of a straight road at 10 m/s; replans are at whole seconds, the start half-way
-    lead = scene(two_lane_road(), _eastbound(30.0), _eastbound(0.0))
+    # @1 leads @2 by 15.5 m (bumpers) in one lane of a straight road at 10 m/s; replans are at whole seconds, the start
+    # half-way. (25.5 m back, the model drifts @2 into the next lane before 2.5 s, where no braking lead is staged in
+    # front of it: `brake_hard._on_their_way`.)
+    lead = scene(two_lane_road(), _eastbound(20.0), _eastbound(0.0))
     result = _run(loaded, lead, "@1 brakes hard at 4 m/s^2 in front of @2 after 2.5 s")
     (entry,) = result.report["prompt"]["staged"]
-    assert [r["started_s"] for r in entry["rollouts"]] == [2.5, 2.5]  # its step, not the next replan's
+    assert [r["started_s"] for r in entry["rollouts"]] == [2.5, 2.5], entry  # its step, not the next replan's
     speeds = _speeds(result, lead)  # [R, T]: T[k] is the speed at (k + 1) / 10 s
     drops = -np.diff(speeds, axis=1) / 0.1
     assert np.allclose(drops[:, 24:39], 4.0, atol=0.05)  # from 2.5 s at 4 m/s^2, executed at 10 Hz

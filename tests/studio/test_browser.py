@@ -409,7 +409,8 @@ def events_agree(page: Page, result: dict[str, Any]) -> None:
     hits = sum("collision with" in c for r in scored for c in r.locator("td").all_text_contents())
     evaluated = prompted["realism"]["evaluated"]
     wosac = page.locator("#realism-table tr", has_text="collision rate").first.locator("td").first.inner_text()
-    assert float(wosac) == pytest.approx(hits / (evaluated * n), abs=5e-4), (wosac, hits, evaluated, n)
+    # shown to 3 decimals: within half a unit of the last, inclusive (1 hit of 16 is 0.0625, shown as 0.063)
+    assert float(wosac) == pytest.approx(hits / (evaluated * n), abs=5e-4 + 1e-9), (wosac, hits, evaluated, n)
     jumps = page.locator(".events-table button.event-jump")
     assert jumps.count() > 0, "no collision or off-road in the job to jump to"
     jump = jumps.last
