@@ -384,9 +384,10 @@ def _holds_at_start(scenario: Scenario, reading: PromptReading) -> str | None:
     trigger = reading.trigger
     if trigger is None or isinstance(trigger, (AtTime, AfterDone, WhenReady)):
         return None
-    if not trigger.holds(Now(scenario, 0.0)):
+    start = Now(scenario, 0.0)
+    if not trigger.holds(start):
         return None
-    measured, behaviour = trigger.measured(Now(scenario, 0.0)), Behaviour(reading.behaviour).value
+    measured, behaviour = trigger.measured(start), Behaviour(reading.behaviour).value
     return (
         f"the start of @{reading.agent}'s {behaviour} ({trigger.describe()}) holds already at the start"
         + (f" ({measured})" if measured else "")

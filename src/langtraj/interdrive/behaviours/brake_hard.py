@@ -109,10 +109,11 @@ def _brake_hard(ctx: TargetContext, agent: AgentHere, other: AgentHere, decelera
         reason = f"it is too slow to brake hard at {deceleration:g} m/s^2 ({v:.1f} m/s; at least {least:g})"
         raise TargetUnavailable(agent.track_id, behaviour, "infeasible", reason)
     gap = pair_gap(ctx, agent, other, behaviour, lead=agent, where="behind")
-    _nearest_lead(ctx, agent, other, gap)
+    way = ctx.ahead(other)  # read once: a staged braking lead derives its target at every step it waits
+    _nearest_lead(ctx, agent, other, way, gap)
     station = v * BRAKE_HARD_AFTER_S + v * v / (2.0 * deceleration)
     path = ctx.ahead(agent)
-    _on_their_way(ctx, agent, other, path, station)
+    _on_their_way(agent, other, path, way, station)
     _not_queued(ctx, agent, path, station, BRAKE_HARD_AFTER_S + v / deceleration)
     return BehaviourTarget(
         agent.track_id,
@@ -131,22 +132,21 @@ def _brake_hard(ctx: TargetContext, agent: AgentHere, other: AgentHere, decelera
     )
 
 
-def _nearest_lead(ctx: TargetContext, agent: AgentHere, other: AgentHere, gap: float) -> None:
-    """Infeasible where another road user is on the other's way between it and the agent (`TargetContext.first_on`
+def _nearest_lead(ctx: TargetContext, agent: AgentHere, other: AgentHere, way: np.ndarray, gap: float) -> None:
+    """Infeasible where another road user is on the other's `way` between it and the agent (`TargetContext.first_on`
     within the `gap`): the other follows that one, and the agent's braking is in front of it, not of the other."""
-    found = ctx.first_on(other, ctx.ahead(other), gap + 0.5 * other.length)
+    found = ctx.first_on(other, way, gap + 0.5 * other.length)
     if found is None or found[0] == agent.track_id:
         return
     reason = f"@{found[0]} is between @{other.track_id} and it"
     raise TargetUnavailable(agent.track_id, Behaviour.BRAKE_HARD, "infeasible", reason)
 
 
-def _on_their_way(ctx: TargetContext, agent: AgentHere, other: AgentHere, path: np.ndarray, upto: float) -> None:
-    """Infeasible where the agent's `path` parts from the other's way (`TargetContext.ahead`: its route, where it
+def _on_their_way(agent: AgentHere, other: AgentHere, path: np.ndarray, way: np.ndarray, upto: float) -> None:
+    """Infeasible where the agent's `path` parts from the other's `way` (`TargetContext.ahead`: its route, where it
     drives one) by more than the judge's `IN_PATH_LATERAL_M` before the agent comes to rest `upto` m along it: a
     follower that turns off at the junction ahead is braked in front of by no one (the judge reads the lead in the
     follower's driven path)."""
-    way = ctx.ahead(other)
     if len(path) < 2 or len(way) < 2:
         return
     stations = np.arange(0.0, upto + 0.5 * agent.length, WAY_STEP_M)

@@ -405,3 +405,35 @@ def how_other_drove(view: PairView) -> str | None:
     if last <= first - FELL_BACK_MPS:
         return f"{name} slowed from {first:.1f} to {last:.1f} m/s meanwhile (its own doing)"
     return None
+
+
+@dataclass(frozen=True)
+class Around:
+    """Every agent of a played scene at some played steps, seen from one track's centre along its heading ([A, S]):
+    how far its centre is `ahead` (m), how far it is `off` the heading line (m), its `half` length (m), and whether it
+    `counts` (valid there, not one of the pair judged); `ids` [A] their track ids."""
+
+    ids: np.ndarray
+    ahead: np.ndarray
+    off: np.ndarray
+    half: np.ndarray
+    counts: np.ndarray
+
+
+def around(scene: Scenario, seen_from: Track, steps: np.ndarray, pair: tuple[int, int]) -> Around:
+    """The agents of `scene` at the played `steps` (counted from its current step) seen from `seen_from` (`Around`),
+    the two of `pair` not counted: who held a cut-in back in its own lane, who came between a braking lead and its
+    follower."""
+    agents = scene.agents
+    rows = min(int(scene.current_index), scene.num_steps - 1) + steps
+    states = agents.states[:, rows].astype(np.float64)  # [A, S, F]
+    rel = states[..., [StateField.X, StateField.Y]] - seen_from.xy[steps][None]
+    cos, sin = np.cos(seen_from.heading[steps])[None], np.sin(seen_from.heading[steps])[None]
+    counts = agents.valid[:, rows] & ~np.isin(agents.ids, pair)[:, None]
+    return Around(
+        agents.ids,
+        rel[..., 0] * cos + rel[..., 1] * sin,
+        np.abs(rel[..., 1] * cos - rel[..., 0] * sin),
+        0.5 * states[..., StateField.LENGTH],
+        counts,
+    )

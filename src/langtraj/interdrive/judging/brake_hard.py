@@ -21,6 +21,7 @@ from langtraj.interdrive.judging.base import (
     Judgement,
     Measure,
     PairView,
+    around,
     asked_value,
     at,
     cut_short,
@@ -30,7 +31,6 @@ from langtraj.interdrive.judging.base import (
 )
 from langtraj.runs import true_runs
 from langtraj.scenario.model import STEP_SECONDS, Scenario
-from langtraj.scenario.types import StateField
 
 """What a prompt may ask of a braking lead: `deceleration` in m/s^2 ("at 6 m/s^2", "at 0.5 g")."""
 DECELERATION_TOLERANCE = 1.5
@@ -77,24 +77,18 @@ def came_between(scene: Scenario, view: PairView, span: np.ndarray) -> str | Non
     front of, not the follower (the traffic's doing, which the labelers' nearest-leader rule sees too)."""
     if not span.size:
         return None
-    agents, rows = scene.agents, min(int(scene.current_index), scene.num_steps - 1) + span
     follower = view.other
-    states = agents.states[:, rows].astype(np.float64)  # [A, S, F]
-    rel = states[..., [StateField.X, StateField.Y]] - follower.xy[span][None]
-    cos, sin = np.cos(follower.heading[span])[None], np.sin(follower.heading[span])[None]
-    along = rel[..., 0] * cos + rel[..., 1] * sin
-    half = 0.5 * states[..., StateField.LENGTH]
+    seen = around(scene, follower, span, (view.agent.track_id, follower.track_id))
     with np.errstate(invalid="ignore"):
-        between = (along - half > 0.5 * follower.length[span]) & (
-            along + half < view.along[span] - 0.5 * view.agent.length[span]
+        between = (seen.ahead - seen.half > 0.5 * follower.length[span]) & (
+            seen.ahead + seen.half < view.along[span] - 0.5 * view.agent.length[span]
         )
-        between &= np.abs(rel[..., 1] * cos - rel[..., 0] * sin) <= IN_PATH_LATERAL_M
-    between &= agents.valid[:, rows] & ~np.isin(agents.ids, [view.agent.track_id, follower.track_id])[:, None]
+    between &= seen.counts & (seen.off <= IN_PATH_LATERAL_M)
     if not between.any():
         return None
     found = np.argwhere(between)  # [K, 2]: agent row, step of span
     who, step = found[np.argmin(found[:, 1])]
-    return f"@{int(agents.ids[who])} came between @{follower.track_id} and it at {at(int(span[step]))}"
+    return f"@{int(seen.ids[who])} came between @{follower.track_id} and it at {at(int(span[step]))}"
 
 
 def judge(scene: Scenario, agent: int, other: int, asked: Mapping[str, float]) -> Judgement:

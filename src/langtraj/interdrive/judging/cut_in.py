@@ -20,6 +20,7 @@ from langtraj.interdrive.judging.base import (
     Judgement,
     Measure,
     PairView,
+    around,
     asked_value,
     at,
     cut_short,
@@ -29,7 +30,6 @@ from langtraj.interdrive.judging.base import (
 )
 from langtraj.runs import true_runs
 from langtraj.scenario.model import STEP_SECONDS, Scenario
-from langtraj.scenario.types import StateField
 
 """What a prompt may ask of a cut-in: `gap`, bumper to bumper in metres ("with a 15 m gap")."""
 GAP_TOLERANCE_M = 3.0
@@ -163,23 +163,15 @@ def held_behind(scene: Scenario, view: PairView, after: int, asked_gap: float) -
     steps = np.flatnonzero(short)
     if not steps.size:
         return None
-    first = min(int(scene.current_index), scene.num_steps - 1)
-    agents = scene.agents
-    ids = agents.ids
-    rows = first + steps
-    states = agents.states[:, rows].astype(np.float64)  # [A, S, F]
-    rel = states[..., [StateField.X, StateField.Y]] - view.agent.xy[steps][None]
-    cos, sin = np.cos(view.agent.heading[steps])[None], np.sin(view.agent.heading[steps])[None]
-    ahead = rel[..., 0] * cos + rel[..., 1] * sin - 0.5 * (states[..., StateField.LENGTH] + view.agent.length[steps])
-    lateral = np.abs(rel[..., 1] * cos - rel[..., 0] * sin)
-    mine = np.isin(ids, [view.agent.track_id, view.other.track_id])[:, None]
-    held = agents.valid[:, rows] & ~mine & (ahead > 0.0) & (ahead <= HELD_AHEAD_M) & (lateral <= HELD_LATERAL_M)
+    seen = around(scene, view.agent, steps, (view.agent.track_id, view.other.track_id))
+    ahead = seen.ahead - seen.half - 0.5 * view.agent.length[steps]
+    held = seen.counts & (ahead > 0.0) & (ahead <= HELD_AHEAD_M) & (seen.off <= HELD_LATERAL_M)
     counts = held.sum(axis=1)
     best = int(np.argmax(counts))
     if counts[best] < HELD_SHARE * len(steps):
         return None
     gaps = ahead[best][held[best]]
-    return f"held behind @{int(ids[best])} in its own lane ({gaps.min():.0f}-{gaps.max():.0f} m ahead of it)"
+    return f"held behind @{int(seen.ids[best])} in its own lane ({gaps.min():.0f}-{gaps.max():.0f} m ahead of it)"
 
 
 def judge_settling(
